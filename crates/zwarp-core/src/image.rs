@@ -1,0 +1,145 @@
+//! `Image<T>`: the one 2-D buffer type (width, height, flat row-major `Vec`).
+
+use crate::{Error, Result};
+
+/// A 2-D buffer: `data[y * width + x]`, row 0 at the top (DESIGN.md conventions).
+/// Depth buffers, item buffers, motion buffers, mip levels and N-buffer levels are all `Image`s.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image<T> {
+    width: u32,
+    height: u32,
+    data: Vec<T>,
+}
+
+impl<T: Clone> Image<T> {
+    /// A `width x height` image filled with `value`. Zero-size images are allowed here (they are
+    /// rejected where a stage needs pixels, see [`Image::check_nonempty`]).
+    pub fn new(width: u32, height: u32, value: T) -> Self {
+        Image { width, height, data: vec![value; width as usize * height as usize] }
+    }
+}
+
+impl<T> Image<T> {
+    /// Wraps `data` (row-major) as a `width x height` image; errors if the length does not match.
+    pub fn from_vec(width: u32, height: u32, data: Vec<T>) -> Result<Self> {
+        if data.len() != width as usize * height as usize {
+            return Err(Error::invalid(format!(
+                "image data has {} elements, expected {}x{} = {}",
+                data.len(),
+                width,
+                height,
+                width as usize * height as usize
+            )));
+        }
+        Ok(Image { width, height, data })
+    }
+
+    /// Builds an image by evaluating `f(x, y)` at every pixel.
+    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> T) -> Self {
+        let mut data = Vec::with_capacity(width as usize * height as usize);
+        for y in 0..height {
+            for x in 0..width {
+                data.push(f(x, y));
+            }
+        }
+        Image { width, height, data }
+    }
+
+    /// Width in pixels.
+    #[inline]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in pixels.
+    #[inline]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// `(width, height)`.
+    #[inline]
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// Number of pixels.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+    /// `true` when the image has no pixels.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+    /// Errors with a clear message if the image has no pixels.
+    pub fn check_nonempty(&self, what: &str) -> Result<()> {
+        if self.is_empty() {
+            Err(Error::invalid(format!("{what} is a zero-size image ({}x{})", self.width, self.height)))
+        } else {
+            Ok(())
+        }
+    }
+    /// Errors with a clear message if `other` does not have the same size.
+    pub fn check_same_size<U>(&self, other: &Image<U>, what: &str) -> Result<()> {
+        if self.size() != other.size() {
+            Err(Error::invalid(format!(
+                "{what}: size mismatch {}x{} vs {}x{}",
+                self.width, self.height, other.width, other.height
+            )))
+        } else {
+            Ok(())
+        }
+    }
+    /// Flat index of pixel `(x, y)`.
+    #[inline]
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        y as usize * self.width as usize + x as usize
+    }
+    /// The pixel at `(x, y)` (panics when out of bounds, like slice indexing).
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> &T {
+        &self.data[self.index(x, y)]
+    }
+    /// Mutable pixel at `(x, y)`.
+    #[inline]
+    pub fn get_mut(&mut self, x: u32, y: u32) -> &mut T {
+        let i = self.index(x, y);
+        &mut self.data[i]
+    }
+    /// The pixel at `(x, y)` with coordinates clamped to the image (edge extension).
+    #[inline]
+    pub fn get_clamped(&self, x: i64, y: i64) -> &T {
+        let cx = x.clamp(0, self.width as i64 - 1) as u32;
+        let cy = y.clamp(0, self.height as i64 - 1) as u32;
+        self.get(cx, cy)
+    }
+    /// Row `y` as a slice.
+    #[inline]
+    pub fn row(&self, y: u32) -> &[T] {
+        let w = self.width as usize;
+        &self.data[y as usize * w..(y as usize + 1) * w]
+    }
+    /// Row `y` as a mutable slice.
+    #[inline]
+    pub fn row_mut(&mut self, y: u32) -> &mut [T] {
+        let w = self.width as usize;
+        &mut self.data[y as usize * w..(y as usize + 1) * w]
+    }
+    /// All pixels, row-major.
+    #[inline]
+    pub fn data(&self) -> &[T] {
+        &self.data
+    }
+    /// All pixels, row-major, mutable.
+    #[inline]
+    pub fn data_mut(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+    /// Consumes the image, returning its pixels.
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+    /// Applies `f` to every pixel, producing a new image of the same size.
+    pub fn map<U>(&self, f: impl FnMut(&T) -> U) -> Image<U> {
+        Image { width: self.width, height: self.height, data: self.data.iter().map(f).collect() }
+    }
+}

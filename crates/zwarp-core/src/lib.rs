@@ -1,0 +1,36 @@
+//! zwarp-core: the plain buffers and conventions every stage of zwarp shares.
+//!
+//! Conventions (DESIGN.md, kept everywhere):
+//! - **Depth** is post-projection depth in `[0, 1]`, 0 = near plane, 1 = far plane. The value
+//!   `1.0` also means "no surface" (the paper's `s.z < 1` test for a valid sample). Use
+//!   [`Camera::linear_depth`] to get view-space distance.
+//! - **Pixels**: pixel `(x, y)` covers `[x, x+1) x [y, y+1)`, its sample point is the centre
+//!   `(x + 0.5, y + 0.5)`, row 0 is the top of the image.
+//! - **Motion** is in pixels from the source view to the target view: a point at `q` in the
+//!   source appears at `q + v(q)` in the target; each motion sample also carries the point's depth
+//!   in the target view ([`Motion`]).
+//! - **Matrices** are column-major glam types; projections map view-space depth to `[0, 1]`
+//!   (`perspective_rh` / `orthographic_rh`).
+
+pub mod camera;
+pub mod error;
+pub mod geom;
+pub mod image;
+pub mod motion;
+pub mod scene;
+
+pub use camera::{Camera, Projection};
+pub use error::{Error, Result};
+pub use geom::Aabb;
+pub use image::Image;
+pub use motion::{motion_field, Motion};
+pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
+
+/// Depth value that means "no surface here" (the far plane).
+pub const EMPTY_DEPTH: f32 = 1.0;
+
+/// `true` if a stored depth is a real surface (the paper's `s.z < 1`).
+#[inline]
+pub fn is_surface(depth: f32) -> bool {
+    depth < EMPTY_DEPTH
+}
