@@ -81,7 +81,10 @@ impl Camera {
     ) -> Result<Self> {
         check_common(width, height, near, far)?;
         if !(fov_y > 0.0 && fov_y < std::f32::consts::PI) {
-            return Err(Error::invalid(format!("field of view must be in (0, 180) degrees, got {} deg", fov_y.to_degrees())));
+            return Err(Error::invalid(format!(
+                "field of view must be in (0, 180) degrees, got {} deg",
+                fov_y.to_degrees()
+            )));
         }
         let view = look_at(eye, target, up)?;
         let proj = Mat4::perspective_rh(fov_y, width as f32 / height as f32, near, far);

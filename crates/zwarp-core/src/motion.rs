@@ -42,7 +42,13 @@ pub fn reproject_pixel(inv_a: &Mat4, m: &Mat4, a: (u32, u32), b: (u32, u32), x: 
 /// `object_deltas[id]` is the world-space motion `M(t_b) * M(t_a)^-1` of object `id` (see
 /// [`crate::Scene::object_deltas`]); pass an empty slice for a static scene. Pixels with
 /// [`NO_ITEM`] or ids beyond the slice move with the camera only.
-pub fn motion_field(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a: &Camera, cam_b: &Camera, object_deltas: &[Mat4]) -> Result<Image<Motion>> {
+pub fn motion_field(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    object_deltas: &[Mat4],
+) -> Result<Image<Motion>> {
     depth.check_nonempty("depth buffer")?;
     if let Some(it) = items {
         depth.check_same_size(it, "depth vs item buffer")?;
@@ -97,8 +103,12 @@ mod tests {
         // Camera moves +x by dx at distance z; a point at depth z shifts by -dx * f / z pixels.
         let (w, h) = (64, 64);
         let fov = 1.0f32;
-        let a = Camera::perspective(Vec3::new(0.0, 0.0, 10.0), Vec3::new(0.0, 0.0, 0.0), Vec3::Y, fov, 0.1, 100.0, w, h).unwrap();
-        let b = Camera::perspective(Vec3::new(0.5, 0.0, 10.0), Vec3::new(0.5, 0.0, 0.0), Vec3::Y, fov, 0.1, 100.0, w, h).unwrap();
+        let a =
+            Camera::perspective(Vec3::new(0.0, 0.0, 10.0), Vec3::new(0.0, 0.0, 0.0), Vec3::Y, fov, 0.1, 100.0, w, h)
+                .unwrap();
+        let b =
+            Camera::perspective(Vec3::new(0.5, 0.0, 10.0), Vec3::new(0.5, 0.0, 0.0), Vec3::Y, fov, 0.1, 100.0, w, h)
+                .unwrap();
         let d = a.stored_depth(10.0);
         let depth = Image::new(w, h, d);
         let m = motion_field(&depth, None, &a, &b, &[]).unwrap();

@@ -163,7 +163,7 @@ pub struct AreaLight {
 }
 
 /// A whole scene: meshes, instances, lights. Camera paths live beside it (`zwarp-scene`).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Scene {
     /// Human-readable name (e.g. `cb` or a file name).
     pub name: String,
@@ -173,6 +173,14 @@ pub struct Scene {
     pub instances: Vec<Instance>,
     /// Area lights (may be empty; applications place a default one from the bounds).
     pub lights: Vec<AreaLight>,
+    /// World up axis (glTF/OBJ: +Y; Sponza, Munich and the procedural scenes: +Z).
+    pub up: Vec3,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Scene { name: String::new(), meshes: Vec::new(), instances: Vec::new(), lights: Vec::new(), up: Vec3::Z }
+    }
 }
 
 impl Scene {
@@ -182,7 +190,14 @@ impl Scene {
         (self.meshes.len() - 1) as u32
     }
     /// Adds an instance of `mesh` with world bounds computed; returns its object id.
-    pub fn add_instance(&mut self, mesh: u32, transform: Mat4, albedo: Vec3, animation: Animation, is_ground: bool) -> u32 {
+    pub fn add_instance(
+        &mut self,
+        mesh: u32,
+        transform: Mat4,
+        albedo: Vec3,
+        animation: Animation,
+        is_ground: bool,
+    ) -> u32 {
         let world_aabb = self.meshes[mesh as usize].bounds.transformed(&transform);
         self.instances.push(Instance { mesh, transform, animation, world_aabb, albedo, is_ground });
         (self.instances.len() - 1) as u32
