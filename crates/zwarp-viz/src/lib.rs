@@ -1,0 +1,1 @@
+//! zwarp-viz (being built).
