@@ -1,0 +1,196 @@
+//! Screen-space bounds of an occludee proxy (seed 000 Sec. 5.2, thesis seed 002 Sec. III.2 and
+//! Fig. 3): the 8 corners of a world AABB are projected; the pixel rectangle they span and the
+//! nearest corner depth are what the max-depth query tests ("when the minimum depth of the
+//! proxy corners exceeds the maximum of the screen-space depth, we can safely cull").
+
+use glam::Mat4;
+use zwarp_core::{camera::project_with, Aabb, Camera, Error, Result};
+
+/// A non-empty, half-open pixel rectangle `[x0, x1) x [y0, y1)` (row 0 at the top).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PixelRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl PixelRect {
+    /// The rectangle `[x0, x1) x [y0, y1)`; errors when it is empty.
+    pub fn new(x0: u32, y0: u32, x1: u32, y1: u32) -> Result<Self> {
+        if x0 >= x1 || y0 >= y1 {
+            return Err(Error::invalid(format!("empty pixel rectangle [{x0}, {x1}) x [{y0}, {y1})")));
+        }
+        Ok(PixelRect { x0, y0, x1, y1 })
+    }
+    /// The whole `width x height` image.
+    pub fn full(width: u32, height: u32) -> Result<Self> {
+        Self::new(0, 0, width, height)
+    }
+    /// Number of columns (`a` in the N-buffer papers).
+    #[inline]
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    /// Number of rows (`b`).
+    #[inline]
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    /// Number of pixels.
+    #[inline]
+    pub fn area(&self) -> u64 {
+        self.width() as u64 * self.height() as u64
+    }
+    /// The part inside a `width x height` image, `None` if nothing is left.
+    pub fn clamped(&self, width: u32, height: u32) -> Option<Self> {
+        let (x1, y1) = (self.x1.min(width), self.y1.min(height));
+        (self.x0 < x1 && self.y0 < y1).then_some(PixelRect { x0: self.x0, y0: self.y0, x1, y1 })
+    }
+}
+
+/// Result of projecting a box (see [`screen_rect`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ScreenRect {
+    /// A corner lies behind the eye or in front of the near plane: the projected bound is
+    /// unreliable, the object must be treated as visible.
+    CrossesNear,
+    /// The box projects entirely outside the image or beyond the far plane (nothing to draw).
+    Outside,
+    /// The pixels the box can touch (clamped to the image) and its nearest depth.
+    Rect {
+        /// Every pixel the projected box can cover.
+        rect: PixelRect,
+        /// Minimum stored depth over the 8 corners (the box's nearest point: depth is
+        /// monotonic in view distance, and a box's minimum view distance is at a corner).
+        nearest: f32,
+    },
+}
+
+/// Slack in pixels added on each side of the projected bound so that f32 rounding of the
+/// projection can never shrink the rectangle below what the rasterizer covers.
+const PIXEL_SLACK: f32 = 1e-3;
+
+/// Projects the 8 corners of `aabb` with `cam` (see [`ScreenRect`]).
+pub fn screen_rect(aabb: &Aabb, cam: &Camera) -> ScreenRect {
+    screen_rect_with(aabb, &cam.view_proj(), cam.width, cam.height)
+}
+
+/// Hot-loop form of [`screen_rect`] with a precomputed view-projection matrix.
+pub fn screen_rect_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> ScreenRect {
+    if aabb.min.is_nan() || aabb.max.is_nan() || !aabb.min.is_finite() && !aabb.is_empty() {
+        // Unbounded proxy: nothing sensible can be tested.
+        return ScreenRect::CrossesNear;
+    }
+    if aabb.is_empty() || width == 0 || height == 0 {
+        return ScreenRect::Outside;
+    }
+    let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY);
+    let mut nearest = f32::INFINITY;
+    for c in aabb.corners() {
+        match project_with(view_proj, width, height, c) {
+            Some(s) if s.z >= 0.0 && s.is_finite() => {
+                lo_x = lo_x.min(s.x);
+                lo_y = lo_y.min(s.y);
+                hi_x = hi_x.max(s.x);
+                hi_y = hi_y.max(s.y);
+                nearest = nearest.min(s.z);
+            }
+            // Behind the eye (w <= 0) or closer than the near plane (z < 0).
+            _ => return ScreenRect::CrossesNear,
+        }
+    }
+    if nearest > 1.0 {
+        return ScreenRect::Outside;
+    }
+    let (w, h) = (width as f32, height as f32);
+    // Pixel x covers [x, x + 1): the box touches columns floor(lo) ..= ceil(hi) - 1.
+    let x0 = (lo_x - PIXEL_SLACK).floor().max(0.0);
+    let y0 = (lo_y - PIXEL_SLACK).floor().max(0.0);
+    let x1 = (hi_x + PIXEL_SLACK).ceil().min(w);
+    let y1 = (hi_y + PIXEL_SLACK).ceil().min(h);
+    if x0 >= x1 || y0 >= y1 {
+        return ScreenRect::Outside;
+    }
+    ScreenRect::Rect { rect: PixelRect { x0: x0 as u32, y0: y0 as u32, x1: x1 as u32, y1: y1 as u32 }, nearest }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn pixel_rect_basics() {
+        assert!(PixelRect::new(3, 0, 3, 5).is_err());
+        let r = PixelRect::new(1, 2, 5, 4).unwrap();
+        assert_eq!((r.width(), r.height(), r.area()), (4, 2, 8));
+        assert_eq!(r.clamped(3, 10), Some(PixelRect { x0: 1, y0: 2, x1: 3, y1: 4 }));
+        assert_eq!(r.clamped(1, 10), None);
+    }
+
+    #[test]
+    fn orthographic_box_has_exact_rect_and_depth() {
+        // Ortho camera: 1 world unit = 4 pixels (half height 4 over 32 pixels), depth linear.
+        let c = Camera::orthographic(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 4.0, 1.0, 21.0, 32, 32).unwrap();
+        let b = Aabb::new(Vec3::new(-1.0, -0.5, -1.0), Vec3::new(1.25, 0.5, 1.0));
+        match screen_rect(&b, &c) {
+            ScreenRect::Rect { rect, nearest } => {
+                // x in [-1, 1.25] -> pixel edges 12..21, y in [-0.5, 0.5] -> rows 14..18. The corners
+                // land exactly on pixel edges, so the rounding slack widens the rect by one pixel
+                // per side: conservative by design.
+                assert_eq!(rect, PixelRect { x0: 11, y0: 13, x1: 22, y1: 19 });
+                // Nearest face z = 1 is 9 units from the eye: depth (9 - 1) / 20 = 0.4.
+                assert!((nearest - 0.4).abs() < 1e-6, "{nearest}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn near_plane_behind_and_outside() {
+        let c = Camera::perspective(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 1.0, 0.5, 100.0, 40, 30).unwrap();
+        // Straddles the near plane (z = 9.5): crosses near even though mostly in front.
+        let b = Aabb::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 9.7));
+        assert_eq!(screen_rect(&b, &c), ScreenRect::CrossesNear);
+        // Entirely behind the eye: also reported as CrossesNear (VFC removes it earlier).
+        let b = Aabb::new(Vec3::new(-1.0, -1.0, 11.0), Vec3::new(1.0, 1.0, 12.0));
+        assert_eq!(screen_rect(&b, &c), ScreenRect::CrossesNear);
+        // Far to the right: outside.
+        let b = Aabb::new(Vec3::new(50.0, -1.0, -1.0), Vec3::new(51.0, 1.0, 1.0));
+        assert_eq!(screen_rect(&b, &c), ScreenRect::Outside);
+        // Beyond the far plane.
+        let b = Aabb::new(Vec3::new(-1.0, -1.0, -200.0), Vec3::new(1.0, 1.0, -150.0));
+        assert_eq!(screen_rect(&b, &c), ScreenRect::Outside);
+        assert_eq!(screen_rect(&Aabb::EMPTY, &c), ScreenRect::Outside);
+    }
+
+    #[test]
+    fn rect_covers_every_projected_point_and_is_clamped() {
+        let c = Camera::perspective(Vec3::new(1.0, 2.0, 10.0), Vec3::ZERO, Vec3::Y, 1.2, 0.1, 100.0, 37, 23).unwrap();
+        // Partly off-screen box: rect is clamped to the image.
+        let b = Aabb::new(Vec3::new(-2.0, -1.0, -3.0), Vec3::new(9.0, 1.5, 1.0));
+        let ScreenRect::Rect { rect, nearest } = screen_rect(&b, &c) else { panic!() };
+        assert!(rect.x1 <= 37 && rect.y1 <= 23);
+        assert_eq!(rect.x1, 37, "the box leaves the image on the right");
+        // Sample the box densely: every on-screen point falls inside the rect and is not nearer.
+        for i in 0..=10 {
+            for j in 0..=10 {
+                for k in 0..=10 {
+                    let t = Vec3::new(i as f32, j as f32, k as f32) / 10.0;
+                    let p = b.min + (b.max - b.min) * t;
+                    let s = c.project(p).unwrap();
+                    if s.x >= 0.0 && s.x < 37.0 && s.y >= 0.0 && s.y < 23.0 {
+                        let (px, py) = (s.x.floor() as u32, s.y.floor() as u32);
+                        assert!(px >= rect.x0 && px < rect.x1 && py >= rect.y0 && py < rect.y1);
+                    }
+                    assert!(s.z >= nearest - 1e-7);
+                }
+            }
+        }
+    }
+}
