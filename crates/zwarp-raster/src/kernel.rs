@@ -1,0 +1,320 @@
+//! Tile back end: rasterizes the binned triangles of each screen tile into a tile-local buffer
+//! (L1-resident), in parallel over bands of tiles (no locks: every band owns its output rows).
+//!
+//! Inner loop: 8 pixels per step with incremental i32 edge functions and an f32 depth plane,
+//! written so LLVM vectorizes it; an AVX2 build of the same code is selected at run time on x86.
+
+use rayon::prelude::*;
+use zwarp_core::{Image, NO_ITEM};
+
+use crate::setup::{shading, Binned, Tri, TILE_H, TILE_W};
+
+const TILE_PIX: usize = TILE_W * TILE_H;
+/// Triangles rasterized between two refreshes of a tile's conservative max depth.
+const ZMAX_REFRESH: u32 = 32;
+/// Clamp for the per-row i32 edge values: |a| < 2^23 (guard band, `setup.rs`) so 64 |a| < 2^29;
+/// a clamped value keeps its sign over a whole tile row and never overflows i32.
+const EDGE_CLAMP: i64 = 1 << 29;
+
+/// Rasterization mode of a pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Mode {
+    /// Depth test `z < stored`, write depth (and ids if requested).
+    Depth,
+    /// Depth peeling: additionally `z > threshold[pixel]` (strictly behind the previous layer).
+    Peel,
+    /// Test helper: count covered pixel centres into the id buffer, no depth test.
+    Count,
+}
+
+struct TileBuf {
+    depth: Vec<f32>,
+    ids: Vec<u32>,
+    thr: Vec<f32>,
+}
+
+/// The per-triangle tile kernel.
+///
+/// `tx0, ty0` = tile origin in pixels. Pixels outside the image but inside the tile buffer are
+/// harmless padding (never written back).
+#[inline(always)]
+fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+    t: &Tri,
+    handle: u32,
+    tx0: u32,
+    ty0: u32,
+    buf: &mut TileBuf,
+) {
+    let x0 = (t.x0 as u32).max(tx0) - tx0;
+    let x1 = (t.x1 as u32).min(tx0 + TILE_W as u32 - 1) - tx0;
+    let y0 = (t.y0 as u32).max(ty0) - ty0;
+    let y1 = (t.y1 as u32).min(ty0 + TILE_H as u32 - 1) - ty0;
+    let xs = x0 & !7;
+    let zx = t.zx as f32;
+    let mut oa = [[0i32; 8]; 3];
+    for e in 0..3 {
+        for k in 0..8 {
+            oa[e][k] = t.a[e] * k as i32;
+        }
+    }
+    let step = [t.a[0] * 8, t.a[1] * 8, t.a[2] * 8];
+    let depth = &mut buf.depth[..];
+    let ids = &mut buf.ids[..];
+    let thr = &buf.thr[..];
+    for y in y0..=y1 {
+        let gy = (ty0 + y) as i64;
+        let gx = (tx0 + xs) as i64;
+        let mut e = [0i32; 3];
+        for i in 0..3 {
+            e[i] = t.edge_at(i, gx, gy).clamp(-EDGE_CLAMP, EDGE_CLAMP) as i32;
+        }
+        let zrow = t.row_depth(tx0, ty0 + y);
+        let row = y as usize * TILE_W;
+        let mut xb = xs;
+        while xb <= x1 {
+            let i = row + xb as usize;
+            let d8: &mut [f32; 8] = (&mut depth[i..i + 8]).try_into().unwrap();
+            let id8: &mut [u32; 8] = (&mut ids[i..i + 8]).try_into().unwrap();
+            if COUNT {
+                for k in 0..8 {
+                    let ee = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
+                    id8[k] += (ee >= 0) as u32;
+                }
+            } else {
+                let th8: &[f32; 8] = if PEEL { (&thr[i..i + 8]).try_into().unwrap() } else { &[0.0; 8] };
+                for k in 0..8 {
+                    let ee = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
+                    let z = (zrow + zx * (xb + k as u32) as f32).max(0.0);
+                    let d = d8[k];
+                    let mut pass = ee >= 0 && z < d;
+                    if PEEL {
+                        pass &= z > th8[k];
+                    }
+                    d8[k] = if pass { z } else { d };
+                    if IDS {
+                        id8[k] = if pass { handle } else { id8[k] };
+                    }
+                }
+            }
+            e[0] += step[0];
+            e[1] += step[1];
+            e[2] += step[2];
+            xb += 8;
+        }
+    }
+}
+
+/// Max depth of a tile buffer (for the early-z reject).
+#[inline(always)]
+fn tile_max(depth: &[f32]) -> f32 {
+    let mut m = [0f32; 8];
+    for c in depth.chunks_exact(8) {
+        for k in 0..8 {
+            m[k] = m[k].max(c[k]);
+        }
+    }
+    m.iter().fold(0f32, |a, &b| a.max(b))
+}
+
+/// Rasterizes every binned triangle of tile `tile` (origin `tx0, ty0`) into `buf`.
+#[inline(always)]
+fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+    binned: &Binned,
+    tile: usize,
+    tx0: u32,
+    ty0: u32,
+    buf: &mut TileBuf,
+) {
+    let mut zmax = if COUNT { f32::INFINITY } else { tile_max(&buf.depth) };
+    let mut since = 0u32;
+    for (ci, chunk) in binned.chunks.iter().enumerate() {
+        for &li in chunk.bin(tile) {
+            let t = &chunk.tris[li as usize];
+            // Early-z: the whole triangle is at or behind everything stored in this tile.
+            if !COUNT && t.zmin >= zmax {
+                continue;
+            }
+            raster_tri::<IDS, PEEL, COUNT>(t, ((ci as u32) << 16) | li as u32, tx0, ty0, buf);
+            since += 1;
+            if !COUNT && since >= ZMAX_REFRESH {
+                since = 0;
+                zmax = tile_max(&buf.depth);
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn raster_tile_avx2<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+    binned: &Binned,
+    tile: usize,
+    tx0: u32,
+    ty0: u32,
+    buf: &mut TileBuf,
+) {
+    raster_tile_impl::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+}
+
+fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+    binned: &Binned,
+    tile: usize,
+    tx0: u32,
+    ty0: u32,
+    buf: &mut TileBuf,
+) {
+    raster_tile_impl::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+}
+
+#[inline]
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+fn raster_tile_dispatch<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+    avx2: bool,
+    binned: &Binned,
+    tile: usize,
+    tx0: u32,
+    ty0: u32,
+    buf: &mut TileBuf,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: only taken when the CPU reports AVX2 (checked by `has_avx2`).
+        unsafe { raster_tile_avx2::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf) };
+        return;
+    }
+    let _ = avx2;
+    raster_tile_generic::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+}
+
+/// Output buffers of one pass. `depth` is both input (when `load`) and output.
+pub(crate) struct Targets<'a> {
+    pub depth: &'a mut Image<f32>,
+    /// Item buffer (instance ids). Written where a fragment won; elsewhere kept (load) or NO_ITEM.
+    pub items: Option<&'a mut Image<u32>>,
+    /// Colour buffer: flat colour where a fragment won; elsewhere kept (load) or sky.
+    pub color: Option<&'a mut Image<[f32; 3]>>,
+    /// Peeling threshold (stored depth); fragments must be strictly behind it.
+    pub threshold: Option<&'a Image<f32>>,
+    /// Start from the current contents of `depth` (and keep `items`/`color` where nothing is
+    /// drawn) instead of clearing to empty.
+    pub load: bool,
+}
+
+/// Runs one raster pass of `binned` into `targets` with `mode`. Sizes are checked by callers.
+pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
+    let vp = binned.vp;
+    let (w, h) = (vp.width as usize, vp.height as usize);
+    let tiles_x = vp.tiles_x();
+    let avx2 = has_avx2();
+    let want_ids = targets.items.is_some() || targets.color.is_some() || mode == Mode::Count;
+    let band = w * TILE_H;
+    let load = targets.load;
+    let thr_img = targets.threshold;
+    let mut items_bands: Vec<Option<&mut [u32]>> = match targets.items {
+        Some(it) => it.data_mut().chunks_mut(band).map(Some).collect(),
+        None => (0..vp.tiles_y()).map(|_| None).collect(),
+    };
+    let mut color_bands: Vec<Option<&mut [[f32; 3]]>> = match targets.color {
+        Some(c) => c.data_mut().chunks_mut(band).map(Some).collect(),
+        None => (0..vp.tiles_y()).map(|_| None).collect(),
+    };
+    targets
+        .depth
+        .data_mut()
+        .par_chunks_mut(band)
+        .zip(items_bands.par_iter_mut())
+        .zip(color_bands.par_iter_mut())
+        .enumerate()
+        .for_each(|(ty, ((dband, iband), cband))| {
+            let mut buf = TileBuf {
+                depth: vec![1.0; TILE_PIX],
+                ids: vec![NO_ITEM; TILE_PIX],
+                thr: vec![f32::INFINITY; TILE_PIX],
+            };
+            let ty0 = ty * TILE_H;
+            let rows = (h - ty0).min(TILE_H);
+            for tx in 0..tiles_x {
+                let tx0 = tx * TILE_W;
+                let cols = (w - tx0).min(TILE_W);
+                // Initialize the tile.
+                if mode == Mode::Count {
+                    buf.ids.fill(0);
+                } else {
+                    buf.depth.fill(1.0);
+                    if want_ids {
+                        buf.ids.fill(NO_ITEM);
+                    }
+                    if load {
+                        for r in 0..rows {
+                            buf.depth[r * TILE_W..r * TILE_W + cols]
+                                .copy_from_slice(&dband[r * w + tx0..r * w + tx0 + cols]);
+                        }
+                    }
+                    if let Some(th) = thr_img {
+                        buf.thr.fill(f32::INFINITY);
+                        for r in 0..rows {
+                            let gy = ty0 + r;
+                            buf.thr[r * TILE_W..r * TILE_W + cols]
+                                .copy_from_slice(&th.data()[gy * w + tx0..gy * w + tx0 + cols]);
+                        }
+                    }
+                }
+                let tile = ty * tiles_x + tx;
+                let (x0, y0) = (tx0 as u32, ty0 as u32);
+                match (mode, want_ids) {
+                    (Mode::Count, _) => raster_tile_dispatch::<true, false, true>(avx2, binned, tile, x0, y0, &mut buf),
+                    (Mode::Depth, false) => {
+                        raster_tile_dispatch::<false, false, false>(avx2, binned, tile, x0, y0, &mut buf)
+                    }
+                    (Mode::Depth, true) => {
+                        raster_tile_dispatch::<true, false, false>(avx2, binned, tile, x0, y0, &mut buf)
+                    }
+                    (Mode::Peel, false) => {
+                        raster_tile_dispatch::<false, true, false>(avx2, binned, tile, x0, y0, &mut buf)
+                    }
+                    (Mode::Peel, true) => {
+                        raster_tile_dispatch::<true, true, false>(avx2, binned, tile, x0, y0, &mut buf)
+                    }
+                }
+                // Write back.
+                for r in 0..rows {
+                    let (o, s) = (r * w + tx0, r * TILE_W);
+                    if mode != Mode::Count {
+                        dband[o..o + cols].copy_from_slice(&buf.depth[s..s + cols]);
+                    }
+                    if let Some(ib) = iband.as_deref_mut() {
+                        for c in 0..cols {
+                            let hnd = buf.ids[s + c];
+                            if mode == Mode::Count {
+                                ib[o + c] = hnd;
+                            } else if hnd != NO_ITEM {
+                                ib[o + c] = binned.tri(hnd).0.inst;
+                            } else if !load {
+                                ib[o + c] = NO_ITEM;
+                            }
+                        }
+                    }
+                    if let Some(cb) = cband.as_deref_mut() {
+                        for c in 0..cols {
+                            let hnd = buf.ids[s + c];
+                            if hnd != NO_ITEM {
+                                cb[o + c] = binned.tri(hnd).1.copied().unwrap_or(shading::SKY_COLOR);
+                            } else if !load {
+                                cb[o + c] = shading::SKY_COLOR;
+                            }
+                        }
+                    }
+                }
+            }
+        });
+}
