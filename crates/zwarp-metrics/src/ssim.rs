@@ -60,9 +60,35 @@ fn reflect(i: isize, n: usize) -> usize {
     (if m >= n { 2 * n - 1 - m } else { m }) as usize
 }
 
+/// `out[x] = sum_t taps[t] * src[x + t]` for a symmetric 11-tap kernel, written as whole-row
+/// passes (`out += w * (src[x + t] + src[x + 10 - t])`) so the compiler vectorizes across `x`.
+/// `src` holds `out.len() + 10` samples (the reflected halo included).
+#[inline]
+fn filter_taps<'a>(taps: &[f64; SSIM_WIN_SIZE], out: &mut [f64], src: impl Fn(usize) -> &'a [f64]) {
+    let n = out.len();
+    let r = SSIM_RADIUS;
+    for (o, &c) in out.iter_mut().zip(&src(r)[..n]) {
+        *o = taps[r] * c;
+    }
+    for t in 0..r {
+        let (lo, hi) = (&src(t)[..n], &src(2 * r - t)[..n]);
+        let wt = taps[t];
+        for ((o, &l), &h) in out.iter_mut().zip(lo).zip(hi) {
+            *o += wt * (l + h);
+        }
+    }
+}
+
+thread_local! {
+    /// Per-thread scratch reused across calls: SSIM runs on every evaluated frame, and fresh
+    /// multi-megabyte allocations per band cost more in page faults than the filtering itself.
+    static SCRATCH: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// Computes SSIM map rows `y0..y1` of the `w x h` images `a`, `b` and hands each row to
-/// `sink(y, row)`. Horizontal pass over the band plus its reflected halo, then vertical pass:
-/// the separable form of scipy's 2-D Gaussian filter applied to `a, b, a^2, b^2, ab`.
+/// `sink(y, row)`: the separable form of scipy's 2-D Gaussian filter applied to
+/// `a, b, a^2, b^2, ab` (scipy filters columns first; the order only changes the last bits).
+/// Horizontally filtered rows live in a ring of 11 rows, so the working set stays in cache.
 #[allow(clippy::too_many_arguments)]
 fn ssim_band(
     a: &[f32],
@@ -74,62 +100,93 @@ fn ssim_band(
     c: (f64, f64),
     mut sink: impl FnMut(usize, &[f64]),
 ) {
+    const WIN: usize = SSIM_WIN_SIZE;
     let taps = gaussian_taps();
     let r = SSIM_RADIUS;
-    let rows = y1 - y0 + 2 * r;
-    // Horizontally filtered [E a, E b, E a^2, E b^2, E ab] for every band + halo row.
-    let mut hbuf = vec![[0.0f64; 5]; rows * w];
-    let mut pa = vec![0.0f64; w + 2 * r];
-    let mut pb = vec![0.0f64; w + 2 * r];
-    for j in 0..rows {
-        let src = reflect(y0 as isize + j as isize - r as isize, h) * w;
-        for k in 0..w + 2 * r {
-            let sx = src + reflect(k as isize - r as isize, w);
-            pa[k] = a[sx] as f64;
-            pb[k] = b[sx] as f64;
-        }
-        let out = &mut hbuf[j * w..(j + 1) * w];
-        for (x, o) in out.iter_mut().enumerate() {
-            let mut s = [0.0f64; 5];
-            for (t, &wt) in taps.iter().enumerate() {
-                let (va, vb) = (pa[x + t], pb[x + t]);
-                s[0] += wt * va;
-                s[1] += wt * vb;
-                s[2] += wt * (va * va);
-                s[3] += wt * (vb * vb);
-                s[4] += wt * (va * vb);
+    let pw = w + 2 * r;
+    let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    // Layout: 5 ring planes of WIN rows (E[a], E[b], E[a^2], E[b^2], E[ab], structure of
+    // arrays so both passes vectorize), 5 padded source rows, 5 vertical accumulators, 1 output.
+    let need = 5 * WIN * w + 5 * pw + 5 * w + w;
+    if scratch.len() < need {
+        scratch.resize(need, 0.0);
+    }
+    {
+        let (ring, rest) = scratch.split_at_mut(5 * WIN * w);
+        let (pad, rest) = rest.split_at_mut(5 * pw);
+        let (acc, rest) = rest.split_at_mut(5 * w);
+        let srow = &mut rest[..w];
+        // Image row of band-local halo row `j` (reflected at the image borders).
+        let src_row = |j: usize| reflect(y0 as isize + j as isize - r as isize, h) * w;
+        let mut horizontal = |j: usize, ring: &mut [f64]| {
+            let src = src_row(j);
+            let (ra, rb) = (&a[src..src + w], &b[src..src + w]);
+            let (pa, rest) = pad.split_at_mut(pw);
+            let (pb, rest) = rest.split_at_mut(pw);
+            // Interior samples are a straight copy; only the 2 * 5 halo samples need `reflect`
+            // (its integer modulo would otherwise dominate this loop).
+            for (d, &v) in pa[r..r + w].iter_mut().zip(ra) {
+                *d = v as f64;
             }
-            *o = s;
+            for (d, &v) in pb[r..r + w].iter_mut().zip(rb) {
+                *d = v as f64;
+            }
+            for k in (0..r).chain(r + w..pw) {
+                let sx = reflect(k as isize - r as isize, w);
+                pa[k] = ra[sx] as f64;
+                pb[k] = rb[sx] as f64;
+            }
+            let (paa, rest) = rest.split_at_mut(pw);
+            let (pbb, pab) = rest.split_at_mut(pw);
+            for k in 0..pw {
+                let (va, vb) = (pa[k], pb[k]);
+                paa[k] = va * va;
+                pbb[k] = vb * vb;
+                pab[k] = va * vb;
+            }
+            let slot = j % WIN;
+            let planes: [&[f64]; 5] = [pa, pb, paa, pbb, pab];
+            for (q, p) in planes.iter().enumerate() {
+                let dst = &mut ring[(q * WIN + slot) * w..(q * WIN + slot + 1) * w];
+                filter_taps(&taps, dst, |t| &p[t..]);
+            }
+        };
+        for j in 0..WIN - 1 {
+            horizontal(j, ring);
+        }
+        let (c1, c2) = c;
+        for y in y0..y1 {
+            let j = y - y0;
+            // Band-local halo rows j..=j+10 feed output row y; row j+10 is the new one.
+            horizontal(j + WIN - 1, ring);
+            for q in 0..5 {
+                let plane = &ring[q * WIN * w..(q + 1) * WIN * w];
+                let row = |t: usize| {
+                    let s = (j + t) % WIN;
+                    &plane[s * w..(s + 1) * w]
+                };
+                filter_taps(&taps, &mut acc[q * w..(q + 1) * w], row);
+            }
+            let (ma, rest) = acc.split_at(w);
+            let (mb, rest) = rest.split_at(w);
+            let (maa, rest) = rest.split_at(w);
+            let (mbb, mab) = rest.split_at(w);
+            for (i, o) in srow.iter_mut().enumerate() {
+                let (ux, uy) = (ma[i], mb[i]);
+                // Population covariance (use_sample_covariance=False), as in Wang et al. 2004.
+                let vx = maa[i] - ux * ux;
+                let vy = mbb[i] - uy * uy;
+                let vxy = mab[i] - ux * uy;
+                let a1 = 2.0 * ux * uy + c1;
+                let a2 = 2.0 * vxy + c2;
+                let b1 = ux * ux + uy * uy + c1;
+                let b2 = vx + vy + c2;
+                *o = (a1 * a2) / (b1 * b2);
+            }
+            sink(y, srow);
         }
     }
-    let (c1, c2) = c;
-    let mut acc = vec![[0.0f64; 5]; w];
-    let mut srow = vec![0.0f64; w];
-    for y in y0..y1 {
-        let j = y - y0;
-        acc.iter_mut().for_each(|v| *v = [0.0; 5]);
-        for (t, &wt) in taps.iter().enumerate() {
-            let src = &hbuf[(j + t) * w..(j + t + 1) * w];
-            for (ac, s) in acc.iter_mut().zip(src) {
-                for k in 0..5 {
-                    ac[k] += wt * s[k];
-                }
-            }
-        }
-        for (o, m) in srow.iter_mut().zip(&acc) {
-            let (ux, uy) = (m[0], m[1]);
-            // Population covariance (use_sample_covariance=False), as in Wang et al. 2004.
-            let vx = m[2] - ux * ux;
-            let vy = m[3] - uy * uy;
-            let vxy = m[4] - ux * uy;
-            let a1 = 2.0 * ux * uy + c1;
-            let a2 = 2.0 * vxy + c2;
-            let b1 = ux * ux + uy * uy + c1;
-            let b2 = vx + vy + c2;
-            *o = (a1 * a2) / (b1 * b2);
-        }
-        sink(y, &srow);
-    }
+    SCRATCH.with(|s| *s.borrow_mut() = scratch);
 }
 
 /// Validates an SSIM input pair and returns `(w, h, (C1, C2))`.

@@ -1,0 +1,50 @@
+//! Times the per-frame metrics at 1920x1080 (release build): warm, repeated, median and spread
+//! (DESIGN.md "Timings"). `cargo run --release -p zwarp-metrics --example time_metrics`.
+
+use std::time::Instant;
+
+use zwarp_core::{Camera, Image};
+use zwarp_metrics::{depth_quality, psnr, signed_depth_errors, ssim, ssim_map};
+
+fn time<R>(name: &str, reps: usize, mut f: impl FnMut() -> R) {
+    std::hint::black_box(f()); // warm-up
+    let mut ms: Vec<f64> = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(f());
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    ms.sort_by(f64::total_cmp);
+    println!("{name:28} median {:8.2} ms   min {:8.2}   max {:8.2}   ({reps} reps)", ms[reps / 2], ms[0], ms[reps - 1]);
+}
+
+fn main() -> zwarp_core::Result<()> {
+    let (w, h) = (1920u32, 1080u32);
+    let cam =
+        Camera::perspective(glam::Vec3::new(0.0, 0.0, 5.0), glam::Vec3::ZERO, glam::Vec3::Y, 1.0, 0.1, 100.0, w, h)?;
+    let reference = Image::from_fn(w, h, |x, y| {
+        if y < 100 {
+            1.0
+        } else {
+            cam.stored_depth(2.0 + x as f32 / 800.0 + ((y / 37) % 3) as f32)
+        }
+    });
+    let predicted = Image::from_fn(w, h, |x, y| {
+        let d = *reference.get(x, y);
+        if (x * 7 + y * 13) % 101 == 0 {
+            1.0
+        } else {
+            d
+        }
+    });
+    println!("threads: {}", rayon::current_num_threads());
+    time("psnr 1920x1080", 15, || psnr(&predicted, &reference, 1.0));
+    time("ssim 1920x1080", 15, || ssim(&predicted, &reference, 1.0));
+    time("ssim_map 1920x1080", 15, || ssim_map(&predicted, &reference, 1.0));
+    time("ssim again", 15, || ssim(&predicted, &reference, 1.0));
+    time("signed_depth_errors", 15, || signed_depth_errors(&predicted, &reference, 1e-4, 1.0));
+    time("depth_quality (2 psnr+2 ssim)", 9, || depth_quality(&predicted, &reference, &cam));
+    println!("{:?}", depth_quality(&predicted, &reference, &cam)?);
+    Ok(())
+}
