@@ -70,9 +70,8 @@ fn filter_taps<'a>(taps: &[f64; SSIM_WIN_SIZE], out: &mut [f64], src: impl Fn(us
     for (o, &c) in out.iter_mut().zip(&src(r)[..n]) {
         *o = taps[r] * c;
     }
-    for t in 0..r {
+    for (t, &wt) in taps.iter().enumerate().take(r) {
         let (lo, hi) = (&src(t)[..n], &src(2 * r - t)[..n]);
-        let wt = taps[t];
         for ((o, &l), &h) in out.iter_mut().zip(lo).zip(hi) {
             *o += wt * (l + h);
         }
