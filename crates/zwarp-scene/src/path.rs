@@ -1,0 +1,404 @@
+//! Recorded camera paths (seed 000, Sec. 4: "All scenes used a pre-defined camera movement of
+//! 7-13 seconds"; Fig. 11 scales the recorded motion up to 8x).
+//!
+//! A path is a list of timed keys (eye, target) plus the projection; it is interpolated with a
+//! Catmull-Rom spline whose knots are the key times, so it passes through every key and has
+//! a continuous velocity. JSON form (exactly):
+//! `{"fov_y_deg", "near", "far", "up": [x,y,z], "fps", "keys": [{"t", "eye": [x,y,z], "target": [x,y,z]}]}`.
+
+use std::path::Path;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use zwarp_core::{Camera, Error, Result, Scene};
+
+/// One key of a [`CameraPath`]: where the eye is and what it looks at, at time `t` (seconds).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PathKey {
+    /// Time in seconds.
+    pub t: f32,
+    /// Eye position (world).
+    pub eye: Vec3,
+    /// Look-at point (world).
+    pub target: Vec3,
+}
+
+/// A recorded camera movement (seed 000, Sec. 4) with its projection parameters.
+///
+/// Speed factor (seed 000, Fig. 11 "pre-recorded movements ... scaled up to 8x"): frame `k`
+/// is shown at time `t0 + k * speed / fps`, so a speed of 4 moves the camera (and the
+/// animated objects, which use the same time) 4x further between consecutive frames.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraPath {
+    /// Vertical field of view in degrees, in (0, 180).
+    pub fov_y_deg: f32,
+    /// Near plane distance (> 0).
+    pub near: f32,
+    /// Far plane distance (> near).
+    pub far: f32,
+    /// World up vector for the look-at frame.
+    pub up: Vec3,
+    /// Frames per second of the recording (> 0).
+    pub fps: f32,
+    /// Keys with strictly increasing `t` (at least 2).
+    pub keys: Vec<PathKey>,
+}
+
+impl CameraPath {
+    /// Reads and validates a JSON path file.
+    pub fn from_json_file(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_json_str(&text).map_err(|e| match e {
+            Error::Invalid(msg) => Error::parse(path, msg),
+            other => other,
+        })
+    }
+
+    /// Parses and validates a JSON path.
+    pub fn from_json_str(text: &str) -> Result<Self> {
+        let p: CameraPath =
+            serde_json::from_str(text).map_err(|e| Error::invalid(format!("bad camera path JSON: {e}")))?;
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Pretty JSON in the documented format.
+    pub fn to_json(&self) -> String {
+        // Serializing plain f32/Vec3 fields cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Writes [`CameraPath::to_json`] to a file.
+    pub fn write_json_file(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        std::fs::write(path, self.to_json()).map_err(|e| Error::io(path, e))
+    }
+
+    /// Checks: >= 2 keys, strictly increasing finite `t`, finite eyes/targets, eye != target,
+    /// 0 < near < far, 0 < fov < 180, fps > 0, and `up` not parallel to any key's view direction.
+    pub fn validate(&self) -> Result<()> {
+        let fin = |v: f32| v.is_finite();
+        if !(fin(self.fov_y_deg) && self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0) {
+            return Err(Error::invalid(format!("camera path: fov_y_deg must be in (0, 180), got {}", self.fov_y_deg)));
+        }
+        if !(fin(self.near) && fin(self.far) && self.near > 0.0 && self.near < self.far) {
+            return Err(Error::invalid(format!(
+                "camera path: need 0 < near < far, got near={} far={}",
+                self.near, self.far
+            )));
+        }
+        if !(fin(self.fps) && self.fps > 0.0) {
+            return Err(Error::invalid(format!("camera path: fps must be > 0, got {}", self.fps)));
+        }
+        if !self.up.is_finite() || self.up.length_squared() < 1e-12 {
+            return Err(Error::invalid(format!("camera path: up must be a finite non-zero vector, got {:?}", self.up)));
+        }
+        if self.keys.len() < 2 {
+            return Err(Error::invalid(format!("camera path: need at least 2 keys, got {}", self.keys.len())));
+        }
+        let up = self.up.normalize();
+        for (i, k) in self.keys.iter().enumerate() {
+            if !(fin(k.t) && k.eye.is_finite() && k.target.is_finite()) {
+                return Err(Error::invalid(format!("camera path: key {i} has a non-finite number")));
+            }
+            if i > 0 && k.t <= self.keys[i - 1].t {
+                return Err(Error::invalid(format!(
+                    "camera path: key times must increase strictly (key {i}: t={} after t={})",
+                    k.t,
+                    self.keys[i - 1].t
+                )));
+            }
+            let d = k.target - k.eye;
+            if d.length_squared() < 1e-12 {
+                return Err(Error::invalid(format!("camera path: key {i} has eye == target")));
+            }
+            if d.normalize().cross(up).length() < 1e-4 {
+                return Err(Error::invalid(format!("camera path: key {i} looks along the up vector")));
+            }
+        }
+        Ok(())
+    }
+
+    /// Time of the first key.
+    pub fn start(&self) -> f32 {
+        self.keys.first().map_or(0.0, |k| k.t)
+    }
+
+    /// Time of the last key.
+    pub fn end(&self) -> f32 {
+        self.keys.last().map_or(0.0, |k| k.t)
+    }
+
+    /// Length of the path in seconds.
+    pub fn duration(&self) -> f32 {
+        self.end() - self.start()
+    }
+
+    /// Frames in the recording at speed 1: `floor(duration * fps) + 1` (both ends included).
+    pub fn frame_count(&self) -> usize {
+        self.frame_count_at(1.0)
+    }
+
+    /// Frames needed to cover the path at a motion speed factor (see [`CameraPath::frames`]).
+    pub fn frame_count_at(&self, speed: f32) -> usize {
+        if !(speed > 0.0 && speed.is_finite()) {
+            return 0;
+        }
+        // The small epsilon keeps the last key when duration * fps is integral up to rounding.
+        (self.duration() * self.fps / speed + 1e-3).floor() as usize + 1
+    }
+
+    /// Time of frame `k` at speed factor `speed`: `t0 + k * speed / fps` (not clamped).
+    pub fn time_of_frame(&self, k: usize, speed: f32) -> f32 {
+        self.start() + k as f32 * speed / self.fps
+    }
+
+    /// Interpolated eye and target at time `t` (clamped to the path's time range).
+    pub fn eye_target_at(&self, t: f32) -> (Vec3, Vec3) {
+        let keys = &self.keys;
+        match keys.len() {
+            0 => return (Vec3::ZERO, Vec3::NEG_Z),
+            1 => return (keys[0].eye, keys[0].target),
+            _ => {}
+        }
+        let t = if t.is_finite() { t.clamp(self.start(), self.end()) } else { self.start() };
+        // Segment i spans [t_i, t_{i+1}]; partition_point finds the first key after t.
+        let i = keys.partition_point(|k| k.t <= t).clamp(1, keys.len() - 1) - 1;
+        let eye = catmull_rom(keys, i, t, |k| k.eye);
+        let target = catmull_rom(keys, i, t, |k| k.target);
+        (eye, target)
+    }
+
+    /// The camera at time `t` rendering a `width x height` image.
+    pub fn camera_at(&self, t: f32, width: u32, height: u32) -> Result<Camera> {
+        let (eye, target) = self.eye_target_at(t);
+        Camera::perspective(eye, target, self.up, self.fov_y_deg.to_radians(), self.near, self.far, width, height)
+    }
+
+    /// Every frame `(t, camera)` of the path at speed factor `speed` (1x..16x), up to the
+    /// path's end. Errors on a non-positive speed or a bad image size.
+    pub fn frames(&self, width: u32, height: u32, speed: f32) -> Result<Vec<(f32, Camera)>> {
+        if !(speed > 0.0 && speed.is_finite()) {
+            return Err(Error::invalid(format!("camera path: speed factor must be > 0, got {speed}")));
+        }
+        (0..self.frame_count_at(speed))
+            .map(|k| {
+                let t = self.time_of_frame(k, speed).min(self.end());
+                self.camera_at(t, width, height).map(|c| (t, c))
+            })
+            .collect()
+    }
+
+    /// A sensible default path for any scene: a 10 s, 30 Hz half-ellipse flight around the
+    /// centre of the bounds, about 1/3 of the largest extent above the ground level (the
+    /// lowest point along `scene.up`), looking at a point a quarter up the scene's height
+    /// above the centre of the ground; near/far are derived from the bounds diagonal.
+    pub fn default_for(scene: &Scene) -> CameraPath {
+        let b = scene.bounds();
+        let (b_min, b_max) = if b.is_empty() { (Vec3::splat(-1.0), Vec3::splat(1.0)) } else { (b.min, b.max) };
+        let up = scene.up.normalize_or(Vec3::Z);
+        let centre = (b_min + b_max) * 0.5;
+        let ext = b_max - b_min;
+        // Horizontal frame (u, v) perpendicular to up; the ellipse radii are the box's
+        // half-extents along them.
+        let u = up.any_orthonormal_vector();
+        let v = up.cross(u);
+        let half = |axis: Vec3| 0.5 * (ext.x * axis.x.abs() + ext.y * axis.y.abs() + ext.z * axis.z.abs());
+        let (ru, rv) = (half(u).max(1e-3) * 0.8, half(v).max(1e-3) * 0.8);
+        let height = ext.dot(up.abs()).max(1e-3);
+        let diag = ext.length().max(1e-3);
+        let ground = centre - up * (0.5 * height);
+        let eye_h = ground + up * (diag / 3.0);
+        let target = ground + up * (0.25 * height);
+        let fps = 30.0;
+        let keys = (0..=10)
+            .map(|i| {
+                let a = std::f32::consts::PI * i as f32 / 10.0;
+                let eye = eye_h + u * (ru * a.cos()) + v * (rv * a.sin());
+                PathKey { t: i as f32, eye, target }
+            })
+            .collect();
+        CameraPath { fov_y_deg: 60.0, near: diag * 2e-3, far: diag * 2.0, up, fps, keys }
+    }
+}
+
+/// Catmull-Rom (cardinal spline with tension 0) on segment `i` at time `t`, knots at the key
+/// times: Hermite interpolation with tangents `(p_{i+1} - p_{i-1}) / (t_{i+1} - t_{i-1})`
+/// (one-sided at the ends). It passes through every key and has continuous velocity, and it
+/// equals the uniform Catmull-Rom spline when keys are evenly spaced.
+fn catmull_rom(keys: &[PathKey], i: usize, t: f32, f: impl Fn(&PathKey) -> Vec3) -> Vec3 {
+    let n = keys.len();
+    let (k0, k1) = (&keys[i], &keys[i + 1]);
+    let tangent = |j: usize| {
+        let (a, b) = (j.saturating_sub(1), (j + 1).min(n - 1));
+        (f(&keys[b]) - f(&keys[a])) / (keys[b].t - keys[a].t)
+    };
+    let h = k1.t - k0.t;
+    let s = ((t - k0.t) / h).clamp(0.0, 1.0);
+    let (s2, s3) = (s * s, s * s * s);
+    let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
+    let h10 = s3 - 2.0 * s2 + s;
+    let h01 = -2.0 * s3 + 3.0 * s2;
+    let h11 = s3 - s2;
+    f(k0) * h00 + tangent(i) * (h10 * h) + f(k1) * h01 + tangent(i + 1) * (h11 * h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn line_path() -> CameraPath {
+        CameraPath {
+            fov_y_deg: 60.0,
+            near: 0.1,
+            far: 100.0,
+            up: Vec3::Z,
+            fps: 30.0,
+            keys: (0..5)
+                .map(|i| PathKey {
+                    t: i as f32 * 2.0,
+                    eye: Vec3::new(i as f32 * 3.0, 0.0, 2.0),
+                    target: Vec3::new(i as f32 * 3.0 + 10.0, 0.0, 2.0),
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn json_format_is_exact_and_roundtrips() {
+        let p = line_path();
+        let json = p.to_json();
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let obj = v.as_object().unwrap();
+        let mut keys: Vec<_> = obj.keys().cloned().collect();
+        keys.sort();
+        assert_eq!(keys, ["far", "fov_y_deg", "fps", "keys", "near", "up"]);
+        assert_eq!(v["up"], serde_json::json!([0.0, 0.0, 1.0]));
+        assert_eq!(v["keys"][1], serde_json::json!({"t": 2.0, "eye": [3.0, 0.0, 2.0], "target": [13.0, 0.0, 2.0]}));
+        assert_eq!(CameraPath::from_json_str(&json).unwrap(), p);
+    }
+
+    #[test]
+    fn linear_keys_give_exact_linear_motion() {
+        // Evenly spaced collinear keys: the Catmull-Rom tangents equal the constant velocity,
+        // so the spline is exactly the line (up to rounding).
+        let p = line_path();
+        for k in 0..=80 {
+            let t = k as f32 * 0.1;
+            let (eye, target) = p.eye_target_at(t);
+            assert!((eye - Vec3::new(1.5 * t, 0.0, 2.0)).length() < 1e-4, "t={t} eye={eye}");
+            assert!((target - eye - Vec3::new(10.0, 0.0, 0.0)).length() < 1e-4);
+        }
+        // Clamped outside the time range.
+        assert_eq!(p.eye_target_at(-5.0).0, p.keys[0].eye);
+        assert_eq!(p.eye_target_at(99.0).0, p.keys[4].eye);
+    }
+
+    #[test]
+    fn frame_counts_and_times_with_speed() {
+        let p = line_path(); // 8 s at 30 Hz
+        assert_eq!(p.duration(), 8.0);
+        assert_eq!(p.frame_count(), 241);
+        assert_eq!(p.frame_count_at(4.0), 61);
+        assert_eq!(p.frame_count_at(16.0), 16); // 15 * 16/30 = 8.0 s
+        assert_eq!(p.frame_count_at(3.0), 81);
+        assert!((p.time_of_frame(30, 1.0) - 1.0).abs() < 1e-6);
+        assert!((p.time_of_frame(30, 8.0) - 8.0).abs() < 1e-5);
+        let f = p.frames(32, 24, 4.0).unwrap();
+        assert_eq!(f.len(), 61);
+        assert!((f[1].0 - 4.0 / 30.0).abs() < 1e-6);
+        assert_eq!(f.last().unwrap().0, 8.0);
+        assert!((f.last().unwrap().1.eye() - Vec3::new(12.0, 0.0, 2.0)).length() < 1e-3);
+        assert!(p.frames(32, 24, 0.0).is_err());
+        assert!(p.frames(0, 24, 1.0).is_err());
+    }
+
+    #[test]
+    fn validation_errors_are_clear() {
+        let ok = line_path();
+        let cases: Vec<(Box<dyn Fn(&mut CameraPath)>, &str)> = vec![
+            (Box::new(|p| p.keys.truncate(1)), "at least 2 keys"),
+            (Box::new(|p| p.keys[2].t = p.keys[1].t), "increase strictly"),
+            (Box::new(|p| p.near = 200.0), "near < far"),
+            (Box::new(|p| p.near = 0.0), "near < far"),
+            (Box::new(|p| p.fov_y_deg = 180.0), "fov_y_deg"),
+            (Box::new(|p| p.fov_y_deg = 0.0), "fov_y_deg"),
+            (Box::new(|p| p.fps = 0.0), "fps"),
+            (Box::new(|p| p.keys[3].eye.x = f32::NAN), "non-finite"),
+            (Box::new(|p| p.keys[1].target = p.keys[1].eye + Vec3::Z), "up vector"),
+            (Box::new(|p| p.keys[1].target = p.keys[1].eye), "eye == target"),
+            (Box::new(|p| p.up = Vec3::ZERO), "up must be"),
+        ];
+        for (mutate, want) in cases {
+            let mut p = ok.clone();
+            mutate(&mut p);
+            let msg = p.validate().unwrap_err().to_string();
+            assert!(msg.contains(want), "{msg:?} should mention {want:?}");
+            assert!(!msg.contains('\n'));
+        }
+        let e = CameraPath::from_json_str("{\"fov_y_deg\": 60}").unwrap_err().to_string();
+        assert!(e.contains("bad camera path JSON"), "{e}");
+    }
+
+    #[test]
+    fn json_file_errors_name_the_file() {
+        let dir = std::env::temp_dir().join(format!("zwarp-scene-path-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("bad_path.json");
+        std::fs::write(
+            &f,
+            "{\"fov_y_deg\": 60, \"near\": 1, \"far\": 0.5, \"up\": [0,0,1], \"fps\": 30, \"keys\": []}",
+        )
+        .unwrap();
+        let e = CameraPath::from_json_file(&f).unwrap_err().to_string();
+        assert!(e.contains("bad_path.json") && e.contains("near < far"), "{e}");
+        let missing = CameraPath::from_json_file(dir.join("nope.json")).unwrap_err().to_string();
+        assert!(missing.contains("nope.json"), "{missing}");
+        let good = dir.join("good_path.json");
+        line_path().write_json_file(&good).unwrap();
+        assert_eq!(CameraPath::from_json_file(&good).unwrap(), line_path());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn default_path_frames_the_scene() {
+        let mut s = Scene::default();
+        let m = s.add_mesh(crate::shapes::unit_box().build().unwrap());
+        s.add_instance(m, glam::Mat4::from_scale(Vec3::new(20.0, 10.0, 4.0)), Vec3::ONE, Default::default(), false);
+        let p = CameraPath::default_for(&s);
+        p.validate().unwrap();
+        assert_eq!(p.duration(), 10.0);
+        assert_eq!(p.frame_count(), 301);
+        let b = s.bounds();
+        for (_, cam) in p.frames(64, 48, 1.0).unwrap() {
+            // Eye above the ground, scene centre in front of the camera and inside far.
+            assert!(cam.eye().z > b.min.z + 1.0);
+            let c = cam.project(b.center()).unwrap();
+            assert!(c.x >= 0.0 && c.x <= 64.0 && c.y >= 0.0 && c.y <= 48.0 && c.z < 1.0, "{c}");
+            for corner in b.corners() {
+                assert!((corner - cam.eye()).length() < p.far);
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn spline_passes_through_every_key(
+            pts in proptest::collection::vec((-50.0f32..50.0, -50.0f32..50.0, 0.5f32..20.0, 0.1f32..3.0), 2..8)
+        ) {
+            let mut t = 0.0;
+            let keys: Vec<PathKey> = pts.iter().map(|&(x, y, z, dt)| {
+                t += dt;
+                PathKey { t, eye: Vec3::new(x, y, z), target: Vec3::new(x + 5.0, y - 3.0, z * 0.5) }
+            }).collect();
+            let p = CameraPath { fov_y_deg: 50.0, near: 0.1, far: 500.0, up: Vec3::Z, fps: 30.0, keys };
+            for k in &p.keys {
+                let (e, g) = p.eye_target_at(k.t);
+                prop_assert!((e - k.eye).length() < 1e-3 * (1.0 + k.eye.length()));
+                prop_assert!((g - k.target).length() < 1e-3 * (1.0 + k.target.length()));
+            }
+        }
+    }
+}

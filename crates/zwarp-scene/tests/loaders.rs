@@ -1,0 +1,312 @@
+//! Loader tests on the tiny committed fixtures (tests/fixtures) and on broken files written
+//! into a temp dir. None of them reads /work/shared.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use zwarp_core::Error;
+use zwarp_scene::{load_scene, CameraPath, SceneOptions, SplitMode, GROUND_ALBEDO};
+
+fn fixture(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name).to_string_lossy().into_owned()
+}
+
+fn opts(split: SplitMode) -> SceneOptions {
+    SceneOptions { split, ..Default::default() }
+}
+
+/// A fresh temp dir per test (pid + name keep parallel tests and runs apart).
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("zwarp-scene-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn err_of(spec: &str) -> String {
+    let e = load_scene(spec, &SceneOptions::default()).unwrap_err();
+    let msg = e.to_string();
+    assert!(!msg.contains('\n'), "error must be one line: {msg:?}");
+    msg
+}
+
+fn parse_err_file(spec: &str) -> (PathBuf, String) {
+    match load_scene(spec, &SceneOptions::default()).unwrap_err() {
+        Error::Parse { path, msg } => (path, msg),
+        other => panic!("expected a parse error, got {other}"),
+    }
+}
+
+#[test]
+fn obj_models_are_objects_with_material_colours_and_ground() {
+    let s = load_scene(&fixture("two_tris.obj"), &SceneOptions::default()).unwrap();
+    assert!(s.path.is_none());
+    let sc = &s.scene;
+    assert_eq!(sc.up, Vec3::Y);
+    assert_eq!(sc.instances.len(), 2);
+    assert_eq!(sc.triangle_count(), 4);
+    let wall = &sc.instances[0];
+    assert!(!wall.is_ground);
+    assert!((wall.albedo - Vec3::new(0.8, 0.1, 0.1)).length() < 1e-6);
+    assert_eq!(wall.world_aabb.min, Vec3::ZERO);
+    assert_eq!(wall.world_aabb.max, Vec3::new(1.0, 1.0, 0.0));
+    let ground = &sc.instances[1];
+    assert!(ground.is_ground);
+    assert_eq!(ground.albedo, GROUND_ALBEDO);
+    assert_eq!(sc.meshes[ground.mesh as usize].triangle_count(), 2, "quad face triangulated");
+}
+
+#[test]
+fn ascii_ply_is_split_by_mode() {
+    let f = fixture("quad_ascii.ply");
+    let comp = load_scene(&f, &opts(SplitMode::Components)).unwrap().scene;
+    assert_eq!(comp.up, Vec3::Z);
+    assert_eq!(comp.instances.len(), 2);
+    let tris: Vec<usize> = comp.instances.iter().map(|i| comp.meshes[i.mesh as usize].triangle_count()).collect();
+    assert_eq!(tris, vec![2, 1]);
+    assert_eq!(comp.instances[1].world_aabb.min, Vec3::new(3.0, 0.0, 0.0));
+    assert_eq!(comp.instances[1].world_aabb.max, Vec3::new(4.0, 1.0, 1.0));
+    let none = load_scene(&f, &opts(SplitMode::None)).unwrap().scene;
+    assert_eq!((none.instances.len(), none.triangle_count()), (1, 3));
+    let cl = load_scene(&f, &opts(SplitMode::Clusters(3))).unwrap().scene;
+    assert_eq!((cl.instances.len(), cl.triangle_count()), (3, 3));
+    // Object ids get distinct deterministic colours.
+    assert_ne!(comp.instances[0].albedo, comp.instances[1].albedo);
+}
+
+#[test]
+fn binary_ply_reads_doubles_and_skips_normals() {
+    let s = load_scene(&fixture("tri_binary.ply"), &SceneOptions::default()).unwrap().scene;
+    assert_eq!((s.instances.len(), s.triangle_count()), (1, 1));
+    assert_eq!(s.bounds().min, Vec3::ZERO);
+    assert_eq!(s.bounds().max, Vec3::new(2.0, 0.0, 3.0));
+}
+
+#[test]
+fn gltf_and_glb_nodes_are_instances_with_world_transforms() {
+    for f in ["tiny.gltf", "tiny.glb"] {
+        let s = load_scene(&fixture(f), &SceneOptions::default()).unwrap().scene;
+        assert_eq!(s.up, Vec3::Y, "{f}");
+        assert_eq!(s.meshes.len(), 1, "{f}: both nodes share one mesh");
+        assert_eq!(s.instances.len(), 2, "{f}");
+        let mut boxes: Vec<_> = s.instances.iter().map(|i| (i.world_aabb.min, i.world_aabb.max)).collect();
+        boxes.sort_by(|a, b| a.0.x.total_cmp(&b.0.x));
+        assert_eq!(boxes[0], (Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0)));
+        // The child: parent (identity) * translate(10, 0, 0) * scale 2.
+        assert_eq!(boxes[1], (Vec3::new(10.0, 0.0, 0.0), Vec3::new(12.0, 2.0, 0.0)));
+        for i in &s.instances {
+            assert!((i.albedo - Vec3::new(0.2, 0.4, 0.6)).length() < 1e-6);
+        }
+    }
+}
+
+#[test]
+fn raw_soup_folder_splits_into_components() {
+    let s = load_scene(&fixture("soup"), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.up, Vec3::Z);
+    assert_eq!(s.instances.len(), 2);
+    assert_eq!(s.triangle_count(), 4);
+    assert_eq!(s.instances[1].world_aabb.min, Vec3::new(3.0, 0.0, 0.5));
+    assert_eq!(s.instances[1].world_aabb.max, Vec3::new(4.0, 1.0, 0.5));
+    let one = load_scene(&fixture("soup"), &opts(SplitMode::None)).unwrap().scene;
+    assert_eq!(one.instances.len(), 1);
+    // A loaded file has no recorded path; the default one is valid and frames it.
+    let l = load_scene(&fixture("soup"), &SceneOptions::default()).unwrap();
+    let p = l.path_or_default();
+    p.validate().unwrap();
+    assert_eq!(p.frame_count(), 301);
+}
+
+#[test]
+fn mesh_folder_is_one_object_per_file_recursively() {
+    let s = load_scene(&fixture("city"), &SceneOptions::default()).unwrap().scene;
+    // house.ply, sub/ground.ply, sub/wall.obj (readme.txt ignored), sorted by path.
+    assert_eq!(s.instances.len(), 3);
+    let tris: Vec<usize> = s.instances.iter().map(|i| s.meshes[i.mesh as usize].triangle_count()).collect();
+    assert_eq!(tris, vec![3, 1, 4], "files are not split; OBJ models merged");
+    let ground: Vec<bool> = s.instances.iter().map(|i| i.is_ground).collect();
+    assert_eq!(ground, vec![false, true, false]);
+    assert_eq!(s.up, Vec3::Z, "two PLY files outvote one OBJ");
+}
+
+#[test]
+fn missing_file_and_unknown_extension() {
+    let (path, msg) = parse_err_file("/nonexistent/zwarp/scene.obj");
+    assert!(path.ends_with("scene.obj") && msg.contains("no such file"), "{msg}");
+    let d = temp_dir("ext");
+    let f = d.join("model.stl");
+    std::fs::write(&f, "solid x\nendsolid x\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("model.stl") && msg.contains("unsupported extension 'stl'"), "{msg}");
+}
+
+#[test]
+fn malformed_ply_files_are_reported() {
+    let d = temp_dir("ply");
+    let good = std::fs::read(fixture("tri_binary.ply")).unwrap();
+    let f = d.join("truncated.ply");
+    std::fs::write(&f, &good[..good.len() - 5]).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("truncated.ply") && msg.contains("truncated binary data"), "{msg}");
+
+    let text = std::fs::read_to_string(fixture("quad_ascii.ply")).unwrap();
+    let f = d.join("nan.ply");
+    std::fs::write(&f, text.replace("3 1 1 1", "3 nan 1 1")).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("nan.ply") && msg.contains("vertex 6 is not finite"), "{msg}");
+
+    let f = d.join("oor.ply");
+    std::fs::write(&f, text.replace("3 4 5 6", "3 4 5 70")).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("oor.ply") && msg.contains("indexes vertex 70"), "{msg}");
+
+    let f = d.join("points.ply");
+    std::fs::write(&f, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n")
+        .unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("points.ply") && msg.contains("empty"), "{msg}");
+}
+
+#[test]
+fn malformed_obj_files_are_reported() {
+    let d = temp_dir("obj");
+    let f = d.join("nan.obj");
+    std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("nan.obj") && msg.contains("not finite"), "{msg}");
+    let f = d.join("inf.obj");
+    std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv inf 1 0\nf 1 2 3\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("inf.obj") && msg.contains("not finite"), "{msg}");
+    let f = d.join("oor.obj");
+    std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 9\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("oor.obj"), "{msg}");
+    let f = d.join("garbage.obj");
+    std::fs::write(&f, "v 0 0 zero\nf 1 2 3\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("garbage.obj"), "{msg}");
+    let f = d.join("empty.obj");
+    std::fs::write(&f, "# nothing\nv 0 0 0\n").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("empty.obj") && msg.contains("empty"), "{msg}");
+}
+
+#[test]
+fn malformed_gltf_files_are_reported() {
+    let d = temp_dir("gltf");
+    let f = d.join("broken.gltf");
+    std::fs::write(&f, "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [").unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("broken.gltf") && msg.contains("glTF"), "{msg}");
+    let glb = std::fs::read(fixture("tiny.glb")).unwrap();
+    let f = d.join("truncated.glb");
+    std::fs::write(&f, &glb[..glb.len() - 20]).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("truncated.glb"), "{msg}");
+    // Index 7 into a 3-vertex primitive.
+    let text = std::fs::read_to_string(fixture("tiny.gltf")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let uri = v["buffers"][0]["uri"].as_str().unwrap();
+    let b64 = uri.split(',').nth(1).unwrap();
+    // Rebuild the buffer with a bad index (indices start at byte 36, u16).
+    let mut bytes = decode_b64(b64);
+    bytes[36] = 7;
+    let mut v2 = v.clone();
+    v2["buffers"][0]["uri"] = format!("data:application/octet-stream;base64,{}", encode_b64(&bytes)).into();
+    let f = d.join("oor.gltf");
+    std::fs::write(&f, serde_json::to_string(&v2).unwrap()).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("oor.gltf") && msg.contains("indexes vertex 7"), "{msg}");
+    // A NaN position.
+    let mut bytes = decode_b64(b64);
+    bytes[12..16].copy_from_slice(&f32::NAN.to_le_bytes());
+    let mut v3 = v.clone();
+    v3["buffers"][0]["uri"] = format!("data:application/octet-stream;base64,{}", encode_b64(&bytes)).into();
+    let f = d.join("nan.gltf");
+    std::fs::write(&f, serde_json::to_string(&v3).unwrap()).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("nan.gltf") && msg.contains("not finite"), "{msg}");
+}
+
+#[test]
+fn malformed_soups_and_empty_folders_are_reported() {
+    let d = temp_dir("soup");
+    let v = std::fs::read(fixture("soup/VertexBuffer.bin")).unwrap();
+    let i = std::fs::read(fixture("soup/IndexBuffer.bin")).unwrap();
+    std::fs::write(d.join("VertexBuffer.bin"), &v[..v.len() - 4]).unwrap();
+    std::fs::write(d.join("IndexBuffer.bin"), &i).unwrap();
+    let msg = err_of(d.to_str().unwrap());
+    assert!(msg.contains("VertexBuffer.bin") && msg.contains("multiple of 16"), "{msg}");
+    std::fs::write(d.join("VertexBuffer.bin"), &v).unwrap();
+    let mut bad = i.clone();
+    bad[0..4].copy_from_slice(&100u32.to_le_bytes());
+    std::fs::write(d.join("IndexBuffer.bin"), &bad).unwrap();
+    let msg = err_of(d.to_str().unwrap());
+    assert!(msg.contains("IndexBuffer.bin") && msg.contains("indexes vertex"), "{msg}");
+    let mut nan = v.clone();
+    nan[4..8].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    std::fs::write(d.join("VertexBuffer.bin"), &nan).unwrap();
+    std::fs::write(d.join("IndexBuffer.bin"), &i).unwrap();
+    let msg = err_of(d.to_str().unwrap());
+    assert!(msg.contains("vertex 0 is not finite"), "{msg}");
+
+    let e = temp_dir("empty");
+    std::fs::write(e.join("notes.txt"), "nothing here").unwrap();
+    let msg = err_of(e.to_str().unwrap());
+    assert!(msg.contains("empty") && msg.contains("zwarp-scene"), "{msg}");
+    // A broken file inside a folder names that file.
+    std::fs::write(e.join("bad.ply"), "ply\nformat ascii 1.0\n").unwrap();
+    let msg = err_of(e.to_str().unwrap());
+    assert!(msg.contains("bad.ply") && msg.contains("end_header"), "{msg}");
+}
+
+#[test]
+fn bad_options_are_rejected() {
+    let o = SceneOptions { scale: 0.0, ..Default::default() };
+    assert!(load_scene("cb", &o).unwrap_err().to_string().contains("scale"));
+    let o = SceneOptions { split: SplitMode::Clusters(0), ..Default::default() };
+    assert!(load_scene(&fixture("soup"), &o).is_err());
+}
+
+#[test]
+fn procedural_specs_come_with_paths() {
+    let o = SceneOptions { scale: 0.005, ..Default::default() };
+    for spec in ["mo", "BL", "cb"] {
+        let s = load_scene(spec, &o).unwrap();
+        let p: CameraPath = s.path.clone().unwrap();
+        let frames = p.frames(32, 24, 8.0).unwrap();
+        assert_eq!(frames.len(), p.frame_count_at(8.0));
+        assert!(s.scene.instances.len() > 10, "{spec}");
+    }
+}
+
+const B64: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+fn encode_b64(b: &[u8]) -> String {
+    let mut s = String::new();
+    for c in b.chunks(3) {
+        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(B64[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+fn decode_b64(s: &str) -> Vec<u8> {
+    let mut out = Vec::new();
+    let vals: Vec<u32> =
+        s.bytes().filter(|&c| c != b'=').map(|c| B64.iter().position(|&x| x == c).unwrap() as u32).collect();
+    for c in vals.chunks(4) {
+        let n = c.iter().enumerate().fold(0u32, |n, (k, &v)| n | v << (18 - 6 * k));
+        for k in 0..c.len() - 1 {
+            out.push((n >> (16 - 8 * k)) as u8);
+        }
+    }
+    out
+}
