@@ -4,7 +4,10 @@
 //! - [`frustum`]: view-frustum culling (VFC) of world AABBs, the first test of WOC;
 //! - [`screen`]: screen-space bounds (pixel rectangle + nearest depth) of an AABB proxy;
 //! - [`maxdepth`]: max-depth structures answering `is_occluded(rect, nearest)` — max mipmap
-//!   (HOM), N-buffers (exact) and Y-maps — plus the 1-pixel erosion of the thesis.
+//!   (HOM), N-buffers (exact) and Y-maps — plus the 1-pixel erosion of the thesis;
+//! - [`woc`]: the per-frame WOC pipeline (motion, single-layer warp, erosion, rapid-motion
+//!   objects, max-depth test, hybrid query) and the baselines NOCULL, VFC, last-frame depth,
+//!   two-phase, REF and the ideal screen-space test, plus the culling-accuracy figures.
 //!
 //! Depth follows the zwarp convention: post-projection depth in `[0, 1]`, 0 = near, 1 = far
 //! and "no surface"; holes of a warped buffer are kept at 1 and never occlude.
@@ -12,9 +15,15 @@
 pub mod frustum;
 pub mod maxdepth;
 pub mod screen;
+pub mod woc;
 
 pub use frustum::{vfc, Frustum};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
 pub use screen::{screen_rect, screen_rect_with, PixelRect, ScreenRect};
+pub use woc::{
+    aabb_triangles, accuracy, cull_against_depth, hybrid_cull, ideal_screen_space, lastframe, nocull, reference,
+    screen_speed, twophase, vfc_cull, visible_from_items, woc, CullAccuracy, CullResult, CullStats, CullTimings,
+    PrevFrame, TwoPhaseResult, WocParams, DEPTH_TOLERANCE,
+};

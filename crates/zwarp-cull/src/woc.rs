@@ -1,0 +1,686 @@
+//! The per-frame warping-based occlusion culling pipeline (WOC, seed 000 Sec. 5 and Fig. 13;
+//! thesis seed 002 Sec. III-IV, Fig. 1) and the baselines it is compared with (Sec. 5.3,
+//! thesis Sec. V: NOCULL, VFC, last-frame depth, two-phase culling, REF, ideal screen-space).
+//!
+//! WOC, per frame, from the previous frame's depth + item buffers and the two cameras:
+//! 1. motion buffer `v(q) = C P^-1 q - q` with per-object motion ([`zwarp_core::motion_field`]
+//!    with [`Scene::object_deltas`]);
+//! 2. single-layer backward depth warp (N = 8 seeds) with holes kept at the far depth
+//!    (or, with [`WocParams::awoc`], AWOC's approximate fill, Sec. 5.3);
+//! 3. 1-pixel erosion of the occluders (thesis Sec. IV.1, Fig. 4);
+//! 4. rapid-motion objects (screen-space speed above a threshold, thesis Sec. IV.1, Fig. 5) are
+//!    drawn directly into the predicted depth;
+//! 5. a max-depth structure (Y-map by default) is built over the predicted depth;
+//! 6. every object: VFC, then its AABB's screen rectangle + nearest depth against the
+//!    structure;
+//! 7. hybrid query (thesis Sec. IV.2): the K heaviest objects still classified visible are
+//!    tested in object space (their AABB rasterized against the predicted depth).
+//!
+//! Depth follows the zwarp convention: `[0, 1]`, 0 = near, 1 = far / no surface.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, NO_ITEM};
+use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
+use zwarp_warp::{warp_depth, HolePolicy, WarpLayer, WarpParams};
+
+use crate::frustum::Frustum;
+use crate::maxdepth::{erode_max, MaxDepthKind, MaxDepthMap, MaxDepthQuery};
+use crate::screen::{screen_rect_with, ScreenRect};
+
+/// The previous frame: its rendered depth and item buffers, camera and scene time. In a real
+/// engine these are the side products of drawing the previous frame's visible set.
+#[derive(Clone, Copy, Debug)]
+pub struct PrevFrame<'a> {
+    /// Depth buffer of the previous frame (`[0, 1]`, 1 = empty).
+    pub depth: &'a Image<f32>,
+    /// Item buffer (instance ids, [`NO_ITEM`] where empty), same size.
+    pub items: &'a Image<u32>,
+    /// Camera of the previous frame (same image size as the current one).
+    pub cam: &'a Camera,
+    /// Scene time of the previous frame (seconds).
+    pub t: f32,
+}
+
+/// Parameters of [`woc`] (seed 000 Sec. 5.3 and thesis Sec. V "Method" give the defaults).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WocParams {
+    /// The depth warp (single layer). Default: N = 8 seeds, far-depth holes (Sec. 5.3: "Our
+    /// warping solution used a single layer (depth holes are conservatively kept at the
+    /// far-clipping depth). The number of used search seeds (N) was 8.").
+    pub warp: WarpParams,
+    /// Use AWOC (Sec. 5.3): fill holes from the motion at the extrema of the local search
+    /// bound instead of the far depth. Approximate (may cull visible objects), better under
+    /// fast motion. Overrides `warp.holes`.
+    pub awoc: bool,
+    /// 1-pixel max erosion of the predicted depth (thesis Sec. IV.1). Default on.
+    pub erosion: bool,
+    /// Rapid-motion threshold in pixels per frame (thesis Sec. IV.1): objects whose AABB
+    /// corners move more than this on screen are drawn directly into the predicted depth and
+    /// kept visible. `None` disables the path. Default 19.2 px, the thesis' 0.02 of the
+    /// canonical view volume ("1152 pixel/second on a full-HD image" at 60 Hz).
+    pub rapid_motion_px: Option<f32>,
+    /// Max-depth structure for the screen-space test. Default: Y-map with 2 mip levels.
+    pub max_depth: MaxDepthKind,
+    /// K: how many of the heaviest still-visible objects get the hybrid object-space query
+    /// (thesis Sec. IV.2 used 300 objects of > 100K triangles). 0 disables it.
+    pub hybrid_objects: usize,
+    /// Only objects with at least this many triangles are hybrid candidates.
+    pub hybrid_min_triangles: usize,
+}
+
+impl Default for WocParams {
+    fn default() -> Self {
+        WocParams {
+            warp: WarpParams { n_seeds: 8, holes: HolePolicy::FarDepth, ..WarpParams::default() },
+            awoc: false,
+            erosion: true,
+            rapid_motion_px: Some(19.2),
+            max_depth: MaxDepthKind::YMap { switch: 2 },
+            hybrid_objects: 300,
+            hybrid_min_triangles: 10_000,
+        }
+    }
+}
+
+impl WocParams {
+    /// Checks the parameters (warp parameters included).
+    pub fn validate(&self) -> Result<()> {
+        self.warp.validate()?;
+        if let Some(px) = self.rapid_motion_px {
+            if !(px.is_finite() && px >= 0.0) {
+                return Err(Error::invalid(format!("rapid-motion threshold must be >= 0 pixels, got {px}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Wall-clock time of each stage in milliseconds (stages a method does not run stay 0).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CullTimings {
+    /// Motion buffer generation.
+    pub motion_ms: f64,
+    /// Depth warping.
+    pub warp_ms: f64,
+    /// Erosion of the predicted depth.
+    pub erosion_ms: f64,
+    /// Drawing rapid-motion objects (WOC) or the first-phase objects (two-phase).
+    pub draw_ms: f64,
+    /// Building the max-depth structure.
+    pub build_ms: f64,
+    /// VFC + screen-space tests of all objects.
+    pub test_ms: f64,
+    /// Hybrid object-space queries.
+    pub hybrid_ms: f64,
+    /// The whole culling step.
+    pub total_ms: f64,
+}
+
+/// Per-frame counts of how objects were classified.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CullStats {
+    /// Objects in the scene.
+    pub objects: usize,
+    /// Removed by view-frustum culling.
+    pub frustum_culled: usize,
+    /// Removed by the screen-space max-depth test.
+    pub occlusion_culled: usize,
+    /// Removed by the hybrid object-space query.
+    pub hybrid_culled: usize,
+    /// Objects given the hybrid query.
+    pub hybrid_tested: usize,
+    /// Kept because their box crosses the near plane.
+    pub crosses_near: usize,
+    /// Rapid-motion objects drawn into the predicted depth (and kept).
+    pub rapid: usize,
+}
+
+/// What a culling method decided for one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CullResult {
+    /// Ids of the objects to draw, increasing.
+    pub visible: Vec<u32>,
+    /// Stage timings.
+    pub timings: CullTimings,
+    /// Classification counts.
+    pub stats: CullStats,
+    /// Objects already drawn into the occlusion map (WOC's rapid-motion objects): an engine
+    /// that shades them in that pass can skip them in the main pass.
+    pub predrawn: Vec<u32>,
+    /// The depth buffer the screen-space tests ran against (predicted depth for WOC), if any.
+    pub occlusion_map: Option<Image<f32>>,
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+/// The 12 triangles of a box (two per face), for object-space queries of its proxy.
+pub fn aabb_triangles(b: &Aabb) -> [[Vec3; 3]; 12] {
+    let c = b.corners();
+    // Corner index bits: x = 1, y = 2, z = 4 (see `Aabb::corners`).
+    const FACES: [[usize; 4]; 6] = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let mut out = [[Vec3::ZERO; 3]; 12];
+    for (f, q) in FACES.iter().enumerate() {
+        out[2 * f] = [c[q[0]], c[q[1]], c[q[2]]];
+        out[2 * f + 1] = [c[q[0]], c[q[2]], c[q[3]]];
+    }
+    out
+}
+
+/// World AABBs of every instance at time `t`.
+pub fn instance_aabbs(scene: &Scene, t: f32) -> Vec<Aabb> {
+    (0..scene.instances.len() as u32).into_par_iter().map(|id| scene.instance_aabb_at(id, t)).collect()
+}
+
+fn check_camera_depth(depth: &Image<f32>, cam: &Camera, what: &str) -> Result<()> {
+    depth.check_nonempty(what)?;
+    if depth.size() != (cam.width, cam.height) {
+        return Err(Error::invalid(format!(
+            "{what} is {}x{} but the camera renders {}x{}",
+            depth.width(),
+            depth.height(),
+            cam.width,
+            cam.height
+        )));
+    }
+    if depth.data().iter().any(|d| d.is_nan()) {
+        return Err(Error::invalid(format!("{what} holds NaN")));
+    }
+    Ok(())
+}
+
+fn check_time(t: f32) -> Result<()> {
+    if t.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::invalid(format!("scene time must be finite, got {t}")))
+    }
+}
+
+/// Depth tolerance of the pipeline's screen-space test: an object is culled only when the max
+/// depth over its rect is below its nearest corner depth by more than this. The rasterizer
+/// interpolates depth and the motion field reprojects it in f32, so a face seen head-on (an
+/// AABB face, e.g. a building wall) can come out a few ulps nearer than its own box corner; a
+/// window onto that face would then hide the object from itself. 1e-6 is about 16 ulps near
+/// depth 1 (millimetres at 10 m with near = 0.1, far = 100) and far below real occluder gaps.
+pub const DEPTH_TOLERANCE: f32 = 1e-6;
+
+/// How one object was classified by [`test_objects`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Class {
+    Frustum,
+    Forced,
+    CrossesNear,
+    Occluded,
+    Visible,
+}
+
+/// VFC + screen-space max-depth test of every object (parallel). `forced[id]` objects are
+/// kept without a test.
+fn test_objects(aabbs: &[Aabb], cam: &Camera, map: &impl MaxDepthQuery, forced: Option<&[bool]>) -> Vec<Class> {
+    let frustum = Frustum::from_camera(cam);
+    let vp = cam.view_proj();
+    aabbs
+        .par_iter()
+        .enumerate()
+        .map(|(id, b)| {
+            if !frustum.intersects(b) {
+                return Class::Frustum;
+            }
+            if forced.is_some_and(|f| f[id]) {
+                return Class::Forced;
+            }
+            match screen_rect_with(b, &vp, cam.width, cam.height) {
+                ScreenRect::CrossesNear => Class::CrossesNear,
+                ScreenRect::Outside => Class::Frustum,
+                ScreenRect::Rect { rect, nearest } => {
+                    if map.is_occluded(rect, nearest - DEPTH_TOLERANCE) {
+                        Class::Occluded
+                    } else {
+                        Class::Visible
+                    }
+                }
+            }
+        })
+        .collect()
+}
+
+/// Hybrid object-space query (thesis Sec. IV.2, a CPU analogue of the HOQ variant of Kubisch &
+/// Tavenrath 2014): of `candidates` (objects the screen-space test kept), the `k` with the most
+/// triangles (at least `min_tris`; ties by id) rasterize their AABB at time `t` against `depth`
+/// with the renderer's coverage rules; those without a single fragment in front (by more than
+/// [`DEPTH_TOLERANCE`]) are hidden. Returns `(hidden ids, number tested)`.
+///
+/// Conservative: any pixel centre an object covers is covered by its box at a depth no
+/// farther, so a visible object always has a box fragment in front of an occluder map that is
+/// itself no nearer than the truth.
+pub fn hybrid_cull(
+    scene: &Scene,
+    depth: &Image<f32>,
+    cam: &Camera,
+    t: f32,
+    candidates: &[u32],
+    k: usize,
+    min_tris: usize,
+) -> Result<(Vec<u32>, usize)> {
+    check_time(t)?;
+    check_camera_depth(depth, cam, "occlusion depth")?;
+    let n = scene.instances.len();
+    if let Some(&bad) = candidates.iter().find(|&&id| id as usize >= n) {
+        return Err(Error::invalid(format!("hybrid candidates name object {bad} but the scene has {n}")));
+    }
+    if k == 0 {
+        return Ok((Vec::new(), 0));
+    }
+    let tris = |id: u32| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count();
+    let mut cand: Vec<u32> = candidates.iter().copied().filter(|&id| tris(id) >= min_tris).collect();
+    cand.sort_unstable_by(|&a, &b| tris(b).cmp(&tris(a)).then(a.cmp(&b)));
+    cand.dedup();
+    cand.truncate(k);
+    if cand.is_empty() {
+        return Ok((Vec::new(), 0));
+    }
+    // The map holds the candidates' own (warped) surfaces: a box face that *is* the surface
+    // (buildings) must pass against itself, so fragments are compared with a small tolerance
+    // (the same as the rect test), not strictly.
+    let biased =
+        Image::from_vec(depth.width(), depth.height(), depth.data().par_iter().map(|d| d + DEPTH_TOLERANCE).collect())?;
+    let mut hidden: Vec<u32> = cand
+        .par_iter()
+        .copied()
+        .filter(|&id| !any_fragment_visible(&biased, cam, &aabb_triangles(&scene.instance_aabb_at(id, t))))
+        .collect();
+    hidden.sort_unstable();
+    Ok((hidden, cand.len()))
+}
+
+fn collect(classes: &[Class], hybrid_before: Option<&[Class]>) -> (Vec<u32>, CullStats) {
+    let mut st = CullStats { objects: classes.len(), ..CullStats::default() };
+    let mut visible = Vec::new();
+    for (id, c) in classes.iter().enumerate() {
+        match c {
+            Class::Frustum => st.frustum_culled += 1,
+            Class::Occluded => {
+                if hybrid_before.is_some_and(|h| h[id] != Class::Occluded) {
+                    st.hybrid_culled += 1;
+                } else {
+                    st.occlusion_culled += 1;
+                }
+            }
+            Class::Forced => {
+                st.rapid += 1;
+                visible.push(id as u32);
+            }
+            Class::CrossesNear => {
+                st.crosses_near += 1;
+                visible.push(id as u32);
+            }
+            Class::Visible => visible.push(id as u32),
+        }
+    }
+    (visible, st)
+}
+
+/// Screen-space speed (pixels per frame) of an instance between two views: the largest
+/// displacement of its object-space bounding-box corners, each moved with the instance's
+/// transform at each time (so rotating objects are tracked point by point). Infinite when a
+/// corner is behind or in front of the near plane in either view.
+pub fn screen_speed(scene: &Scene, id: u32, cam_a: &Camera, t_a: f32, cam_b: &Camera, t_b: f32) -> f32 {
+    let inst = &scene.instances[id as usize];
+    let bounds = scene.meshes[inst.mesh as usize].bounds;
+    if bounds.is_empty() {
+        return 0.0;
+    }
+    let (ma, mb) = (inst.transform_at(t_a), inst.transform_at(t_b));
+    let (vpa, vpb) = (cam_a.view_proj(), cam_b.view_proj());
+    let mut speed = 0.0f32;
+    for c in bounds.corners() {
+        let pa = zwarp_core::camera::project_with(&vpa, cam_a.width, cam_a.height, ma.transform_point3(c));
+        let pb = zwarp_core::camera::project_with(&vpb, cam_b.width, cam_b.height, mb.transform_point3(c));
+        match (pa, pb) {
+            (Some(a), Some(b)) if a.z >= 0.0 && b.z >= 0.0 => {
+                speed = speed.max((b.truncate() - a.truncate()).length());
+            }
+            _ => return f32::INFINITY,
+        }
+    }
+    speed
+}
+
+/// Culls the objects of `scene` at time `t` for `cam` against any depth buffer `depth` (VFC,
+/// then the screen-space test with the chosen max-depth structure). Objects flagged in
+/// `forced` are kept untested. Building block of [`woc`], [`lastframe`] and
+/// [`ideal_screen_space`]; usable with an engine's own predicted depth.
+pub fn cull_against_depth(
+    scene: &Scene,
+    depth: &Image<f32>,
+    cam: &Camera,
+    t: f32,
+    kind: MaxDepthKind,
+    forced: Option<&[bool]>,
+) -> Result<CullResult> {
+    check_time(t)?;
+    check_camera_depth(depth, cam, "occlusion depth")?;
+    if let Some(f) = forced {
+        if f.len() != scene.instances.len() {
+            return Err(Error::invalid(format!(
+                "forced-visible flags: {} entries for {} objects",
+                f.len(),
+                scene.instances.len()
+            )));
+        }
+    }
+    let t0 = Instant::now();
+    let map = MaxDepthMap::build(kind, depth)?;
+    let build_ms = ms(t0);
+    let t1 = Instant::now();
+    let aabbs = instance_aabbs(scene, t);
+    let classes = test_objects(&aabbs, cam, &map, forced);
+    let (visible, stats) = collect(&classes, None);
+    let test_ms = ms(t1);
+    Ok(CullResult {
+        visible,
+        timings: CullTimings { build_ms, test_ms, total_ms: ms(t0), ..CullTimings::default() },
+        stats,
+        predrawn: Vec::new(),
+        occlusion_map: Some(depth.clone()),
+    })
+}
+
+/// WOC for one frame (see the module docs): the visible objects of `scene` at time `t` seen by
+/// `cam`, predicted from the previous frame `prev`.
+///
+/// Errors: invalid parameters, non-finite times, buffer sizes that differ from the cameras',
+/// NaN depths.
+pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &WocParams) -> Result<CullResult> {
+    params.validate()?;
+    check_time(t)?;
+    check_time(prev.t)?;
+    check_camera_depth(prev.depth, prev.cam, "previous depth buffer")?;
+    prev.depth.check_same_size(prev.items, "previous depth vs item buffer")?;
+    if (prev.cam.width, prev.cam.height) != (cam.width, cam.height) {
+        return Err(Error::invalid(format!(
+            "previous camera renders {}x{} but the current one {}x{}",
+            prev.cam.width, prev.cam.height, cam.width, cam.height
+        )));
+    }
+    let start = Instant::now();
+    let mut tm = CullTimings::default();
+
+    // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
+    let t0 = Instant::now();
+    let deltas = scene.object_deltas(prev.t, t);
+    let motion = motion_field(prev.depth, Some(prev.items), prev.cam, cam, &deltas)?;
+    tm.motion_ms = ms(t0);
+
+    // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
+    let t0 = Instant::now();
+    let mut wp = params.warp;
+    wp.holes = if params.awoc { HolePolicy::Awoc } else { params.warp.holes };
+    wp.record_source = false;
+    let warped = warp_depth(&[WarpLayer { depth: prev.depth, motion: &motion }], &wp)?;
+    tm.warp_ms = ms(t0);
+
+    // 3. Erosion: occluder silhouettes pulled back by a pixel (warping is off by 1-2 px at
+    //    boundaries, thesis Fig. 4).
+    let t0 = Instant::now();
+    let mut predicted = if params.erosion { erode_max(&warped.depth) } else { warped.depth };
+    tm.erosion_ms = ms(t0);
+
+    // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
+    //    (rasterized depth needs no safety margin), and kept visible.
+    let t0 = Instant::now();
+    let aabbs = instance_aabbs(scene, t);
+    let frustum = Frustum::from_camera(cam);
+    let n = scene.instances.len();
+    let mut forced = vec![false; n];
+    let mut predrawn = Vec::new();
+    if let Some(thr) = params.rapid_motion_px {
+        let flags: Vec<bool> = (0..n as u32)
+            .into_par_iter()
+            .map(|id| {
+                frustum.intersects(&aabbs[id as usize]) && screen_speed(scene, id, prev.cam, prev.t, cam, t) > thr
+            })
+            .collect();
+        predrawn = (0..n as u32).filter(|&id| flags[id as usize]).collect();
+        forced = flags;
+        if !predrawn.is_empty() {
+            draw_into(&mut predicted, None, scene, cam, t, &predrawn)?;
+        }
+    }
+    tm.draw_ms = ms(t0);
+
+    // 5. Max-depth structure.
+    let t0 = Instant::now();
+    let map = MaxDepthMap::build(params.max_depth, &predicted)?;
+    tm.build_ms = ms(t0);
+
+    // 6. VFC + screen-space test.
+    let t0 = Instant::now();
+    let mut classes = test_objects(&aabbs, cam, &map, Some(&forced));
+    tm.test_ms = ms(t0);
+
+    // 7. Hybrid object-space query of the heaviest survivors.
+    let t0 = Instant::now();
+    let before = (params.hybrid_objects > 0).then(|| classes.clone());
+    let candidates: Vec<u32> =
+        (0..n).filter(|&id| matches!(classes[id], Class::Visible | Class::CrossesNear)).map(|id| id as u32).collect();
+    let (hidden, tested) =
+        hybrid_cull(scene, &predicted, cam, t, &candidates, params.hybrid_objects, params.hybrid_min_triangles)?;
+    for id in hidden {
+        classes[id as usize] = Class::Occluded;
+    }
+    tm.hybrid_ms = ms(t0);
+
+    let (visible, mut stats) = collect(&classes, before.as_deref());
+    stats.hybrid_tested = tested;
+    tm.total_ms = ms(start);
+    Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
+}
+
+/// Baseline NOCULL: every object is drawn.
+pub fn nocull(scene: &Scene) -> CullResult {
+    let n = scene.instances.len();
+    CullResult {
+        visible: (0..n as u32).collect(),
+        timings: CullTimings::default(),
+        stats: CullStats { objects: n, ..CullStats::default() },
+        predrawn: Vec::new(),
+        occlusion_map: None,
+    }
+}
+
+/// Baseline VFC: view-frustum culling only.
+pub fn vfc_cull(scene: &Scene, cam: &Camera, t: f32) -> Result<CullResult> {
+    check_time(t)?;
+    let t0 = Instant::now();
+    let aabbs = instance_aabbs(scene, t);
+    let frustum = Frustum::from_camera(cam);
+    let classes: Vec<Class> =
+        aabbs.par_iter().map(|b| if frustum.intersects(b) { Class::Visible } else { Class::Frustum }).collect();
+    let (visible, stats) = collect(&classes, None);
+    let total = ms(t0);
+    Ok(CullResult {
+        visible,
+        timings: CullTimings { test_ms: total, total_ms: total, ..CullTimings::default() },
+        stats,
+        predrawn: Vec::new(),
+        occlusion_map: None,
+    })
+}
+
+/// Baseline "last frame": the previous depth buffer used as the occlusion map **without
+/// reprojection** (a common shortcut, DESIGN.md). Unsafe: it culls objects that became
+/// visible; kept to show that error, never a default.
+pub fn lastframe(
+    scene: &Scene,
+    prev_depth: &Image<f32>,
+    cam: &Camera,
+    t: f32,
+    kind: MaxDepthKind,
+) -> Result<CullResult> {
+    cull_against_depth(scene, prev_depth, cam, t, kind, None)
+}
+
+/// The ideal screen-space test (thesis Sec. V.1 "reference screen-space culling using the true
+/// depth buffer"): VFC + exact N-buffer test of every AABB against the depth buffer rendered
+/// at the current view. The best culling ratio any AABB-in-screen-space method can reach.
+pub fn ideal_screen_space(scene: &Scene, true_depth: &Image<f32>, cam: &Camera, t: f32) -> Result<CullResult> {
+    cull_against_depth(scene, true_depth, cam, t, MaxDepthKind::NBuffer, None)
+}
+
+/// Sorted distinct object ids present in an item buffer (ids `>= n_objects` and [`NO_ITEM`]
+/// ignored): the ideal visible set REF.
+pub fn visible_from_items(items: &Image<u32>, n_objects: usize) -> Vec<u32> {
+    let mut seen = vec![false; n_objects];
+    for &id in items.data() {
+        if id != NO_ITEM && (id as usize) < n_objects {
+            seen[id as usize] = true;
+        }
+    }
+    (0..n_objects as u32).filter(|&i| seen[i as usize]).collect()
+}
+
+/// Baseline REF: renders the full frame and returns the objects present in its item buffer
+/// (the ideal visible set); the rendered depth is returned as `occlusion_map`.
+pub fn reference(scene: &Scene, cam: &Camera, t: f32) -> Result<CullResult> {
+    check_time(t)?;
+    let t0 = Instant::now();
+    let frame = render_frame(scene, cam, t, &FrameOptions::default())?;
+    let visible = visible_from_items(&frame.items, scene.instances.len());
+    let total = ms(t0);
+    let objects = scene.instances.len();
+    Ok(CullResult {
+        stats: CullStats { objects, occlusion_culled: objects - visible.len(), ..CullStats::default() },
+        visible,
+        timings: CullTimings { draw_ms: total, total_ms: total, ..CullTimings::default() },
+        predrawn: Vec::new(),
+        occlusion_map: Some(frame.depth),
+    })
+}
+
+/// Outcome of [`twophase`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct TwoPhaseResult {
+    /// Phase 1: last frame's visible objects still in the frustum (drawn first).
+    pub first: Vec<u32>,
+    /// Phase 2: objects found visible against the phase-1 depth (drawn second).
+    pub second: Vec<u32>,
+    /// `first` and `second` together, increasing.
+    pub visible: Vec<u32>,
+    /// Depth after both draws (the frame's final depth buffer).
+    pub depth: Image<f32>,
+    /// Triangles drawn in phase 1 and phase 2.
+    pub triangles: (usize, usize),
+    /// `draw_ms` = both draws, `build_ms`/`test_ms` = the culling between them.
+    pub timings: CullTimings,
+}
+
+/// Baseline two-phase culling (Haar & Aaltonen 2015; Nießner & Loop 2012; seed 000 Sec. 5.1):
+/// draw last frame's visible set, build the max-depth structure from that depth, test the rest,
+/// draw the newly visible ones. Safe, but costs two geometry passes with a dependency between
+/// them.
+pub fn twophase(
+    scene: &Scene,
+    prev_visible: &[u32],
+    cam: &Camera,
+    t: f32,
+    kind: MaxDepthKind,
+) -> Result<TwoPhaseResult> {
+    check_time(t)?;
+    let n = scene.instances.len();
+    if let Some(&bad) = prev_visible.iter().find(|&&id| id as usize >= n) {
+        return Err(Error::invalid(format!("previous visible set names object {bad} but the scene has {n}")));
+    }
+    let start = Instant::now();
+    let mut tm = CullTimings::default();
+    let aabbs = instance_aabbs(scene, t);
+    let frustum = Frustum::from_camera(cam);
+    let mut in_first = vec![false; n];
+    for &id in prev_visible {
+        in_first[id as usize] = frustum.intersects(&aabbs[id as usize]);
+    }
+    let first: Vec<u32> = (0..n as u32).filter(|&id| in_first[id as usize]).collect();
+    let tris = |ids: &[u32]| -> usize {
+        ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
+    };
+
+    let t0 = Instant::now();
+    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
+    if !first.is_empty() {
+        draw_into(&mut depth, None, scene, cam, t, &first)?;
+    }
+    tm.draw_ms = ms(t0);
+
+    let t0 = Instant::now();
+    let map = MaxDepthMap::build(kind, &depth)?;
+    tm.build_ms = ms(t0);
+    let t0 = Instant::now();
+    let classes = test_objects(&aabbs, cam, &map, Some(&in_first));
+    let second: Vec<u32> =
+        (0..n).filter(|&id| matches!(classes[id], Class::Visible | Class::CrossesNear)).map(|id| id as u32).collect();
+    tm.test_ms = ms(t0);
+
+    let t0 = Instant::now();
+    if !second.is_empty() {
+        draw_into(&mut depth, None, scene, cam, t, &second)?;
+    }
+    tm.draw_ms += ms(t0);
+    let mut visible = [first.as_slice(), second.as_slice()].concat();
+    visible.sort_unstable();
+    tm.total_ms = ms(start);
+    Ok(TwoPhaseResult { triangles: (tris(&first), tris(&second)), first, second, visible, depth, timings: tm })
+}
+
+/// Culling accuracy of a visible set against REF (thesis Sec. V.1, Table 1 and 3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullAccuracy {
+    /// Objects in the scene.
+    pub objects: usize,
+    /// Objects the method keeps.
+    pub visible: usize,
+    /// Objects REF keeps.
+    pub reference: usize,
+    /// Visible in REF but culled (culling errors, unsafe).
+    pub false_negatives: usize,
+    /// Kept but invisible in REF (wasted draws, safe).
+    pub false_positives: usize,
+    /// Object error: `false_negatives / objects` (thesis Table 1).
+    pub object_error: f64,
+    /// Culling ratio CR: culled objects over the objects REF culls (thesis Table 3: NOCULL 0,
+    /// REF 1); 1 when REF culls nothing.
+    pub culling_ratio: f64,
+}
+
+/// Compares a visible set with the reference one (both increasing or not; duplicates ignored).
+pub fn accuracy(visible: &[u32], reference: &[u32], n_objects: usize) -> CullAccuracy {
+    let mut v = vec![false; n_objects];
+    let mut r = vec![false; n_objects];
+    for &id in visible.iter().filter(|&&i| (i as usize) < n_objects) {
+        v[id as usize] = true;
+    }
+    for &id in reference.iter().filter(|&&i| (i as usize) < n_objects) {
+        r[id as usize] = true;
+    }
+    let (mut nv, mut nr, mut fneg, mut fpos) = (0, 0, 0, 0);
+    for i in 0..n_objects {
+        nv += v[i] as usize;
+        nr += r[i] as usize;
+        fneg += (r[i] && !v[i]) as usize;
+        fpos += (v[i] && !r[i]) as usize;
+    }
+    let ref_culled = n_objects - nr;
+    CullAccuracy {
+        objects: n_objects,
+        visible: nv,
+        reference: nr,
+        false_negatives: fneg,
+        false_positives: fpos,
+        object_error: if n_objects == 0 { 0.0 } else { fneg as f64 / n_objects as f64 },
+        culling_ratio: if ref_culled == 0 { 1.0 } else { (n_objects - nv) as f64 / ref_culled as f64 },
+    }
+}

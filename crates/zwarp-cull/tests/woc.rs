@@ -1,0 +1,299 @@
+//! WOC pipeline tests (seed 000 Sec. 5, thesis seed 002 Sec. III-V) on small hand-built scenes
+//! rendered with zwarp-raster at non-power-of-two sizes.
+
+use glam::{Mat4, Vec3};
+use zwarp_core::{Aabb, Animation, Camera, Image, Mesh, Scene};
+use zwarp_cull::{
+    aabb_triangles, accuracy, cull_against_depth, hybrid_cull, ideal_screen_space, lastframe, nocull, reference,
+    screen_rect, screen_speed, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind, PrevFrame, ScreenRect,
+    WocParams,
+};
+use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
+
+const W: u32 = 96;
+const H: u32 = 61;
+const DT: f32 = 1.0 / 30.0;
+
+/// A scene whose objects are axis-aligned boxes (mesh 0 = unit cube scaled per instance).
+fn scene_of(boxes: &[(Aabb, Animation)]) -> Scene {
+    let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+    let positions = unit.corners().to_vec();
+    let indices: Vec<[u32; 3]> = aabb_triangles(&unit)
+        .iter()
+        .map(|t| t.map(|p| positions.iter().position(|q| *q == p).unwrap() as u32))
+        .collect();
+    let mut s = Scene { name: "boxes".into(), up: Vec3::Y, ..Scene::default() };
+    let m = s.add_mesh(Mesh::new(positions, indices).unwrap());
+    for (b, anim) in boxes {
+        let tr = Mat4::from_translation(b.min) * Mat4::from_scale(b.extent());
+        s.add_instance(m, tr, Vec3::ONE, *anim, false);
+    }
+    s
+}
+
+fn bx(min: [f32; 3], max: [f32; 3]) -> (Aabb, Animation) {
+    (Aabb::new(Vec3::from(min), Vec3::from(max)), Animation::Static)
+}
+
+fn cam_at(eye: Vec3, target: Vec3) -> Camera {
+    Camera::perspective(eye, target, Vec3::Y, 1.0, 0.1, 100.0, W, H).unwrap()
+}
+
+/// Renders the previous frame and runs WOC for the current one; returns (WOC, REF) visible sets.
+fn run(
+    scene: &Scene,
+    prev_cam: &Camera,
+    t_prev: f32,
+    cam: &Camera,
+    t: f32,
+    params: &WocParams,
+) -> (Vec<u32>, Vec<u32>) {
+    let prev = render_frame(scene, prev_cam, t_prev, &FrameOptions::default()).unwrap();
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: prev_cam, t: t_prev };
+    let r = woc(scene, &pf, cam, t, params).unwrap();
+    let reference = reference(scene, cam, t).unwrap();
+    (r.visible, reference.visible)
+}
+
+/// The wall (id 0), an object fully behind it (id 1), an object beside it (id 2).
+fn wall_scene() -> Scene {
+    scene_of(&[
+        bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]),
+        bx([-1.0, -1.0, -5.0], [1.0, 1.0, -3.0]),
+        bx([9.0, -1.0, -4.0], [10.0, 1.0, -3.0]),
+    ])
+}
+
+#[test]
+fn object_fully_behind_a_wall_is_culled() {
+    let s = wall_scene();
+    let prev = cam_at(Vec3::new(0.3, 0.1, 10.0), Vec3::new(0.3, 0.1, 0.0));
+    let cur = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let (v, r) = run(&s, &prev, 0.0, &cur, DT, &WocParams::default());
+    assert_eq!(r, vec![0, 2]);
+    assert_eq!(v, vec![0, 2], "the hidden box is culled, the wall and the side box are kept");
+}
+
+#[test]
+fn sliver_visible_through_a_gap_is_kept() {
+    // Two wall halves with a 0.3-unit gap (about 2 pixels on screen) and a box behind it.
+    let s = scene_of(&[
+        bx([-6.0, -4.0, -0.2], [-0.15, 4.0, 0.2]),
+        bx([0.15, -4.0, -0.2], [6.0, 4.0, 0.2]),
+        bx([-1.0, -1.0, -5.0], [1.0, 1.0, -3.0]),
+    ]);
+    let prev = cam_at(Vec3::new(0.1, 0.0, 10.0), Vec3::new(0.1, 0.0, 0.0));
+    let cur = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    for erosion in [true, false] {
+        let params = WocParams { erosion, ..WocParams::default() };
+        let (v, r) = run(&s, &prev, 0.0, &cur, DT, &params);
+        assert_eq!(r, vec![0, 1, 2], "REF sees the box through the gap");
+        assert_eq!(v, vec![0, 1, 2], "erosion {erosion}");
+    }
+}
+
+#[test]
+fn object_crossing_the_near_plane_is_kept() {
+    // A box reaching behind the eye at the side, and the wall; the rapid-motion path is off so
+    // the near-plane rule alone must keep it.
+    let s = scene_of(&[bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]), bx([0.5, -0.3, 8.0], [1.0, 0.3, 10.5])]);
+    let prev = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    let pf_frame = render_frame(&s, &prev, 0.0, &FrameOptions::default()).unwrap();
+    let pf = PrevFrame { depth: &pf_frame.depth, items: &pf_frame.items, cam: &prev, t: 0.0 };
+    let r = woc(&s, &pf, &prev, DT, &params).unwrap();
+    assert_eq!(r.visible, vec![0, 1]);
+    assert_eq!(r.stats.crosses_near, 1);
+}
+
+#[test]
+fn dynamic_object_moving_out_from_behind_an_occluder_is_kept() {
+    // Id 1 sits behind the wall at t = 0 and moves 11 units to the right within one frame.
+    let v = Vec3::new(11.0 / DT, 0.0, 0.0);
+    let s = scene_of(&[
+        bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]),
+        (Aabb::new(Vec3::new(-1.0, -1.0, -4.0), Vec3::new(0.0, 1.0, -3.0)), Animation::Linear { velocity: v }),
+    ]);
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    assert_eq!(visible_from_items(&prev.items, 2), vec![0], "hidden in the previous frame");
+    assert!(screen_speed(&s, 1, &cam, 0.0, &cam, DT) > 19.2);
+    for rapid in [Some(19.2), None] {
+        let params = WocParams { rapid_motion_px: rapid, ..WocParams::default() };
+        let (vis, r) = run(&s, &cam, 0.0, &cam, DT, &params);
+        assert_eq!(r, vec![0, 1]);
+        assert_eq!(vis, vec![0, 1], "rapid path {rapid:?}");
+    }
+}
+
+#[test]
+fn visible_moving_occluder_uncovers_a_static_object() {
+    // A small occluder (id 0) hides id 1 at t = 0 and moves away slowly (object deltas in the
+    // motion field, below the rapid threshold): the warped occluder must not hide id 1.
+    let v = Vec3::new(-2.0 / DT, 0.0, 0.0);
+    let s = scene_of(&[
+        (Aabb::new(Vec3::new(-1.5, -1.5, 1.0), Vec3::new(1.5, 1.5, 1.5)), Animation::Linear { velocity: v }),
+        bx([-0.5, -0.5, -3.0], [0.5, 0.5, -2.0]),
+        bx([-20.0, -20.0, -10.0], [20.0, 20.0, -9.5]),
+    ]);
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    assert_eq!(visible_from_items(&prev.items, 3), vec![0, 2]);
+    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    let (vis, r) = run(&s, &cam, 0.0, &cam, DT, &params);
+    assert_eq!(r, vec![0, 1, 2]);
+    assert_eq!(vis, vec![0, 1, 2]);
+}
+
+/// Deterministic pseudo-random scene: a ground slab, 40 boxes of various sizes.
+fn random_scene(seed: u64) -> Scene {
+    let mut st = seed;
+    let mut rnd = || {
+        st = st.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((st >> 33) as f32) / (1u64 << 31) as f32
+    };
+    let mut boxes = vec![bx([-30.0, -1.0, -30.0], [30.0, 0.0, 30.0])];
+    for _ in 0..40 {
+        let c = Vec3::new(rnd() * 24.0 - 12.0, 0.0, rnd() * 24.0 - 12.0);
+        let e = Vec3::new(0.6 + rnd() * 2.5, 0.6 + rnd() * 4.0, 0.6 + rnd() * 2.5);
+        let anim = if rnd() < 0.3 {
+            Animation::Linear { velocity: Vec3::new(rnd() * 6.0 - 3.0, 0.0, rnd() * 6.0 - 3.0) }
+        } else {
+            Animation::Static
+        };
+        boxes.push((Aabb::new(c - Vec3::new(e.x, 0.0, e.z) * 0.5, c + Vec3::new(e.x * 0.5, e.y, e.z * 0.5)), anim));
+    }
+    scene_of(&boxes)
+}
+
+#[test]
+fn woc_is_conservative_along_a_camera_path_at_odd_sizes() {
+    for (seed, (w, h)) in [(1u64, (97u32, 61u32)), (2, (64, 37)), (3, (53, 53))] {
+        let s = random_scene(seed);
+        let cams: Vec<Camera> = (0..6)
+            .map(|k| {
+                let a = 0.4 + k as f32 * 0.06;
+                let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
+                Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, w, h).unwrap()
+            })
+            .collect();
+        let mut culled_any = false;
+        for k in 1..cams.len() {
+            let (tp, t) = ((k - 1) as f32 * DT, k as f32 * DT);
+            for kind in [MaxDepthKind::Mipmap, MaxDepthKind::NBuffer, MaxDepthKind::YMap { switch: 2 }] {
+                let params = WocParams { max_depth: kind, hybrid_min_triangles: 0, ..WocParams::default() };
+                let (v, r) = run(&s, &cams[k - 1], tp, &cams[k], t, &params);
+                let acc = accuracy(&v, &r, s.instances.len());
+                assert_eq!(acc.false_negatives, 0, "seed {seed} frame {k} {kind:?}: {v:?} vs REF {r:?}");
+                culled_any |= v.len() < vfc_cull(&s, &cams[k], t).unwrap().visible.len();
+            }
+            // The ideal screen-space test and two-phase culling are conservative too.
+            let truth = reference(&s, &cams[k], t).unwrap();
+            let ideal = ideal_screen_space(&s, truth.occlusion_map.as_ref().unwrap(), &cams[k], t).unwrap();
+            assert_eq!(accuracy(&ideal.visible, &truth.visible, s.instances.len()).false_negatives, 0);
+            let prev_ref = reference(&s, &cams[k - 1], tp).unwrap();
+            let tp2 = twophase(&s, &prev_ref.visible, &cams[k], t, MaxDepthKind::NBuffer).unwrap();
+            assert_eq!(accuracy(&tp2.visible, &truth.visible, s.instances.len()).false_negatives, 0);
+            assert_eq!(&tp2.depth, truth.occlusion_map.as_ref().unwrap(), "two passes draw the whole visible set");
+        }
+        assert!(culled_any, "seed {seed}: occlusion culling removed nothing beyond VFC");
+    }
+}
+
+#[test]
+fn last_frame_depth_without_warping_culls_revealed_objects() {
+    // Camera moves 3 units right: id 1 (hidden behind the wall's right edge) comes into view.
+    let s = scene_of(&[bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]), bx([6.5, -1.0, -3.5], [7.5, 1.0, -3.0])]);
+    let prev_cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let cam = cam_at(Vec3::new(3.0, 0.0, 10.0), Vec3::new(3.0, 0.0, 0.0));
+    let prev = render_frame(&s, &prev_cam, 0.0, &FrameOptions::default()).unwrap();
+    assert_eq!(visible_from_items(&prev.items, 2), vec![0]);
+    let r = reference(&s, &cam, DT).unwrap();
+    assert_eq!(r.visible, vec![0, 1]);
+    let lf = lastframe(&s, &prev.depth, &cam, DT, MaxDepthKind::NBuffer).unwrap();
+    assert_eq!(lf.visible, vec![0], "the unsafe baseline culls the revealed object");
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &prev_cam, t: 0.0 };
+    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    assert_eq!(woc(&s, &pf, &cam, DT, &params).unwrap().visible, vec![0, 1], "WOC keeps it");
+}
+
+#[test]
+fn hybrid_query_culls_an_object_the_rect_test_keeps() {
+    // A deep box (id 1) up and right of the view axis behind a wall (id 0): its projection is a
+    // hexagon, so the top-left corner pixel of its screen rect is not covered by the box. A
+    // far-depth hole there (as an unconverged warp leaves) makes the rect test keep the box; the
+    // object-space query sees that no box fragment is in front and culls it.
+    let s = scene_of(&[bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]), bx([2.0, 1.0, -10.0], [4.0, 3.0, -3.0])]);
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let frame = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    let b = s.instance_aabb_at(1, 0.0);
+    let ScreenRect::Rect { rect, .. } = screen_rect(&b, &cam) else { panic!("box is on screen") };
+    let corner = Image::from_fn(W, H, |x, y| if (x, y) == (rect.x0, rect.y0) { 1.0 } else { 0.0 });
+    assert!(!any_fragment_visible(&corner, &cam, &aabb_triangles(&b)), "the corner pixel is outside the box");
+    let mut depth = frame.depth.clone();
+    *depth.get_mut(rect.x0, rect.y0) = 1.0;
+    let rect_test = cull_against_depth(&s, &depth, &cam, 0.0, MaxDepthKind::NBuffer, None).unwrap();
+    assert_eq!(rect_test.visible, vec![0, 1], "the hole lies in the box's rect");
+    let (hidden, tested) = hybrid_cull(&s, &depth, &cam, 0.0, &rect_test.visible, 8, 0).unwrap();
+    assert_eq!((hidden, tested), (vec![1], 2));
+    // K = 1 tests only the heaviest (ties by id: the wall), min-triangle filter removes all.
+    assert_eq!(hybrid_cull(&s, &depth, &cam, 0.0, &[0, 1], 1, 0).unwrap(), (vec![], 1));
+    assert_eq!(hybrid_cull(&s, &depth, &cam, 0.0, &[0, 1], 8, 13).unwrap(), (vec![], 0));
+    // On the true depth the wall's box is visible (against its own surface, within the
+    // tolerance) and the hidden box is not.
+    assert_eq!(hybrid_cull(&s, &frame.depth, &cam, 0.0, &[0, 1], 8, 0).unwrap(), (vec![1], 2));
+}
+
+#[test]
+fn baselines_and_accuracy() {
+    let s = wall_scene();
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    assert_eq!(nocull(&s).visible, vec![0, 1, 2]);
+    // Turn the camera away from id 2: VFC drops it.
+    let left = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::new(-3.0, 0.0, 0.0));
+    assert_eq!(vfc_cull(&s, &left, 0.0).unwrap().visible, vec![0, 1]);
+    let r = reference(&s, &cam, 0.0).unwrap();
+    let a = accuracy(&[0, 1, 2], &r.visible, 3);
+    assert_eq!((a.false_negatives, a.false_positives), (0, 1));
+    assert_eq!(a.culling_ratio, 0.0);
+    let a = accuracy(&r.visible, &r.visible, 3);
+    assert_eq!(a.culling_ratio, 1.0);
+    let a = accuracy(&[0], &r.visible, 3);
+    assert_eq!(a.false_negatives, 1);
+    assert!((a.object_error - 1.0 / 3.0).abs() < 1e-12);
+    // Two-phase from an empty previous set: everything is found in phase 2.
+    let tp = twophase(&s, &[], &cam, 0.0, MaxDepthKind::NBuffer).unwrap();
+    assert!(tp.first.is_empty());
+    assert_eq!(tp.visible, vec![0, 1, 2], "nothing drawn yet: no occlusion in phase 2");
+    // From REF's set: the hidden box stays culled.
+    let tp = twophase(&s, &r.visible, &cam, 0.0, MaxDepthKind::NBuffer).unwrap();
+    assert_eq!((tp.first.clone(), tp.second.clone()), (vec![0, 2], vec![]));
+    assert_eq!(tp.triangles, (24, 0));
+}
+
+#[test]
+fn bad_inputs_are_errors() {
+    let s = wall_scene();
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let depth = Image::new(W, H, 1.0f32);
+    let items = Image::new(W, H, u32::MAX);
+    let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
+    let other = cam.with_size(W + 1, H).unwrap();
+    let e = woc(&s, &pf, &other, DT, &WocParams::default()).unwrap_err().to_string();
+    assert!(e.contains("previous camera renders"), "{e}");
+    let e = woc(&s, &pf, &cam, f32::NAN, &WocParams::default()).unwrap_err().to_string();
+    assert!(e.contains("finite"), "{e}");
+    let small = Image::new(3, 3, 1.0f32);
+    let pf2 = PrevFrame { depth: &small, items: &items, cam: &cam, t: 0.0 };
+    assert!(woc(&s, &pf2, &cam, DT, &WocParams::default()).is_err());
+    let mut p = WocParams::default();
+    p.warp.n_seeds = 0;
+    assert!(woc(&s, &pf, &cam, DT, &p).is_err());
+    let p = WocParams { rapid_motion_px: Some(f32::NAN), ..WocParams::default() };
+    assert!(woc(&s, &pf, &cam, DT, &p).unwrap_err().to_string().contains("rapid-motion"));
+    let e = twophase(&s, &[7], &cam, 0.0, MaxDepthKind::NBuffer).unwrap_err().to_string();
+    assert!(e.contains("object 7"), "{e}");
+    let mut nan = depth.clone();
+    *nan.get_mut(1, 1) = f32::NAN;
+    assert!(lastframe(&s, &nan, &cam, 0.0, MaxDepthKind::Mipmap).is_err());
+}
