@@ -1,1 +1,190 @@
-//! zwarp-warp (being built).
+//! zwarp-warp: iterative depth warping (Lee, Kim, Eisemann, TOG 2018 — seed 000, Sec. 3) and
+//! its forward-warping baselines (Sec. 4.1).
+//!
+//! Given the depth buffer(s) of a source view and their motion buffers (`zwarp_core::Motion`:
+//! motion in pixels source -> target plus the point's depth in the target view), predict the
+//! depth buffer of the target view by *backward* warping: for every target pixel `p`, search a
+//! source position `q` with `q + v(q) = p` by fixed-point iteration `q_{i+1} = p - v(q_i)`
+//! (Bowles et al. 2012, seed 001) started from N seeds placed in a tight search region derived
+//! from a min-max motion mipmap (Sec. 3.3), over L peeled layers (Sec. 3.4).
+//!
+//! Conventions (DESIGN.md): depth is post-projection depth in `[0, 1]`, `1.0` = no surface;
+//! pixel `(x, y)` covers `[x, x+1) x [y, y+1)` with its sample at the centre; motion vectors are
+//! in pixels. A warp writes the moved sample's **target** depth (`Motion::depth`), never the
+//! source depth.
+//!
+//! Modules (one idea each):
+//! - [`bounds`]: min-max motion mipmap, iterative bound tightening (Fig. 5), PCA-oriented bounds.
+//! - [`search`]: THE fixed-point search kernel (Fig. 3), shared by every backward warp.
+//! - [`depth_warp`]: single- and multi-layer depth warping with cross-layer seeding (Fig. 6).
+//! - [`holes`]: hole policies (far depth, dilation of Fig. 8, AWOC of Sec. 5.3).
+//! - [`baselines`]: VFW and AFW forward warps (Sec. 4.1).
+//! - [`synth`]: an analytic ray-cast scene (ground + boxes) producing peeled layers, used by
+//!   tests and benchmarks.
+
+pub mod baselines;
+pub mod bounds;
+pub mod depth_warp;
+pub mod holes;
+pub mod search;
+pub mod synth;
+
+pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
+pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
+pub use depth_warp::{warp_depth, warp_prepared, PreparedLayer, WarpLayer};
+pub use holes::HolePolicy;
+pub use search::{
+    fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, Sampling, SearchParams,
+    SeedStrategy,
+};
+
+use zwarp_core::{Error, Image, Result};
+
+/// Largest supported number of search seeds N per pixel and layer (seeds live in a fixed-size
+/// stack buffer so the per-pixel kernel never allocates).
+pub const MAX_SEEDS: u32 = 64;
+
+/// Which search-region bound seeds are placed in (Sec. 3.3, Table 2/3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BoundKind {
+    /// The global motion bound (top mipmap texel) for every pixel: no tightening.
+    Global,
+    /// Axis-aligned bound tightened per pixel with `bound_iterations` mipmap look-ups (Fig. 5).
+    Tight,
+    /// Tight bound in the PCA frame of ~64 sampled motion vectors (Sec. 3.3); per frame the
+    /// axis-aligned (AAB) or the oriented (OB) frame is chosen, whichever global bound has the
+    /// smaller area ("we can always use a tighter bound by selecting the one that has smaller
+    /// area for every frame"). The paper's default for its quality figures.
+    #[default]
+    Oriented,
+}
+
+/// Per-pixel outcome of a warp.
+#[repr(u8)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum PixelState {
+    /// A fixed-point search converged: the depth is a warped sample.
+    Converged = 0,
+    /// No search converged; the hole policy filled the pixel with an approximation
+    /// (dilation, Fig. 8, or AWOC, Sec. 5.3).
+    Filled = 1,
+    /// No search converged and the pixel holds the far depth `1.0` (conservative for culling).
+    #[default]
+    Hole = 2,
+}
+
+/// Where a converged output pixel came from (recorded when [`WarpParams::record_source`] is
+/// set): the source position `q` (continuous pixel coordinates) and the layer index. Colour
+/// warping uses it to fetch the colour at `q`.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct SourcePos {
+    /// Converged source position (pixel coordinates of the source view).
+    pub q: glam::Vec2,
+    /// Index of the layer whose sample was chosen (`u32::MAX` if none).
+    pub layer: u32,
+}
+
+/// Parameters of the backward depth warp (seed 000 Sec. 3, names follow the paper).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarpParams {
+    /// N: search seeds per pixel and layer (1..=[`MAX_SEEDS`]). Fewer are used where the local
+    /// bound is narrow (adaptive early exit, Sec. 3.3).
+    pub n_seeds: u32,
+    /// T: fixed-point iterations per seed (>= 1). Independent of `bound_iterations`.
+    pub iterations: u32,
+    /// Convergence threshold in pixels: a seed converged when `|q_{i+1} - q_i| < threshold`.
+    pub threshold: f32,
+    /// Which search-region bound seeds are drawn from.
+    pub bound: BoundKind,
+    /// Number of mipmap tightening steps (Fig. 5, "typically 2-4"). Independent of T.
+    pub bound_iterations: u32,
+    /// What to do with pixels where no search converged.
+    pub holes: HolePolicy,
+    /// How seeds are placed.
+    pub seeding: SeedStrategy,
+    /// How the motion buffer is sampled between texels.
+    pub sampling: Sampling,
+    /// Candidate choice among converged seeds (paper: minimal depth).
+    pub choice: CandidateChoice,
+    /// Cross-layer seeding (Fig. 6): when an iterate of layer k lands in an empty texel, borrow
+    /// the sample of the nearest non-empty layer above; a second empty landing fails the seed.
+    /// Also seeds layer k+1 with layer k's converged position.
+    pub cross_layer: bool,
+    /// Record the converged source position per pixel in [`WarpOutput::source`].
+    pub record_source: bool,
+}
+
+impl Default for WarpParams {
+    /// N = 8, T = 3 (Table 3 uses T = 3; "2-3 iterations suffice"), threshold 0.5 px, oriented
+    /// tight bound with 3 tightening steps ("two to three narrowing steps suffice"), far-depth
+    /// holes (the conservative WOC setting), stratified seeds, adaptive bilinear sampling,
+    /// minimal-depth candidates, cross-layer seeding on.
+    fn default() -> Self {
+        WarpParams {
+            n_seeds: 8,
+            iterations: 3,
+            threshold: 0.5,
+            bound: BoundKind::Oriented,
+            bound_iterations: 3,
+            holes: HolePolicy::FarDepth,
+            seeding: SeedStrategy::Stratified,
+            sampling: Sampling::Adaptive,
+            choice: CandidateChoice::MinDepth,
+            cross_layer: true,
+            record_source: false,
+        }
+    }
+}
+
+impl WarpParams {
+    /// Checks the parameters, returning a one-line [`Error::Invalid`] for bad values.
+    pub fn validate(&self) -> Result<()> {
+        if self.n_seeds == 0 || self.n_seeds > MAX_SEEDS {
+            return Err(Error::invalid(format!("n_seeds (N) must be in 1..={MAX_SEEDS}, got {}", self.n_seeds)));
+        }
+        if self.iterations == 0 {
+            return Err(Error::invalid("iterations (T) must be at least 1"));
+        }
+        if !(self.threshold.is_finite() && self.threshold > 0.0) {
+            return Err(Error::invalid(format!("convergence threshold must be > 0, got {}", self.threshold)));
+        }
+        if let SeedStrategy::Offset(d) = self.seeding {
+            if !d.is_finite() {
+                return Err(Error::invalid("seed offset must be finite"));
+            }
+        }
+        if let HolePolicy::Dilate { radius } = self.holes {
+            if radius == 0 || radius > 64 {
+                return Err(Error::invalid(format!("dilation radius must be in 1..=64, got {radius}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Result of a depth warp: the predicted depth buffer of the target view and a per-pixel state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WarpOutput {
+    /// Predicted depth (`[0, 1]`, `1.0` = hole/no surface under [`HolePolicy::FarDepth`]).
+    pub depth: Image<f32>,
+    /// Per-pixel outcome.
+    pub state: Image<PixelState>,
+    /// Converged source positions, when [`WarpParams::record_source`] was set.
+    pub source: Option<Image<SourcePos>>,
+}
+
+impl WarpOutput {
+    /// Counts of `(converged, filled, hole)` pixels.
+    pub fn counts(&self) -> (usize, usize, usize) {
+        let mut c = [0usize; 3];
+        for s in self.state.data() {
+            c[*s as usize] += 1;
+        }
+        (c[0], c[1], c[2])
+    }
+    /// Fraction of pixels that are not [`PixelState::Converged`] (DESIGN.md metric).
+    pub fn non_converged_fraction(&self) -> f64 {
+        let (c, _, _) = self.counts();
+        1.0 - c as f64 / self.state.len().max(1) as f64
+    }
+}

@@ -1,0 +1,253 @@
+//! Forward-warping baselines of seed 000 Sec. 4.1: vertex-driven forward warping (VFW, Lee et
+//! al. 2008 / Zwicker et al. 2002) and atomics-driven forward warping (AFW, Yu et al. 2010 /
+//! Cichocki 2017; the family of FSR3's depth scatter). Both write each source sample's target
+//! depth (`Motion::depth`) with a depth test (atomic min on the `f32` bits: non-negative floats
+//! order like their `u32` bit patterns), parallel with rayon, and both expand each sample's
+//! support by half a pixel per side ([`FORWARD_SUPPORT_EXPANSION`]) so the comparison with the
+//! backward warp is fair (without it they crack on every stretching surface). Multi-layer
+//! versions splat every layer into the same buffer (paper: "we adapt VFW and AFW to repeat them
+//! for each layer"). Holes keep the far depth `1.0`.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
+
+use crate::depth_warp::{validated_samples, WarpLayer};
+use crate::search::CONTINUITY_PX;
+
+/// Support expansion of the forward warps, in pixels per side (Sec. 4.1: "by a half-pixel
+/// length to each side").
+pub const FORWARD_SUPPORT_EXPANSION: f32 = 0.5;
+
+/// VFW of one layer: every source pixel becomes a quad whose four corners move with the motion
+/// interpolated at the pixel corners, expanded by half a pixel, rasterized (two triangles,
+/// pixel centres strictly inside) with a depth test. See [`vfw_layers`].
+pub fn vfw(depth: &Image<f32>, motion: &Image<Motion>) -> Result<Image<f32>> {
+    vfw_layers(&[WarpLayer { depth, motion }])
+}
+
+/// AFW of one layer: every source pixel splats its target depth with atomic min into the target
+/// pixels whose centres lie strictly inside its footprint (the pixel square moved by its motion,
+/// expanded by half a pixel per side). See [`afw_layers`].
+pub fn afw(depth: &Image<f32>, motion: &Image<Motion>) -> Result<Image<f32>> {
+    afw_layers(&[WarpLayer { depth, motion }])
+}
+
+fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<Vec<Motion>>)> {
+    let first = layers.first().ok_or_else(|| Error::invalid("forward warp needs at least one layer"))?;
+    let (w, h) = first.depth.size();
+    let mut out = Vec::with_capacity(layers.len());
+    for (i, l) in layers.iter().enumerate() {
+        if l.depth.size() != (w, h) {
+            return Err(Error::invalid(format!(
+                "layer {i} is {}x{} but layer 0 is {w}x{h}",
+                l.depth.width(),
+                l.depth.height()
+            )));
+        }
+        out.push(validated_samples(l)?);
+    }
+    Ok((w, h, out))
+}
+
+fn new_target(n: usize) -> Vec<AtomicU32> {
+    (0..n).map(|_| AtomicU32::new(EMPTY_DEPTH.to_bits())).collect()
+}
+
+fn finish(w: u32, h: u32, buf: Vec<AtomicU32>) -> Result<Image<f32>> {
+    Image::from_vec(w, h, buf.into_iter().map(|a| f32::from_bits(a.into_inner())).collect())
+}
+
+#[inline]
+fn depth_test(buf: &[AtomicU32], i: usize, z: f32) {
+    // `+ 0.0` turns -0.0 into +0.0, whose bits order correctly.
+    buf[i].fetch_min((z + 0.0).to_bits(), Ordering::Relaxed);
+}
+
+/// Multi-layer AFW (see [`afw`]).
+pub fn afw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+    let (w, h, layers) = check_layers(layers)?;
+    let buf = new_target(w as usize * h as usize);
+    let hs = 0.5 + FORWARD_SUPPORT_EXPANSION;
+    for samples in &layers {
+        samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
+            for (x, m) in row.iter().enumerate() {
+                if m.depth >= 1.0 {
+                    continue;
+                }
+                let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + m.v;
+                // Target centres j + 0.5 strictly inside (c - hs, c + hs).
+                let x0 = ((c.x - hs - 0.5).floor() + 1.0).max(0.0);
+                let x1 = ((c.x + hs - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
+                let y0 = ((c.y - hs - 0.5).floor() + 1.0).max(0.0);
+                let y1 = ((c.y + hs - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
+                if x0 > x1 || y0 > y1 {
+                    continue;
+                }
+                for ty in y0 as usize..=y1 as usize {
+                    for tx in x0 as usize..=x1 as usize {
+                        depth_test(&buf, ty * w as usize + tx, m.depth);
+                    }
+                }
+            }
+        });
+    }
+    finish(w, h, buf)
+}
+
+/// Multi-layer VFW (see [`vfw`]). Corner motion: the mean motion of the (up to four) pixels
+/// sharing the corner that are valid and move within [`CONTINUITY_PX`] of the quad's own pixel,
+/// so quads stitch on smooth surfaces but do not stretch across depth edges into disocclusions.
+/// Each quad carries its pixel's target depth (flat), so zero motion reproduces the source.
+pub fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+    let (w, h, layers) = check_layers(layers)?;
+    let buf = new_target(w as usize * h as usize);
+    let e = FORWARD_SUPPORT_EXPANSION;
+    for samples in &layers {
+        let at = |x: i64, y: i64| -> Option<&Motion> {
+            if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
+                return None;
+            }
+            let m = &samples[y as usize * w as usize + x as usize];
+            (m.depth < 1.0).then_some(m)
+        };
+        samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
+            for (x, m) in row.iter().enumerate() {
+                if m.depth >= 1.0 {
+                    continue;
+                }
+                let (xi, yi) = (x as i64, y as i64);
+                let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
+                    let mut sum = Vec2::ZERO;
+                    let mut n = 0.0f32;
+                    for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
+                        if let Some(s) = at(px, py) {
+                            if (s.v - m.v).abs().max_element() < CONTINUITY_PX {
+                                sum += s.v;
+                                n += 1.0;
+                            }
+                        }
+                    }
+                    // n >= 1: the quad's own pixel always shares the corner.
+                    Vec2::new(cx as f32, cy as f32) + sum / n + out * e
+                };
+                // Corners in order TL, TR, BR, BL, each pushed outwards by e per axis.
+                let q = [
+                    corner(xi, yi, Vec2::new(-1.0, -1.0)),
+                    corner(xi + 1, yi, Vec2::new(1.0, -1.0)),
+                    corner(xi + 1, yi + 1, Vec2::new(1.0, 1.0)),
+                    corner(xi, yi + 1, Vec2::new(-1.0, 1.0)),
+                ];
+                raster_triangle(&buf, w, h, [q[0], q[1], q[2]], m.depth);
+                raster_triangle(&buf, w, h, [q[0], q[2], q[3]], m.depth);
+            }
+        });
+    }
+    finish(w, h, buf)
+}
+
+#[inline]
+fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
+    (b - a).perp_dot(p - a)
+}
+
+/// Rasterizes triangle `t = [a, b, c]` where edge `c -> a` is the quad diagonal: pixel centres
+/// strictly inside the outer edges `a -> b`, `b -> c` and on or inside the diagonal (so the two
+/// halves of a quad leave no gap; a centre on the diagonal may be written twice, which the
+/// atomic min makes harmless).
+fn raster_triangle(buf: &[AtomicU32], w: u32, h: u32, t: [Vec2; 3], z: f32) {
+    let area = edge(t[0], t[1], t[2]);
+    if area == 0.0 || !area.is_finite() {
+        return;
+    }
+    let s = area.signum();
+    let lo = t[0].min(t[1]).min(t[2]);
+    let hi = t[0].max(t[1]).max(t[2]);
+    let x0 = ((lo.x - 0.5).floor() + 1.0).max(0.0);
+    let x1 = ((hi.x - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
+    let y0 = ((lo.y - 0.5).floor() + 1.0).max(0.0);
+    let y1 = ((hi.y - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
+    if x0 > x1 || y0 > y1 {
+        return;
+    }
+    for ty in y0 as u32..=y1 as u32 {
+        for tx in x0 as u32..=x1 as u32 {
+            let p = Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5);
+            if s * edge(t[0], t[1], p) > 0.0 && s * edge(t[1], t[2], p) > 0.0 && s * edge(t[2], t[0], p) >= 0.0 {
+                depth_test(buf, ty as usize * w as usize + tx as usize, z);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: u32, h: u32) -> Image<f32> {
+        Image::from_fn(w, h, |x, y| if (x + y) % 7 == 0 { 1.0 } else { 0.5 + 0.01 * x as f32 + 0.003 * y as f32 })
+    }
+
+    fn motion_of(depth: &Image<f32>, v: Vec2) -> Image<Motion> {
+        depth.map(|&d| Motion { v, depth: d })
+    }
+
+    #[test]
+    fn zero_motion_reproduces_the_source() {
+        let d = ramp(13, 9);
+        let m = motion_of(&d, Vec2::ZERO);
+        assert_eq!(vfw(&d, &m).unwrap(), d);
+        assert_eq!(afw(&d, &m).unwrap(), d);
+    }
+
+    #[test]
+    fn integer_shift_moves_the_image_and_leaves_the_band_far() {
+        let d = Image::from_fn(12, 8, |x, y| 0.2 + 0.05 * x as f32 + 0.01 * y as f32);
+        let m = motion_of(&d, Vec2::new(3.0, 1.0));
+        for out in [vfw(&d, &m).unwrap(), afw(&d, &m).unwrap()] {
+            for y in 0..8 {
+                for x in 0..12 {
+                    let want = if x >= 3 && y >= 1 { *d.get(x - 3, y - 1) } else { 1.0 };
+                    assert_eq!(*out.get(x, y), want, "({x},{y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn expansion_closes_cracks_of_a_stretching_surface_and_depth_test_keeps_nearest() {
+        // Motion v = 0.4 x: neighbours move 1.4 px apart. Without expansion AFW would leave
+        // every other pixel empty; with it the interior is covered.
+        let d = Image::new(20, 4, 0.5f32);
+        let m = Image::from_fn(20, 4, |x, _| Motion { v: Vec2::new(0.4 * (x as f32 + 0.5), 0.0), depth: 0.5 });
+        for out in [vfw(&d, &m).unwrap(), afw(&d, &m).unwrap()] {
+            for x in 0..20 {
+                assert_eq!(*out.get(x, 1), 0.5, "x={x}");
+            }
+        }
+        // Two layers overlapping: nearest wins.
+        let near = Image::new(4, 4, 0.3f32);
+        let far = Image::new(4, 4, 0.7f32);
+        let mn = motion_of(&near, Vec2::ZERO);
+        let mf = motion_of(&far, Vec2::ZERO);
+        let l = [WarpLayer { depth: &far, motion: &mf }, WarpLayer { depth: &near, motion: &mn }];
+        assert!(vfw_layers(&l).unwrap().data().iter().all(|&z| z == 0.3));
+        assert!(afw_layers(&l).unwrap().data().iter().all(|&z| z == 0.3));
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let d = Image::new(4, 4, 0.5f32);
+        let m = Image::new(4, 3, Motion::default());
+        assert!(matches!(vfw(&d, &m), Err(Error::Invalid(_))));
+        assert!(matches!(afw_layers(&[]), Err(Error::Invalid(_))));
+        let mut m = Image::new(4, 4, Motion::default());
+        m.get_mut(0, 0).v.y = f32::NAN;
+        assert!(matches!(afw(&d, &m), Err(Error::Invalid(_))));
+        let z: Image<f32> = Image::new(0, 0, 0.5);
+        let mz: Image<Motion> = Image::new(0, 0, Motion::default());
+        assert!(matches!(vfw(&z, &mz), Err(Error::Invalid(_))));
+    }
+}

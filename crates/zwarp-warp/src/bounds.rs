@@ -1,0 +1,675 @@
+//! Search-region bounds for the fixed-point search (seed 000, Sec. 3.3, Fig. 5).
+//!
+//! A solution `q` of `q + v(q) = p` lies in `p - [v_min, v_max]` where `[v_min, v_max]` bounds
+//! the motion of every sample that could be the solution. The min-max motion mipmap gives such
+//! bounds over square pixel blocks; iterative tightening (Fig. 5) starts from the global bound
+//! (top texel), looks up the mipmap at the level matching the current search region with four
+//! corner look-ups, and shrinks the region, `bound_iterations` times.
+//!
+//! **Which samples contribute.** Only *valid* samples: target depth `Motion::depth` in
+//! `[0, 1)` (and, for warp layers, a source depth `< 1`). Empty source pixels carry the far
+//! plane's motion, which can be large under rotation and would inflate every bound; but a
+//! search that lands on an empty sample fails anyway (Fig. 3: `s.z < 1`), so an empty sample
+//! can never be a solution and excluding it keeps the bound conservative. Points that leave the
+//! target's depth range (behind the far plane or in front of the near plane, or behind the eye,
+//! which `zwarp_core::motion_field` marks with depth 1) are invisible in the target and are
+//! excluded for the same reason.
+//!
+//! **Odd sizes.** Level `l` has `ceil(w / 2^l) x ceil(h / 2^l)` texels; texel `(i, j)` covers the
+//! pixels `[i 2^l, (i+1) 2^l) x [j 2^l, (j+1) 2^l)` clipped to the image, so every pixel is
+//! covered at every level, for every image size (no edge row or column is dropped).
+//!
+//! **Oriented bounds.** Bounds are kept in a [`BoundFrame`]: `u = R v` for a rotation `R`
+//! (identity = axis-aligned bound, AAB). [`pca_frame`] aligns `R` with the principal axis of ~64
+//! sampled motion vectors (oriented bound, OB); the mipmap stores min/max of the rotated motion,
+//! and reading a bound back means rotating by `R^T` (paper: "reversing the motion coordinates").
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Error, Image, Motion, Result};
+
+/// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
+/// motion (see the module docs on which samples contribute).
+#[inline]
+pub fn is_valid_sample(m: &Motion) -> bool {
+    m.depth >= 0.0 && m.depth < 1.0 && m.v.is_finite()
+}
+
+/// A rotation of the motion plane in which bounds are axis-aligned: `u = R v` with
+/// `R = [[c, s], [-s, c]]` (rows), i.e. `u.x` is the component along `(c, s)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundFrame {
+    /// Unit principal axis `(c, s)`; `(1, 0)` for the axis-aligned frame.
+    pub axis: Vec2,
+}
+
+impl Default for BoundFrame {
+    fn default() -> Self {
+        BoundFrame::IDENTITY
+    }
+}
+
+impl BoundFrame {
+    /// The axis-aligned frame (AAB).
+    pub const IDENTITY: BoundFrame = BoundFrame { axis: Vec2::X };
+
+    /// A frame whose first axis points along `angle` radians from +x.
+    pub fn from_angle(angle: f32) -> Self {
+        BoundFrame { axis: Vec2::new(angle.cos(), angle.sin()) }
+    }
+    /// `true` for the axis-aligned frame (enables the cheaper code path).
+    #[inline]
+    pub fn is_identity(&self) -> bool {
+        self.axis == Vec2::X
+    }
+    /// Image/motion coordinates -> frame coordinates (`R v`).
+    #[inline]
+    pub fn to_frame(&self, v: Vec2) -> Vec2 {
+        let (c, s) = (self.axis.x, self.axis.y);
+        Vec2::new(c * v.x + s * v.y, -s * v.x + c * v.y)
+    }
+    /// Frame coordinates -> image/motion coordinates (`R^T u`).
+    #[inline]
+    pub fn from_frame(&self, u: Vec2) -> Vec2 {
+        let (c, s) = (self.axis.x, self.axis.y);
+        Vec2::new(c * u.x - s * u.y, s * u.x + c * u.y)
+    }
+}
+
+/// An axis-aligned box `[lo, hi]` of motion vectors in a [`BoundFrame`]. The empty bound has
+/// `lo = +inf`, `hi = -inf`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bound {
+    /// Component-wise minimum.
+    pub lo: Vec2,
+    /// Component-wise maximum.
+    pub hi: Vec2,
+}
+
+impl Bound {
+    /// The bound containing no motion.
+    pub const EMPTY: Bound = Bound { lo: Vec2::splat(f32::INFINITY), hi: Vec2::splat(f32::NEG_INFINITY) };
+
+    /// `true` if no motion lies in the bound.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        !(self.lo.x <= self.hi.x && self.lo.y <= self.hi.y)
+    }
+    /// Grows the bound to contain `u`.
+    #[inline]
+    pub fn include(&mut self, u: Vec2) {
+        self.lo = self.lo.min(u);
+        self.hi = self.hi.max(u);
+    }
+    /// Union of two bounds.
+    #[inline]
+    pub fn union(&self, o: &Bound) -> Bound {
+        Bound { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+    /// Intersection of two bounds (may be empty).
+    #[inline]
+    pub fn intersect(&self, o: &Bound) -> Bound {
+        Bound { lo: self.lo.max(o.lo), hi: self.hi.min(o.hi) }
+    }
+    /// `hi - lo` (negative for the empty bound).
+    #[inline]
+    pub fn extent(&self) -> Vec2 {
+        self.hi - self.lo
+    }
+    /// `true` if `u` lies in the bound (inclusive).
+    #[inline]
+    pub fn contains(&self, u: Vec2) -> bool {
+        u.x >= self.lo.x && u.x <= self.hi.x && u.y >= self.lo.y && u.y <= self.hi.y
+    }
+    /// Area of the search region in pixels, counted as `(ex + 1)(ey + 1)` so that a degenerate
+    /// (zero-extent) bound still compares by its other side; used to pick AAB vs OB.
+    pub fn pixel_area(&self) -> f32 {
+        if self.is_empty() {
+            return 0.0;
+        }
+        let e = self.extent();
+        (e.x + 1.0) * (e.y + 1.0)
+    }
+    #[inline]
+    fn from_texel(t: &[f32; 4]) -> Bound {
+        Bound { lo: Vec2::new(t[0], t[1]), hi: Vec2::new(t[2], t[3]) }
+    }
+    #[inline]
+    fn to_texel(self) -> [f32; 4] {
+        [self.lo.x, self.lo.y, self.hi.x, self.hi.y]
+    }
+}
+
+/// The tight bound of one target pixel: the motion bound (in the pyramid's frame) and the
+/// search region it implies, `R p - [lo, hi]` in frame coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TightBound {
+    /// Motion bound in frame coordinates.
+    pub motion: Bound,
+    /// Search region in frame coordinates: `[R p - motion.hi, R p - motion.lo]`.
+    pub region: Bound,
+}
+
+struct Level {
+    w: u32,
+    h: u32,
+    data: Vec<[f32; 4]>,
+}
+
+/// Min-max motion mipmap (Sec. 3.3) of one motion buffer in a [`BoundFrame`]. Levels `1..=top`
+/// are stored (level 1 = 2x2 blocks); look-ups never go below level 1, which only makes a bound
+/// coarser (still conservative) for regions of at most two pixels, where the search uses a
+/// single seed anyway, and halves memory and build traffic.
+pub struct MotionPyramid {
+    width: u32,
+    height: u32,
+    frame: BoundFrame,
+    /// `levels[i]` is mip level `i + 1`.
+    levels: Vec<Level>,
+}
+
+/// `ceil(log2(n))` for `n >= 1`, 0 for `n <= 1`.
+#[inline]
+fn ceil_log2(n: u32) -> u32 {
+    if n <= 1 {
+        0
+    } else {
+        32 - (n - 1).leading_zeros()
+    }
+}
+
+impl MotionPyramid {
+    /// Builds the axis-aligned pyramid of `motion` (valid samples as in [`is_valid_sample`]).
+    /// Errors on a zero-size buffer or NaN motion / depth.
+    pub fn build(motion: &Image<Motion>) -> Result<Self> {
+        Self::build_in_frame(motion, BoundFrame::IDENTITY)
+    }
+
+    /// Builds the pyramid of the motion rotated into `frame` (oriented bounds, Sec. 3.3).
+    pub fn build_in_frame(motion: &Image<Motion>, frame: BoundFrame) -> Result<Self> {
+        motion.check_nonempty("motion buffer")?;
+        if motion.data().iter().any(|m| m.v.is_nan() || m.depth.is_nan()) {
+            return Err(Error::invalid("motion buffer holds NaN values"));
+        }
+        if !frame.axis.is_finite() || (frame.axis.length() - 1.0).abs() > 1e-3 {
+            return Err(Error::invalid(format!("bound frame axis must be a unit vector, got {:?}", frame.axis)));
+        }
+        Ok(Self::from_samples(motion.data(), motion.width(), motion.height(), frame))
+    }
+
+    /// Builds from raw samples (already validated, `w * h` long, `w, h >= 1`).
+    pub(crate) fn from_samples(samples: &[Motion], w: u32, h: u32, frame: BoundFrame) -> Self {
+        debug_assert_eq!(samples.len(), w as usize * h as usize);
+        let top = ceil_log2(w.max(h)).max(1);
+        let mut levels: Vec<Level> = Vec::with_capacity(top as usize);
+        // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
+        let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
+        let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
+        let identity = frame.is_identity();
+        data.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
+            let y0 = ty * 2;
+            let y1 = (y0 + 2).min(h as usize);
+            for (tx, out) in row.iter_mut().enumerate() {
+                let x0 = tx * 2;
+                let x1 = (x0 + 2).min(w as usize);
+                let mut b = Bound::EMPTY;
+                for y in y0..y1 {
+                    for m in &samples[y * w as usize + x0..y * w as usize + x1] {
+                        if is_valid_sample(m) {
+                            b.include(if identity { m.v } else { frame.to_frame(m.v) });
+                        }
+                    }
+                }
+                *out = b.to_texel();
+            }
+        });
+        levels.push(Level { w: lw, h: lh, data });
+        for _ in 1..top {
+            let prev = levels.last().expect("level 1 exists");
+            let (lw, lh) = (prev.w.div_ceil(2), prev.h.div_ceil(2));
+            let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
+            data.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
+                let y0 = ty * 2;
+                let y1 = (y0 + 2).min(prev.h as usize);
+                for (tx, out) in row.iter_mut().enumerate() {
+                    let x0 = tx * 2;
+                    let x1 = (x0 + 2).min(prev.w as usize);
+                    let mut b = Bound::EMPTY;
+                    for y in y0..y1 {
+                        for t in &prev.data[y * prev.w as usize + x0..y * prev.w as usize + x1] {
+                            b = b.union(&Bound::from_texel(t));
+                        }
+                    }
+                    *out = b.to_texel();
+                }
+            });
+            levels.push(Level { w: lw, h: lh, data });
+        }
+        debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
+        MotionPyramid { width: w, height: h, frame, levels }
+    }
+
+    /// Image size the pyramid was built for.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// The frame the bounds are expressed in.
+    pub fn frame(&self) -> BoundFrame {
+        self.frame
+    }
+    /// Highest mip level (its single texel is the global bound).
+    pub fn top_level(&self) -> u32 {
+        self.levels.len() as u32
+    }
+    /// Size in texels of mip level `level` (`1..=top_level`).
+    pub fn level_size(&self, level: u32) -> (u32, u32) {
+        let l = &self.levels[(level.clamp(1, self.top_level()) - 1) as usize];
+        (l.w, l.h)
+    }
+    /// The texel `(tx, ty)` of mip level `level` (`1..=top_level`), as a bound.
+    pub fn texel(&self, level: u32, tx: u32, ty: u32) -> Bound {
+        let l = &self.levels[(level.clamp(1, self.top_level()) - 1) as usize];
+        Bound::from_texel(&l.data[ty as usize * l.w as usize + tx as usize])
+    }
+    /// The global bound of all valid motion (top texel, Fig. 5 `texture(vec2(0), MAX_LOD)`);
+    /// empty if no sample is valid.
+    pub fn global(&self) -> Bound {
+        self.texel(self.top_level(), 0, 0)
+    }
+
+    /// The mip level used for an inclusive pixel range (Fig. 5's `ceil(log2(max(a, b)))`, in
+    /// integer form): the smallest level at which the range spans at most two texels per axis,
+    /// so four corner look-ups cover it; clamped to `1..=top_level`.
+    pub fn level_for_range(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> u32 {
+        // A run of e + 1 pixels spans at most ceil(e / 2^l) + 1 texels at level l.
+        let e = (ix1 - ix0).max(iy1 - iy0);
+        ceil_log2(e).clamp(1, self.top_level())
+    }
+
+    /// Min-max of the valid motion over the inclusive pixel range, from the four corner
+    /// look-ups at [`Self::level_for_range`] (conservative: covers every pixel of the range).
+    #[inline]
+    pub fn lookup_range(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> Bound {
+        self.lookup_range_at(self.level_for_range(ix0, iy0, ix1, iy1), ix0, iy0, ix1, iy1)
+    }
+
+    /// Like [`Self::lookup_range`] at an explicit level (clamped to `1..=top_level`); at levels
+    /// finer than [`Self::level_for_range`] it reads every texel the range touches.
+    #[inline]
+    pub fn lookup_range_at(&self, level: u32, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> Bound {
+        let level = level.clamp(1, self.top_level());
+        let l = &self.levels[(level - 1) as usize];
+        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
+        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
+        let mut b = Bound::EMPTY;
+        for ty in ty0..=ty1 {
+            let row = &l.data[ty as usize * l.w as usize..];
+            for t in &row[tx0 as usize..=tx1 as usize] {
+                b = b.union(&Bound::from_texel(t));
+            }
+        }
+        b
+    }
+
+    /// Search region of target pixel position `p` under motion bound `b`, in frame coordinates.
+    #[inline]
+    pub fn region(&self, p: Vec2, b: &Bound) -> Bound {
+        let c = if self.frame.is_identity() { p } else { self.frame.to_frame(p) };
+        Bound { lo: c - b.hi, hi: c - b.lo }
+    }
+
+    /// Inclusive pixel range covered by a search region (frame coordinates), grown by `expand`
+    /// pixels (the sampling footprint: 0.5 for bilinear), clipped to the image; `None` if the
+    /// region misses the image (no source sample can move to `p`).
+    #[inline]
+    pub fn pixel_range(&self, region: &Bound, expand: f32) -> Option<(u32, u32, u32, u32)> {
+        let (mut lo, mut hi) = (region.lo, region.hi);
+        if !self.frame.is_identity() {
+            // Image-space AABB of the rotated box.
+            let f = &self.frame;
+            let c = [
+                f.from_frame(lo),
+                f.from_frame(hi),
+                f.from_frame(Vec2::new(lo.x, hi.y)),
+                f.from_frame(Vec2::new(hi.x, lo.y)),
+            ];
+            lo = c[0].min(c[1]).min(c[2]).min(c[3]);
+            hi = c[0].max(c[1]).max(c[2]).max(c[3]);
+        }
+        lo -= Vec2::splat(expand);
+        hi += Vec2::splat(expand);
+        let (w, h) = (self.width as f32, self.height as f32);
+        if !(hi.x >= 0.0 && hi.y >= 0.0 && lo.x < w && lo.y < h) {
+            return None;
+        }
+        let ix0 = lo.x.max(0.0) as u32;
+        let iy0 = lo.y.max(0.0) as u32;
+        let ix1 = (hi.x.min(w - 1.0) as u32).min(self.width - 1);
+        let iy1 = (hi.y.min(h - 1.0) as u32).min(self.height - 1);
+        Some((ix0, iy0, ix1, iy1))
+    }
+
+    /// Iterative bound tightening of Fig. 5 for target position `p`: start from the global
+    /// bound, then `iterations` times look up the mipmap over the current search region and
+    /// intersect. Returns `None` when no valid sample can be a solution (the region misses the
+    /// image or holds no valid motion — "usually background"), which lets the warp skip the
+    /// pixel. `expand` is the sampling footprint in pixels (0.5 for bilinear, 0 for nearest).
+    ///
+    /// Conservative by induction: every solution's motion lies in the current bound, so the
+    /// solution lies in the region, so its motion is in the look-up over the region; the
+    /// intersection of both therefore still contains it.
+    #[inline]
+    pub fn tight_bound(&self, p: Vec2, iterations: u32, expand: f32) -> Option<TightBound> {
+        let mut b = self.global();
+        if b.is_empty() {
+            return None;
+        }
+        let mut region = self.region(p, &b);
+        let mut range = self.pixel_range(&region, expand)?;
+        for _ in 0..iterations {
+            let m = self.lookup_range(range.0, range.1, range.2, range.3);
+            let nb = b.intersect(&m);
+            if nb.is_empty() {
+                return None;
+            }
+            if nb == b {
+                // Fixed point of the tightening: further look-ups return the same texels.
+                break;
+            }
+            b = nb;
+            region = self.region(p, &b);
+            range = self.pixel_range(&region, expand)?;
+        }
+        Some(TightBound { motion: b, region })
+    }
+}
+
+/// Global bound of the valid samples in `frame` (one parallel pass).
+pub(crate) fn global_bound(samples: &[Motion], frame: BoundFrame) -> Bound {
+    samples
+        .par_chunks(4096)
+        .map(|c| {
+            let mut b = Bound::EMPTY;
+            for m in c {
+                if is_valid_sample(m) {
+                    b.include(frame.to_frame(m.v));
+                }
+            }
+            b
+        })
+        .reduce(|| Bound::EMPTY, |a, b| a.union(&b))
+}
+
+/// PCA frame of ~`n` motion vectors sampled on a regular grid over the image (Sec. 3.3: "a
+/// small number (e.g., 64) usually suffices"). Falls back to a denser grid if fewer than 8 grid
+/// samples are valid, and to the identity frame when motion is isotropic or absent.
+pub fn pca_frame(samples: &[Motion], w: u32, h: u32, n: u32) -> BoundFrame {
+    let mut pts: Vec<Vec2> = Vec::with_capacity(n as usize);
+    for grid in [(n as f32).sqrt().ceil().max(1.0) as u32, 32] {
+        pts.clear();
+        for j in 0..grid {
+            for i in 0..grid {
+                let x = (((i as f32 + 0.5) * w as f32 / grid as f32) as u32).min(w - 1);
+                let y = (((j as f32 + 0.5) * h as f32 / grid as f32) as u32).min(h - 1);
+                let m = &samples[y as usize * w as usize + x as usize];
+                if is_valid_sample(m) {
+                    pts.push(m.v);
+                }
+            }
+        }
+        if pts.len() >= 8 {
+            break;
+        }
+    }
+    if pts.len() < 2 {
+        return BoundFrame::IDENTITY;
+    }
+    let mean = pts.iter().copied().sum::<Vec2>() / pts.len() as f32;
+    let (mut sxx, mut syy, mut sxy) = (0.0f32, 0.0f32, 0.0f32);
+    for p in &pts {
+        let d = *p - mean;
+        sxx += d.x * d.x;
+        syy += d.y * d.y;
+        sxy += d.x * d.y;
+    }
+    // Isotropic (or constant) motion: no preferred axis.
+    if (sxx - syy).abs() + 2.0 * sxy.abs() <= 1e-6 * (sxx + syy).max(1e-12) {
+        return BoundFrame::IDENTITY;
+    }
+    BoundFrame::from_angle(0.5 * (2.0 * sxy).atan2(sxx - syy))
+}
+
+/// Picks the frame for a layer under `kind`: identity for Global/Tight; for Oriented the PCA
+/// frame if its global bound has a smaller area than the axis-aligned one (per frame, Sec. 3.3).
+pub(crate) fn choose_frame(samples: &[Motion], w: u32, h: u32, kind: crate::BoundKind) -> BoundFrame {
+    match kind {
+        crate::BoundKind::Global | crate::BoundKind::Tight => BoundFrame::IDENTITY,
+        crate::BoundKind::Oriented => {
+            let ob = pca_frame(samples, w, h, 64);
+            if ob.is_identity() {
+                return ob;
+            }
+            let a_aab = global_bound(samples, BoundFrame::IDENTITY).pixel_area();
+            let a_ob = global_bound(samples, ob).pixel_area();
+            if a_ob < a_aab {
+                ob
+            } else {
+                BoundFrame::IDENTITY
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg32;
+
+    fn random_motion(w: u32, h: u32, seed: u64, empty_frac: f32) -> Image<Motion> {
+        let mut rng = Pcg32::seed_from_u64(seed);
+        Image::from_fn(w, h, |_, _| {
+            let v = Vec2::new(rng.random_range(-40.0..40.0), rng.random_range(-40.0..40.0));
+            let depth = if rng.random::<f32>() < empty_frac { 1.0 } else { rng.random_range(0.0..0.999) };
+            Motion { v, depth }
+        })
+    }
+
+    fn brute(m: &Image<Motion>, frame: BoundFrame, x0: u32, y0: u32, x1: u32, y1: u32) -> Bound {
+        let mut b = Bound::EMPTY;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let s = m.get(x, y);
+                if is_valid_sample(s) {
+                    b.include(frame.to_frame(s.v));
+                }
+            }
+        }
+        b
+    }
+
+    /// Every texel of every level equals the brute-force min-max over the pixels it covers,
+    /// for sizes that are not powers of two (Bevy's non-conservative downsampler pitfall).
+    #[test]
+    fn mipmap_texels_cover_every_pixel_for_odd_and_prime_sizes() {
+        for (w, h) in [(1, 1), (7, 3), (13, 17), (1, 9), (33, 2), (97, 61)] {
+            let m = random_motion(w, h, (w * 1000 + h) as u64, 0.2);
+            for frame in [BoundFrame::IDENTITY, BoundFrame::from_angle(0.7)] {
+                let pyr = MotionPyramid::build_in_frame(&m, frame).unwrap();
+                assert_eq!(pyr.level_size(pyr.top_level()), (1, 1), "{w}x{h}");
+                for level in 1..=pyr.top_level() {
+                    let (lw, lh) = pyr.level_size(level);
+                    assert_eq!((lw, lh), (w.div_ceil(1 << level), h.div_ceil(1 << level)));
+                    for ty in 0..lh {
+                        for tx in 0..lw {
+                            let x0 = tx << level;
+                            let y0 = ty << level;
+                            let x1 = ((tx + 1) << level).min(w) - 1;
+                            let y1 = ((ty + 1) << level).min(h) - 1;
+                            let got = pyr.texel(level, tx, ty);
+                            let want = brute(&m, frame, x0, y0, x1, y1);
+                            if want.is_empty() {
+                                assert!(got.is_empty());
+                            } else {
+                                assert!((got.lo - want.lo).abs().max_element() < 1e-4, "{w}x{h} l{level}");
+                                assert!((got.hi - want.hi).abs().max_element() < 1e-4, "{w}x{h} l{level}");
+                            }
+                        }
+                    }
+                }
+                let g = brute(&m, frame, 0, 0, w - 1, h - 1);
+                assert!((pyr.global().lo - g.lo).abs().max_element() < 1e-4);
+                assert!((pyr.global().hi - g.hi).abs().max_element() < 1e-4);
+            }
+        }
+    }
+
+    #[test]
+    fn full_hd_like_global_bound_and_range_lookups_are_conservative() {
+        let (w, h) = (1921, 1079);
+        let m = random_motion(w, h, 7, 0.1);
+        let pyr = MotionPyramid::build(&m).unwrap();
+        let g = brute(&m, BoundFrame::IDENTITY, 0, 0, w - 1, h - 1);
+        assert_eq!(pyr.global(), g);
+        let mut rng = Pcg32::seed_from_u64(3);
+        for _ in 0..200 {
+            let x0 = rng.random_range(0..w);
+            let y0 = rng.random_range(0..h);
+            let x1 = (x0 + rng.random_range(0..300)).min(w - 1);
+            let y1 = (y0 + rng.random_range(0..300)).min(h - 1);
+            let got = pyr.lookup_range(x0, y0, x1, y1);
+            let want = brute(&m, BoundFrame::IDENTITY, x0, y0, x1, y1);
+            // Conservative: the look-up contains the exact range bound.
+            assert_eq!(got.union(&want), got);
+        }
+    }
+
+    #[test]
+    fn level_choice_spans_at_most_two_texels() {
+        let m = Image::new(100, 37, Motion { v: Vec2::ZERO, depth: 0.5 });
+        let pyr = MotionPyramid::build(&m).unwrap();
+        assert_eq!(pyr.top_level(), 7);
+        for x0 in 0..40u32 {
+            for e in 0..60u32 {
+                let x1 = (x0 + e).min(99);
+                let l = pyr.level_for_range(x0, 0, x1, 0);
+                assert!((x1 >> l) - (x0 >> l) <= 1, "x0={x0} x1={x1} level={l}");
+            }
+        }
+    }
+
+    /// Guards against the Unity-port bug (top level sampled whatever the LOD): finer levels give
+    /// strictly tighter bounds on a smooth ramp.
+    #[test]
+    fn bound_shrinks_when_lookup_level_decreases() {
+        // vx = x / 8: a smooth ramp; bound over a range at level l spans its 2^l-aligned cover.
+        let m = Image::from_fn(64, 64, |x, _| Motion { v: Vec2::new(x as f32 / 8.0, 0.0), depth: 0.5 });
+        let pyr = MotionPyramid::build(&m).unwrap();
+        let mut prev = f32::INFINITY;
+        for level in (1..=pyr.top_level()).rev() {
+            let b = pyr.lookup_range_at(level, 22, 20, 23, 22);
+            let ext = b.extent().x;
+            assert!(ext < prev, "level {level}: extent {ext} not below {prev}");
+            prev = ext;
+        }
+        // Level 1 covers pixels 22..=23 exactly; the automatic level for that range is 1.
+        assert_eq!(pyr.level_for_range(22, 20, 23, 21), 1);
+        assert_eq!(pyr.lookup_range(22, 20, 23, 21).lo.x, 22.0 / 8.0);
+        assert_eq!(pyr.lookup_range(22, 20, 23, 21).hi.x, 23.0 / 8.0);
+        assert_eq!(pyr.global().hi.x, 63.0 / 8.0);
+    }
+
+    #[test]
+    fn tightening_shrinks_monotonically_and_contains_the_solution() {
+        // Smooth motion v = (0.1 x + 3, -0.05 y): the solution of q + v(q) = p is analytic.
+        let (w, h) = (128u32, 96u32);
+        let v = |q: Vec2| Vec2::new(0.1 * q.x + 3.0, -0.05 * q.y);
+        let m = Image::from_fn(w, h, |x, y| Motion { v: v(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)), depth: 0.5 });
+        let pyr = MotionPyramid::build(&m).unwrap();
+        let p = Vec2::new(70.5, 40.5);
+        let q = Vec2::new((p.x - 3.0) / 1.1, p.y / 0.95);
+        let mut prev_area = f32::INFINITY;
+        for it in 0..5 {
+            let tb = pyr.tight_bound(p, it, 0.5).unwrap();
+            let area = tb.motion.pixel_area();
+            assert!(area <= prev_area, "iteration {it}");
+            prev_area = area;
+            // The solution's (texel-quantised) motion is inside the bound; q is in the region
+            // up to half a pixel of texel quantisation.
+            let grown = Bound { lo: tb.region.lo - Vec2::splat(0.6), hi: tb.region.hi + Vec2::splat(0.6) };
+            assert!(grown.contains(q), "it {it}: {q:?} not in {:?}", tb.region);
+        }
+        let global = pyr.tight_bound(p, 0, 0.5).unwrap();
+        let tight = pyr.tight_bound(p, 3, 0.5).unwrap();
+        assert_eq!(global.motion, pyr.global());
+        assert!(tight.motion.pixel_area() < 0.1 * global.motion.pixel_area(), "{tight:?} vs {global:?}");
+    }
+
+    #[test]
+    fn empty_buffers_and_regions_give_no_bound() {
+        let m = Image::new(9, 5, Motion { v: Vec2::new(1.0, 1.0), depth: 1.0 });
+        let pyr = MotionPyramid::build(&m).unwrap();
+        assert!(pyr.global().is_empty());
+        assert!(pyr.tight_bound(Vec2::new(4.5, 2.5), 3, 0.5).is_none());
+        // Uniform shift far to the right: a target pixel left of the shifted image has no source.
+        let m = Image::new(9, 5, Motion { v: Vec2::new(20.0, 0.0), depth: 0.5 });
+        let pyr = MotionPyramid::build(&m).unwrap();
+        assert!(pyr.tight_bound(Vec2::new(4.5, 2.5), 3, 0.5).is_none());
+        assert!(pyr.tight_bound(Vec2::new(24.5, 2.5), 3, 0.5).is_some());
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        let m: Image<Motion> = Image::new(0, 3, Motion::default());
+        assert!(matches!(MotionPyramid::build(&m), Err(Error::Invalid(_))));
+        let mut m = Image::new(3, 3, Motion::default());
+        m.get_mut(1, 1).v.x = f32::NAN;
+        assert!(matches!(MotionPyramid::build(&m), Err(Error::Invalid(_))));
+        let m = Image::new(3, 3, Motion::default());
+        assert!(MotionPyramid::build_in_frame(&m, BoundFrame { axis: Vec2::new(2.0, 0.0) }).is_err());
+    }
+
+    #[test]
+    fn pca_aligns_with_dominant_motion_direction() {
+        // Motions spread along the diagonal (1, 1): PCA axis at 45 degrees, OB area much smaller.
+        let m = Image::from_fn(32, 32, |x, y| {
+            let t = (x as f32 - 16.0) * 0.7 + (y as f32 % 3.0) * 0.1;
+            Motion { v: Vec2::new(t, t + 0.05 * (y as f32 % 2.0)), depth: 0.5 }
+        });
+        let f = pca_frame(m.data(), 32, 32, 64);
+        let ang = f.axis.y.atan2(f.axis.x);
+        let d = (ang - std::f32::consts::FRAC_PI_4).abs().min((ang + 3.0 * std::f32::consts::FRAC_PI_4).abs());
+        assert!(d < 0.05, "angle {ang}");
+        let chosen = choose_frame(m.data(), 32, 32, crate::BoundKind::Oriented);
+        assert!(!chosen.is_identity());
+        assert!(
+            global_bound(m.data(), chosen).pixel_area()
+                < 0.5 * global_bound(m.data(), BoundFrame::IDENTITY).pixel_area()
+        );
+        // Round trip of the frame.
+        let u = Vec2::new(3.0, -2.0);
+        assert!((f.from_frame(f.to_frame(u)) - u).length() < 1e-5);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Random sizes and ranges: the four-corner look-up always contains the brute-force bound.
+        #[test]
+        fn corner_lookups_are_conservative(w in 1u32..40, h in 1u32..40, seed in 0u64..1000,
+                                            a in 0.0f32..1.0, b in 0.0f32..1.0, c in 0.0f32..1.0, d in 0.0f32..1.0,
+                                            angle in -3.2f32..3.2) {
+            let m = random_motion(w, h, seed, 0.3);
+            let frame = BoundFrame::from_angle(angle);
+            let pyr = MotionPyramid::build_in_frame(&m, frame).unwrap();
+            let (x0, x1) = { let u = (a * w as f32) as u32; let v = (b * w as f32) as u32; (u.min(v).min(w-1), u.max(v).min(w-1)) };
+            let (y0, y1) = { let u = (c * h as f32) as u32; let v = (d * h as f32) as u32; (u.min(v).min(h-1), u.max(v).min(h-1)) };
+            let got = pyr.lookup_range(x0, y0, x1, y1);
+            let want = brute(&m, frame, x0, y0, x1, y1);
+            if !want.is_empty() {
+                prop_assert!(got.lo.x <= want.lo.x && got.lo.y <= want.lo.y);
+                prop_assert!(got.hi.x >= want.hi.x && got.hi.y >= want.hi.y);
+            }
+        }
+    }
+}

@@ -1,0 +1,296 @@
+//! Single- and multi-layer backward depth warping (seed 000 Sec. 3.2-3.4, Fig. 3-6).
+//!
+//! For every target pixel and every layer: tighten the search bound in that layer's motion
+//! mipmap (skipping the layer at once when its region holds no valid sample — hidden layers are
+//! mostly empty), place seeds, run [`fixed_point_search`], and keep the candidate of minimal
+//! target depth over all layers. Layers are the peeled depth layers of the source view, nearest
+//! first; the ground / background is best passed as a separate **last** layer (Sec. 3.4: it
+//! widens the connected search area at negligible cost).
+//!
+//! Cross-layer seeding (Fig. 6), when [`WarpParams::cross_layer`] is set: when an iterate of
+//! layer k lands on an empty texel, the walk borrows the sample of the nearest non-empty layer
+//! above (towards the camera) at the same position; landing in empty space a second time makes
+//! the seed non-convergent. In addition, the converged position of an earlier layer seeds the
+//! search of the later ones (it replaces the last stratified seed when it lies in the region).
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
+
+use crate::bounds::{choose_frame, BoundFrame, MotionPyramid, TightBound};
+use crate::holes::{awoc_depth, dilate_holes, HolePolicy};
+use crate::search::{
+    effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SearchParams,
+    SeedStrategy,
+};
+use crate::{BoundKind, PixelState, SourcePos, WarpOutput, WarpParams, MAX_SEEDS};
+
+/// One peeled source layer: its depth buffer (`1.0` = empty) and motion buffer (motion to the
+/// target and target depth per pixel, e.g. from `zwarp_core::motion_field`).
+#[derive(Clone, Copy, Debug)]
+pub struct WarpLayer<'a> {
+    /// Source depth of the layer (`[0, 1]`, 1 = no surface).
+    pub depth: &'a Image<f32>,
+    /// Motion of the layer's samples to the target view.
+    pub motion: &'a Image<Motion>,
+}
+
+/// A layer ready to be warped: validated samples (empty ones marked with an infinite target
+/// depth) and the min-max motion mipmap in the frame chosen for the bound kind. Build once per
+/// source/target pair and reuse across calls with different N, T, hole policies.
+pub struct PreparedLayer {
+    w: u32,
+    h: u32,
+    samples: Vec<Motion>,
+    pyramid: MotionPyramid,
+    bound: BoundKind,
+}
+
+impl PreparedLayer {
+    /// Validates `layer` (non-zero size, equal sizes, no NaN/infinite depth, no NaN motion) and
+    /// builds its mipmap for `bound` (Oriented: AAB or PCA frame, whichever global bound is
+    /// smaller). A sample is valid iff its source depth is `< 1` and its target depth is in
+    /// `[0, 1)` (see [`crate::bounds`]).
+    pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
+        let samples = validated_samples(layer)?;
+        let (w, h) = layer.depth.size();
+        let frame = choose_frame(&samples, w, h, bound);
+        let pyramid = MotionPyramid::from_samples(&samples, w, h, frame);
+        Ok(PreparedLayer { w, h, samples, pyramid, bound })
+    }
+
+    /// Image size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.w, self.h)
+    }
+    /// The layer's motion mipmap.
+    pub fn pyramid(&self) -> &MotionPyramid {
+        &self.pyramid
+    }
+    /// The bound kind the mipmap was built for.
+    pub fn bound_kind(&self) -> BoundKind {
+        self.bound
+    }
+    /// Validated samples (empty ones have an infinite depth).
+    pub fn samples(&self) -> &[Motion] {
+        &self.samples
+    }
+    fn sampler(&self, params: &WarpParams, tag: u32) -> LayerSampler<'_> {
+        LayerSampler::new(&self.samples, self.w, self.h, params.sampling, tag)
+    }
+}
+
+/// Validates a layer and returns its samples with empty ones (source depth `>= 1`, target
+/// depth outside `[0, 1)`, infinite motion) marked by an infinite target depth.
+pub(crate) fn validated_samples(layer: &WarpLayer<'_>) -> Result<Vec<Motion>> {
+    layer.depth.check_nonempty("layer depth")?;
+    layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+    if layer.depth.data().iter().any(|d| !d.is_finite()) {
+        return Err(Error::invalid("layer depth holds NaN or infinite values"));
+    }
+    if layer.motion.data().iter().any(|m| m.v.is_nan() || m.depth.is_nan()) {
+        return Err(Error::invalid("motion buffer holds NaN values"));
+    }
+    Ok(layer
+        .depth
+        .data()
+        .par_iter()
+        .zip(layer.motion.data().par_iter())
+        .map(|(&d, m)| {
+            if d < EMPTY_DEPTH && m.depth >= 0.0 && m.depth < 1.0 && m.v.is_finite() {
+                *m
+            } else {
+                Motion { v: Vec2::ZERO, depth: f32::INFINITY }
+            }
+        })
+        .collect())
+}
+
+/// Samples layer k with the cross-layer fallback of Fig. 6.
+struct StackSampler<'a> {
+    layers: &'a [LayerSampler<'a>],
+    k: usize,
+    cross: bool,
+}
+
+impl MotionSource for StackSampler<'_> {
+    /// Number of empty landings so far.
+    type Walk = u8;
+    #[inline]
+    fn sample(&self, q: Vec2, empties: &mut u8) -> Option<Sample> {
+        let own = &self.layers[self.k];
+        if !own.inside(q) {
+            return None;
+        }
+        if let Some(s) = own.fetch(q) {
+            return Some(s);
+        }
+        if !self.cross || self.k == 0 {
+            return None;
+        }
+        *empties += 1;
+        if *empties >= 2 {
+            return None;
+        }
+        self.layers[..self.k].iter().rev().find_map(|l| l.fetch(q))
+    }
+}
+
+/// Backward depth warp of `layers` (nearest first, ground last if separate) to the target view
+/// the motion buffers point to. Single-layer warping is `layers.len() == 1`.
+///
+/// Errors ([`Error::Invalid`]): empty layer list, zero-size or mismatched buffers, NaN depth or
+/// motion, invalid parameters.
+pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpOutput> {
+    params.validate()?;
+    if layers.is_empty() {
+        return Err(Error::invalid("warp_depth needs at least one layer"));
+    }
+    let prepared: Vec<PreparedLayer> =
+        layers.iter().map(|l| PreparedLayer::new(l, params.bound)).collect::<Result<_>>()?;
+    warp_prepared(&prepared, params)
+}
+
+/// [`warp_depth`] on layers prepared once ([`PreparedLayer::new`]). The bound *frame* (AAB or
+/// OB) is fixed when a layer is prepared; `params.bound == Global` disables the per-pixel
+/// tightening, any other kind tightens in the prepared frame.
+pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<WarpOutput> {
+    params.validate()?;
+    let first = layers.first().ok_or_else(|| Error::invalid("warp_depth needs at least one layer"))?;
+    let (w, h) = first.size();
+    if let Some((i, l)) = layers.iter().enumerate().find(|(_, l)| l.size() != (w, h)) {
+        return Err(Error::invalid(format!("layer {i} is {}x{} but layer 0 is {w}x{h}", l.size().0, l.size().1)));
+    }
+    if layers.len() > u32::MAX as usize - 1 {
+        return Err(Error::invalid("too many layers"));
+    }
+    let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
+    let kernel = Kernel { layers, samplers: &samplers, params, w, h };
+
+    let n = w as usize * h as usize;
+    let mut depth = vec![EMPTY_DEPTH; n];
+    let mut state = vec![PixelState::Hole; n];
+    let mut source = if params.record_source { vec![SourcePos::default(); n] } else { Vec::new() };
+    if params.record_source {
+        depth
+            .par_chunks_mut(w as usize)
+            .zip(state.par_chunks_mut(w as usize))
+            .zip(source.par_chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|(y, ((d, s), src))| kernel.row(y as u32, d, s, Some(src)));
+    } else {
+        depth
+            .par_chunks_mut(w as usize)
+            .zip(state.par_chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|(y, (d, s))| kernel.row(y as u32, d, s, None));
+    }
+    let mut depth = Image::from_vec(w, h, depth)?;
+    let mut state = Image::from_vec(w, h, state)?;
+    if let HolePolicy::Dilate { radius } = params.holes {
+        dilate_holes(&mut depth, &mut state, radius);
+    }
+    let source = if params.record_source { Some(Image::from_vec(w, h, source)?) } else { None };
+    Ok(WarpOutput { depth, state, source })
+}
+
+struct Kernel<'a> {
+    layers: &'a [PreparedLayer],
+    samplers: &'a [LayerSampler<'a>],
+    params: &'a WarpParams,
+    w: u32,
+    h: u32,
+}
+
+impl Kernel<'_> {
+    fn row(&self, y: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
+        for x in 0..self.w {
+            let (z, st, src) = self.pixel(x, y);
+            depth[x as usize] = z;
+            state[x as usize] = st;
+            if let Some(s) = source.as_deref_mut() {
+                s[x as usize] = src;
+            }
+        }
+    }
+
+    /// The warp of one target pixel over all layers.
+    #[inline]
+    fn pixel(&self, x: u32, y: u32) -> (f32, PixelState, SourcePos) {
+        let params = self.params;
+        let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        let expand = params.sampling.footprint();
+        let search = SearchParams { iterations: params.iterations, threshold: params.threshold, choice: params.choice };
+        let max_q = Vec2::new(self.w as f32, self.h as f32) * (1.0 - f32::EPSILON) - Vec2::splat(1e-3);
+        let mut best: Option<crate::Candidate> = None;
+        let mut prev_q: Option<Vec2> = None;
+        let mut awoc: Option<(BoundFrame, TightBound)> = None;
+        let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
+        for (k, layer) in self.layers.iter().enumerate() {
+            let pyr = &layer.pyramid;
+            let iters = if params.bound == BoundKind::Global { 0 } else { params.bound_iterations };
+            // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
+            let Some(tb) = pyr.tight_bound(p, iters, expand) else { continue };
+            if params.holes == HolePolicy::Awoc && awoc.is_none() {
+                awoc = Some((pyr.frame(), tb));
+            }
+            let frame = pyr.frame();
+            let mut n = match params.seeding {
+                SeedStrategy::Stratified => {
+                    let ne = effective_seeds(params.n_seeds, tb.region.extent());
+                    stratified_seeds(&frame, &tb.region, ne, seed_key(x, y, k as u32), &mut seeds)
+                }
+                SeedStrategy::Pixel => {
+                    seeds[0] = p;
+                    1
+                }
+                SeedStrategy::Offset(d) => {
+                    seeds[0] = p + d;
+                    1
+                }
+            };
+            if params.cross_layer {
+                if let Some(q) = prev_q {
+                    // Fig. 6 / brief: an earlier layer's converged position seeds this layer.
+                    let u = frame.to_frame(q);
+                    if tb.region.contains(u) {
+                        if (n as u32) < params.n_seeds {
+                            n += 1;
+                        }
+                        seeds[n - 1] = q;
+                    }
+                }
+            }
+            for s in &mut seeds[..n] {
+                *s = s.clamp(Vec2::ZERO, max_q);
+            }
+            let src = StackSampler { layers: self.samplers, k, cross: params.cross_layer };
+            if let Some(c) = fixed_point_search(&src, p, &seeds[..n], &search) {
+                prev_q = Some(c.q);
+                if best.is_none_or(|b| c.depth < b.depth) {
+                    best = Some(c);
+                }
+            }
+        }
+        if let Some(c) = best {
+            return (c.depth, PixelState::Converged, SourcePos { q: c.q, layer: c.tag });
+        }
+        if let Some((frame, tb)) = awoc {
+            let r = tb.region;
+            let corners = [
+                Vec2::new(r.lo.x, r.lo.y),
+                Vec2::new(r.hi.x, r.lo.y),
+                Vec2::new(r.lo.x, r.hi.y),
+                Vec2::new(r.hi.x, r.hi.y),
+            ]
+            .map(|u| frame.from_frame(u).clamp(Vec2::ZERO, max_q));
+            let fill = awoc_depth(&corners, |q| {
+                self.samplers.iter().filter_map(|s| s.fetch(q)).map(|s| s.depth).reduce(f32::min)
+            });
+            if let Some(z) = fill {
+                return (z, PixelState::Filled, SourcePos { q: Vec2::ZERO, layer: u32::MAX });
+            }
+        }
+        (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+}

@@ -1,0 +1,167 @@
+//! Hole policies for pixels where no fixed-point search converged (seed 000 Sec. 3.4 "Handling
+//! Degenerate Cases", Fig. 8; Sec. 5.3 AWOC).
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Image, EMPTY_DEPTH};
+
+use crate::PixelState;
+
+/// What the warp writes where no search converged. Selectable per call.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum HolePolicy {
+    /// Conservative: the far depth `1.0` ([`PixelState::Hole`]). Never nearer than any surface,
+    /// so occlusion culling against the warped buffer stays safe (Sec. 5: "depth holes are
+    /// conservatively kept at the far-clipping depth").
+    #[default]
+    FarDepth,
+    /// Fig. 8: a hole surrounded by converged pixels (a converged pixel within `radius` on both
+    /// sides along all four directions: horizontal, vertical, both diagonals) takes the depth of
+    /// its nearest converged neighbour ([`PixelState::Filled`]); ties between equally near
+    /// neighbours take the farther depth. Other holes stay far.
+    Dilate {
+        /// Search radius in pixels (1..=64).
+        radius: u32,
+    },
+    /// AWOC (Sec. 5.3): fill with the nearest target depth among the samples at the extrema of
+    /// the local search bound (the four corners of the tight search region, all layers). These
+    /// samples did not converge; it is an approximation that keeps culling effective under
+    /// rapid motion ([`PixelState::Filled`]).
+    Awoc,
+}
+
+/// Dilation of Fig. 8 over a warped buffer: fills [`PixelState::Hole`] pixels surrounded by
+/// [`PixelState::Converged`] ones (see [`HolePolicy::Dilate`]). Only converged pixels are read,
+/// so the result does not depend on the processing order.
+pub fn dilate_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius: u32) {
+    let (w, h) = depth.size();
+    if w == 0 || h == 0 {
+        return;
+    }
+    let src_depth = depth.data().to_vec();
+    let src_state = state.data().to_vec();
+    let r = radius as i64;
+    const DIRS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
+    depth.data_mut().par_chunks_mut(w as usize).zip(state.data_mut().par_chunks_mut(w as usize)).enumerate().for_each(
+        |(y, (drow, srow))| {
+            for x in 0..w as usize {
+                if srow[x] != PixelState::Hole {
+                    continue;
+                }
+                // Nearest converged pixel along +d and -d within the radius.
+                let probe = |dx: i64, dy: i64| -> Option<(i64, f32)> {
+                    for k in 1..=r {
+                        let (xx, yy) = (x as i64 + dx * k, y as i64 + dy * k);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            return None;
+                        }
+                        let i = yy as usize * w as usize + xx as usize;
+                        if src_state[i] == PixelState::Converged {
+                            return Some((k, src_depth[i]));
+                        }
+                    }
+                    None
+                };
+                let mut best: Option<(f32, f32)> = None; // (distance, depth)
+                let mut surrounded = true;
+                for (dx, dy) in DIRS {
+                    let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
+                    match (probe(dx, dy), probe(-dx, -dy)) {
+                        (Some(a), Some(b)) => {
+                            for (k, z) in [a, b] {
+                                let d = k as f32 * step;
+                                best = match best {
+                                    Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
+                                    _ => Some((d, z)),
+                                };
+                            }
+                        }
+                        _ => {
+                            surrounded = false;
+                            break;
+                        }
+                    }
+                }
+                if let (true, Some((_, z))) = (surrounded, best) {
+                    drow[x] = z;
+                    srow[x] = PixelState::Filled;
+                }
+            }
+        },
+    );
+}
+
+/// AWOC fill (Sec. 5.3) for one pixel: the nearest valid target depth among `fetch(q)` at the
+/// four corners `corners` of the local search region (image coordinates, clamped to the image
+/// by the caller). Returns `None` if none of them is a surface.
+#[inline]
+pub fn awoc_depth(corners: &[Vec2; 4], mut fetch: impl FnMut(Vec2) -> Option<f32>) -> Option<f32> {
+    let mut best = EMPTY_DEPTH;
+    for &q in corners {
+        if let Some(z) = fetch(q) {
+            best = best.min(z);
+        }
+    }
+    (best < EMPTY_DEPTH).then_some(best)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(rows: &[&str]) -> (Image<f32>, Image<PixelState>) {
+        let (w, h) = (rows[0].len() as u32, rows.len() as u32);
+        let d = Image::from_fn(w, h, |x, y| {
+            let c = rows[y as usize].as_bytes()[x as usize];
+            if c == b'.' {
+                1.0
+            } else {
+                (c - b'0') as f32 / 10.0
+            }
+        });
+        let s = Image::from_fn(w, h, |x, y| {
+            if rows[y as usize].as_bytes()[x as usize] == b'.' {
+                PixelState::Hole
+            } else {
+                PixelState::Converged
+            }
+        });
+        (d, s)
+    }
+
+    #[test]
+    fn dilation_fills_enclosed_holes_with_nearest_neighbour_only() {
+        let (mut d, mut s) = grid(&["55555", "55.55", "55555", "5....", "55555"]);
+        dilate_holes(&mut d, &mut s, 1);
+        // The enclosed hole at (2, 1) is filled with its neighbours' depth.
+        assert_eq!(*s.get(2, 1), PixelState::Filled);
+        assert_eq!(*d.get(2, 1), 0.5);
+        // The open band on row 3 reaching the border stays a hole where not surrounded.
+        assert_eq!(*s.get(4, 3), PixelState::Hole);
+        assert_eq!(*d.get(4, 3), 1.0);
+    }
+
+    #[test]
+    fn dilation_prefers_the_nearest_and_then_the_farther_depth() {
+        // Hole at (2,2): left neighbour 0.3 at distance 1, right 0.7 at distance 1: tie -> 0.7.
+        let (mut d, mut s) = grid(&["77777", "77777", "73.77", "77777", "77777"]);
+        dilate_holes(&mut d, &mut s, 2);
+        assert_eq!(*d.get(2, 2), 0.7);
+        // 2-wide hole with radius 1 is not surrounded; radius 2 is.
+        let (mut d, mut s) = grid(&["666666", "666666", "66..66", "666666", "666666"]);
+        dilate_holes(&mut d.clone(), &mut s.clone(), 1);
+        let (mut d1, mut s1) = (d.clone(), s.clone());
+        dilate_holes(&mut d1, &mut s1, 1);
+        assert_eq!(*s1.get(2, 2), PixelState::Hole);
+        dilate_holes(&mut d, &mut s, 2);
+        assert_eq!((*s.get(2, 2), *d.get(2, 2)), (PixelState::Filled, 0.6));
+    }
+
+    #[test]
+    fn awoc_takes_the_nearest_valid_corner() {
+        let c = [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE];
+        let z = awoc_depth(&c, |q| if q == Vec2::ZERO { None } else { Some(0.9 - q.x * 0.1 - q.y * 0.2) });
+        assert!((z.unwrap() - 0.6).abs() < 1e-6);
+        assert_eq!(awoc_depth(&c, |_| None), None);
+    }
+}

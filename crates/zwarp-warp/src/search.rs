@@ -1,0 +1,478 @@
+//! THE fixed-point search (seed 000 Fig. 3; Bowles et al. 2012, seed 001 Sec. 3.2), one
+//! generic kernel for every backward warp (depth now; colour warping and AWOC reuse it).
+//!
+//! For a target position `p`, iterate `q_{i+1} = p - v(q_i)` from each seed for at most T
+//! iterations; a seed *converges* at `q_i` when `|q_{i+1} - q_i| < threshold`, i.e. when
+//! `|q_i + v(q_i) - p| < threshold`; the candidate is then the sample at `q_i` (its target
+//! depth). Among converged seeds the [`CandidateChoice`] picks one (paper: minimal depth, which
+//! resolves overlaps in favour of the visible surface). A seed fails when an iterate leaves the
+//! image or lands on an empty sample (Fig. 3's `s.z < 1` loop condition), or after T
+//! iterations without convergence.
+//!
+//! **Sampling of v** ([`Sampling`]). Bilinear interpolation of motion across a depth edge
+//! creates artificial fixed points in disocclusions (Bowles Sec. 3.2, Fig. 1e: a "rubber sheet"
+//! with depths between foreground and background — nearer than the truth, i.e. unsafe for
+//! culling); pure nearest sampling has no such solutions but cracks where a surface stretches
+//! (neighbouring texels move apart by more than the threshold). [`Sampling::Adaptive`] follows
+//! Bowles Sec. 3.4 / Fig. 4: bilinear between the four texels around `q` when all are valid and
+//! their motions differ by less than one pixel (the convergence condition `rho < 1` between
+//! neighbours), nearest otherwise. It is the default.
+//!
+//! The kernel is allocation-free: seeds come in a caller-owned slice (stack buffer), the
+//! per-seed walk state is a `Default` value of the source's choosing.
+
+use glam::Vec2;
+use zwarp_core::Motion;
+
+use crate::bounds::{Bound, BoundFrame};
+
+/// One sample of the motion buffer at a continuous position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Motion source -> target in pixels.
+    pub v: Vec2,
+    /// The sampled point's depth in the target view.
+    pub depth: f32,
+    /// Free tag set by the source (the layer index for layered sources).
+    pub tag: u32,
+}
+
+/// Anything the fixed-point search can sample: a motion buffer, a stack of peeled layers with
+/// cross-layer look-up, a colour warp's flow field...
+pub trait MotionSource {
+    /// Per-seed walk state (e.g. how often the walk landed in empty space); reset per seed.
+    type Walk: Default;
+    /// The sample at continuous position `q`, or `None` if there is none (outside the image,
+    /// empty), which fails the current seed.
+    fn sample(&self, q: Vec2, walk: &mut Self::Walk) -> Option<Sample>;
+}
+
+/// How the motion buffer is sampled between texel centres (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Sampling {
+    /// The texel containing `q` (`floor(q)`).
+    Nearest,
+    /// Bilinear where the 2x2 neighbourhood is valid and continuous (motion range < 1 px),
+    /// nearest elsewhere (Bowles Fig. 4).
+    #[default]
+    Adaptive,
+}
+
+impl Sampling {
+    /// Half-width in pixels of the texel footprint a sample at `q` reads beyond `floor(q)`; the
+    /// bound look-ups grow the search region by it so they stay conservative.
+    #[inline]
+    pub fn footprint(self) -> f32 {
+        match self {
+            Sampling::Nearest => 0.0,
+            Sampling::Adaptive => 0.5,
+        }
+    }
+}
+
+/// Motion difference (pixels, per component) between neighbouring texels above which they
+/// are treated as a discontinuity and not interpolated (Bowles' `rho < 1`).
+pub const CONTINUITY_PX: f32 = 1.0;
+
+/// Sampler of one motion buffer. Samples whose depth is not in `[0, 1)` are empty (see
+/// [`crate::bounds`] for why).
+#[derive(Clone, Copy)]
+pub struct LayerSampler<'a> {
+    samples: &'a [Motion],
+    w: u32,
+    h: u32,
+    sampling: Sampling,
+    tag: u32,
+}
+
+impl<'a> LayerSampler<'a> {
+    /// Wraps a row-major `w x h` motion buffer. Panics if the length does not match (internal
+    /// callers validate sizes first).
+    pub fn new(samples: &'a [Motion], w: u32, h: u32, sampling: Sampling, tag: u32) -> Self {
+        assert_eq!(samples.len(), w as usize * h as usize, "motion buffer size");
+        LayerSampler { samples, w, h, sampling, tag }
+    }
+
+    /// `true` if `q` lies inside the image `[0, w) x [0, h)`.
+    #[inline]
+    pub fn inside(&self, q: Vec2) -> bool {
+        q.x >= 0.0 && q.y >= 0.0 && q.x < self.w as f32 && q.y < self.h as f32
+    }
+
+    #[inline]
+    fn at(&self, x: u32, y: u32) -> &Motion {
+        // SAFETY-free: indices are clamped by the callers.
+        &self.samples[y as usize * self.w as usize + x as usize]
+    }
+
+    /// The sample at `q` (must be inside, see [`Self::inside`]); `None` if empty.
+    #[inline]
+    pub fn fetch(&self, q: Vec2) -> Option<Sample> {
+        let (xn, yn) = ((q.x as u32).min(self.w - 1), (q.y as u32).min(self.h - 1));
+        if self.sampling == Sampling::Adaptive {
+            let t = q - Vec2::splat(0.5);
+            let (fx, fy) = (t.x.floor(), t.y.floor());
+            let (ax, ay) = (t.x - fx, t.y - fy);
+            let x0 = (fx.max(0.0) as u32).min(self.w - 1);
+            let y0 = (fy.max(0.0) as u32).min(self.h - 1);
+            let x1 = ((fx + 1.0).max(0.0) as u32).min(self.w - 1);
+            let y1 = ((fy + 1.0).max(0.0) as u32).min(self.h - 1);
+            let (s00, s10, s01, s11) = (self.at(x0, y0), self.at(x1, y0), self.at(x0, y1), self.at(x1, y1));
+            // Invalid samples carry depth >= 1 (or < 0): one compare per texel.
+            let valid = |m: &Motion| m.depth >= 0.0 && m.depth < 1.0;
+            if valid(s00) && valid(s10) && valid(s01) && valid(s11) {
+                let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
+                let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
+                if (hi - lo).max_element() < CONTINUITY_PX {
+                    let top_v = s00.v.lerp(s10.v, ax);
+                    let bot_v = s01.v.lerp(s11.v, ax);
+                    let top_d = s00.depth + (s10.depth - s00.depth) * ax;
+                    let bot_d = s01.depth + (s11.depth - s01.depth) * ax;
+                    return Some(Sample {
+                        v: top_v.lerp(bot_v, ay),
+                        depth: top_d + (bot_d - top_d) * ay,
+                        tag: self.tag,
+                    });
+                }
+            }
+        }
+        let m = self.at(xn, yn);
+        if m.depth >= 0.0 && m.depth < 1.0 {
+            Some(Sample { v: m.v, depth: m.depth, tag: self.tag })
+        } else {
+            None
+        }
+    }
+}
+
+impl MotionSource for LayerSampler<'_> {
+    type Walk = ();
+    #[inline]
+    fn sample(&self, q: Vec2, _walk: &mut ()) -> Option<Sample> {
+        if self.inside(q) {
+            self.fetch(q)
+        } else {
+            None
+        }
+    }
+}
+
+/// Which converged seed wins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum CandidateChoice {
+    /// Minimal target depth among converged seeds (seed 000 Sec. 3.2: the visible surface).
+    #[default]
+    MinDepth,
+    /// The first converged seed (Bowles' heuristic single-seed warps; cheapest).
+    FirstConverged,
+}
+
+/// How seeds are placed (Sec. 3.2/3.3; Bowles Sec. 3.3). Cross-layer seeds (Fig. 6) are given
+/// positions, passed directly in the seed slice of [`fixed_point_search`].
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum SeedStrategy {
+    /// N seeds stratified in the (tight) search region: a Cranley-Patterson-rotated R2
+    /// sequence with a per-pixel hash, so any N stratifies any aspect ratio. One seed at the
+    /// region centre where the bound is narrower than a pixel.
+    #[default]
+    Stratified,
+    /// One seed at the target pixel itself (`q_0 = p`).
+    Pixel,
+    /// One seed at a fixed offset from the pixel (`q_0 = p + offset`, Bowles' stereo heuristic).
+    Offset(Vec2),
+}
+
+/// Parameters of one fixed-point search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SearchParams {
+    /// T: iterations per seed.
+    pub iterations: u32,
+    /// Convergence threshold in pixels.
+    pub threshold: f32,
+    /// Candidate choice among converged seeds.
+    pub choice: CandidateChoice,
+}
+
+/// A converged search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Candidate {
+    /// Converged source position: `|q + v(q) - p| < threshold`.
+    pub q: Vec2,
+    /// Target depth of the sample at `q`.
+    pub depth: f32,
+    /// The sample's tag (layer index for layered sources).
+    pub tag: u32,
+    /// Index of the seed that converged.
+    pub seed: u32,
+}
+
+/// The fixed-point search of Fig. 3 for target position `p` from each of `seeds`: at most
+/// `params.iterations` (T) samples per seed, converged when `|q_{i+1} - q_i| < threshold`
+/// (plus one polishing sample at `q_{i+1}` for a converged seed whose step was not zero; kept
+/// if its residual is smaller).
+/// Returns the chosen candidate, or `None` if no seed converged.
+#[inline]
+pub fn fixed_point_search<S: MotionSource + ?Sized>(
+    src: &S,
+    p: Vec2,
+    seeds: &[Vec2],
+    params: &SearchParams,
+) -> Option<Candidate> {
+    let thr2 = params.threshold * params.threshold;
+    let mut best: Option<Candidate> = None;
+    for (i, &seed) in seeds.iter().enumerate() {
+        let mut walk = S::Walk::default();
+        let mut q = seed;
+        for _ in 0..params.iterations {
+            let Some(s) = src.sample(q, &mut walk) else { break };
+            let w = p - s.v;
+            let r2 = (w - q).length_squared();
+            if r2 < thr2 {
+                let mut c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
+                // Polish: `w` is one more contraction step towards the exact fixed point. One
+                // extra sample keeps it if its residual is smaller, which removes most of the
+                // up-to-threshold position error on smooth surfaces (visible on slanted ground
+                // near the horizon) while keeping `|q + v(q) - p| < threshold`.
+                if r2 > 0.0 {
+                    if let Some(s2) = src.sample(w, &mut walk) {
+                        if (p - s2.v - w).length_squared() < r2 {
+                            c = Candidate { q: w, depth: s2.depth, tag: s2.tag, seed: i as u32 };
+                        }
+                    }
+                }
+                match params.choice {
+                    CandidateChoice::FirstConverged => return Some(c),
+                    CandidateChoice::MinDepth => {
+                        if best.is_none_or(|b| c.depth < b.depth) {
+                            best = Some(c);
+                        }
+                    }
+                }
+                break;
+            }
+            q = w;
+        }
+    }
+    best
+}
+
+/// 32-bit integer hash (PCG output permutation): decorrelates per-pixel seed jitter and is
+/// cheap to reproduce in WGSL.
+#[inline]
+pub fn hash_u32(v: u32) -> u32 {
+    let state = v.wrapping_mul(747796405).wrapping_add(2891336453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277803737);
+    (word >> 22) ^ word
+}
+
+/// Per-pixel seed key (pixel and layer), hashed for the seed jitter.
+#[inline]
+pub fn seed_key(x: u32, y: u32, layer: u32) -> u32 {
+    hash_u32(x ^ hash_u32(y ^ hash_u32(layer)))
+}
+
+/// Number of seeds actually used in a region of extent `e` (frame pixels): one when the
+/// bound is narrower than a pixel in both axes (homogeneous region, Sec. 3.3's early exit),
+/// otherwise N capped by the number of pixels the region touches (more seeds than texels only
+/// repeat iterations).
+#[inline]
+pub fn effective_seeds(n: u32, e: Vec2) -> u32 {
+    if e.x <= 1.0 && e.y <= 1.0 {
+        return 1;
+    }
+    let touched = (e.x.ceil() + 1.0) * (e.y.ceil() + 1.0);
+    if touched < n as f32 {
+        touched as u32
+    } else {
+        n
+    }
+}
+
+/// R2 low-discrepancy sequence generators (Roberts 2018): plastic-number reciprocals.
+const R2: Vec2 = Vec2::new(0.754_877_7, 0.569_840_3);
+
+/// Writes `n` seeds for `region` (frame coordinates of `frame`) into `out` (image
+/// coordinates) and returns how many were written (`min(n, out.len())`). A single seed sits at
+/// the region centre. Otherwise up to `n / 2` seeds go to the distinct corners of the region
+/// (`p - v` for the extreme motions, low corner first, then high, then the two others) and the
+/// rest are stratified inside it with an R2 sequence jittered by `key`.
+///
+/// Why corners (a zwarp choice on top of the paper's stratified sampling): the bound is the
+/// min-max of actual motion vectors, so when a few rigid motions meet (an object over its
+/// background), the solutions `p - v_object` sit exactly at region corners, often with only a
+/// sliver of their convergence basin inside the region (a moving object's leading edge).
+/// Random seeds miss such slivers; corner seeds hit them. For smooth motion a corner is as good
+/// a seed as any other point of the region.
+#[inline]
+pub fn stratified_seeds(frame: &BoundFrame, region: &Bound, n: u32, key: u32, out: &mut [Vec2]) -> usize {
+    let n = (n as usize).min(out.len());
+    let e = region.extent();
+    if n == 0 {
+        return 0;
+    }
+    if n == 1 {
+        out[0] = frame.from_frame(region.lo + 0.5 * e);
+        return 1;
+    }
+    let identity = frame.is_identity();
+    let map = |u: Vec2| if identity { u } else { frame.from_frame(u) };
+    let (lo, hi) = (region.lo, region.hi);
+    let corners = [lo, hi, Vec2::new(lo.x, hi.y), Vec2::new(hi.x, lo.y)];
+    // Distinct corners: 1 for a point region, 2 for a segment, 4 for a box.
+    let distinct = match (e.x > 0.0, e.y > 0.0) {
+        (true, true) => 4,
+        (false, false) => 1,
+        _ => 2,
+    };
+    let nc = (n / 2).min(distinct);
+    for (o, c) in out.iter_mut().zip(&corners[..nc]) {
+        *o = map(*c);
+    }
+    let r = Vec2::new((key & 0xffff) as f32 / 65536.0, (key >> 16) as f32 / 65536.0);
+    for (i, o) in out[nc..n].iter_mut().enumerate() {
+        let s = (r + R2 * i as f32).fract();
+        *o = map(lo + s * e);
+    }
+    n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::Cell;
+
+    /// Uniform shift field on a 16x16 image.
+    fn shift(v: Vec2) -> Vec<Motion> {
+        vec![Motion { v, depth: 0.5 }; 256]
+    }
+
+    fn sp(t: u32) -> SearchParams {
+        SearchParams { iterations: t, threshold: 0.5, choice: CandidateChoice::MinDepth }
+    }
+
+    #[test]
+    fn uniform_shift_converges_in_one_iteration_from_the_exact_seed() {
+        let m = shift(Vec2::new(3.0, -2.0));
+        for sampling in [Sampling::Nearest, Sampling::Adaptive] {
+            let s = LayerSampler::new(&m, 16, 16, sampling, 7);
+            let p = Vec2::new(8.5, 5.5);
+            let c = fixed_point_search(&s, p, &[Vec2::new(5.5, 7.5)], &sp(1)).unwrap();
+            assert_eq!(c.q, Vec2::new(5.5, 7.5));
+            assert_eq!((c.depth, c.tag, c.seed), (0.5, 7, 0));
+            // From the pixel itself it needs a second iteration.
+            assert!(fixed_point_search(&s, p, &[p], &sp(1)).is_none());
+            assert_eq!(fixed_point_search(&s, p, &[p], &sp(2)).unwrap().q, Vec2::new(5.5, 7.5));
+        }
+    }
+
+    #[test]
+    fn leaving_the_image_or_landing_on_empty_fails() {
+        let m = shift(Vec2::new(10.0, 0.0));
+        let s = LayerSampler::new(&m, 16, 16, Sampling::Nearest, 0);
+        // p - v is outside for p.x < 10.
+        assert!(fixed_point_search(&s, Vec2::new(4.5, 4.5), &[Vec2::new(8.5, 4.5)], &sp(8)).is_none());
+        let mut m = shift(Vec2::ZERO);
+        m[4 * 16 + 4].depth = 1.0;
+        let s = LayerSampler::new(&m, 16, 16, Sampling::Nearest, 0);
+        assert!(fixed_point_search(&s, Vec2::new(4.5, 4.5), &[Vec2::new(4.5, 4.5)], &sp(8)).is_none());
+        assert!(fixed_point_search(&s, Vec2::new(5.5, 4.5), &[Vec2::new(4.5, 4.5)], &sp(8)).is_none());
+        assert!(fixed_point_search(&s, Vec2::new(5.5, 4.5), &[Vec2::new(5.2, 4.5)], &sp(8)).is_some());
+    }
+
+    #[test]
+    fn min_depth_resolves_overlaps_and_first_converged_takes_the_first() {
+        // Left half (x < 8) moves +4 at depth 0.3 (foreground), right half static at 0.8.
+        let m: Vec<Motion> = (0..256)
+            .map(|i| {
+                if i % 16 < 8 {
+                    Motion { v: Vec2::new(4.0, 0.0), depth: 0.3 }
+                } else {
+                    Motion { v: Vec2::ZERO, depth: 0.8 }
+                }
+            })
+            .collect();
+        let s = LayerSampler::new(&m, 16, 16, Sampling::Adaptive, 0);
+        let p = Vec2::new(10.5, 3.5); // covered by both: foreground from q=6.5, background at 10.5
+        let seeds = [Vec2::new(10.5, 3.5), Vec2::new(6.5, 3.5)];
+        let c = fixed_point_search(&s, p, &seeds, &sp(3)).unwrap();
+        assert_eq!((c.depth, c.seed), (0.3, 1));
+        let first = SearchParams { choice: CandidateChoice::FirstConverged, ..sp(3) };
+        let c = fixed_point_search(&s, p, &seeds, &first).unwrap();
+        assert_eq!((c.depth, c.seed), (0.8, 0));
+    }
+
+    #[test]
+    fn adaptive_sampling_interpolates_smooth_motion_but_not_across_edges() {
+        let m: Vec<Motion> =
+            (0..256).map(|i| Motion { v: Vec2::new((i % 16) as f32 * 0.5, 0.0), depth: 0.5 }).collect();
+        let s = LayerSampler::new(&m, 16, 16, Sampling::Adaptive, 0);
+        let a = s.fetch(Vec2::new(3.0, 3.5)).unwrap();
+        assert!((a.v.x - 1.25).abs() < 1e-6, "{a:?}");
+        let n = LayerSampler::new(&m, 16, 16, Sampling::Nearest, 0).fetch(Vec2::new(3.0, 3.5)).unwrap();
+        assert_eq!(n.v.x, 1.5);
+        // A 5 px motion jump: no interpolation.
+        let m: Vec<Motion> =
+            (0..256).map(|i| Motion { v: Vec2::new(if i % 16 < 8 { 5.0 } else { 0.0 }, 0.0), depth: 0.5 }).collect();
+        let s = LayerSampler::new(&m, 16, 16, Sampling::Adaptive, 0);
+        assert_eq!(s.fetch(Vec2::new(7.9, 2.5)).unwrap().v.x, 5.0);
+        assert_eq!(s.fetch(Vec2::new(8.1, 2.5)).unwrap().v.x, 0.0);
+    }
+
+    /// A source that never converges and counts its samples.
+    struct Counting(Cell<u32>);
+    impl MotionSource for Counting {
+        type Walk = ();
+        fn sample(&self, q: Vec2, _: &mut ()) -> Option<Sample> {
+            self.0.set(self.0.get() + 1);
+            // Jump by 10 px every step, alternating: an orbit, never converging.
+            Some(Sample { v: Vec2::new(if q.x > 0.0 { 10.0 } else { -10.0 }, 0.0), depth: 0.5, tag: 0 })
+        }
+    }
+
+    #[test]
+    fn exactly_t_samples_per_seed_when_not_converging() {
+        for t in [1, 2, 3, 7] {
+            let c = Counting(Cell::new(0));
+            let seeds = [Vec2::ZERO; 5];
+            assert!(fixed_point_search(&c, Vec2::ZERO, &seeds, &sp(t)).is_none());
+            assert_eq!(c.0.get(), 5 * t);
+        }
+    }
+
+    #[test]
+    fn stratified_seeds_lie_in_the_region_and_spread() {
+        let region = Bound { lo: Vec2::new(10.0, 20.0), hi: Vec2::new(30.0, 24.0) };
+        let mut out = [Vec2::ZERO; 16];
+        let n = stratified_seeds(&BoundFrame::IDENTITY, &region, 16, seed_key(3, 4, 0), &mut out);
+        assert_eq!(n, 16);
+        let mut quadrant = [0; 4];
+        for s in &out {
+            assert!(region.contains(*s), "{s:?}");
+            quadrant[(s.x >= 20.0) as usize * 2 + (s.y >= 22.0) as usize] += 1;
+        }
+        assert!(quadrant.iter().all(|&q| q >= 2), "{quadrant:?}");
+        // Half the budget goes to the four corners, low corner first.
+        assert_eq!(&out[..4], &[region.lo, region.hi, Vec2::new(10.0, 24.0), Vec2::new(30.0, 20.0)]);
+        // A segment region has two distinct corners.
+        let seg = Bound { lo: Vec2::new(1.0, 2.0), hi: Vec2::new(6.0, 2.0) };
+        stratified_seeds(&BoundFrame::IDENTITY, &seg, 8, 5, &mut out);
+        assert_eq!(&out[..2], &[seg.lo, seg.hi]);
+        assert!(out[2..8].iter().all(|s| s.y == 2.0 && s.x >= 1.0 && s.x < 6.0));
+        assert_eq!(stratified_seeds(&BoundFrame::IDENTITY, &region, 1, 0, &mut out), 1);
+        assert_eq!(out[0], Vec2::new(20.0, 22.0));
+        // Rotated frame: seeds map back into the rotated box.
+        let f = BoundFrame::from_angle(0.5);
+        stratified_seeds(&f, &region, 16, 99, &mut out);
+        for s in &out {
+            let u = f.to_frame(*s);
+            assert!(u.x >= 9.999 && u.x <= 30.001 && u.y >= 19.999 && u.y <= 24.001);
+        }
+    }
+
+    #[test]
+    fn effective_seed_count() {
+        assert_eq!(effective_seeds(16, Vec2::new(0.9, 0.2)), 1);
+        assert_eq!(effective_seeds(16, Vec2::new(1.5, 0.2)), 6);
+        assert_eq!(effective_seeds(8, Vec2::new(40.0, 3.0)), 8);
+    }
+}
