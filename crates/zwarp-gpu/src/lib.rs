@@ -1,1 +1,24 @@
-//! zwarp-gpu (being built).
+//! zwarp-gpu: the wgpu / WGSL backend of zwarp (DESIGN.md "Backends"), headless, tested on
+//! Mesa lavapipe.
+//!
+//! - [`GpuContext`]: device + queue ([`GpuContext::new`] or an engine's own via
+//!   [`GpuContext::from_device`]); [`list_adapters`] for `zwarp info`.
+//! - [`Renderer`] + [`GpuScene`]: depth-only render (the paper's REF pass), depth + item +
+//!   colour, depth peeling to L layers (seed 000 Sec. 3.4). Same conventions as the CPU
+//!   rasterizer: depth in `[0, 1]` (1 = empty), pixel centres, row 0 at the top.
+//! - [`MotionKernel`]: the WGSL twin of [`zwarp_core::motion_field`] (seed 000 Sec. 3.1).
+//! - [`PyramidKernel`]: the min-max motion mipmap (seed 000 Sec. 3.3) on the GPU.
+//! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
+//!
+//! Every WGSL file sits next to its host code and is loaded with `include_str!`.
+
+pub mod compute;
+pub mod context;
+mod readback;
+pub mod render;
+pub mod timer;
+
+pub use compute::{GpuMotionPyramid, MotionInput, MotionKernel, PyramidKernel};
+pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
+pub use render::{DepthTarget, FrameOptions, GpuFrame, GpuScene, PeelOptions, Renderer, Shading, Umbra};
+pub use timer::{GpuTimer, TimingMethod, TimingStats};

@@ -1,0 +1,574 @@
+//! Depth-only rendering, depth + item + colour rendering, and depth peeling to L layers
+//! (seed 000, Sec. 3.4 "deep depth buffer ... by depth peeling"; the reference REF of Sec. 4 is
+//! the depth-only pass). Shaders: `depth.wgsl`.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use zwarp_core::{Camera, Error, Image, Projection, Result, NO_ITEM};
+
+use super::GpuScene;
+use crate::readback::copy_texture;
+use crate::GpuContext;
+
+/// Depth format of every render: 32-bit float, the same `[0, 1]` values the CPU rasterizer
+/// stores (DESIGN.md: 0 = near, 1 = far / empty).
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Item-buffer format (object id per pixel, [`NO_ITEM`] where empty).
+pub const ITEM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Colour format: 32-bit float RGBA, so the linear RGB matches the CPU renderer's `[f32; 3]`
+/// colour buffer without quantization.
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// Lighting of the colour target, the CPU renderer's model (`zwarp_raster::shading`): flat
+/// two-sided per-triangle normal (turned towards the eye), headlight given in view space,
+/// `albedo * (ambient + (1 - ambient) * max(0, n . l))`, sky colour where nothing is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shading {
+    /// Direction towards the light in view space (camera looks down -z); normalized on use.
+    pub light_dir_view: Vec3,
+    /// Ambient term.
+    pub ambient: f32,
+    /// Colour of empty pixels (linear RGB).
+    pub sky: [f32; 3],
+}
+
+impl Default for Shading {
+    /// The CPU renderer's constants (`zwarp_raster::shading::{LIGHT_DIR_VIEW, AMBIENT,
+    /// SKY_COLOR}`; a test checks they agree).
+    fn default() -> Self {
+        Shading { light_dir_view: Vec3::new(-0.3, 0.5, 0.812404), ambient: 0.25, sky: [0.55, 0.7, 0.9] }
+    }
+}
+
+/// What a frame render produces besides depth.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct FrameOptions {
+    /// Also shade and read back a colour image.
+    pub color: bool,
+    /// Light and sky for the colour image.
+    pub shading: Shading,
+}
+
+/// Options of [`Renderer::render_layers`] (depth peeling).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct PeelOptions {
+    /// Number of depth layers L (>= 1).
+    pub layers: u32,
+    /// Seed 000 Sec. 3.4 / 4: ground instances (`Instance::is_ground`) are left out of the L
+    /// peeled layers and rendered alone into one extra last layer (the result then has L + 1
+    /// layers), as `zwarp_raster::PeelOptions::ground_separate`.
+    pub ground_separate: bool,
+    /// Generalized umbra culling (seed 000 Sec. 3.4, eq. (1)); `None` = standard peeling.
+    pub umbra: Option<Umbra>,
+    /// Item buffer / colour options of every layer.
+    pub frame: FrameOptions,
+}
+
+/// Buffers of one rendered (or peeled) layer, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GpuFrame {
+    /// Depth in `[0, 1]`, 1 = empty.
+    pub depth: Image<f32>,
+    /// Object id per pixel ([`NO_ITEM`] where empty).
+    pub items: Image<u32>,
+    /// Linear RGB colour, if asked for (same layout as `zwarp_raster::Frame::color`).
+    pub color: Option<Image<[f32; 3]>>,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameUniform {
+    eye: [f32; 4],
+    light: [f32; 4],
+    ortho: u32,
+    umbra: u32,
+    _pad: [u32; 2],
+    cam0: [f32; 4],
+    cam1: [f32; 4],
+}
+
+/// The expected range of novel viewpoints for generalized umbra culling (seed 000, Sec. 3.4,
+/// eq. (1), Fig. 7), in the reference camera's view space; same meaning and formulas as
+/// `zwarp_raster::ViewRegion` so both peelers produce the same layers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Umbra {
+    /// Novel viewpoints anywhere in a disc of radius `e` perpendicular to the view axis at view
+    /// depth `c`: per pixel `x = (d - c) s / ((e + h) - s)` (eq. (1)), `x = inf` (nothing behind
+    /// that pixel is peeled) when `e + h <= s`.
+    Disc {
+        /// Eq. (1) `e`: radius of the viewpoint region around the centre ray.
+        e: f32,
+        /// Eq. (1) `c`: view depth of the viewpoint region.
+        c: f32,
+    },
+    /// Orthographic novel views within `max_angle` radians of the view direction:
+    /// `x = s / tan(max_angle)`.
+    Directions {
+        /// Largest angle between a novel view direction and the reference direction.
+        max_angle: f32,
+    },
+}
+
+impl Umbra {
+    fn validate(&self) -> Result<()> {
+        match *self {
+            Umbra::Disc { e, c } if !(e.is_finite() && e >= 0.0 && c.is_finite()) => {
+                Err(Error::invalid(format!("umbra region needs finite e >= 0 and finite c, got e={e} c={c}")))
+            }
+            Umbra::Directions { max_angle }
+                if !(max_angle.is_finite() && (0.0..std::f32::consts::FRAC_PI_2).contains(&max_angle)) =>
+            {
+                Err(Error::invalid(format!("umbra max_angle must be in [0, pi/2), got {max_angle}")))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A depth target that stays on the GPU (for timing loops and for chaining GPU kernels).
+pub struct DepthTarget {
+    /// The `Depth32Float` texture (render attachment, texture binding, copy source).
+    pub texture: wgpu::Texture,
+    /// Its default view.
+    pub view: wgpu::TextureView,
+}
+
+impl DepthTarget {
+    /// A `width x height` depth target.
+    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self> {
+        ctx.check_texture_size(width, height, "depth target")?;
+        let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("zwarp depth"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        Ok(DepthTarget { texture, view })
+    }
+}
+
+fn color_target(ctx: &GpuContext, w: u32, h: u32, format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+/// The GPU rasterizer: pipelines for depth-only, frame (depth + item + colour) and peel passes.
+pub struct Renderer {
+    ctx: GpuContext,
+    scene_layout: wgpu::BindGroupLayout,
+    peel_layout: wgpu::BindGroupLayout,
+    depth_pipeline: wgpu::RenderPipeline,
+    frame_pipeline: wgpu::RenderPipeline,
+    peel_pipeline: wgpu::RenderPipeline,
+    uniform: wgpu::Buffer,
+}
+
+const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: 12,
+    step_mode: wgpu::VertexStepMode::Vertex,
+    attributes: &[wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }],
+};
+
+impl Renderer {
+    /// Compiles the shaders and builds the pipelines.
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let dev = &ctx.device;
+        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("depth.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("depth.wgsl").into()),
+        });
+        let storage = |binding, stages| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: stages,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+        let scene_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("zwarp scene"),
+            entries: &[
+                storage(0, vf),
+                storage(1, wgpu::ShaderStages::VERTEX),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let peel_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("zwarp peel"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Depth,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let layout_scene = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("zwarp scene"),
+            bind_group_layouts: &[Some(&scene_layout)],
+            immediate_size: 0,
+        });
+        let layout_peel = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("zwarp peel"),
+            bind_group_layouts: &[Some(&scene_layout), Some(&peel_layout)],
+            immediate_size: 0,
+        });
+        // No culling (the renderer draws both sides, like the CPU rasterizer); strict `Less`
+        // so that, as on the CPU, the first drawn of two equal depths wins.
+        let primitive = wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull_mode: None,
+            ..Default::default()
+        };
+        let depth_state = Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        });
+        let depth_pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("zwarp depth-only"),
+            layout: Some(&layout_scene),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_depth"),
+                compilation_options: Default::default(),
+                buffers: &[Some(VERTEX_LAYOUT)],
+            },
+            primitive,
+            depth_stencil: depth_state.clone(),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        });
+        let targets = [
+            Some(wgpu::ColorTargetState { format: ITEM_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
+            Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
+        ];
+        let frame_like = |label, layout, entry| {
+            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_frame"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(VERTEX_LAYOUT)],
+                },
+                primitive,
+                depth_stencil: depth_state.clone(),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets: &targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let frame_pipeline = frame_like("zwarp frame", &layout_scene, "fs_frame");
+        let peel_pipeline = frame_like("zwarp peel", &layout_peel, "fs_peel");
+        let uniform = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("zwarp frame uniform"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Ok(Renderer {
+            ctx: ctx.clone(),
+            scene_layout,
+            peel_layout,
+            depth_pipeline,
+            frame_pipeline,
+            peel_pipeline,
+            uniform,
+        })
+    }
+
+    /// The context this renderer draws with.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    fn scene_bind_group(&self, scene: &GpuScene) -> wgpu::BindGroup {
+        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp scene"),
+            layout: &self.scene_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: scene.objects.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: scene.draw_ids.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.uniform.as_entire_binding() },
+            ],
+        })
+    }
+
+    fn check_camera(&self, camera: &Camera) -> Result<()> {
+        self.ctx.check_texture_size(camera.width, camera.height, "render")?;
+        if !camera.view_proj().is_finite() {
+            return Err(Error::invalid("camera matrices are not finite"));
+        }
+        Ok(())
+    }
+
+    fn draw(pass: &mut wgpu::RenderPass<'_>, scene: &GpuScene, ground: Option<bool>) {
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        for b in scene.batches.iter().filter(|b| ground.is_none_or(|g| g == b.ground)) {
+            pass.draw_indexed(
+                b.first_index..b.first_index + b.index_count,
+                b.base_vertex,
+                b.first_instance..b.first_instance + b.instance_count,
+            );
+        }
+    }
+
+    /// Records a depth-only pass of `scene` at time `t` seen by `camera` into `target` (cleared
+    /// to 1). Writes the per-object matrices now (queue write), so submit before encoding a
+    /// render of the same scene with another camera.
+    pub fn encode_depth(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        target: &DepthTarget,
+    ) -> Result<()> {
+        self.check_camera(camera)?;
+        if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
+            return Err(Error::invalid(format!(
+                "depth target is {}x{} but the camera renders {}x{}",
+                target.texture.width(),
+                target.texture.height(),
+                camera.width,
+                camera.height
+            )));
+        }
+        scene.write_objects(&self.ctx, camera, t)?;
+        let bind = self.scene_bind_group(scene);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("zwarp depth-only"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        });
+        pass.set_pipeline(&self.depth_pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        Self::draw(&mut pass, scene, None);
+        Ok(())
+    }
+
+    /// Depth-only render (the paper's REF pass): depth in `[0, 1]`, 1 where empty, row 0 at
+    /// the top; the GPU twin of `zwarp_raster::render_depth`.
+    pub fn render_depth(&self, scene: &GpuScene, camera: &Camera, t: f32) -> Result<Image<f32>> {
+        let target = DepthTarget::new(&self.ctx, camera.width, camera.height)?;
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        self.encode_depth(&mut enc, scene, camera, t, &target)?;
+        let pending = copy_texture(&self.ctx, &mut enc, &target.texture, wgpu::TextureAspect::DepthOnly, 4);
+        self.ctx.queue.submit([enc.finish()]);
+        pending.read(&self.ctx)
+    }
+
+    /// One pass with depth, item ids and (optionally) colour: the GPU twin of
+    /// `zwarp_raster::render_frame`.
+    pub fn render_frame(&self, scene: &GpuScene, camera: &Camera, t: f32, opts: &FrameOptions) -> Result<GpuFrame> {
+        let peel = PeelOptions { layers: 1, ground_separate: false, umbra: None, frame: *opts };
+        let mut layers = self.render_layers(scene, camera, t, &peel)?;
+        Ok(layers.remove(0))
+    }
+
+    fn frame_uniform(&self, camera: &Camera, opts: &PeelOptions) -> FrameUniform {
+        let inv_view = camera.view.inverse();
+        let (eye, ortho) = match camera.projection {
+            Projection::Perspective { .. } => (camera.eye(), 0u32),
+            // Orthographic: every ray has the same direction; pass the direction to the camera.
+            Projection::Orthographic { .. } => (inv_view.z_axis.truncate().normalize(), 1u32),
+        };
+        let sh = &opts.frame.shading;
+        // The headlight is given in view space; shade in world space with its world direction.
+        let l = inv_view.transform_vector3(sh.light_dir_view.normalize()).normalize();
+        let (tan_half, half_height) = match camera.projection {
+            Projection::Perspective { fov_y } => ((fov_y * 0.5).tan(), 0.0),
+            Projection::Orthographic { half_height } => (0.0, half_height),
+        };
+        let (umbra, a, b) = match opts.umbra {
+            None => (0u32, 0.0, 0.0),
+            Some(Umbra::Disc { e, c }) => (1, e, c),
+            Some(Umbra::Directions { max_angle }) => (2, max_angle.tan(), 0.0),
+        };
+        FrameUniform {
+            eye: eye.extend(1.0).to_array(),
+            light: [l.x, l.y, l.z, sh.ambient],
+            ortho,
+            umbra,
+            _pad: [0; 2],
+            cam0: [camera.width as f32, camera.height as f32, camera.near, camera.far],
+            cam1: [tan_half, half_height, a, b],
+        }
+    }
+
+    /// Depth peeling (seed 000 Sec. 3.4, [Everitt 2001]), the GPU twin of
+    /// `zwarp_raster::render_layers`: layer 0 is the ordinary frame; layer k keeps, per pixel,
+    /// the nearest fragment strictly behind layer k-1 (plus the umbra extent of eq. (1) with
+    /// [`PeelOptions::umbra`]); a pixel empty in a layer stays empty in all later ones. With
+    /// [`PeelOptions::ground_separate`] the ground is left out of the L layers and rendered
+    /// alone as layer L (L + 1 layers in all).
+    pub fn render_layers(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        opts: &PeelOptions,
+    ) -> Result<Vec<GpuFrame>> {
+        if opts.layers == 0 {
+            return Err(Error::invalid("depth peeling needs at least one layer (L >= 1)"));
+        }
+        if opts.layers > 64 {
+            return Err(Error::invalid(format!("depth peeling: L = {} layers is unreasonable (max 64)", opts.layers)));
+        }
+        if let Some(u) = &opts.umbra {
+            u.validate()?;
+        }
+        let sh = &opts.frame.shading;
+        if !sh.light_dir_view.is_finite() || sh.light_dir_view.length_squared() == 0.0 || !sh.ambient.is_finite() {
+            return Err(Error::invalid("shading light direction must be finite and non-zero"));
+        }
+        self.check_camera(camera)?;
+        scene.write_objects(&self.ctx, camera, t)?;
+        let uni = self.frame_uniform(camera, opts);
+        self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uni));
+        let bind = self.scene_bind_group(scene);
+        let (w, h) = (camera.width, camera.height);
+        // Ping-pong depth targets: layer k reads layer k-1's depth as a texture.
+        let depth = [DepthTarget::new(&self.ctx, w, h)?, DepthTarget::new(&self.ctx, w, h)?];
+        let peel_binds: Vec<wgpu::BindGroup> = depth
+            .iter()
+            .map(|d| {
+                self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("zwarp peel"),
+                    layout: &self.peel_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(&d.view),
+                    }],
+                })
+            })
+            .collect();
+        let items = color_target(&self.ctx, w, h, ITEM_FORMAT, "zwarp items");
+        let color = color_target(&self.ctx, w, h, COLOR_FORMAT, "zwarp colour");
+        let (items_view, color_view) = (items.create_view(&Default::default()), color.create_view(&Default::default()));
+        let sky = sh.sky;
+        let peeled = if opts.ground_separate { Some(false) } else { None };
+        let total = opts.layers as usize + opts.ground_separate as usize;
+        let mut out: Vec<GpuFrame> = Vec::with_capacity(total);
+        for k in 0..total {
+            let ground_layer = k == opts.layers as usize;
+            // Once a layer is empty every later peel is: skip its pass (the ground layer is
+            // not a peel and is always drawn).
+            let skip = !ground_layer && out.last().is_some_and(|l| l.items.data().iter().all(|&i| i == NO_ITEM));
+            let cur = &depth[k % 2];
+            let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("zwarp frame"),
+                    color_attachments: &[
+                        Some(wgpu::RenderPassColorAttachment {
+                            view: &items_view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color { r: NO_ITEM as f64, g: 0.0, b: 0.0, a: 0.0 }),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        }),
+                        Some(wgpu::RenderPassColorAttachment {
+                            view: &color_view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color {
+                                    r: sky[0] as f64,
+                                    g: sky[1] as f64,
+                                    b: sky[2] as f64,
+                                    a: 1.0,
+                                }),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        }),
+                    ],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &cur.view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    ..Default::default()
+                });
+                pass.set_bind_group(0, &bind, &[]);
+                if skip {
+                    // Cleared only.
+                } else if ground_layer {
+                    pass.set_pipeline(&self.frame_pipeline);
+                    Self::draw(&mut pass, scene, Some(true));
+                } else if k == 0 {
+                    pass.set_pipeline(&self.frame_pipeline);
+                    Self::draw(&mut pass, scene, peeled);
+                } else {
+                    pass.set_pipeline(&self.peel_pipeline);
+                    pass.set_bind_group(1, &peel_binds[(k + 1) % 2], &[]);
+                    Self::draw(&mut pass, scene, peeled);
+                }
+            }
+            let pd = copy_texture(&self.ctx, &mut enc, &cur.texture, wgpu::TextureAspect::DepthOnly, 4);
+            let pi = copy_texture(&self.ctx, &mut enc, &items, wgpu::TextureAspect::All, 4);
+            let pc = opts.frame.color.then(|| copy_texture(&self.ctx, &mut enc, &color, wgpu::TextureAspect::All, 16));
+            self.ctx.queue.submit([enc.finish()]);
+            let rgba: Option<Image<[f32; 4]>> = pc.map(|p| p.read(&self.ctx)).transpose()?;
+            out.push(GpuFrame {
+                depth: pd.read(&self.ctx)?,
+                items: pi.read(&self.ctx)?,
+                color: rgba.map(|c| c.map(|p| [p[0], p[1], p[2]])),
+            });
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,307 @@
+//! GPU renderer vs the CPU rasterizer (zwarp-raster) and an independent brute-force reference:
+//! depth, item ids, colour, depth peeling (standard, ground layer, umbra culling); analytic
+//! orientation checks; error paths.
+
+mod common;
+
+use common::*;
+use glam::{Mat4, Vec3};
+use zwarp_core::{Animation, Camera, Image, Scene, EMPTY_DEPTH, NO_ITEM};
+use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer, Shading, Umbra};
+
+fn setup() -> Option<(Renderer, GpuScene, Scene)> {
+    let ctx = test_context()?;
+    let scene = test_scene();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    Some((Renderer::new(&ctx).unwrap(), gs, scene))
+}
+
+/// The brief's bar: identical depth (|diff| < 1e-6) on >= 99.9% of pixels vs
+/// `zwarp_raster::render_depth`, item ids equal where depths are equal.
+#[test]
+fn depth_and_items_match_zwarp_raster() {
+    let Some((r, gs, scene)) = setup() else { return };
+    for (cam, t) in [(camera_a(), 0.0), (camera_b(), 0.7)] {
+        let cpu = zwarp_raster::render_frame(&scene, &cam, t, &Default::default()).unwrap();
+        let depth_only = zwarp_raster::render_depth(&scene, &cam, t).unwrap();
+        let gpu = r.render_frame(&gs, &cam, t, &FrameOptions::default()).unwrap();
+        let agree = agreement(&gpu.depth, &depth_only, 1e-6);
+        assert!(agree >= 0.999, "only {:.4}% of pixels agree", agree * 100.0);
+        assert!(agreement(&gpu.depth, &cpu.depth, 1e-6) >= 0.999);
+        let mut same_depth = 0;
+        for i in 0..gpu.depth.len() {
+            if (gpu.depth.data()[i] - cpu.depth.data()[i]).abs() < 1e-6 {
+                same_depth += 1;
+                assert_eq!(gpu.items.data()[i], cpu.items.data()[i], "pixel {i}");
+            }
+        }
+        assert!(same_depth as f64 >= 0.999 * gpu.depth.len() as f64);
+    }
+}
+
+/// A scene built by zwarp-raster's own generator (many objects, near clipping of large boxes).
+#[test]
+fn generated_box_city_matches_zwarp_raster() {
+    let Some(ctx) = test_context() else { return };
+    let (scene, cam) = zwarp_raster::scenes::box_city(6, W, H).unwrap();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let gpu = r.render_frame(&gs, &cam, 0.0, &FrameOptions::default()).unwrap();
+    let cpu = zwarp_raster::render_frame(&scene, &cam, 0.0, &Default::default()).unwrap();
+    let agree = agreement(&gpu.depth, &cpu.depth, 1e-6);
+    assert!(agree >= 0.999, "only {:.4}% of pixels agree", agree * 100.0);
+    let covered = cpu.depth.data().iter().filter(|d| **d < EMPTY_DEPTH).count();
+    assert!(covered > 100, "generator scene barely visible ({covered} px)");
+    for i in 0..gpu.depth.len() {
+        if (gpu.depth.data()[i] - cpu.depth.data()[i]).abs() < 1e-6 {
+            assert_eq!(gpu.items.data()[i], cpu.items.data()[i], "pixel {i}");
+        }
+    }
+}
+
+#[test]
+fn colour_matches_zwarp_raster() {
+    let Some((r, gs, scene)) = setup() else { return };
+    let d = Shading::default();
+    assert_eq!(d.light_dir_view, zwarp_raster::shading::LIGHT_DIR_VIEW);
+    assert_eq!(d.ambient, zwarp_raster::shading::AMBIENT);
+    assert_eq!(d.sky, zwarp_raster::shading::SKY_COLOR);
+    let cam = camera_b();
+    let cpu = zwarp_raster::render_frame(&scene, &cam, 0.4, &zwarp_raster::FrameOptions { color: true, objects: None })
+        .unwrap();
+    let gpu = r.render_frame(&gs, &cam, 0.4, &FrameOptions { color: true, shading: d }).unwrap();
+    let (cc, gc) = (cpu.color.unwrap(), gpu.color.unwrap());
+    let mut compared = 0;
+    for i in 0..cc.len() {
+        if gpu.items.data()[i] == cpu.items.data()[i] {
+            compared += 1;
+            for k in 0..3 {
+                assert!(
+                    (cc.data()[i][k] - gc.data()[i][k]).abs() < 1e-3,
+                    "pixel {i}: {:?} vs {:?}",
+                    gc.data()[i],
+                    cc.data()[i]
+                );
+            }
+        }
+    }
+    assert!(compared as f64 >= 0.999 * cc.len() as f64);
+}
+
+#[test]
+fn depth_only_matches_reference_rasterizer() {
+    let Some((r, gs, scene)) = setup() else { return };
+    for (cam, t) in [(camera_a(), 0.0), (camera_b(), 0.7)] {
+        let gpu = r.render_depth(&gs, &cam, t).unwrap();
+        let (reference, _) = reference_depth(&scene, &cam, t);
+        assert_eq!(gpu.size(), (W, H));
+        let agree = agreement(&gpu, &reference, 1e-6);
+        assert!(agree >= 0.999, "only {:.4}% of pixels agree", agree * 100.0);
+        // The scene covers a good part of the image and leaves some sky.
+        let covered = gpu.data().iter().filter(|d| **d < EMPTY_DEPTH).count();
+        assert!(covered > (W * H / 3) as usize && covered < (W * H) as usize, "covered {covered}");
+    }
+}
+
+#[test]
+fn frame_pass_depth_equals_depth_only_and_items_match_reference() {
+    let Some((r, gs, scene)) = setup() else { return };
+    let cam = camera_a();
+    let depth_only = r.render_depth(&gs, &cam, 0.3).unwrap();
+    let frame = r.render_frame(&gs, &cam, 0.3, &FrameOptions::default()).unwrap();
+    assert!(frame.color.is_none());
+    // Same vertices, same rasterizer: bit-identical depth.
+    assert_eq!(frame.depth, depth_only);
+    let (ref_depth, ref_items) = reference_depth(&scene, &cam, 0.3);
+    let mut compared = 0;
+    for i in 0..frame.depth.len() {
+        let d = frame.depth.data()[i];
+        if (d - ref_depth.data()[i]).abs() < 1e-6 {
+            assert_eq!(frame.items.data()[i], ref_items.data()[i], "pixel {i}");
+            compared += 1;
+        }
+        // Empty depth <=> no item.
+        assert_eq!(d >= EMPTY_DEPTH, frame.items.data()[i] == NO_ITEM, "pixel {i}");
+    }
+    assert!(compared as f64 >= 0.999 * frame.depth.len() as f64);
+    // Every object is visible somewhere.
+    for id in 0..scene.instances.len() as u32 {
+        assert!(frame.items.data().contains(&id), "object {id} not visible");
+    }
+}
+
+/// A quad covering exactly the left half of an orthographic view at a known distance: checks
+/// row/column orientation (row 0 = top) and the depth value analytically.
+#[test]
+fn orientation_and_depth_are_analytic() {
+    let Some(ctx) = test_context() else { return };
+    let mut s = Scene::default();
+    let q = s.add_mesh(quad_mesh());
+    // Quad spans x in [-2, 0] (left half of a 4-unit wide view), y in [0, 2] (top half).
+    s.add_instance(q, Mat4::from_translation(Vec3::new(-1.0, 1.0, 0.0)), Vec3::ONE, Animation::Static, false);
+    let cam = Camera::orthographic(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 2.0, 1.0, 9.0, 16, 16).unwrap();
+    let gs = GpuScene::upload(&ctx, &s).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let f = r.render_frame(&gs, &cam, 0.0, &FrameOptions::default()).unwrap();
+    let expect = (5.0 - 1.0) / (9.0 - 1.0);
+    for y in 0..16 {
+        for x in 0..16 {
+            let d = *f.depth.get(x, y);
+            if x < 8 && y < 8 {
+                assert!((d - expect).abs() < 1e-6, "({x},{y}) depth {d}");
+                assert_eq!(*f.items.get(x, y), 0);
+            } else {
+                assert_eq!(d, EMPTY_DEPTH, "({x},{y})");
+                assert_eq!(*f.items.get(x, y), NO_ITEM);
+            }
+        }
+    }
+}
+
+#[test]
+fn depth_peeling_matches_reference_layers() {
+    let Some((r, gs, scene)) = setup() else { return };
+    let cam = camera_b();
+    let l = 4;
+    let opts = PeelOptions { layers: l, ..Default::default() };
+    let layers = r.render_layers(&gs, &cam, 0.2, &opts).unwrap();
+    assert_eq!(layers.len(), l as usize);
+    let reference = reference_layers(&scene, &cam, 0.2, l as usize);
+    for k in 0..l as usize {
+        let agree = agreement(&layers[k].depth, &reference[k], 1e-6);
+        assert!(agree >= 0.995, "layer {k}: only {:.3}% agree", agree * 100.0);
+        if k > 0 {
+            // Strictly behind the previous layer wherever the layer is not empty.
+            for (a, b) in layers[k - 1].depth.data().iter().zip(layers[k].depth.data()) {
+                assert!(*b == EMPTY_DEPTH || b > a, "{b} not behind {a}");
+            }
+        }
+    }
+    // Layer 1 is not empty (boxes and spheres have back faces) and layer 0 is the frame.
+    assert!(layers[1].depth.data().iter().any(|d| *d < EMPTY_DEPTH));
+    let frame = r.render_frame(&gs, &cam, 0.2, &FrameOptions::default()).unwrap();
+    assert_eq!(layers[0].depth, frame.depth);
+    assert_eq!(layers[0].items, frame.items);
+}
+
+fn compare_layers(gpu: &[zwarp_gpu::GpuFrame], cpu: &[zwarp_raster::Layer]) {
+    assert_eq!(gpu.len(), cpu.len());
+    for (k, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+        let agree = agreement(&g.depth, &c.depth, 1e-6);
+        assert!(agree >= 0.998, "layer {k}: only {:.3}% agree", agree * 100.0);
+        let ids = g.items.data().iter().zip(c.items.data()).filter(|(a, b)| a == b).count();
+        assert!(ids as f64 >= 0.998 * g.items.len() as f64, "layer {k}: item ids differ on {} px", g.items.len() - ids);
+    }
+}
+
+#[test]
+fn ground_separate_layers_match_zwarp_raster() {
+    let Some((r, gs, scene)) = setup() else { return };
+    let cam = camera_a();
+    let opts = PeelOptions { layers: 3, ground_separate: true, ..Default::default() };
+    let layers = r.render_layers(&gs, &cam, 0.0, &opts).unwrap();
+    assert_eq!(layers.len(), 4, "L peeled layers + the ground layer");
+    let cpu = zwarp_raster::render_layers(
+        &scene,
+        &cam,
+        0.0,
+        &zwarp_raster::PeelOptions { layers: 3, ground_separate: true, umbra: None },
+    )
+    .unwrap();
+    compare_layers(&layers, &cpu);
+    // The ground layer holds only the ground (object 0); peeled layers never do.
+    assert!(layers[3].items.data().iter().all(|&id| id == 0 || id == NO_ITEM));
+    assert!(layers[3].items.data().contains(&0));
+    assert!(layers[..3].iter().all(|l| !l.items.data().contains(&0)));
+}
+
+#[test]
+fn umbra_peeling_matches_zwarp_raster_and_peels_faster() {
+    let Some((r, gs, scene)) = setup() else { return };
+    let cam = camera_a();
+    for (umbra, cpu_region) in [
+        (Umbra::Disc { e: 0.3, c: 0.0 }, zwarp_raster::ViewRegion::Disc { e: 0.3, c: 0.0 }),
+        (Umbra::Disc { e: 0.05, c: -1.0 }, zwarp_raster::ViewRegion::Disc { e: 0.05, c: -1.0 }),
+        (Umbra::Directions { max_angle: 0.2 }, zwarp_raster::ViewRegion::Directions { max_angle: 0.2 }),
+    ] {
+        let gpu = r
+            .render_layers(&gs, &cam, 0.0, &PeelOptions { layers: 3, umbra: Some(umbra), ..Default::default() })
+            .unwrap();
+        let cpu = zwarp_raster::render_layers(
+            &scene,
+            &cam,
+            0.0,
+            &zwarp_raster::PeelOptions {
+                layers: 3,
+                ground_separate: false,
+                umbra: Some(zwarp_raster::UmbraPeeling { region: cpu_region }),
+            },
+        )
+        .unwrap();
+        compare_layers(&gpu, &cpu);
+    }
+    // A positive umbra extent never peels more than standard peeling does.
+    let std_l = r.render_layers(&gs, &cam, 0.0, &PeelOptions { layers: 3, ..Default::default() }).unwrap();
+    let umb = r
+        .render_layers(
+            &gs,
+            &cam,
+            0.0,
+            &PeelOptions { layers: 3, umbra: Some(Umbra::Disc { e: 0.3, c: 0.0 }), ..Default::default() },
+        )
+        .unwrap();
+    let cov = |f: &zwarp_gpu::GpuFrame| f.depth.data().iter().filter(|d| **d < EMPTY_DEPTH).count();
+    assert_eq!(cov(&std_l[0]), cov(&umb[0]));
+    assert!(cov(&umb[2]) <= cov(&std_l[2]));
+    let e = r.render_layers(
+        &gs,
+        &cam,
+        0.0,
+        &PeelOptions { layers: 2, umbra: Some(Umbra::Disc { e: -1.0, c: 0.0 }), ..Default::default() },
+    );
+    assert!(e.is_err());
+}
+
+#[test]
+fn colour_is_lambert_with_sky() {
+    let Some(ctx) = test_context() else { return };
+    let mut s = Scene::default();
+    let q = s.add_mesh(quad_mesh());
+    let albedo = Vec3::new(0.8, 0.4, 0.2);
+    s.add_instance(q, Mat4::IDENTITY, albedo, Animation::Static, false);
+    // Looking at the z = 0 quad from below: its +z normal faces away, two-sided shading must
+    // flip it towards the camera (view-space normal +z).
+    let cam = Camera::perspective(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y, 1.2, 0.1, 10.0, 32, 32).unwrap();
+    let shading = Shading { light_dir_view: Vec3::new(0.0, 0.6, 0.8), ambient: 0.1, sky: [0.0, 0.5, 1.0] };
+    let r = Renderer::new(&ctx).unwrap();
+    let f = r
+        .render_frame(&GpuScene::upload(&ctx, &s).unwrap(), &cam, 0.0, &FrameOptions { color: true, shading })
+        .unwrap();
+    let c = f.color.unwrap();
+    let lit = albedo * (0.1 + 0.9 * 0.8);
+    let px = *c.get(16, 16);
+    for k in 0..3 {
+        assert!((px[k] - lit[k]).abs() < 1e-5, "{px:?} vs {lit}");
+    }
+    assert_eq!(*c.get(0, 0), [0.0, 0.5, 1.0]);
+}
+
+#[test]
+fn bad_inputs_are_errors() {
+    let Some((r, gs, _)) = setup() else { return };
+    let cam = camera_a();
+    let e = r.render_layers(&gs, &cam, 0.0, &PeelOptions { layers: 0, ..Default::default() }).unwrap_err();
+    assert!(e.to_string().contains("at least one layer"), "{e}");
+    assert!(r.render_depth(&gs, &cam, f32::NAN).is_err());
+    let empty = Scene::default();
+    assert!(GpuScene::upload(r.context(), &empty).is_err());
+    let big = cam.with_size(100_000, 4);
+    if let Ok(big) = big {
+        assert!(r.render_depth(&gs, &big, 0.0).is_err());
+    }
+    let target = zwarp_gpu::DepthTarget::new(r.context(), 8, 8).unwrap();
+    let mut enc = r.context().device.create_command_encoder(&Default::default());
+    assert!(r.encode_depth(&mut enc, &gs, &cam, 0.0, &target).is_err());
+    assert!(zwarp_gpu::DepthTarget::new(r.context(), 0, 8).is_err());
+    let _ = Image::new(1, 1, 0.0f32);
+}
