@@ -61,38 +61,50 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     let depth = &mut buf.depth[..];
     let ids = &mut buf.ids[..];
     let thr = &buf.thr[..];
+    let gx = (tx0 + xs) as i64;
+    let mut erow = [0i64; 3];
+    for (i, er) in erow.iter_mut().enumerate() {
+        *er = t.edge_at(i, gx, (ty0 + y0) as i64);
+    }
     for y in y0..=y1 {
-        let gy = (ty0 + y) as i64;
-        let gx = (tx0 + xs) as i64;
         let mut e = [0i32; 3];
         for i in 0..3 {
-            e[i] = t.edge_at(i, gx, gy).clamp(-EDGE_CLAMP, EDGE_CLAMP) as i32;
+            e[i] = erow[i].clamp(-EDGE_CLAMP, EDGE_CLAMP) as i32;
+            erow[i] += t.b[i] as i64;
         }
         let zrow = t.row_depth(tx0, ty0 + y);
         let row = y as usize * TILE_W;
         let mut xb = xs;
         while xb <= x1 {
             let i = row + xb as usize;
-            let d8: &mut [f32; 8] = (&mut depth[i..i + 8]).try_into().unwrap();
-            let id8: &mut [u32; 8] = (&mut ids[i..i + 8]).try_into().unwrap();
-            if COUNT {
-                for k in 0..8 {
-                    let ee = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
-                    id8[k] += (ee >= 0) as u32;
-                }
-            } else {
-                let th8: &[f32; 8] = if PEEL { (&thr[i..i + 8]).try_into().unwrap() } else { &[0.0; 8] };
-                for k in 0..8 {
-                    let ee = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
-                    let z = (zrow + zx * (xb + k as u32) as f32).max(0.0);
-                    let d = d8[k];
-                    let mut pass = ee >= 0 && z < d;
-                    if PEEL {
-                        pass &= z > th8[k];
+            let mut ee = [0i32; 8];
+            for k in 0..8 {
+                ee[k] = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
+            }
+            // All 8 sign bits set <=> no lane covered: skip the chunk.
+            let none = ee.iter().fold(-1i32, |acc, &v| acc & v) < 0;
+            if !none {
+                let id8: &mut [u32; 8] = (&mut ids[i..i + 8]).try_into().unwrap();
+                if COUNT {
+                    for k in 0..8 {
+                        id8[k] += (ee[k] >= 0) as u32;
                     }
-                    d8[k] = if pass { z } else { d };
-                    if IDS {
-                        id8[k] = if pass { handle } else { id8[k] };
+                } else {
+                    let d8: &mut [f32; 8] = (&mut depth[i..i + 8]).try_into().unwrap();
+                    let th8: &[f32; 8] = if PEEL { (&thr[i..i + 8]).try_into().unwrap() } else { &[0.0; 8] };
+                    let xbf = xb as f32;
+                    // Branch-free lanes (bitwise `&` on bools) so LLVM emits compares + blends.
+                    for k in 0..8 {
+                        let z = clamp_depth(zrow + zx * (xbf + LANE[k]));
+                        let d = d8[k];
+                        let mut pass = (ee[k] >= 0) & (z < d);
+                        if PEEL {
+                            pass &= z > th8[k];
+                        }
+                        d8[k] = if pass { z } else { d };
+                        if IDS {
+                            id8[k] = if pass { handle } else { id8[k] };
+                        }
                     }
                 }
             }
@@ -101,6 +113,21 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             e[2] += step[2];
             xb += 8;
         }
+    }
+}
+
+/// Lane offsets as f32 (exact small integers: `xbf + LANE[k]` equals `(xb + k) as f32`).
+const LANE: [f32; 8] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+
+/// Clamps an interpolated depth at 0 (rounding can dip a hair below the near plane). Written as a
+/// compare + select (not `f32::max`, whose NaN handling costs extra instructions per lane); the
+/// same function is used by [`Tri::depth_at`] so every evaluation agrees bit for bit.
+#[inline(always)]
+pub(crate) fn clamp_depth(z: f32) -> f32 {
+    if z > 0.0 {
+        z
+    } else {
+        0.0
     }
 }
 

@@ -21,6 +21,7 @@
 
 mod kernel;
 mod peel;
+pub mod scenes;
 mod setup;
 
 use glam::Vec3;

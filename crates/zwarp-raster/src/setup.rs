@@ -62,7 +62,7 @@ impl Tri {
     pub fn depth_at(&self, x: u32, y: u32) -> f32 {
         let tx = x - x % TILE_W as u32;
         let row = self.row_depth(tx, y);
-        (row + self.zx as f32 * (x - tx) as f32).max(0.0)
+        crate::kernel::clamp_depth(row + self.zx as f32 * (x - tx) as f32)
     }
     /// Depth at the left edge `tx` of a tile row (f64 plane rounded once to f32).
     #[inline]
@@ -168,7 +168,6 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
     if c0 & c1 & c2 != 0 {
         return;
     }
-    let plane = depth_plane_ndc(&v);
     // Which clip planes (near + guard band) are crossed?
     let mut need = 0u32;
     for p in v {
@@ -189,7 +188,7 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
         }
     }
     if need == 0 {
-        setup_triangle(v, plane, vp, inst, out);
+        setup_triangle(v, &v, vp, inst, out);
         return;
     }
     // Sutherland-Hodgman against the crossed planes. A triangle clipped by 5 planes has at most
@@ -229,7 +228,7 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
         }
     }
     for i in 1..n - 1 {
-        setup_triangle([poly[0], poly[i], poly[i + 1]], plane, vp, inst, out);
+        setup_triangle([poly[0], poly[i], poly[i + 1]], &v, vp, inst, out);
     }
 }
 
@@ -243,20 +242,30 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
 /// (plane through the eye: the triangle is seen edge-on).
 fn depth_plane_ndc(v: &[Clip; 3]) -> Option<[f64; 3]> {
     let col = |p: Clip| glam::DVec3::new(p.x, p.y, p.w);
-    let m = glam::DMat3::from_cols(col(v[0]), col(v[1]), col(v[2]));
-    let det = m.determinant();
-    let scale = m.x_axis.length() * m.y_axis.length() * m.z_axis.length();
-    if !(det.abs() > 1e-12 * scale) {
+    let (c0, c1, c2) = (col(v[0]), col(v[1]), col(v[2]));
+    // Rows of M^-1 are (c1 x c2, c2 x c0, c0 x c1) / det, so M^-T z is their z-weighted sum.
+    let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
+    let det = c0.dot(k0);
+    let scale = c0.length_squared() * c1.length_squared() * c2.length_squared();
+    if !(det * det > 1e-24 * scale) {
         return None;
     }
-    let z = glam::DVec3::new(v[0].z, v[1].z, v[2].z);
-    let r = m.transpose().inverse() * z;
+    let r = (k0 * v[0].z + k1 * v[1].z + k2 * v[2].z) / det;
     Some([r.x, r.y, r.z])
 }
 
+/// Floor division by 256 (arithmetic shift; no i64 division in the hot path).
 #[inline]
-fn floor_div(a: i64, b: i64) -> i64 {
-    a.div_euclid(b)
+fn floor_div256(a: i64) -> i64 {
+    a >> 8
+}
+
+/// Round to nearest (ties to even) for |x| < 2^51 without a libm call: adding and subtracting
+/// 1.5 * 2^52 leaves x rounded to an integer in the f64 mantissa.
+#[inline]
+fn round_fast(x: f64) -> i64 {
+    const MAGIC: f64 = 6755399441055744.0;
+    ((x + MAGIC) - MAGIC) as i64
 }
 
 /// Exact fixed-point set-up of a triangle whose vertices all lie inside the near plane and the
@@ -274,7 +283,7 @@ fn floor_div(a: i64, b: i64) -> i64 {
 /// `E - bias = 256 * (-d.y * x + d.x * y) + K` with `K = d.x (128 - v0.y) - d.y (128 - v0.x) - bias`,
 /// so `E - bias >= 0  <=>  -d.y * x + d.x * y + floor(K / 256) >= 0`: the per-pixel edge
 /// function only needs whole-pixel steps.
-pub(crate) fn setup_triangle(v: [Clip; 3], plane: Option<[f64; 3]>, vp: &Viewport, inst: u32, out: &mut impl TriSink) {
+pub(crate) fn setup_triangle(v: [Clip; 3], orig: &[Clip; 3], vp: &Viewport, inst: u32, out: &mut impl TriSink) {
     if !v.iter().all(|p| p.is_finite() && p.w > 0.0) {
         return; // behind the eye (only for unusual projections) or NaN input
     }
@@ -291,8 +300,8 @@ pub(crate) fn setup_triangle(v: [Clip; 3], plane: Option<[f64; 3]>, vp: &Viewpor
         sx[i] = (p.x * iw + 1.0) * 0.5 * w;
         sy[i] = (1.0 - p.y * iw) * 0.5 * h;
         sz[i] = p.z * iw;
-        fx[i] = (sx[i] * SUB).round() as i64;
-        fy[i] = (sy[i] * SUB).round() as i64;
+        fx[i] = round_fast(sx[i] * SUB);
+        fy[i] = round_fast(sy[i] * SUB);
     }
     let area = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fy[1] - fy[0]) * (fx[2] - fx[0]);
     if area == 0 {
@@ -308,10 +317,10 @@ pub(crate) fn setup_triangle(v: [Clip; 3], plane: Option<[f64; 3]>, vp: &Viewpor
     // Pixel-centre bounding box: centres x with 256 x + 128 in [min fx, max fx].
     let (minx, maxx) = (fx[0].min(fx[1]).min(fx[2]), fx[0].max(fx[1]).max(fx[2]));
     let (miny, maxy) = (fy[0].min(fy[1]).min(fy[2]), fy[0].max(fy[1]).max(fy[2]));
-    let x0 = floor_div(minx - 128 + 255, 256).max(0);
-    let x1 = floor_div(maxx - 128, 256).min(vp.width as i64 - 1);
-    let y0 = floor_div(miny - 128 + 255, 256).max(0);
-    let y1 = floor_div(maxy - 128, 256).min(vp.height as i64 - 1);
+    let x0 = floor_div256(minx - 128 + 255).max(0);
+    let x1 = floor_div256(maxx - 128).min(vp.width as i64 - 1);
+    let y0 = floor_div256(miny - 128 + 255).max(0);
+    let y1 = floor_div256(maxy - 128).min(vp.height as i64 - 1);
     if x0 > x1 || y0 > y1 {
         return; // covers no pixel centre (tiny triangle between samples, or off-screen)
     }
@@ -327,12 +336,12 @@ pub(crate) fn setup_triangle(v: [Clip; 3], plane: Option<[f64; 3]>, vp: &Viewpor
         let k = dx * (128 - fy[i]) - dy * (128 - fx[i]) - bias;
         a[i] = (-dy) as i32;
         b[i] = dx as i32;
-        c[i] = floor_div(k, 256);
+        c[i] = floor_div256(k);
     }
     // Depth plane in pixel-centre coordinates: z is affine in screen space (z_ndc = z_clip / w),
     // so this is the perspective-correct depth. Pixel centre x maps to
     // x_ndc = 2 x / W + (1 / W - 1) and y to y_ndc = -2 y / H + (1 - 1 / H).
-    let (z0, zx, zy) = match plane {
+    let (z0, zx, zy) = match depth_plane_ndc(orig) {
         Some([pa, pb, pc]) => (pa * (1.0 / w - 1.0) + pb * (1.0 - 1.0 / h) + pc, pa * 2.0 / w, -pb * 2.0 / h),
         None => {
             // Edge-on plane: fall back to the plane through the screen-space vertices (snapped
