@@ -4,7 +4,8 @@
 //!
 //! Each path argument is a folder with `VertexBuffer.bin` / `IndexBuffer.bin` (Crytek Sponza as
 //! in `shared/scenes/sponza`), rendered with the README's view; procedural stand-ins are always
-//! added. Prints a markdown table: median, spread (min-max and IQR), Mtris/s.
+//! added. Prints a markdown table: median, spread (min-max and IQR), Mtris/s, CPU time.
+//! `--dump DIR` also writes each scene's linearized depth (PGM) and flat-shaded colour (PPM).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -33,10 +34,13 @@ fn cpu_ms() -> Option<f64> {
 
 fn main() -> zwarp_core::Result<()> {
     let mut reps = 15usize;
+    let mut dump: Option<PathBuf> = None;
     let mut paths = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
-        if a == "--reps" {
+        if a == "--dump" {
+            dump = args.next().map(PathBuf::from);
+        } else if a == "--reps" {
             reps = args.next().and_then(|s| s.parse().ok()).unwrap_or(reps).max(1);
         } else {
             paths.push(PathBuf::from(a));
@@ -57,7 +61,10 @@ fn main() -> zwarp_core::Result<()> {
     println!();
     println!("| scene | triangles | objects | median ms | min-max ms | IQR ms | Mtris/s | CPU ms/render (median) | covered px |");
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
-    for (name, scene, cam) in &cases {
+    for (ci, (name, scene, cam)) in cases.iter().enumerate() {
+        if let Some(dir) = &dump {
+            write_images(dir, ci, scene, cam)?;
+        }
         // Warm-up (page faults, caches, thread pool).
         let d = render_depth(scene, cam, 0.0)?;
         let _ = render_depth(scene, cam, 0.0)?;
@@ -85,5 +92,28 @@ fn main() -> zwarp_core::Result<()> {
             100.0 * covered as f64 / (w * h) as f64
         );
     }
+    Ok(())
+}
+
+/// Writes `scene<i>_depth.pgm` (linear depth, near = white, normalized by the nearest and
+/// farthest surface) and `scene<i>_color.ppm`.
+fn write_images(dir: &std::path::Path, i: usize, scene: &Scene, cam: &Camera) -> zwarp_core::Result<()> {
+    use zwarp_raster::{render_frame, FrameOptions};
+    let f = render_frame(scene, cam, 0.0, &FrameOptions { color: true, objects: None })?;
+    let lin: Vec<f32> = f.depth.data().iter().map(|&d| if d < 1.0 { cam.linear_depth(d) } else { f32::NAN }).collect();
+    let lo = lin.iter().copied().filter(|v| v.is_finite()).fold(f32::INFINITY, f32::min);
+    let hi = lin.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max);
+    let mut pgm = format!("P5 {} {} 255\n", cam.width, cam.height).into_bytes();
+    pgm.extend(
+        lin.iter().map(|&v| if v.is_finite() { (255.0 * (1.0 - (v - lo) / (hi - lo).max(1e-6))) as u8 } else { 0 }),
+    );
+    let p = dir.join(format!("scene{i}_depth.pgm"));
+    std::fs::write(&p, pgm).map_err(|e| zwarp_core::Error::io(p, e))?;
+    let mut ppm = format!("P6 {} {} 255\n", cam.width, cam.height).into_bytes();
+    for c in f.color.as_ref().expect("colour requested").data() {
+        ppm.extend(c.iter().map(|&v| (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8));
+    }
+    let p = dir.join(format!("scene{i}_color.ppm"));
+    std::fs::write(&p, ppm).map_err(|e| zwarp_core::Error::io(p, e))?;
     Ok(())
 }

@@ -180,6 +180,25 @@ pub fn any_fragment_visible(depth: &Image<f32>, cam: &Camera, triangles: &[[Vec3
     false
 }
 
+/// Diagnostic: `(source triangles after instance culling, set-up triangles that cover at least
+/// one pixel-centre bounding box, tile-bin entries, setup ms, raster ms)` of a depth-only render.
+#[doc(hidden)]
+pub fn pipeline_stats(scene: &Scene, cam: &Camera, t: f32) -> Result<(usize, usize, usize, f64, f64)> {
+    let t0 = std::time::Instant::now();
+    let binned = bin_scene(scene, cam, t, &SetupParams { objects: None, color: false })?;
+    let t1 = std::time::Instant::now();
+    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
+    run_pass(
+        &binned,
+        Mode::Depth,
+        Targets { depth: &mut depth, items: None, color: None, threshold: None, load: false },
+    );
+    let t2 = std::time::Instant::now();
+    let set_up = binned.chunks.iter().map(|c| c.tris.len()).sum();
+    let entries = binned.chunks.iter().map(|c| c.bin_items.len()).sum();
+    Ok((scene.triangle_count(), set_up, entries, (t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3))
+}
+
 /// Test/diagnostic helper: how many of the world-space `triangles` cover each pixel centre
 /// (no depth test; the fill rule is the renderer's). A closed fan or mesh without overlaps
 /// gives exactly 1 inside and 0 outside.

@@ -153,7 +153,7 @@ impl TriSink for Vec<Tri> {
 /// Triangles crossing the near plane are clipped against `z_clip = 0` (exact: the visible part is
 /// drawn with its true depths); triangles reaching beyond the guard band are clipped against it,
 /// which only moves edges outside the viewport.
-#[inline]
+#[inline(always)]
 pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &mut impl TriSink) {
     // Outcodes against the view frustum (with w > 0 implied by z >= 0 for our projections).
     let code = |p: Clip| -> u32 {
@@ -283,6 +283,7 @@ fn round_fast(x: f64) -> i64 {
 /// `E - bias = 256 * (-d.y * x + d.x * y) + K` with `K = d.x (128 - v0.y) - d.y (128 - v0.x) - bias`,
 /// so `E - bias >= 0  <=>  -d.y * x + d.x * y + floor(K / 256) >= 0`: the per-pixel edge
 /// function only needs whole-pixel steps.
+#[inline(always)]
 pub(crate) fn setup_triangle(v: [Clip; 3], orig: &[Clip; 3], vp: &Viewport, inst: u32, out: &mut impl TriSink) {
     if !v.iter().all(|p| p.is_finite() && p.w > 0.0) {
         return; // behind the eye (only for unusual projections) or NaN input
@@ -561,52 +562,88 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
     // Triangle set-up and binning, in parallel over fixed-size triangle chunks.
     let n_chunks = total_tris.div_ceil(CHUNK_TRIS);
     let ortho = matches!(cam.projection, zwarp_core::Projection::Orthographic { .. });
+    let ctx = ChunkCtx { scene, cam, draws: &draws, clip: &clip, vp, color: params.color, ortho, total_tris };
+    let avx2 = crate::kernel::has_avx2();
     let chunks: Vec<Chunk> = (0..n_chunks)
         .into_par_iter()
         .map(|ci| {
-            let start = ci * CHUNK_TRIS;
-            let end = (start + CHUNK_TRIS).min(total_tris);
-            let mut tris: Vec<Tri> = Vec::with_capacity(end - start);
-            let mut colors: Vec<[f32; 3]> = Vec::new();
-            let mut d = draws.partition_point(|d| d.tri_offset <= start) - 1;
-            let mut g = start;
-            while g < end {
-                while g >= draws[d].tri_offset + scene.meshes[draws[d].mesh as usize].indices.len() {
-                    d += 1;
-                }
-                let dr = &draws[d];
-                let mesh = &scene.meshes[dr.mesh as usize];
-                let local = g - dr.tri_offset;
-                let n = (mesh.indices.len() - local).min(end - g);
-                let vb = &clip[dr.vert_offset..dr.vert_offset + mesh.positions.len()];
-                let mv = cam.view * dr.model;
-                let albedo = scene.instances[dr.inst as usize].albedo;
-                for tri in &mesh.indices[local..local + n] {
-                    let cv = [vb[tri[0] as usize], vb[tri[1] as usize], vb[tri[2] as usize]];
-                    let before = tris.len();
-                    setup_clip_triangle(cv, &vp, dr.inst, &mut tris);
-                    if params.color && tris.len() > before {
-                        let p = [
-                            mv.transform_point3(mesh.positions[tri[0] as usize]),
-                            mv.transform_point3(mesh.positions[tri[1] as usize]),
-                            mv.transform_point3(mesh.positions[tri[2] as usize]),
-                        ];
-                        let col = flat_color(p, ortho, albedo);
-                        colors.resize(tris.len(), col);
-                    }
-                }
-                g += n;
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: AVX2 presence checked at run time. No FMA is enabled, so results are
+                // bit-identical to the generic build.
+                return unsafe { setup_chunk_avx2(&ctx, ci) };
             }
-            let (bin_start, bin_items) = bin_tris(&tris, &vp);
-            Chunk { tris, colors, bin_start, bin_items }
+            let _ = avx2;
+            setup_chunk(&ctx, ci)
         })
         .collect();
     Ok(Binned { vp, chunks })
 }
 
+/// Everything a set-up chunk reads.
+struct ChunkCtx<'a> {
+    scene: &'a Scene,
+    cam: &'a Camera,
+    draws: &'a [Draw],
+    clip: &'a [Clip],
+    vp: Viewport,
+    color: bool,
+    ortho: bool,
+    total_tris: usize,
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn setup_chunk_avx2(ctx: &ChunkCtx, ci: usize) -> Chunk {
+    setup_chunk(ctx, ci)
+}
+
+/// Sets up and bins source triangles `[ci * CHUNK_TRIS, (ci + 1) * CHUNK_TRIS)` of the global
+/// sequence (draws in order, each draw's triangles in mesh order).
+#[inline(always)]
+fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
+    let (scene, draws, vp) = (ctx.scene, ctx.draws, ctx.vp);
+    let start = ci * CHUNK_TRIS;
+    let end = (start + CHUNK_TRIS).min(ctx.total_tris);
+    let mut tris: Vec<Tri> = Vec::with_capacity(end - start);
+    let mut colors: Vec<[f32; 3]> = Vec::new();
+    let mut d = draws.partition_point(|d| d.tri_offset <= start) - 1;
+    let mut g = start;
+    while g < end {
+        while g >= draws[d].tri_offset + scene.meshes[draws[d].mesh as usize].indices.len() {
+            d += 1;
+        }
+        let dr = &draws[d];
+        let mesh = &scene.meshes[dr.mesh as usize];
+        let local = g - dr.tri_offset;
+        let n = (mesh.indices.len() - local).min(end - g);
+        let vb = &ctx.clip[dr.vert_offset..dr.vert_offset + mesh.positions.len()];
+        let mv = ctx.cam.view * dr.model;
+        let albedo = scene.instances[dr.inst as usize].albedo;
+        for tri in &mesh.indices[local..local + n] {
+            let cv = [vb[tri[0] as usize], vb[tri[1] as usize], vb[tri[2] as usize]];
+            let before = tris.len();
+            setup_clip_triangle(cv, &vp, dr.inst, &mut tris);
+            if ctx.color && tris.len() > before {
+                let p = [
+                    mv.transform_point3(mesh.positions[tri[0] as usize]),
+                    mv.transform_point3(mesh.positions[tri[1] as usize]),
+                    mv.transform_point3(mesh.positions[tri[2] as usize]),
+                ];
+                let col = flat_color(p, ctx.ortho, albedo);
+                colors.resize(tris.len(), col);
+            }
+        }
+        g += n;
+    }
+    let (bin_start, bin_items) = bin_tris(&tris, &vp);
+    Chunk { tris, colors, bin_start, bin_items }
+}
+
 /// Bins triangles into tiles (counting sort, CSR). Triangles spanning several tiles are only
 /// added to tiles their edges may reach: a tile is skipped when one edge is negative at all four
 /// of its corner pixel centres (the triangle lies entirely outside that edge's half-plane there).
+#[inline(always)]
 pub(crate) fn bin_tris(tris: &[Tri], vp: &Viewport) -> (Vec<u32>, Vec<u16>) {
     let ntiles = vp.tile_count();
     let tx_n = vp.tiles_x();
