@@ -1,1 +1,26 @@
-//! zwarp-viz (being built).
+//! zwarp-viz: the images a person looks at when judging a warp (DESIGN.md data flow ->
+//! "reports (tables, JSON, images, plots)").
+//!
+//! - Colour maps ([`colormap`]): depth ([`depth_to_rgb8`], turbo on linear depth), item ids
+//!   ([`items_to_rgb8`]), motion ([`motion_to_rgb8`], Middlebury flow wheel), linear colour
+//!   ([`color_to_rgb8`], sRGB), signed depth differences ([`diff_heatmap`], the culling-safety
+//!   split of seed 002 Sec. V.1: red = predicted nearer = unsafe), masks ([`mask_to_rgb8`]).
+//! - Layout ([`side_by_side`]): panels in a row with a 4-pixel gap, like the paper figures
+//!   (seed 000 Fig. 1: source, warped, reference, difference).
+//! - Files ([`io`]): PNG (8-bit RGB / gray) and OpenEXR (f32 depth, RGB, motion with channels
+//!   `vx`, `vy`, `depth`) writers plus readers for round trips. Errors are
+//!   [`zwarp_core::Error::Io`] / [`zwarp_core::Error::Parse`] naming the file.
+
+pub mod colormap;
+pub mod io;
+pub mod layout;
+
+pub use colormap::{
+    color_to_rgb8, depth_to_rgb8, diff_heatmap, items_to_rgb8, linear_to_srgb8, mask_to_rgb8, motion_to_rgb8, turbo,
+    FLOW_WHEEL,
+};
+pub use io::{
+    read_exr_f32, read_exr_motion, read_exr_rgb, read_png, write_exr_f32, write_exr_motion, write_exr_rgb, write_png,
+    write_png_gray,
+};
+pub use layout::{side_by_side, GAP, GAP_COLOR};
