@@ -1,0 +1,65 @@
+//! Prints object / triangle / mesh counts and load (generation) times of scenes.
+//!
+//! `cargo run --release -p zwarp-scene --example scene_stats -- yr mo bl cb /path/to/sponza /path/to/munich`
+//! Optional `--scale S`, `--seed N`, `--write-paths DIR` (writes `<name>.path.json`).
+
+use std::time::Instant;
+
+use zwarp_scene::{load_scene, SceneOptions};
+
+fn main() {
+    let mut opts = SceneOptions::default();
+    let mut specs = Vec::new();
+    let mut write_paths = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--scale" => opts.scale = args.next().and_then(|v| v.parse().ok()).expect("--scale needs a number"),
+            "--seed" => opts.seed = args.next().and_then(|v| v.parse().ok()).expect("--seed needs an integer"),
+            "--write-paths" => write_paths = args.next(),
+            _ => specs.push(a),
+        }
+    }
+    if specs.is_empty() {
+        specs = ["yr", "mo", "bl", "cb"].map(String::from).to_vec();
+    }
+    println!("| scene | objects | animated | ground | meshes | triangles | load ms (median of 3) | path s |");
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    for spec in &specs {
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..3 {
+            let t0 = Instant::now();
+            match load_scene(spec, &opts) {
+                Ok(s) => last = Some(s),
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    std::process::exit(1);
+                }
+            }
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        times.sort_by(f64::total_cmp);
+        let s = last.unwrap();
+        let sc = &s.scene;
+        let path = s.path_or_default();
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {:.0} ({:.0}-{:.0}) | {:.1}{} |",
+            sc.name,
+            sc.instances.len(),
+            sc.instances.iter().filter(|i| i.animation.is_animated()).count(),
+            sc.instances.iter().filter(|i| i.is_ground).count(),
+            sc.meshes.len(),
+            sc.triangle_count(),
+            times[1],
+            times[0],
+            times[2],
+            path.duration(),
+            if s.path.is_some() { "" } else { " (default)" },
+        );
+        if let Some(dir) = &write_paths {
+            let f = std::path::Path::new(dir).join(format!("{}.path.json", sc.name));
+            path.write_json_file(&f).expect("write path");
+        }
+    }
+}
