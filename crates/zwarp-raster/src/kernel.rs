@@ -52,9 +52,9 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     let xs = x0 & !7;
     let zx = t.zx as f32;
     let mut oa = [[0i32; 8]; 3];
-    for e in 0..3 {
-        for k in 0..8 {
-            oa[e][k] = t.a[e] * k as i32;
+    for (row, &a) in oa.iter_mut().zip(&t.a) {
+        for (k, o) in row.iter_mut().enumerate() {
+            *o = a * k as i32;
         }
     }
     let step = [t.a[0] * 8, t.a[1] * 8, t.a[2] * 8];
@@ -81,9 +81,13 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             for k in 0..8 {
                 ee[k] = (e[0] + oa[0][k]) | (e[1] + oa[1][k]) | (e[2] + oa[2][k]);
             }
-            // All 8 sign bits set <=> no lane covered: skip the chunk.
-            let none = ee.iter().fold(-1i32, |acc, &v| acc & v) < 0;
-            if !none {
+            // Sign-bit mask of the 8 lanes (LLVM turns this into one movmskps); all set <=> no
+            // lane covered: skip the chunk.
+            let mut neg = 0u32;
+            for (k, &v) in ee.iter().enumerate() {
+                neg |= ((v < 0) as u32) << k;
+            }
+            if neg != 0xff {
                 let id8: &mut [u32; 8] = (&mut ids[i..i + 8]).try_into().unwrap();
                 if COUNT {
                     for k in 0..8 {
@@ -218,11 +222,21 @@ fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     raster_tile_impl::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
 }
 
+/// Run-time switch for the AVX2 builds (on by default where the CPU has AVX2). Both builds
+/// compute bit-identical results (no FMA, same operation order); the switch exists so tests can
+/// prove it and for timing the portable build.
+static SIMD_ENABLED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
+
+/// Enables or disables the AVX2 builds of the set-up and tile kernels (for tests/benchmarks).
+pub(crate) fn set_simd(enabled: bool) {
+    SIMD_ENABLED.store(enabled, std::sync::atomic::Ordering::Relaxed);
+}
+
 #[inline]
 pub(crate) fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2")
+        SIMD_ENABLED.load(std::sync::atomic::Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

@@ -180,6 +180,14 @@ pub fn any_fragment_visible(depth: &Image<f32>, cam: &Camera, triangles: &[[Vec3
     false
 }
 
+/// Enables (default) or disables the run-time selected AVX2 builds of the set-up and tile
+/// kernels. Results are bit-identical either way; this exists for tests and for timing the
+/// portable build.
+#[doc(hidden)]
+pub fn set_simd(enabled: bool) {
+    kernel::set_simd(enabled)
+}
+
 /// Diagnostic: `(source triangles after instance culling, set-up triangles that cover at least
 /// one pixel-centre bounding box, tile-bin entries, setup ms, raster ms)` of a depth-only render.
 #[doc(hidden)]

@@ -4,6 +4,7 @@
 //! The scene is transformed, set up and binned once; each layer is one raster pass over the same
 //! bins with a per-pixel threshold (fragments must lie strictly behind it).
 
+use rayon::prelude::*;
 use zwarp_core::{Camera, Error, Image, Projection, Result, Scene, NO_ITEM};
 
 use crate::kernel::{run_pass, Mode, Targets};
@@ -153,6 +154,26 @@ impl UmbraPeeling {
     }
 }
 
+/// The peeling threshold (stored depth) behind a previous-layer sample `d` at pixel `(x, y)`:
+/// the next layer keeps fragments strictly behind it. Empty pixels get `+inf` (nothing behind
+/// the far plane); standard peeling uses `d` itself (bit-exact, no round trip through linear
+/// depth); umbra culling adds eq. (1)'s `x` in linear depth (never less than `d`).
+fn next_threshold(cam: &Camera, umbra: Option<&UmbraPeeling>, x: u32, y: u32, d: f32) -> f32 {
+    if d >= 1.0 {
+        return f32::INFINITY;
+    }
+    let Some(u) = umbra else {
+        return d;
+    };
+    let lin = cam.linear_depth(d);
+    let ext = u.umbra_extent(cam, x as f32 + 0.5, y as f32 + 0.5, lin);
+    if ext.is_infinite() {
+        f32::INFINITY
+    } else {
+        cam.stored_depth(lin + ext).max(d)
+    }
+}
+
 /// Peels `scene` at time `t` seen by `cam` into depth layers (seed 000, Sec. 3.4).
 ///
 /// Layer 0 is the ordinary depth/item buffer. Layer k+1 keeps, per pixel, the nearest fragment
@@ -194,24 +215,15 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
                 Targets { depth: &mut depth, items: Some(&mut items), color: None, threshold: thr, load: false },
             );
         }
-        // Threshold of the next pass.
+        // Threshold of the next pass (per pixel, rows in parallel).
         let umbra = opts.umbra;
-        for (i, (th, &d)) in threshold.data_mut().iter_mut().zip(depth.data()).enumerate() {
-            *th = if d >= 1.0 {
-                f32::INFINITY
-            } else if let Some(u) = &umbra {
-                let (px, py) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
-                let lin = cam.linear_depth(d);
-                let x = u.umbra_extent(cam, px, py, lin);
-                if x.is_infinite() {
-                    f32::INFINITY
-                } else {
-                    cam.stored_depth(lin + x).max(d)
+        threshold.data_mut().par_chunks_mut(w as usize).zip(depth.data().par_chunks(w as usize)).enumerate().for_each(
+            |(y, (trow, drow))| {
+                for (x, (th, &d)) in trow.iter_mut().zip(drow).enumerate() {
+                    *th = next_threshold(cam, umbra.as_ref(), x as u32, y as u32, d);
                 }
-            } else {
-                d
-            };
-        }
+            },
+        );
         layers.push(Layer { depth, items });
     }
     if opts.ground_separate {

@@ -247,7 +247,8 @@ fn depth_plane_ndc(v: &[Clip; 3]) -> Option<[f64; 3]> {
     let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
     let det = c0.dot(k0);
     let scale = c0.length_squared() * c1.length_squared() * c2.length_squared();
-    if !(det * det > 1e-24 * scale) {
+    // (NaN-safe: a NaN determinant also takes this branch.)
+    if det * det <= 1e-24 * scale || det.is_nan() {
         return None;
     }
     let r = (k0 * v[0].z + k1 * v[1].z + k2 * v[2].z) / det;

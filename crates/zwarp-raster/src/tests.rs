@@ -533,7 +533,7 @@ fn render_depth_equals_frame_depth_and_items_are_instance_ids() {
             }
         }
     }
-    assert!(f.items.data().iter().any(|&i| i == 19));
+    assert!(f.items.data().contains(&19));
 }
 
 #[test]
@@ -561,4 +561,33 @@ fn bad_input_is_an_error() {
     assert!(render_depth(&s, &zero, 0.0).is_err());
     let huge = cam.with_size(20000, 8).unwrap();
     assert!(render_depth(&s, &huge, 0.0).is_err());
+}
+
+#[test]
+fn simd_and_portable_builds_are_bit_identical() {
+    let (s, cam) = scenes::sphere_field(4, 16, 96, 64).unwrap();
+    let opts = FrameOptions { color: true, objects: None };
+    let a = render_frame(&s, &cam, 0.0, &opts).unwrap();
+    set_simd(false);
+    let b = render_frame(&s, &cam, 0.0, &opts);
+    set_simd(true);
+    let b = b.unwrap();
+    assert_eq!(a, b);
+    assert!(a.items.data().iter().filter(|&&i| i != NO_ITEM).count() > 1000);
+}
+
+#[test]
+fn animated_instances_render_at_time_t() {
+    let (w, h) = (32, 32);
+    let cam = pixel_cam(w, h);
+    let q = quad(px_world(w, h, 2.0, 10.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0));
+    let s = scene_of(vec![(q, Animation::Linear { velocity: Vec3::new(5.0, 0.0, 0.0) }, false)]);
+    // At t = 2 the quad moved 10 pixels right: columns 12..16, rows 6..10.
+    let f = render_frame(&s, &cam, 2.0, &FrameOptions::default()).unwrap();
+    for y in 0..h {
+        for x in 0..w {
+            let inside = (12..16).contains(&x) && (6..10).contains(&y);
+            assert_eq!(*f.items.get(x, y) == 0, inside, "({x},{y})");
+        }
+    }
 }
