@@ -71,6 +71,9 @@ pub struct DepthQuality {
     /// reference's [`surface_range`], or the camera's `(near, far)` when the reference has no
     /// surface or a single depth.
     pub range: (f32, f32),
+    /// Fraction of all pixels that are holes: empty in the prediction (stored depth `>= 1`,
+    /// e.g. non-converged pixels filled with the far plane) where the reference has a surface.
+    pub hole_fraction: f64,
 }
 
 /// Computes [`DepthQuality`] of `predicted` against `reference`, both stored depth buffers of
@@ -103,12 +106,15 @@ pub fn depth_quality(predicted: &Image<f32>, reference: &Image<f32>, cam: &Camer
     let nr = normalized_linear_depth(reference, cam, range);
     let cp = predicted.map(|d| d.clamp(0.0, 1.0));
     let cr = reference.map(|d| d.clamp(0.0, 1.0));
+    let holes =
+        predicted.data().iter().zip(reference.data()).filter(|(p, r)| !is_surface(**p) && is_surface(**r)).count();
     Ok(DepthQuality {
         psnr: psnr(&np, &nr, 1.0)?,
         ssim: ssim(&np, &nr, 1.0)?,
         psnr_buffer: psnr(&cp, &cr, 1.0)?,
         ssim_buffer: ssim(&cp, &cr, 1.0)?,
         range,
+        hole_fraction: holes as f64 / reference.len() as f64,
     })
 }
 
@@ -167,6 +173,7 @@ mod tests {
         let r = two_planes(&c);
         let q = depth_quality(&r, &r, &c).unwrap();
         assert_eq!((q.psnr, q.ssim, q.psnr_buffer, q.ssim_buffer), (f64::INFINITY, 1.0, f64::INFINITY, 1.0));
+        assert_eq!(q.hole_fraction, 0.0);
         // Predict the 3 m plane at 2.5 m: normalized error 0.5 on half the non-empty pixels.
         let mut p = r.clone();
         let (d25, d3) = (c.stored_depth(2.5), c.stored_depth(3.0));
@@ -186,6 +193,7 @@ mod tests {
         *h.get_mut(3, 5) = 1.0;
         let q = depth_quality(&h, &r, &c).unwrap();
         assert!((q.psnr - 10.0 * 480f64.log10()).abs() < 0.01, "{}", q.psnr);
+        assert_eq!(q.hole_fraction, 1.0 / 480.0);
     }
 
     #[test]

@@ -115,6 +115,23 @@ mod tests {
         assert_eq!(psnr_rgb(&a, &a, 1.0).unwrap(), f64::INFINITY);
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        #[test]
+        fn symmetric_and_consistent_with_mse(w in 1u32..20, h in 1u32..20, seed in 0u32..10_000, r in 0.5f32..4.0) {
+            let a = Image::from_fn(w, h, |x, y| ((x * 7919 + y * 104_729 + seed) % 997) as f32 / 997.0);
+            let b = Image::from_fn(w, h, |x, y| ((x * 31 + y * 17 + seed * 3) % 101) as f32 / 101.0);
+            let ab = psnr(&a, &b, r).unwrap();
+            proptest::prop_assert_eq!(ab, psnr(&b, &a, r).unwrap());
+            let m = mse(&a, &b).unwrap();
+            if m > 0.0 {
+                proptest::prop_assert!((ab - 10.0 * ((r as f64).powi(2) / m).log10()).abs() < 1e-9);
+            } else {
+                proptest::prop_assert_eq!(ab, f64::INFINITY);
+            }
+        }
+    }
+
     #[test]
     fn bad_input_is_an_error() {
         let a = Image::new(4, 4, 0.0f32);

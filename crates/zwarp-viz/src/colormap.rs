@@ -62,6 +62,17 @@ pub fn depth_to_rgb8(depth: &Image<f32>, cam: Option<&Camera>) -> Image<[u8; 3]>
     Image::from_vec(depth.width(), depth.height(), data).expect("same size")
 }
 
+/// Scalar map (e.g. `zwarp_metrics::ssim_map` SSIM maps, error magnitudes, iteration counts) ->
+/// turbo colours, `lo` -> blue-violet end, `hi` -> red end, clamped; NaN black. Errors when
+/// `lo`/`hi` are not finite or `hi <= lo`.
+pub fn scalar_to_rgb8(values: &Image<f32>, lo: f32, hi: f32) -> Result<Image<[u8; 3]>> {
+    if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+        return Err(Error::invalid(format!("scalar_to_rgb8: need finite lo < hi, got lo={lo} hi={hi}")));
+    }
+    let inv = 1.0 / (hi - lo);
+    Ok(values.map(|&v| if v.is_nan() { [0, 0, 0] } else { turbo((v - lo) * inv) }))
+}
+
 /// Converts HSV (`h` in turns, `s`, `v` in `[0, 1]`) to 8-bit RGB.
 fn hsv(h: f32, s: f32, v: f32) -> [u8; 3] {
     let h6 = (h.rem_euclid(1.0)) * 6.0;
@@ -352,6 +363,15 @@ mod tests {
         assert_eq!(h.data()[4], [255, 0, 255]);
         assert!(diff_heatmap(&predicted, &Image::new(4, 1, 0.0), 1.0).unwrap_err().to_string().contains("size"));
         assert!(diff_heatmap(&predicted, &reference, 0.0).unwrap_err().to_string().contains("scale"));
+    }
+
+    #[test]
+    fn scalar_map() {
+        let v = Image::from_vec(4, 1, vec![-1.0f32, 1.0, 0.0, f32::NAN]).unwrap();
+        let img = scalar_to_rgb8(&v, -1.0, 1.0).unwrap();
+        assert_eq!(img.data(), &[turbo(0.0), turbo(1.0), turbo(0.5), [0, 0, 0]]);
+        assert!(scalar_to_rgb8(&v, 1.0, 1.0).is_err());
+        assert!(scalar_to_rgb8(&v, 0.0, f32::INFINITY).is_err());
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! - Colour maps ([`colormap`]): depth ([`depth_to_rgb8`], turbo on linear depth), item ids
 //!   ([`items_to_rgb8`]), motion ([`motion_to_rgb8`], Middlebury flow wheel), linear colour
 //!   ([`color_to_rgb8`], sRGB), signed depth differences ([`diff_heatmap`], the culling-safety
-//!   split of seed 002 Sec. V.1: red = predicted nearer = unsafe), masks ([`mask_to_rgb8`]).
+//!   split of seed 002 Sec. V.1: red = predicted nearer = unsafe), masks ([`mask_to_rgb8`]),
+//!   scalar maps such as SSIM maps ([`scalar_to_rgb8`]).
 //! - Layout ([`side_by_side`]): panels in a row with a 4-pixel gap, like the paper figures
 //!   (seed 000 Fig. 1: source, warped, reference, difference).
 //! - Files ([`io`]): PNG (8-bit RGB / gray) and OpenEXR (f32 depth, RGB, motion with channels
@@ -16,8 +17,8 @@ pub mod io;
 pub mod layout;
 
 pub use colormap::{
-    color_to_rgb8, depth_to_rgb8, diff_heatmap, items_to_rgb8, linear_to_srgb8, mask_to_rgb8, motion_to_rgb8, turbo,
-    FLOW_WHEEL,
+    color_to_rgb8, depth_to_rgb8, diff_heatmap, items_to_rgb8, linear_to_srgb8, mask_to_rgb8, motion_to_rgb8,
+    scalar_to_rgb8, turbo, DEPTH_TURBO_MIN, FLOW_WHEEL,
 };
 pub use io::{
     read_exr_f32, read_exr_motion, read_exr_rgb, read_png, write_exr_f32, write_exr_motion, write_exr_rgb, write_png,
