@@ -7,7 +7,9 @@
 //!   (HOM), N-buffers (exact) and Y-maps — plus the 1-pixel erosion of the thesis;
 //! - [`woc`]: the per-frame WOC pipeline (motion, single-layer warp, erosion, rapid-motion
 //!   objects, max-depth test, hybrid query) and the baselines NOCULL, VFC, last-frame depth,
-//!   two-phase, REF and the ideal screen-space test, plus the culling-accuracy figures.
+//!   two-phase, REF and the ideal screen-space test, plus the culling-accuracy figures;
+//! - [`sequence`]: runs a method along a camera path (cull, draw the visible set, feed it to
+//!   the next frame) with REF rendered side by side, for the evaluation tables.
 //!
 //! Depth follows the zwarp convention: post-projection depth in `[0, 1]`, 0 = near, 1 = far
 //! and "no surface"; holes of a warped buffer are kept at 1 and never occlude.
@@ -15,6 +17,7 @@
 pub mod frustum;
 pub mod maxdepth;
 pub mod screen;
+pub mod sequence;
 pub mod woc;
 
 pub use frustum::{vfc, Frustum};
@@ -22,6 +25,7 @@ pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
 pub use screen::{screen_rect, screen_rect_with, PixelRect, ScreenRect};
+pub use sequence::{run_sequence, summarize, FrameReport, Method, SequenceSummary};
 pub use woc::{
     aabb_triangles, accuracy, cull_against_depth, hybrid_cull, ideal_screen_space, lastframe, nocull, reference,
     screen_speed, twophase, vfc_cull, visible_from_items, woc, CullAccuracy, CullResult, CullStats, CullTimings,

@@ -72,28 +72,44 @@ pub fn erode_max(depth: &Image<f32>) -> Image<f32> {
         return depth.clone();
     }
     let wu = w as usize;
-    // Separable: a 3-wide horizontal max, then a 3-tall vertical max of that.
+    // Separable: a 3-wide horizontal max, then a 3-tall vertical max of that. The interior is
+    // written as max over shifted slices so that it vectorizes; the edges ignore the missing
+    // neighbour (clamping to the edge pixel gives the same max).
     let mut horiz = Image::new(w, h, 0.0f32);
     horiz.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, out)| {
         let src = depth.row(y as u32);
-        for (x, o) in out.iter_mut().enumerate() {
-            let lo = x.saturating_sub(1);
-            let hi = (x + 1).min(wu - 1);
-            *o = src[lo..=hi].iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        if wu < 3 {
+            let m = src.iter().copied().fold(f32::NEG_INFINITY, fmax);
+            out.fill(m);
+            return;
+        }
+        out[0] = fmax(src[0], src[1]);
+        out[wu - 1] = fmax(src[wu - 2], src[wu - 1]);
+        for (((o, &a), &b), &c) in out[1..wu - 1].iter_mut().zip(&src[..wu - 2]).zip(&src[1..wu - 1]).zip(&src[2..]) {
+            *o = fmax(fmax(a, b), c);
         }
     });
     let mut out = Image::new(w, h, 0.0f32);
     out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
         let lo = y.saturating_sub(1) as u32;
         let hi = (y + 1).min(h as usize - 1) as u32;
-        row.copy_from_slice(horiz.row(lo));
-        for yy in lo + 1..=hi {
-            for (o, &v) in row.iter_mut().zip(horiz.row(yy)) {
-                *o = o.max(v);
-            }
+        let (a, b, c) = (horiz.row(lo), horiz.row(y as u32), horiz.row(hi));
+        for (((o, &a), &b), &c) in row.iter_mut().zip(a).zip(b).zip(c) {
+            *o = fmax(fmax(a, b), c);
         }
     });
     out
+}
+
+/// Max of two depths that are never NaN (checked when a structure is built): a plain compare
+/// lets the compiler emit a single vector max instead of `f32::max`'s NaN handling.
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
 }
 
 /// One max-reduction step of a mipmap: `ceil(w/2) x ceil(h/2)`, each texel the max of the (up
@@ -110,7 +126,7 @@ pub fn reduce_max_2x2(src: &Image<f32>) -> Image<f32> {
         for (x, o) in row.iter_mut().enumerate() {
             let x0 = (2 * x).min(w as usize - 1);
             let x1 = (2 * x + 1).min(w as usize - 1);
-            *o = r0[x0].max(r0[x1]).max(r1[x0]).max(r1[x1]);
+            *o = fmax(fmax(r0[x0], r0[x1]), fmax(r1[x0], r1[x1]));
         }
     });
     out
@@ -235,9 +251,16 @@ impl NBuffer {
                 // last column/row reads a square inside it, so clamping stays exact.
                 let r0 = prev.row(y as u32);
                 let r1 = prev.row((y + s).min(hu - 1) as u32);
-                for (x, o) in row.iter_mut().enumerate() {
-                    let xs = (x + s).min(wu - 1);
-                    *o = r0[x].max(r0[xs]).max(r1[x]).max(r1[xs]);
+                // Interior (x + s inside the image): straight shifted-slice max, vectorizable.
+                let split = wu.saturating_sub(s);
+                for ((((o, &a), &b), &c), &d) in
+                    row[..split].iter_mut().zip(&r0[..split]).zip(&r0[s..]).zip(&r1[..split]).zip(&r1[s..])
+                {
+                    *o = fmax(fmax(a, b), fmax(c, d));
+                }
+                let (la, lb) = (r0[wu - 1], r1[wu - 1]);
+                for (x, o) in row.iter_mut().enumerate().skip(split) {
+                    *o = fmax(fmax(r0[x], la), fmax(r1[x], lb));
                 }
             });
             levels.push(next);

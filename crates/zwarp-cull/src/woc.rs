@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use serde::Serialize;
 use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, NO_ITEM};
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, HolePolicy, WarpLayer, WarpParams};
@@ -99,7 +100,7 @@ impl WocParams {
 }
 
 /// Wall-clock time of each stage in milliseconds (stages a method does not run stay 0).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct CullTimings {
     /// Motion buffer generation.
     pub motion_ms: f64,
@@ -120,7 +121,7 @@ pub struct CullTimings {
 }
 
 /// Per-frame counts of how objects were classified.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct CullStats {
     /// Objects in the scene.
     pub objects: usize,
@@ -637,7 +638,7 @@ pub fn twophase(
 }
 
 /// Culling accuracy of a visible set against REF (thesis Sec. V.1, Table 1 and 3).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct CullAccuracy {
     /// Objects in the scene.
     pub objects: usize,

@@ -5,8 +5,8 @@ use glam::{Mat4, Vec3};
 use zwarp_core::{Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
     aabb_triangles, accuracy, cull_against_depth, hybrid_cull, ideal_screen_space, lastframe, nocull, reference,
-    screen_rect, screen_speed, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind, PrevFrame, ScreenRect,
-    WocParams,
+    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind,
+    Method, PrevFrame, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 
@@ -296,4 +296,41 @@ fn bad_inputs_are_errors() {
     let mut nan = depth.clone();
     *nan.get_mut(1, 1) = f32::NAN;
     assert!(lastframe(&s, &nan, &cam, 0.0, MaxDepthKind::Mipmap).is_err());
+}
+
+#[test]
+fn sequence_driver_measures_every_method_side_by_side() {
+    let s = random_scene(7);
+    let frames: Vec<(f32, Camera)> = (0..5)
+        .map(|k| {
+            let a = 0.9 + k as f32 * 0.05;
+            let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
+            (
+                k as f32 * DT,
+                Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 80, 45).unwrap(),
+            )
+        })
+        .collect();
+    let params = WocParams::default();
+    let mut ratio = std::collections::HashMap::new();
+    for m in Method::ALL {
+        let reps = run_sequence(&s, &frames, m, &params).unwrap();
+        assert_eq!(reps.len(), 5);
+        let history = matches!(m, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
+        assert_eq!(reps[0].bootstrap, history);
+        assert!(reps.iter().all(|r| r.full_draw_ms > 0.0 && r.full_triangles == s.triangle_count()));
+        let sum = summarize(&reps);
+        assert_eq!(sum.frames, if history { 4 } else { 5 });
+        if matches!(m, Method::NoCull | Method::Vfc | Method::Woc | Method::TwoPhase | Method::Ideal) {
+            // Safe methods: every visible object drawn, so the image is exact.
+            assert_eq!(sum.false_negatives, 0, "{m:?}");
+            assert!(reps.iter().all(|r| r.pixel_error == 0), "{m:?}");
+        }
+        ratio.insert(m.name(), sum.culling_ratio);
+    }
+    assert_eq!(ratio["nocull"], 0.0);
+    assert!(ratio["vfc"] <= ratio["woc"] && ratio["woc"] <= ratio["ideal"] + 1e-9, "{ratio:?}");
+    assert!(run_sequence(&s, &[], Method::Woc, &params).is_err());
+    let mixed = vec![frames[0].clone(), (DT, frames[1].1.with_size(81, 45).unwrap())];
+    assert!(run_sequence(&s, &mixed, Method::Vfc, &params).unwrap_err().to_string().contains("frame 1 renders"));
 }

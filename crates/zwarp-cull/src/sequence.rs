@@ -1,0 +1,279 @@
+//! Runs a culling method along a camera path the way an engine would (seed 000 Sec. 5.3,
+//! thesis Sec. V): each frame is culled, the visible set is drawn (depth + item ids), and that
+//! drawing is the previous frame of the next one. Every frame is also rendered in full (REF /
+//! NOCULL) in the same run, so accuracy (object error, pixel error, culling ratio) and the
+//! draw-time ratio are measured side by side (DESIGN.md evaluation protocol).
+
+use std::time::Instant;
+
+use serde::Serialize;
+use zwarp_core::{Camera, Error, Result, Scene};
+use zwarp_raster::{render_frame, Frame, FrameOptions};
+
+use crate::woc::{
+    accuracy, ideal_screen_space, lastframe, nocull, twophase, vfc_cull, visible_from_items, woc, CullAccuracy,
+    CullStats, CullTimings, PrevFrame, WocParams,
+};
+
+/// The culling methods compared in seed 000 Table 5 / Table 7 and thesis Table 3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Draw everything.
+    NoCull,
+    /// View-frustum culling only.
+    Vfc,
+    /// Warping-based occlusion culling (far-depth holes).
+    Woc,
+    /// Approximate WOC (AWOC hole fill, Sec. 5.3).
+    Awoc,
+    /// Previous depth without reprojection (unsafe baseline).
+    LastFrame,
+    /// Two geometry passes (previous visible set, then the newly visible).
+    TwoPhase,
+    /// Screen-space AABB test against the true depth of the frame (ideal screen-space bound).
+    Ideal,
+}
+
+impl Method {
+    /// Every method, in the order of the tables.
+    pub const ALL: [Method; 7] =
+        [Method::NoCull, Method::Vfc, Method::Woc, Method::Awoc, Method::LastFrame, Method::TwoPhase, Method::Ideal];
+
+    /// Short lower-case name (`nocull`, `vfc`, `woc`, `awoc`, `lastframe`, `twophase`, `ideal`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::NoCull => "nocull",
+            Method::Vfc => "vfc",
+            Method::Woc => "woc",
+            Method::Awoc => "awoc",
+            Method::LastFrame => "lastframe",
+            Method::TwoPhase => "twophase",
+            Method::Ideal => "ideal",
+        }
+    }
+
+    /// Parses a [`Method::name`].
+    pub fn parse(s: &str) -> Result<Self> {
+        Method::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
+            Error::invalid(format!(
+                "unknown culling method '{s}' (expected {})",
+                Method::ALL.map(|m| m.name()).join("|")
+            ))
+        })
+    }
+}
+
+/// One frame of [`run_sequence`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrameReport {
+    /// Frame index along the path.
+    pub frame: usize,
+    /// Scene time.
+    pub t: f32,
+    /// Objects drawn.
+    pub visible: usize,
+    /// Against REF (the item buffer of the full render of this frame).
+    pub accuracy: CullAccuracy,
+    /// Pixels whose depth differs from the full render (thesis Table 1 "pixel error").
+    pub pixel_error: usize,
+    /// Culling cost by stage (two-phase: its draws are in `draw_ms` below, not here).
+    pub cull: CullTimings,
+    /// Classification counts.
+    pub stats: CullStats,
+    /// Time to draw the visible set (depth + items).
+    pub draw_ms: f64,
+    /// Time to draw everything in the same run (the NOCULL frame, also the REF render).
+    pub full_draw_ms: f64,
+    /// Triangles drawn.
+    pub triangles: usize,
+    /// Triangles of the whole scene.
+    pub full_triangles: usize,
+    /// `true` for frame 0 of the history-based methods, which has no previous frame and falls
+    /// back to VFC.
+    pub bootstrap: bool,
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+fn draw(scene: &Scene, cam: &Camera, t: f32, visible: &[u32]) -> Result<(Frame, f64)> {
+    let t0 = Instant::now();
+    let f = render_frame(scene, cam, t, &FrameOptions { color: false, objects: Some(visible) })?;
+    Ok((f, ms(t0)))
+}
+
+/// Culls and draws every frame of `frames` (`(time, camera)`, all cameras of one size) with
+/// `method`; `params` configures WOC/AWOC (its `max_depth` is also used by the other
+/// screen-space methods). Errors on an empty scene or path, mixed image sizes, or any stage
+/// error.
+pub fn run_sequence(
+    scene: &Scene,
+    frames: &[(f32, Camera)],
+    method: Method,
+    params: &WocParams,
+) -> Result<Vec<FrameReport>> {
+    scene.check_nonempty()?;
+    params.validate()?;
+    let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
+    if let Some((k, (_, c))) =
+        frames.iter().enumerate().find(|(_, (_, c))| (c.width, c.height) != (first.width, first.height))
+    {
+        return Err(Error::invalid(format!(
+            "frame {k} renders {}x{} but frame 0 renders {}x{}",
+            c.width, c.height, first.width, first.height
+        )));
+    }
+    let n = scene.instances.len();
+    let tri_of = |ids: &[u32]| -> usize {
+        ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
+    };
+    let full_triangles = scene.triangle_count();
+    let mut prev: Option<(Frame, Vec<u32>)> = None;
+    let mut out = Vec::with_capacity(frames.len());
+    for (k, (t, cam)) in frames.iter().enumerate() {
+        let t = *t;
+        // REF / NOCULL, drawn in the same run.
+        let t0 = Instant::now();
+        let full = render_frame(scene, cam, t, &FrameOptions::default())?;
+        let full_draw_ms = ms(t0);
+        let reference = visible_from_items(&full.items, n);
+
+        let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
+        let bootstrap = history && prev.is_none();
+        let (visible, cull, stats, drawn, draw_ms) = if bootstrap && method != Method::TwoPhase {
+            let r = vfc_cull(scene, cam, t)?;
+            let (f, d) = draw(scene, cam, t, &r.visible)?;
+            (r.visible, r.timings, r.stats, f, d)
+        } else {
+            match method {
+                Method::TwoPhase => {
+                    let pv = prev.as_ref().map(|(_, v)| v.as_slice()).unwrap_or(&[]);
+                    let r = twophase(scene, pv, cam, t, params.max_depth)?;
+                    // The items of the final frame are not needed by two-phase; re-rendering
+                    // them would distort the timing, so the drawn frame is rebuilt from depth.
+                    let drawn = Frame { depth: r.depth, items: full.items.clone(), color: None };
+                    let mut cull = r.timings;
+                    let draw_ms = cull.draw_ms;
+                    cull.draw_ms = 0.0;
+                    cull.total_ms -= draw_ms;
+                    let stats = CullStats { objects: n, ..CullStats::default() };
+                    (r.visible, cull, stats, drawn, draw_ms)
+                }
+                _ => {
+                    let r = match method {
+                        Method::NoCull => nocull(scene),
+                        Method::Vfc => vfc_cull(scene, cam, t)?,
+                        Method::Ideal => ideal_screen_space(scene, &full.depth, cam, t)?,
+                        Method::LastFrame => {
+                            let (pf, _) = prev.as_ref().expect("not bootstrap");
+                            lastframe(scene, &pf.depth, cam, t, params.max_depth)?
+                        }
+                        Method::Woc | Method::Awoc => {
+                            let (pf, _) = prev.as_ref().expect("not bootstrap");
+                            let (_, pcam) = &frames[k - 1];
+                            let p = PrevFrame { depth: &pf.depth, items: &pf.items, cam: pcam, t: frames[k - 1].0 };
+                            woc(scene, &p, cam, t, &WocParams { awoc: method == Method::Awoc, ..*params })?
+                        }
+                        Method::TwoPhase => unreachable!("handled above"),
+                    };
+                    let (f, d) = draw(scene, cam, t, &r.visible)?;
+                    (r.visible, r.timings, r.stats, f, d)
+                }
+            }
+        };
+        let pixel_error = drawn.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
+        out.push(FrameReport {
+            frame: k,
+            t,
+            visible: visible.len(),
+            accuracy: accuracy(&visible, &reference, n),
+            pixel_error,
+            cull,
+            stats,
+            draw_ms,
+            full_draw_ms,
+            triangles: tri_of(&visible),
+            full_triangles,
+            bootstrap,
+        });
+        prev = Some((drawn, visible));
+    }
+    Ok(out)
+}
+
+/// Medians and totals over the non-bootstrap frames of a [`run_sequence`] run.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SequenceSummary {
+    /// Frames summarized.
+    pub frames: usize,
+    /// Median culling time (ms).
+    pub cull_ms: f64,
+    /// Median draw time of the visible set (ms).
+    pub draw_ms: f64,
+    /// Median full draw time in the same run (ms).
+    pub full_draw_ms: f64,
+    /// Mean culling ratio.
+    pub culling_ratio: f64,
+    /// Mean fraction of triangles drawn.
+    pub triangle_fraction: f64,
+    /// Total culling errors (visible objects culled) over all frames.
+    pub false_negatives: usize,
+    /// Mean object error.
+    pub object_error: f64,
+    /// Mean pixel error (pixels per frame).
+    pub pixel_error: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Summarizes the frames that are not bootstrap frames (all frames if every one is).
+pub fn summarize(reports: &[FrameReport]) -> SequenceSummary {
+    let steady: Vec<&FrameReport> = reports.iter().filter(|r| !r.bootstrap).collect();
+    let rs: Vec<&FrameReport> = if steady.is_empty() { reports.iter().collect() } else { steady };
+    let n = rs.len().max(1) as f64;
+    SequenceSummary {
+        frames: rs.len(),
+        cull_ms: median(rs.iter().map(|r| r.cull.total_ms).collect()),
+        draw_ms: median(rs.iter().map(|r| r.draw_ms).collect()),
+        full_draw_ms: median(rs.iter().map(|r| r.full_draw_ms).collect()),
+        culling_ratio: rs.iter().map(|r| r.accuracy.culling_ratio).sum::<f64>() / n,
+        triangle_fraction: rs.iter().map(|r| r.triangles as f64 / r.full_triangles.max(1) as f64).sum::<f64>() / n,
+        false_negatives: rs.iter().map(|r| r.accuracy.false_negatives).sum(),
+        object_error: rs.iter().map(|r| r.accuracy.object_error).sum::<f64>() / n,
+        pixel_error: rs.iter().map(|r| r.pixel_error as f64).sum::<f64>() / n,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_roundtrip() {
+        for m in Method::ALL {
+            assert_eq!(Method::parse(m.name()).unwrap(), m);
+        }
+        let e = Method::parse("chc").unwrap_err().to_string();
+        assert!(e.contains("unknown culling method 'chc'") && e.contains("woc|awoc"), "{e}");
+    }
+
+    #[test]
+    fn median_of_even_and_odd() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert_eq!(median(vec![]), 0.0);
+    }
+}
