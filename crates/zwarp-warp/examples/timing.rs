@@ -1,0 +1,91 @@
+//! Quick timing breakdown on the synthetic city at 1920x1080 (release):
+//! `cargo run --release -p zwarp-warp --example timing [threads]`.
+use glam::Vec3;
+use std::time::Instant;
+use zwarp_core::{motion_field, Camera};
+use zwarp_warp::synth::SynthScene;
+use zwarp_warp::*;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn main() {
+    let threads: usize = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(1);
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
+    let (w, h) = (1920, 1080);
+    let scene = SynthScene::city(6);
+    let a = Camera::perspective(Vec3::new(0.0, 9.0, 22.0), Vec3::ZERO, Vec3::Y, 1.0, 0.5, 200.0, w, h).unwrap();
+    let b = Camera::perspective(Vec3::new(0.8, 9.2, 21.0), Vec3::new(0.3, 0.0, 0.0), Vec3::Y, 1.0, 0.5, 200.0, w, h)
+        .unwrap();
+    let t0 = Instant::now();
+    let src = scene.render(&a, 0.0, 3, true);
+    println!("ray cast 3 layers: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+    let motions: Vec<_> =
+        src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &[]).unwrap()).collect();
+    let layers: Vec<WarpLayer> =
+        src.depth.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+    for bound in [BoundKind::Tight, BoundKind::Oriented] {
+        let t = median(
+            (0..3)
+                .map(|_| {
+                    let t0 = Instant::now();
+                    let _ = PreparedLayer::new(&layers[0], bound).unwrap();
+                    t0.elapsed().as_secs_f64() * 1e3
+                })
+                .collect(),
+        );
+        println!("prepare 1 layer {bound:?}: {t:.1} ms");
+    }
+    for bi in [0u32, 2, 3, 4, 6, 10] {
+        // Seed statistics of layer 0: how many pixels need more than one seed.
+        let p0 = PreparedLayer::new(&layers[0], BoundKind::Oriented).unwrap();
+        let mut hist = [0usize; 5];
+        let mut sum = 0u64;
+        for y in 0..h {
+            for x in 0..w {
+                let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let n = match p0.pyramid().tight_bound(p, bi, 0.5) {
+                    None => 0,
+                    Some(tb) => zwarp_warp::search::effective_seeds(16, tb.region.extent()),
+                };
+                sum += n as u64;
+                hist[match n {
+                    0 => 0,
+                    1 => 1,
+                    2..=4 => 2,
+                    5..=8 => 3,
+                    _ => 4,
+                }] += 1;
+            }
+        }
+        println!(
+            "bound iterations {bi}: N=16 seeds/pixel {:.2}; pixels with 0 / 1 / 2-4 / 5-8 / 9-16 seeds: {hist:?}",
+            sum as f64 / (w * h) as f64
+        );
+    }
+    for l in [1usize, 3] {
+        let prepared: Vec<PreparedLayer> =
+            layers[..l].iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).collect();
+        for n in [1u32, 4, 16] {
+            let params = WarpParams { n_seeds: n, ..Default::default() };
+            let t = median(
+                (0..3)
+                    .map(|_| {
+                        let t0 = Instant::now();
+                        let _ = warp_prepared(&prepared, &params).unwrap();
+                        t0.elapsed().as_secs_f64() * 1e3
+                    })
+                    .collect(),
+            );
+            println!("warp L={l} N={n:2}: {t:.1} ms = {:.1} Mpx/s on {threads} thread(s)", (w * h) as f64 / t / 1e3);
+        }
+        let t0 = Instant::now();
+        let _ = afw_layers(&layers[..l]).unwrap();
+        println!("AFW L={l}: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+        let t0 = Instant::now();
+        let _ = vfw_layers(&layers[..l]).unwrap();
+        println!("VFW L={l}: {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+    }
+}
