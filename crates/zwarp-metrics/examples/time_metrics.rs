@@ -6,8 +6,19 @@ use std::time::Instant;
 use zwarp_core::{Camera, Image};
 use zwarp_metrics::{depth_quality, psnr, signed_depth_errors, ssim, ssim_map};
 
+/// Process CPU time (user + system) in ms from /proc/self/stat (Linux; 10 ms ticks), so the
+/// figures stay meaningful on a machine shared with other jobs; `None` elsewhere.
+fn cpu_ms() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let (u, s): (f64, f64) = (f.get(11)?.parse().ok()?, f.get(12)?.parse().ok()?);
+    Some((u + s) * 10.0)
+}
+
 fn time<R>(name: &str, reps: usize, mut f: impl FnMut() -> R) {
     std::hint::black_box(f()); // warm-up
+    let cpu0 = cpu_ms();
     let mut ms: Vec<f64> = (0..reps)
         .map(|_| {
             let t = Instant::now();
@@ -15,8 +26,15 @@ fn time<R>(name: &str, reps: usize, mut f: impl FnMut() -> R) {
             t.elapsed().as_secs_f64() * 1e3
         })
         .collect();
+    let cpu = cpu0.zip(cpu_ms()).map_or(f64::NAN, |(a, b)| (b - a) / reps as f64);
     ms.sort_by(f64::total_cmp);
-    println!("{name:28} median {:8.2} ms   min {:8.2}   max {:8.2}   ({reps} reps)", ms[reps / 2], ms[0], ms[reps - 1]);
+    println!(
+        "{name:30} wall median {:8.2} ms  min {:8.2}  max {:8.2}  | cpu {:8.2} ms/call  ({reps} reps)",
+        ms[reps / 2],
+        ms[0],
+        ms[reps - 1],
+        cpu
+    );
 }
 
 fn main() -> zwarp_core::Result<()> {
@@ -42,7 +60,6 @@ fn main() -> zwarp_core::Result<()> {
     time("psnr 1920x1080", 15, || psnr(&predicted, &reference, 1.0));
     time("ssim 1920x1080", 15, || ssim(&predicted, &reference, 1.0));
     time("ssim_map 1920x1080", 15, || ssim_map(&predicted, &reference, 1.0));
-    time("ssim again", 15, || ssim(&predicted, &reference, 1.0));
     time("signed_depth_errors", 15, || signed_depth_errors(&predicted, &reference, 1e-4, 1.0));
     time("depth_quality (2 psnr+2 ssim)", 9, || depth_quality(&predicted, &reference, &cam));
     println!("{:?}", depth_quality(&predicted, &reference, &cam)?);

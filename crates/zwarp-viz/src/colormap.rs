@@ -31,21 +31,44 @@ pub fn turbo(x: f32) -> [u8; 3] {
 /// skipped so the farthest surface (blue-violet) never looks like an empty (black) pixel.
 pub const DEPTH_TURBO_MIN: f32 = 0.05;
 
+/// The colour key of a stored depth: linear view depth with a camera, the stored value without.
+#[inline]
+fn depth_key(d: f32, cam: Option<&Camera>) -> f32 {
+    cam.map_or(d, |c| c.linear_depth(d.max(0.0)))
+}
+
+/// Nearest and farthest surface of a depth buffer in the units [`depth_to_rgb8`] colours by:
+/// linear view depth with a camera, stored depth without. Empty (`>= 1`) and non-finite pixels
+/// are ignored; `None` when there is no surface. Pass the *reference* frame's range to
+/// [`depth_to_rgb8_in_range`] to colour a prediction and its reference comparably.
+pub fn depth_range(depth: &Image<f32>, cam: Option<&Camera>) -> Option<(f32, f32)> {
+    let (lo, hi) = depth
+        .data()
+        .iter()
+        .filter(|d| is_surface(**d) && d.is_finite())
+        .map(|&d| depth_key(d, cam))
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    (lo <= hi).then_some((lo, hi))
+}
+
 /// Depth buffer -> turbo colours: **nearest surface dark red, farthest surface blue-violet**,
 /// empty pixels (stored depth `>= 1`, the paper's `s.z < 1` test fails) and NaN black.
 ///
 /// With a camera the colours follow *linear* view depth (so equal colour steps are equal
 /// distances; stored perspective depth crowds near 1, DESIGN.md); without one they follow the
-/// stored value. Either way the range is the image's own nearest..farthest surface; a buffer
-/// with a single depth maps every surface to the nearest colour.
+/// stored value. The range is the image's own nearest..farthest surface ([`depth_range`]); a
+/// buffer with a single depth maps every surface to the nearest colour. To compare a warped
+/// buffer with its reference, use [`depth_to_rgb8_in_range`] with the reference's range.
 pub fn depth_to_rgb8(depth: &Image<f32>, cam: Option<&Camera>) -> Image<[u8; 3]> {
-    let key = |d: f32| cam.map_or(d, |c| c.linear_depth(d.max(0.0)));
-    let (lo, hi) = depth
-        .data()
-        .iter()
-        .filter(|d| is_surface(**d) && d.is_finite())
-        .map(|&d| key(d))
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let range = depth_range(depth, cam).unwrap_or((0.0, 0.0));
+    depth_to_rgb8_in_range(depth, cam, range)
+}
+
+/// [`depth_to_rgb8`] with an explicit `(nearest, farthest)` range in the same units (linear
+/// view depth with a camera, stored depth without): surfaces outside it clamp to the end
+/// colours; a degenerate range (`farthest <= nearest`) maps every surface to the nearest colour.
+pub fn depth_to_rgb8_in_range(depth: &Image<f32>, cam: Option<&Camera>, range: (f32, f32)) -> Image<[u8; 3]> {
+    let (lo, hi) = range;
     let span = hi - lo;
     let data = depth
         .data()
@@ -54,7 +77,7 @@ pub fn depth_to_rgb8(depth: &Image<f32>, cam: Option<&Camera>) -> Image<[u8; 3]>
             if !(is_surface(d) && d.is_finite()) {
                 return [0, 0, 0];
             }
-            let t = if span > 0.0 { ((key(d) - lo) / span).clamp(0.0, 1.0) } else { 0.0 };
+            let t = if span > 0.0 { ((depth_key(d, cam) - lo) / span).clamp(0.0, 1.0) } else { 0.0 };
             // t = 0 nearest -> top of turbo (red); t = 1 farthest -> DEPTH_TURBO_MIN.
             turbo(1.0 - t * (1.0 - DEPTH_TURBO_MIN))
         })
@@ -279,6 +302,15 @@ mod tests {
         // All-empty and single-depth buffers.
         assert!(depth_to_rgb8(&Image::new(3, 2, 1.0), None).data().iter().all(|p| *p == [0, 0, 0]));
         assert!(depth_to_rgb8(&Image::new(3, 2, 0.5), None).data().iter().all(|p| *p == turbo(1.0)));
+        // An explicit (reference) range: a prediction with only the 3 m and 4 m surfaces keeps
+        // the reference's colours instead of stretching to its own range.
+        let range = depth_range(&depth, Some(&cam)).unwrap();
+        assert!((range.0 - 2.0).abs() < 1e-3 && (range.1 - 4.0).abs() < 1e-3);
+        let pred = Image::from_vec(2, 1, vec![depth.data()[1], depth.data()[2]]).unwrap();
+        let same = depth_to_rgb8_in_range(&pred, Some(&cam), range);
+        assert_eq!(same.data(), &img.data()[1..3]);
+        assert_ne!(depth_to_rgb8(&pred, Some(&cam)).data()[0], img.data()[1]);
+        assert_eq!(depth_range(&Image::new(2, 2, 1.0), None), None);
     }
 
     #[test]

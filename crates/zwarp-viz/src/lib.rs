@@ -17,8 +17,8 @@ pub mod io;
 pub mod layout;
 
 pub use colormap::{
-    color_to_rgb8, depth_to_rgb8, diff_heatmap, items_to_rgb8, linear_to_srgb8, mask_to_rgb8, motion_to_rgb8,
-    scalar_to_rgb8, turbo, DEPTH_TURBO_MIN, FLOW_WHEEL,
+    color_to_rgb8, depth_range, depth_to_rgb8, depth_to_rgb8_in_range, diff_heatmap, items_to_rgb8, linear_to_srgb8,
+    mask_to_rgb8, motion_to_rgb8, scalar_to_rgb8, turbo, DEPTH_TURBO_MIN, FLOW_WHEEL,
 };
 pub use io::{
     read_exr_f32, read_exr_motion, read_exr_rgb, read_png, write_exr_f32, write_exr_motion, write_exr_rgb, write_png,
