@@ -207,6 +207,14 @@ pub fn pipeline_stats(scene: &Scene, cam: &Camera, t: f32) -> Result<(usize, usi
     Ok((scene.triangle_count(), set_up, entries, (t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3))
 }
 
+/// Diagnostic: runs only the geometry front end (transform, clip, set-up, binning) of a
+/// depth-only render and returns the number of bin entries.
+#[doc(hidden)]
+pub fn setup_only(scene: &Scene, cam: &Camera, t: f32) -> Result<usize> {
+    let binned = bin_scene(scene, cam, t, &SetupParams { objects: None, color: false })?;
+    Ok(binned.chunks.iter().map(|c| c.bin_items.len()).sum())
+}
+
 /// Test/diagnostic helper: how many of the world-space `triangles` cover each pixel centre
 /// (no depth test; the fill rule is the renderer's). A closed fan or mesh without overlaps
 /// gives exactly 1 inside and 0 outside.

@@ -33,7 +33,7 @@ const CHUNK_VERTS: usize = 16384;
 ///
 /// Coverage: pixel `(x, y)` (integer indices, sample at the centre) is covered iff
 /// `a[i] * x + b[i] * y + c[i] >= 0` for the three edges. The top-left fill rule and the
-/// sub-pixel offset of the pixel centre are folded into `c` (see [`setup_triangle`]).
+/// sub-pixel offset of the pixel centre are folded into `c` (see [`setup_projected`]).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Tri {
     pub a: [i32; 3],
@@ -188,7 +188,9 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
         }
     }
     if need == 0 {
-        setup_triangle(v, &v, vp, inst, out);
+        if v.iter().all(|p| p.is_finite() && p.w > 0.0) {
+            setup_projected([project(v[0], vp), project(v[1], vp), project(v[2], vp)], None, vp, inst, out);
+        }
         return;
     }
     // Sutherland-Hodgman against the crossed planes. A triangle clipped by 5 planes has at most
@@ -227,8 +229,56 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
             return;
         }
     }
+    if !poly[..n].iter().all(|p| p.is_finite() && p.w > 0.0) {
+        return; // NaN input or a projection where z >= 0 does not imply w > 0
+    }
     for i in 1..n - 1 {
-        setup_triangle([poly[0], poly[i], poly[i + 1]], &v, vp, inst, out);
+        let sv = [project(poly[0], vp), project(poly[i], vp), project(poly[i + 1], vp)];
+        setup_projected(sv, Some(&v), vp, inst, out);
+    }
+}
+
+/// A vertex projected to the screen in f64 (pixels, y down; depth `z / w`) and snapped to the
+/// 1/256 sub-pixel grid.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct ScreenVert {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub fx: i32,
+    pub fy: i32,
+}
+
+impl ScreenVert {
+    /// Marker in `fx`: the vertex lies behind the near plane or outside the guard band, so its
+    /// triangles take the clipping path.
+    const NEEDS_CLIP: i32 = i32::MIN;
+    #[inline(always)]
+    pub fn needs_clip(&self) -> bool {
+        self.fx == Self::NEEDS_CLIP
+    }
+}
+
+/// Projects a clip-space vertex (w > 0) to the screen and snaps it. One function for every path
+/// (per-vertex fast path, clipped triangles, occlusion queries) so equal inputs give equal bits.
+#[inline(always)]
+fn project(c: Clip, vp: &Viewport) -> ScreenVert {
+    let iw = 1.0 / c.w;
+    let x = (c.x * iw + 1.0) * 0.5 * vp.width as f64;
+    let y = (1.0 - c.y * iw) * 0.5 * vp.height as f64;
+    ScreenVert { x, y, z: c.z * iw, fx: round_fast(x * SUB) as i32, fy: round_fast(y * SUB) as i32 }
+}
+
+/// Per-vertex projection for the fast path: vertices in front of the near plane and inside the
+/// guard band are projected once and shared by all their triangles; others are marked
+/// [`ScreenVert::NEEDS_CLIP`].
+#[inline(always)]
+pub(crate) fn project_vertex(c: Clip, vp: &Viewport) -> ScreenVert {
+    let inside = c.z >= 0.0 && c.w > 0.0 && c.x.abs() <= vp.gx * c.w && c.y.abs() <= vp.gy * c.w;
+    if inside && c.is_finite() {
+        project(c, vp)
+    } else {
+        ScreenVert { fx: ScreenVert::NEEDS_CLIP, ..Default::default() }
     }
 }
 
@@ -285,26 +335,22 @@ fn round_fast(x: f64) -> i64 {
 /// so `E - bias >= 0  <=>  -d.y * x + d.x * y + floor(K / 256) >= 0`: the per-pixel edge
 /// function only needs whole-pixel steps.
 #[inline(always)]
-pub(crate) fn setup_triangle(v: [Clip; 3], orig: &[Clip; 3], vp: &Viewport, inst: u32, out: &mut impl TriSink) {
-    if !v.iter().all(|p| p.is_finite() && p.w > 0.0) {
-        return; // behind the eye (only for unusual projections) or NaN input
+pub(crate) fn setup_projected(
+    sv: [ScreenVert; 3],
+    orig: Option<&[Clip; 3]>,
+    vp: &Viewport,
+    inst: u32,
+    out: &mut impl TriSink,
+) {
+    if sv[0].z > 1.0 && sv[1].z > 1.0 && sv[2].z > 1.0 {
+        return; // beyond the far plane (depth is affine on the triangle)
     }
     let (w, h) = (vp.width as f64, vp.height as f64);
-    // Screen positions (pixels, y down) and depth in f64 from the f32 clip coordinates.
-    let mut sx = [0f64; 3];
-    let mut sy = [0f64; 3];
-    let mut sz = [0f64; 3];
-    let mut fx = [0i64; 3];
-    let mut fy = [0i64; 3];
-    for i in 0..3 {
-        let p = v[i];
-        let iw = 1.0 / p.w;
-        sx[i] = (p.x * iw + 1.0) * 0.5 * w;
-        sy[i] = (1.0 - p.y * iw) * 0.5 * h;
-        sz[i] = p.z * iw;
-        fx[i] = round_fast(sx[i] * SUB);
-        fy[i] = round_fast(sy[i] * SUB);
-    }
+    let mut sx = [sv[0].x, sv[1].x, sv[2].x];
+    let mut sy = [sv[0].y, sv[1].y, sv[2].y];
+    let mut sz = [sv[0].z, sv[1].z, sv[2].z];
+    let mut fx = [sv[0].fx as i64, sv[1].fx as i64, sv[2].fx as i64];
+    let mut fy = [sv[0].fy as i64, sv[1].fy as i64, sv[2].fy as i64];
     let area = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fy[1] - fy[0]) * (fx[2] - fx[0]);
     if area == 0 {
         return; // degenerate after snapping: covers no pixel centre (D3D/GL convention)
@@ -343,11 +389,11 @@ pub(crate) fn setup_triangle(v: [Clip; 3], orig: &[Clip; 3], vp: &Viewport, inst
     // Depth plane in pixel-centre coordinates: z is affine in screen space (z_ndc = z_clip / w),
     // so this is the perspective-correct depth. Pixel centre x maps to
     // x_ndc = 2 x / W + (1 / W - 1) and y to y_ndc = -2 y / H + (1 - 1 / H).
-    let (z0, zx, zy) = match depth_plane_ndc(orig) {
+    let (z0, zx, zy) = match orig.and_then(depth_plane_ndc) {
         Some([pa, pb, pc]) => (pa * (1.0 / w - 1.0) + pb * (1.0 - 1.0 / h) + pc, pa * 2.0 / w, -pb * 2.0 / h),
         None => {
-            // Edge-on plane: fall back to the plane through the screen-space vertices (snapped
-            // positions if even their float area vanishes).
+            // Unclipped triangle (or edge-on plane): the plane through the f64 screen-space
+            // vertices (snapped positions if even their float area vanishes).
             let (ex1, ey1, ez1) = (sx[1] - sx[0], sy[1] - sy[0], sz[1] - sz[0]);
             let (ex2, ey2, ez2) = (sx[2] - sx[0], sy[2] - sy[0], sz[2] - sz[0]);
             let det = ex1 * ey2 - ex2 * ey1;
@@ -538,7 +584,8 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
     let (total_verts, total_tris) = (vo, to);
 
     // Vertex transform, in parallel over fixed-size vertex chunks spanning instances.
-    let mut clip = vec![DVec4::ZERO; total_verts];
+    // Vertex transform and projection (once per vertex, shared by its triangles).
+    let mut clip = vec![ScreenVert::default(); total_verts];
     clip.par_chunks_mut(CHUNK_VERTS).enumerate().for_each(|(ci, out)| {
         let start = ci * CHUNK_VERTS;
         let mut d = draws.partition_point(|d| d.vert_offset <= start) - 1;
@@ -553,7 +600,7 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
             let n = (pos.len() - local).min(out.len() - k);
             let m = draws[d].mvp;
             for (o, p) in out[k..k + n].iter_mut().zip(&pos[local..local + n]) {
-                *o = m * p.as_dvec3().extend(1.0);
+                *o = project_vertex(m * p.as_dvec3().extend(1.0), &vp);
             }
             k += n;
             g += n;
@@ -586,7 +633,7 @@ struct ChunkCtx<'a> {
     scene: &'a Scene,
     cam: &'a Camera,
     draws: &'a [Draw],
-    clip: &'a [Clip],
+    clip: &'a [ScreenVert],
     vp: Viewport,
     color: bool,
     ortho: bool,
@@ -622,9 +669,15 @@ fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
         let mv = ctx.cam.view * dr.model;
         let albedo = scene.instances[dr.inst as usize].albedo;
         for tri in &mesh.indices[local..local + n] {
-            let cv = [vb[tri[0] as usize], vb[tri[1] as usize], vb[tri[2] as usize]];
+            let sv = [vb[tri[0] as usize], vb[tri[1] as usize], vb[tri[2] as usize]];
             let before = tris.len();
-            setup_clip_triangle(cv, &vp, dr.inst, &mut tris);
+            if sv[0].needs_clip() || sv[1].needs_clip() || sv[2].needs_clip() {
+                // Rare path: recompute the clip coordinates (exactly as the vertex pass did).
+                let cv = tri.map(|i| dr.mvp * mesh.positions[i as usize].as_dvec3().extend(1.0));
+                setup_clip_triangle(cv, &vp, dr.inst, &mut tris);
+            } else {
+                setup_projected(sv, None, &vp, dr.inst, &mut tris);
+            }
             if ctx.color && tris.len() > before {
                 let p = [
                     mv.transform_point3(mesh.positions[tri[0] as usize]),
