@@ -213,8 +213,12 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
                 m += 1;
             }
             if (da >= 0.0) != (db >= 0.0) {
-                let t = da / (da - db);
-                let mut p = a + (b - a) * t;
+                // Interpolate in a canonical direction (lexicographically smaller endpoint first)
+                // so the two triangles sharing this edge compute bit-identical intersection points:
+                // the clipped shared edge then stays exactly shared (no cracks, no double hits).
+                let (p0, p1, d0, d1) = if lex_less(a, b) { (a, b, da, db) } else { (b, a, db, da) };
+                let t = d0 / (d0 - d1);
+                let mut p = p0 + (p1 - p0) * t;
                 if plane == 0 {
                     // Land exactly on the near plane so clipped depth is exactly 0, never < 0.
                     p.z = 0.0;
@@ -236,6 +240,12 @@ pub(crate) fn setup_clip_triangle(v: [Clip; 3], vp: &Viewport, inst: u32, out: &
         let sv = [project(poly[0], vp), project(poly[i], vp), project(poly[i + 1], vp)];
         setup_projected(sv, Some(&v), vp, inst, out);
     }
+}
+
+/// Strict lexicographic order of clip-space points (x, y, z, w).
+#[inline]
+fn lex_less(a: Clip, b: Clip) -> bool {
+    (a.x, a.y, a.z, a.w) < (b.x, b.y, b.z, b.w)
 }
 
 /// A vertex projected to the screen in f64 (pixels, y down; depth `z / w`) and snapped to the

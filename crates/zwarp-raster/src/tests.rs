@@ -591,3 +591,53 @@ fn animated_instances_render_at_time_t() {
         }
     }
 }
+
+#[test]
+fn clipped_shared_edges_stay_watertight() {
+    // A ground grid of huge cells (vertices far outside the guard band, edges crossing the near
+    // plane behind and beside the camera): every pixel whose ray hits the grid is covered exactly
+    // once, every other pixel zero times.
+    let (w, h) = (64, 48);
+    let cam = Camera::perspective(Vec3::new(0.3, 1.0, 0.2), Vec3::new(0.5, 0.7, -5.0), Vec3::Y, 1.2, 0.05, 1.0e6, w, h)
+        .unwrap();
+    let (n, ext) = (9usize, 1.0e4f32);
+    let cell = 2.0 * ext / n as f32;
+    let p = |i: usize, j: usize| {
+        // Irregular offsets so edges hit the clip planes at non-trivial points.
+        let jx = ((i * 7 + j * 13) % 5) as f32 * 0.037 * cell;
+        let jz = ((i * 11 + j * 3) % 7) as f32 * 0.029 * cell;
+        let border = i == 0 || j == 0 || i == n || j == n;
+        let (dx, dz) = if border { (0.0, 0.0) } else { (jx, jz) };
+        Vec3::new(-ext + i as f32 * cell + dx, 0.0, -ext + j as f32 * cell + dz)
+    };
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            tris.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+            tris.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    let counts = coverage_counts(&cam, &tris).unwrap();
+    let (mut ones, mut checked) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let c = *counts.get(x, y);
+            assert!(c <= 1, "({x},{y}) covered {c} times");
+            // Where does the ray hit the ground plane?
+            let a = cam.unproject(x as f32 + 0.5, y as f32 + 0.5, 0.0);
+            let b = cam.unproject(x as f32 + 0.5, y as f32 + 0.5, 0.5);
+            let d = b - a;
+            if d.y < -1e-6 {
+                let hit = a + d * (-a.y / d.y);
+                if hit.x.abs() < 0.9 * ext && hit.z.abs() < 0.9 * ext {
+                    checked += 1;
+                    assert_eq!(c, 1, "({x},{y}) hit {hit} not covered");
+                    ones += 1;
+                }
+            } else if d.y > 1e-6 {
+                assert_eq!(c, 0, "({x},{y}) above the horizon");
+            }
+        }
+    }
+    assert!(checked > 1000 && ones == checked, "{checked}");
+}
