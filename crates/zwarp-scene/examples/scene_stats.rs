@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use zwarp_scene::{load_scene, SceneOptions};
+use zwarp_scene::{load_scene, motion_profile, SceneOptions};
 
 fn main() {
     let mut opts = SceneOptions::default();
@@ -23,8 +23,10 @@ fn main() {
     if specs.is_empty() {
         specs = ["yr", "mo", "bl", "cb"].map(String::from).to_vec();
     }
-    println!("| scene | objects | animated | ground | meshes | triangles | load ms (median of 3) | path s |");
-    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!(
+        "| scene | objects | animated | ground | meshes | triangles | load ms (median of 3, min-max) | path s | motion px/frame 1080p mean-max / peak |"
+    );
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for spec in &specs {
         let mut times = Vec::new();
         let mut last = None;
@@ -43,8 +45,9 @@ fn main() {
         let s = last.unwrap();
         let sc = &s.scene;
         let path = s.path_or_default();
+        let motion = motion_profile(sc, &path, 1920, 1080, 1.0).expect("motion profile");
         println!(
-            "| {} | {} | {} | {} | {} | {} | {:.0} ({:.0}-{:.0}) | {:.1}{} |",
+            "| {} | {} | {} | {} | {} | {} | {:.0} ({:.0}-{:.0}) | {:.1}{} | {:.1} / {:.1} |",
             sc.name,
             sc.instances.len(),
             sc.instances.iter().filter(|i| i.animation.is_animated()).count(),
@@ -56,6 +59,8 @@ fn main() {
             times[2],
             path.duration(),
             if s.path.is_some() { "" } else { " (default)" },
+            motion.mean_max(),
+            motion.peak(),
         );
         if let Some(dir) = &write_paths {
             let f = std::path::Path::new(dir).join(format!("{}.path.json", sc.name));

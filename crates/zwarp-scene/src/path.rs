@@ -223,6 +223,67 @@ impl CameraPath {
     }
 }
 
+/// Per-frame screen motion of a path over a scene (seed 000 Sec. 4 reports "the averages of
+/// maximal per-frame motion": 16, 35, 26 and 29 pixels/frame for YR, MO, BL, CB at full HD).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionProfile {
+    /// For each pair of consecutive frames, the largest motion (pixels) of a sample point
+    /// that is inside the image in both frames.
+    pub max_per_frame: Vec<f32>,
+}
+
+impl MotionProfile {
+    /// Mean over frames of the per-frame maximum (the paper's figure).
+    pub fn mean_max(&self) -> f32 {
+        if self.max_per_frame.is_empty() {
+            return 0.0;
+        }
+        self.max_per_frame.iter().sum::<f32>() / self.max_per_frame.len() as f32
+    }
+    /// Largest per-frame motion of the whole path.
+    pub fn peak(&self) -> f32 {
+        self.max_per_frame.iter().copied().fold(0.0, f32::max)
+    }
+}
+
+/// Estimates the per-frame screen motion of `path` at `speed` over `scene` (camera and
+/// object motion, seed 000 Sec. 3.1's motion field sampled at points). Sample points are the
+/// 8 object-space box corners of every object (moved with its animation) and the vertices of
+/// ground meshes; occlusion is ignored, so it is an upper-bound-style estimate of the
+/// rendered motion field's per-frame maximum, good for comparing paths with the paper's.
+pub fn motion_profile(scene: &Scene, path: &CameraPath, width: u32, height: u32, speed: f32) -> Result<MotionProfile> {
+    use rayon::prelude::*;
+    let frames = path.frames(width, height, speed)?;
+    let (w, h) = (width as f32, height as f32);
+    let inside =
+        |p: Option<Vec3>| p.filter(|p| p.x >= 0.0 && p.x < w && p.y >= 0.0 && p.y < h && (0.0..=1.0).contains(&p.z));
+    let max_per_frame = frames
+        .par_windows(2)
+        .map(|pair| {
+            let ((ta, ca), (tb, cb)) = (pair[0], pair[1]);
+            let mut best = 0.0f32;
+            for inst in &scene.instances {
+                let mesh = &scene.meshes[inst.mesh as usize];
+                let (ma, mb) = (inst.transform_at(ta), inst.transform_at(tb));
+                let mut visit = |p: Vec3| {
+                    if let (Some(a), Some(b)) =
+                        (inside(ca.project(ma.transform_point3(p))), inside(cb.project(mb.transform_point3(p))))
+                    {
+                        best = best.max((b.truncate() - a.truncate()).length());
+                    }
+                };
+                if inst.is_ground {
+                    mesh.positions.iter().for_each(|&p| visit(p));
+                } else {
+                    mesh.bounds.corners().into_iter().for_each(&mut visit);
+                }
+            }
+            best
+        })
+        .collect();
+    Ok(MotionProfile { max_per_frame })
+}
+
 /// Catmull-Rom (cardinal spline with tension 0) on segment `i` at time `t`, knots at the key
 /// times: Hermite interpolation with tangents `(p_{i+1} - p_{i-1}) / (t_{i+1} - t_{i-1})`
 /// (one-sided at the ends). It passes through every key and has continuous velocity, and it
@@ -318,7 +379,8 @@ mod tests {
     #[test]
     fn validation_errors_are_clear() {
         let ok = line_path();
-        let cases: Vec<(Box<dyn Fn(&mut CameraPath)>, &str)> = vec![
+        type Mutation = Box<dyn Fn(&mut CameraPath)>;
+        let cases: Vec<(Mutation, &str)> = vec![
             (Box::new(|p| p.keys.truncate(1)), "at least 2 keys"),
             (Box::new(|p| p.keys[2].t = p.keys[1].t), "increase strictly"),
             (Box::new(|p| p.near = 200.0), "near < far"),
@@ -360,6 +422,31 @@ mod tests {
         line_path().write_json_file(&good).unwrap();
         assert_eq!(CameraPath::from_json_file(&good).unwrap(), line_path());
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn motion_profile_of_a_sideways_camera_is_analytic() {
+        // A point 10 m in front of a camera moving sideways at 1.5 m/s: per frame (1/30 s)
+        // it moves 0.05 m, i.e. 0.05 / 10 / tan(30 deg) * 240 px (half height 240 px).
+        let mut s = Scene::default();
+        let m = s.add_mesh(zwarp_core::Mesh::new(vec![Vec3::ZERO], vec![]).unwrap());
+        s.add_instance(m, glam::Mat4::from_translation(Vec3::new(0.0, 10.0, 2.0)), Vec3::ONE, Default::default(), true);
+        let mut p = line_path();
+        for k in &mut p.keys {
+            k.eye.y = 0.0;
+            k.target = k.eye + Vec3::new(0.0, 10.0, 0.0);
+        }
+        let prof = motion_profile(&s, &p, 640, 480, 1.0).unwrap();
+        assert_eq!(prof.max_per_frame.len(), 240);
+        let want = 0.05 / 10.0 / (30f32.to_radians().tan()) * 240.0;
+        // The point leaves the image after a while; while visible the motion is constant.
+        let visible: Vec<f32> = prof.max_per_frame.iter().copied().filter(|&m| m > 0.0).collect();
+        assert!(visible.len() > 50);
+        for v in visible {
+            assert!((v - want).abs() < 1e-2 * want, "{v} vs {want}");
+        }
+        let fast = motion_profile(&s, &p, 640, 480, 4.0).unwrap();
+        assert!((fast.peak() - 4.0 * want).abs() < 4e-2 * want);
     }
 
     #[test]

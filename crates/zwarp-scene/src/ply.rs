@@ -253,7 +253,7 @@ trait ValueReader {
     fn read(&mut self, ty: Scalar) -> std::result::Result<f64, String>;
     fn skip_list(&mut self, count: Scalar, item: Scalar) -> std::result::Result<(), String> {
         let n = self.read(count)?;
-        if !(n >= 0.0 && n <= 1e9) {
+        if !(0.0..=1e9).contains(&n) {
             return Err(format!("bad list length {n}"));
         }
         for _ in 0..n as usize {

@@ -204,7 +204,7 @@ pub fn yr(opts: &SceneOptions) -> Result<LoadedScene> {
         scene.add_instance(id, transform, s.color, animation, false);
     }
     scene.lights.push(sun(Vec3::new(8.0, -6.0, 20.0), Vec3::new(0.0, 0.0, 1.5), 3.0));
-    // Orbit 0.6 turns while closing in from about 2x the cluster's outer radius to just
+    // Orbit half a turn while closing in from about 2x the cluster's outer radius to just
     // outside it, 2.5-4.5 m high: the view sweeps across the overlapping objects, which hide
     // each other (high depth complexity). `outer` is the largest horizontal reach of any object.
     let outer = scene
@@ -222,7 +222,7 @@ pub fn yr(opts: &SceneOptions) -> Result<LoadedScene> {
         fps: 30.0,
         keys: sample_keys(10.0, 0.5, |t| {
             let u = t / 10.0;
-            let a = -0.4 + 1.2 * PI * u;
+            let a = -0.4 + PI * u;
             let rr = outer + 2.5 + outer * (1.0 - u);
             let eye = Vec3::new(rr * a.cos(), rr * a.sin(), 2.5 + 2.0 * (PI * u).sin());
             let target = Vec3::new(0.6 * (2.0 * a).sin(), 0.6 * (2.0 * a).cos(), 1.8);
@@ -334,9 +334,9 @@ pub fn mo(opts: &SceneOptions) -> Result<LoadedScene> {
         }
     }
     scene.lights.push(sun(Vec3::new(half * 0.5, -half * 0.5, 150.0), Vec3::ZERO, 20.0));
-    // Low fly-over: 15 m/s along a gentle S-curve, 16 m above the terrain, looking 40 m ahead
+    // Low fly-over: 8 m/s along a gentle S-curve, 16 m above the terrain, looking 40 m ahead
     // and down to the ground.
-    let len = (0.75 * side).min(150.0);
+    let len = (0.75 * side).min(80.0);
     let curve = move |t: f32| {
         let u = t / 10.0;
         let x = -0.5 * len + len * u;
@@ -403,8 +403,8 @@ pub fn bl(opts: &SceneOptions) -> Result<LoadedScene> {
         scene.add_instance(m, place(pos, yaw, Vec3::splat(s)), c, anim, false);
     }
     scene.lights.push(sun(Vec3::new(0.0, -hx, 5.0 + 3.0 * hz), Vec3::new(0.0, 0.0, 5.0 + 0.5 * hz), 30.0));
-    // Through the cloud: 12 m/s across the box at mid height, slowly climbing and weaving.
-    let len = (1.4 * hx).min(120.0);
+    // Through the cloud: 8 m/s across the box at mid height, slowly climbing and weaving.
+    let len = (1.4 * hx).min(80.0);
     let mid = 5.0 + 0.5 * hz;
     let curve = move |t: f32| {
         let u = t / 10.0;
@@ -415,7 +415,7 @@ pub fn bl(opts: &SceneOptions) -> Result<LoadedScene> {
         (curve(t), ahead + Vec3::new(0.0, 0.0, -1.0))
     });
     let path = CameraPath { fov_y_deg: 60.0, near: 0.5, far: 1000.0, up: Vec3::Z, fps: 30.0, keys };
-    clear_path(&mut scene, &path, 2.0);
+    clear_path(&mut scene, &path, 3.0);
     Ok(LoadedScene { scene, path: Some(path) })
 }
 
@@ -512,16 +512,16 @@ pub fn cb(opts: &SceneOptions) -> Result<LoadedScene> {
     }
     scene.lights.push(sun(Vec3::new(200.0, -300.0, 400.0), Vec3::ZERO, 40.0));
 
-    // Driving path: along the street y = yc in the right-hand lane (2.5 m off the centre line)
-    // at 8 m/s, left turn of radius 6 m at the crossing x = xc, then along +y. Eye at 2 m.
+    // Driving path: along the street y = yc 1.5 m right of the centre line (slow driving)
+    // at 6 m/s, left turn of radius 6 m at the crossing x = xc, then along +y. Eye at 2 m.
     let (xc, yc) = (x0 + (n / 2) as f32 * PITCH_X, y0 + (n / 2) as f32 * PITCH_Y);
-    let lane = 2.5;
+    let lane = 1.5;
     let turn_r = 6.0;
-    let speed = 8.0;
-    let start = Vec3::new(xc + lane - turn_r - 45.0, yc - lane, 2.0);
+    let speed = 6.0;
+    let start = Vec3::new(xc + lane - turn_r - 35.0, yc - lane, 2.0);
     let arc_len = 0.5 * PI * turn_r;
     let pos_at = move |s: f32| -> (Vec3, Vec3) {
-        let straight = 45.0;
+        let straight = 35.0;
         if s <= straight {
             (start + Vec3::X * s, Vec3::X)
         } else if s <= straight + arc_len {
@@ -540,7 +540,7 @@ pub fn cb(opts: &SceneOptions) -> Result<LoadedScene> {
         (eye, ahead + dir * 8.0 - Vec3::new(0.0, 0.0, 0.6))
     });
     let path = CameraPath { fov_y_deg: 60.0, near: 0.25, far: 2000.0, up: Vec3::Z, fps: 30.0, keys };
-    // 0.5 m keeps the parked cars beside the driving lane (0.6 m away) but removes moving
+    // 0.5 m keeps the parked cars beside the driving lane (1.6 m away) but removes moving
     // cars that would drive through the camera.
     clear_path(&mut scene, &path, 0.5);
     Ok(LoadedScene { scene, path: Some(path) })
@@ -779,12 +779,12 @@ mod tests {
 
     #[test]
     fn no_object_comes_near_the_recorded_eye() {
-        for (name, margin) in [("bl", 2.0), ("mo", 2.0), ("cb", 0.5), ("yr", 2.0)] {
+        for (name, margin) in [("bl", 3.0), ("mo", 2.0), ("cb", 0.5), ("yr", 2.0)] {
             let s = generate(name, &small(5, if name == "yr" { 0.05 } else { 0.03 })).unwrap();
             let p = s.path.unwrap();
             for (t, cam) in p.frames(8, 8, 1.0).unwrap() {
                 let e = cam.eye();
-                for (id, inst) in s.scene.instances.iter().enumerate().filter(|(_, i)| !i.is_ground) {
+                for (id, _) in s.scene.instances.iter().enumerate().filter(|(_, i)| !i.is_ground) {
                     let b = s.scene.instance_aabb_at(id as u32, t);
                     let d = (e.clamp(b.min, b.max) - e).abs().max_element();
                     assert!(d > margin * 0.99, "{name} t={t}: eye {e} within {d} of object {id} {b:?}");

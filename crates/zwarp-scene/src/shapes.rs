@@ -259,7 +259,13 @@ mod tests {
         let r = gable_roof();
         assert_eq!(r.indices.len(), 8);
         assert_closed(&r);
-        let t = tube(32, 8, 0.2, |u| Vec3::new((u * 6.283).cos(), (u * 6.283).sin(), 0.0), |_, _| 1.0);
+        let t = tube(
+            32,
+            8,
+            0.2,
+            |u| Vec3::new((u * std::f32::consts::TAU).cos(), (u * std::f32::consts::TAU).sin(), 0.0),
+            |_, _| 1.0,
+        );
         assert_eq!(t.indices.len(), 2 * 32 * 8);
         assert_closed(&t);
         let h = height_field(0.0, 0.0, 1.0, 1.0, 3, 2, |_, _| 0.0);
