@@ -92,6 +92,37 @@ fn main() -> zwarp_core::Result<()> {
             100.0 * covered as f64 / (w * h) as f64
         );
     }
+    // Second table: the other entry points on the same scenes (median wall ms and CPU ms).
+    println!();
+    println!("| scene | depth only ms | frame (items + colour) ms | peel L=4 ms | CPU ms depth / frame / peel |");
+    println!("| --- | ---: | ---: | ---: | ---: |");
+    let reps2 = reps.div_ceil(2).max(5);
+    for (name, scene, cam) in &cases {
+        let run = |f: &dyn Fn() -> zwarp_core::Result<()>| -> zwarp_core::Result<(f64, f64)> {
+            f()?;
+            let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+            for _ in 0..reps2 {
+                let c0 = cpu_ms();
+                let t0 = Instant::now();
+                f()?;
+                wall.push(t0.elapsed().as_secs_f64() * 1e3);
+                if let (Some(a), Some(b)) = (c0, cpu_ms()) {
+                    cpu.push(b - a);
+                }
+            }
+            Ok((stats(wall).0, if cpu.is_empty() { f64::NAN } else { stats(cpu).0 }))
+        };
+        let d = run(&|| render_depth(scene, cam, 0.0).map(|_| ()))?;
+        let fr = run(&|| {
+            zwarp_raster::render_frame(scene, cam, 0.0, &zwarp_raster::FrameOptions { color: true, objects: None })
+                .map(|_| ())
+        })?;
+        let pl = run(&|| {
+            zwarp_raster::render_layers(scene, cam, 0.0, &zwarp_raster::PeelOptions { layers: 4, ..Default::default() })
+                .map(|_| ())
+        })?;
+        println!("| {name} | {:.2} | {:.2} | {:.2} | {:.1} / {:.1} / {:.1} |", d.0, fr.0, pl.0, d.1, fr.1, pl.1);
+    }
     Ok(())
 }
 

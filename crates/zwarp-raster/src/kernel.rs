@@ -170,12 +170,14 @@ fn tile_max(depth: &[f32]) -> f32 {
 #[inline(always)]
 fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     binned: &Binned,
+    handles: bool,
     tile: usize,
     tx0: u32,
     ty0: u32,
     buf: &mut TileBuf,
 ) {
     let mut zmax = if COUNT { f32::INFINITY } else { tile_max(&buf.depth) };
+    let thr_min = if PEEL { buf.thr.iter().fold(f32::INFINITY, |m, &v| if v < m { v } else { m }) } else { 0.0 };
     let mut since = 0u32;
     for (ci, chunk) in binned.chunks.iter().enumerate() {
         let bin = chunk.bin(tile);
@@ -190,7 +192,14 @@ fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             if !COUNT && t.zmin >= zmax {
                 continue;
             }
-            raster_tri::<IDS, PEEL, COUNT>(t, ((ci as u32) << 16) | li as u32, tx0, ty0, buf);
+            // Peeling: the whole triangle is at or in front of the previous layer everywhere.
+            if PEEL && t.zmax <= thr_min {
+                continue;
+            }
+            // Id written per pixel: the instance id directly, or (for colour) a handle to the
+            // triangle's compact per-chunk colour/instance entry, resolved at write-back.
+            let id = if handles { ((ci as u32) << 16) | li as u32 } else { t.inst };
+            raster_tri::<IDS, PEEL, COUNT>(t, id, tx0, ty0, buf);
             since += 1;
             if !COUNT && since >= ZMAX_REFRESH {
                 since = 0;
@@ -204,22 +213,24 @@ fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
 #[target_feature(enable = "avx2")]
 unsafe fn raster_tile_avx2<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     binned: &Binned,
+    handles: bool,
     tile: usize,
     tx0: u32,
     ty0: u32,
     buf: &mut TileBuf,
 ) {
-    raster_tile_impl::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+    raster_tile_impl::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf)
 }
 
 fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     binned: &Binned,
+    handles: bool,
     tile: usize,
     tx0: u32,
     ty0: u32,
     buf: &mut TileBuf,
 ) {
-    raster_tile_impl::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+    raster_tile_impl::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf)
 }
 
 /// Run-time switch for the AVX2 builds (on by default where the CPU has AVX2). Both builds
@@ -247,6 +258,7 @@ pub(crate) fn has_avx2() -> bool {
 fn raster_tile_dispatch<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     avx2: bool,
     binned: &Binned,
+    handles: bool,
     tile: usize,
     tx0: u32,
     ty0: u32,
@@ -255,11 +267,11 @@ fn raster_tile_dispatch<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: only taken when the CPU reports AVX2 (checked by `has_avx2`).
-        unsafe { raster_tile_avx2::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf) };
+        unsafe { raster_tile_avx2::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf) };
         return;
     }
     let _ = avx2;
-    raster_tile_generic::<IDS, PEEL, COUNT>(binned, tile, tx0, ty0, buf)
+    raster_tile_generic::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf)
 }
 
 /// Output buffers of one pass. `depth` is both input (when `load`) and output.
@@ -283,6 +295,7 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
     let tiles_x = vp.tiles_x();
     let avx2 = has_avx2();
     let want_ids = targets.items.is_some() || targets.color.is_some() || mode == Mode::Count;
+    let handles = targets.color.is_some();
     let band = w * TILE_H;
     let load = targets.load;
     let thr_img = targets.threshold;
@@ -338,18 +351,20 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
                 let tile = ty * tiles_x + tx;
                 let (x0, y0) = (tx0 as u32, ty0 as u32);
                 match (mode, want_ids) {
-                    (Mode::Count, _) => raster_tile_dispatch::<true, false, true>(avx2, binned, tile, x0, y0, &mut buf),
+                    (Mode::Count, _) => {
+                        raster_tile_dispatch::<true, false, true>(avx2, binned, handles, tile, x0, y0, &mut buf)
+                    }
                     (Mode::Depth, false) => {
-                        raster_tile_dispatch::<false, false, false>(avx2, binned, tile, x0, y0, &mut buf)
+                        raster_tile_dispatch::<false, false, false>(avx2, binned, handles, tile, x0, y0, &mut buf)
                     }
                     (Mode::Depth, true) => {
-                        raster_tile_dispatch::<true, false, false>(avx2, binned, tile, x0, y0, &mut buf)
+                        raster_tile_dispatch::<true, false, false>(avx2, binned, handles, tile, x0, y0, &mut buf)
                     }
                     (Mode::Peel, false) => {
-                        raster_tile_dispatch::<false, true, false>(avx2, binned, tile, x0, y0, &mut buf)
+                        raster_tile_dispatch::<false, true, false>(avx2, binned, handles, tile, x0, y0, &mut buf)
                     }
                     (Mode::Peel, true) => {
-                        raster_tile_dispatch::<true, true, false>(avx2, binned, tile, x0, y0, &mut buf)
+                        raster_tile_dispatch::<true, true, false>(avx2, binned, handles, tile, x0, y0, &mut buf)
                     }
                 }
                 // Write back.
@@ -364,7 +379,7 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
                             if mode == Mode::Count {
                                 ib[o + c] = hnd;
                             } else if hnd != NO_ITEM {
-                                ib[o + c] = binned.tri(hnd).0.inst;
+                                ib[o + c] = if handles { binned.meta(hnd).0 } else { hnd };
                             } else if !load {
                                 ib[o + c] = NO_ITEM;
                             }
@@ -374,7 +389,7 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
                         for c in 0..cols {
                             let hnd = buf.ids[s + c];
                             if hnd != NO_ITEM {
-                                cb[o + c] = binned.tri(hnd).1.copied().unwrap_or(shading::SKY_COLOR);
+                                cb[o + c] = binned.meta(hnd).1;
                             } else if !load {
                                 cb[o + c] = shading::SKY_COLOR;
                             }

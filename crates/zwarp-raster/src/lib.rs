@@ -222,7 +222,10 @@ pub fn setup_only(scene: &Scene, cam: &Camera, t: f32) -> Result<usize> {
 pub fn coverage_counts(cam: &Camera, triangles: &[[Vec3; 3]]) -> Result<Image<u32>> {
     let (vp, tris) = setup_world_triangles(cam, triangles)?;
     let (bin_start, bin_items) = setup::bin_tris(&tris, &vp);
-    let binned = setup::Binned { vp, chunks: vec![setup::Chunk { tris, colors: Vec::new(), bin_start, bin_items }] };
+    let binned = setup::Binned {
+        vp,
+        chunks: vec![setup::Chunk { tris, colors: Vec::new(), insts: Vec::new(), bin_start, bin_items }],
+    };
     if binned.chunks[0].tris.len() > u16::MAX as usize {
         return Err(Error::invalid("coverage_counts: too many triangles for one chunk"));
     }

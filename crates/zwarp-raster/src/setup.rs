@@ -45,6 +45,9 @@ pub(crate) struct Tri {
     pub zy: f64,
     /// Conservative lower bound of the triangle's depth (early-z).
     pub zmin: f32,
+    /// Conservative upper bound of the triangle's depth (peeling: skip triangles entirely in
+    /// front of a tile's threshold).
+    pub zmax: f32,
     /// Inclusive pixel bounding box of the covered pixel centres, clamped to the viewport.
     pub x0: u16,
     pub y0: u16,
@@ -425,7 +428,8 @@ pub(crate) fn setup_projected(
     let at = |i: usize| z0 + zx * (sx[i] - 0.5) + zy * (sy[i] - 0.5);
     let slack = (zx.abs() + zy.abs()) / 512.0 + 1.0e-6;
     let zmin = ((at(0).min(at(1)).min(at(2)) - slack) as f32).max(0.0);
-    out.push(Tri { a, b, c, z0, zx, zy, zmin, x0: x0 as u16, y0: y0 as u16, x1: x1 as u16, y1: y1 as u16, inst });
+    let zmax = (at(0).max(at(1)).max(at(2)) + slack) as f32;
+    out.push(Tri { a, b, c, z0, zx, zy, zmin, zmax, x0: x0 as u16, y0: y0 as u16, x1: x1 as u16, y1: y1 as u16, inst });
 }
 
 /// One instance selected for drawing.
@@ -447,6 +451,8 @@ pub(crate) struct Chunk {
     pub tris: Vec<Tri>,
     /// Per-triangle flat colour (only when colour was requested).
     pub colors: Vec<[f32; 3]>,
+    /// Per-triangle instance id, compact (only when colour was requested).
+    pub insts: Vec<u32>,
     pub bin_start: Vec<u32>,
     pub bin_items: Vec<u16>,
 }
@@ -465,12 +471,13 @@ pub(crate) struct Binned {
 }
 
 impl Binned {
-    /// Looks up a triangle by the handle the kernel writes into id buffers.
+    /// Instance id and flat colour of the triangle behind a handle written by a colour pass
+    /// (compact per-chunk arrays, so the per-pixel look-ups stay in cache).
     #[inline]
-    pub fn tri(&self, handle: u32) -> (&Tri, Option<&[f32; 3]>) {
+    pub fn meta(&self, handle: u32) -> (u32, [f32; 3]) {
         let c = &self.chunks[(handle >> 16) as usize];
         let i = (handle & 0xffff) as usize;
-        (&c.tris[i], c.colors.get(i))
+        (c.insts[i], c.colors[i])
     }
 }
 
@@ -701,7 +708,8 @@ fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
         g += n;
     }
     let (bin_start, bin_items) = bin_tris(&tris, &vp);
-    Chunk { tris, colors, bin_start, bin_items }
+    let insts = if ctx.color { tris.iter().map(|t| t.inst).collect() } else { Vec::new() };
+    Chunk { tris, colors, insts, bin_start, bin_items }
 }
 
 /// Bins triangles into tiles (counting sort, CSR). Triangles spanning several tiles are only
