@@ -1,1 +1,352 @@
-//! zwarp-shadows (being built).
+//! zwarp-shadows: soft shadows from warped shadow maps (Lee, Kim, Eisemann, TOG 2018 — seed 000,
+//! Sec. 6, Fig. 15, Table 8) with the reference and a PCSS baseline.
+//!
+//! An area light ([`zwarp_core::AreaLight`], rectangle or disc; local = perspective maps,
+//! directional = orthographic maps) is sampled at S stratified points ([`light_samples`]). The
+//! visibility of a camera pixel is the fraction of the S sample shadow maps that see its surface
+//! point; the three methods differ only in where those maps come from:
+//!
+//! - [`Method::Reference`]: every sample map is rasterized directly (`zwarp_raster::render_depth`),
+//!   the cost grows linearly with S;
+//! - [`Method::Zwarp`]: the centre map is depth-peeled once into L layers with generalized umbra
+//!   culling (Sec. 3.4, eq. (1), sized from the emitter) and the ground as the last layer, then
+//!   warped to every sample view by multi-layer backward warping (Sec. 3.2-3.4, N = 4 seeds);
+//! - [`Method::Pcss`]: Fernando 2005, filtering of the single centre map (no per-sample maps).
+//!
+//! All sample cameras share the centre camera's orientation, so centre -> sample is a pure
+//! parallax ([`light`]); the motion comes from `zwarp_core::motion_field` with the two light
+//! cameras. Shading is one function for all methods ([`Receivers::shade`]).
+//!
+//! Conventions (DESIGN.md): depth in `[0, 1]`, 1 = empty; pixel centres at `+0.5`; row 0 on top.
+
+pub mod light;
+pub mod pcss;
+pub mod shade;
+
+use std::time::Instant;
+
+use zwarp_core::{AreaLight, Camera, Error, Image, Result, Scene};
+use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
+use zwarp_warp::{warp_prepared, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
+
+pub use light::{
+    default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
+};
+pub use pcss::{pcss_visibility, PcssParams};
+pub use shade::{reconstruct_normals, DepthBias, Receiver, Receivers};
+
+/// How the sample shadow maps (and so the visibility) are obtained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// S shadow maps rasterized directly (the reference of seed 000, Table 8).
+    Reference,
+    /// S shadow maps synthesized by multi-layer depth warping of the peeled centre map (Sec. 6).
+    Zwarp,
+    /// Percentage-closer soft shadows from the centre map (Fernando 2005).
+    Pcss,
+}
+
+impl Method {
+    /// Lower-case name (`reference`, `zwarp`, `pcss`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Reference => "reference",
+            Method::Zwarp => "zwarp",
+            Method::Pcss => "pcss",
+        }
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "reference" | "ref" => Ok(Method::Reference),
+            "zwarp" | "warp" => Ok(Method::Zwarp),
+            "pcss" => Ok(Method::Pcss),
+            other => Err(Error::invalid(format!("unknown shadow method '{other}' (reference, zwarp, pcss)"))),
+        }
+    }
+}
+
+/// Parameters of [`run_shadows`] (names follow seed 000).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowParams {
+    /// S: number of light samples (1..=[`MAX_SAMPLES`]; 1 = the emitter centre, a hard shadow).
+    pub samples: u32,
+    /// Shadow-map resolution (square).
+    pub sm_size: u32,
+    /// L: depth layers of the zwarp method, the ground layer included (Sec. 6 uses L = 3, one for
+    /// the ground). Scenes without ground instances peel all L layers from the objects.
+    pub layers: usize,
+    /// N: search seeds of the warp (Sec. 6 uses N = 4).
+    pub n_seeds: u32,
+    /// T: fixed-point iterations per seed.
+    pub iterations: u32,
+    /// Convergence threshold of the fixed-point search (pixels). A converged `q` may be this far
+    /// from the exact solution, which grows silhouettes by up to that much; shadow maps want it
+    /// tighter than the warp crate's 0.5 px default.
+    pub threshold: f32,
+    /// Hole policy of the warp.
+    pub holes: HolePolicy,
+    /// Generalized umbra culling while peeling (Sec. 3.4).
+    pub umbra: bool,
+    /// Depth bias of the shadow test.
+    pub bias: DepthBias,
+    /// Seed of the sample jitter.
+    pub seed: u64,
+    /// Jitter the stratified samples (else stratum centres).
+    pub jitter: bool,
+    /// Ambient term of the shading.
+    pub ambient: f32,
+    /// PCSS settings.
+    pub pcss: PcssParams,
+}
+
+impl Default for ShadowParams {
+    /// S = 16, 1024 maps, L = 3 (ground last), N = 4, T = 3, dilation of radius 2 for holes (a
+    /// far-depth hole would be a light leak: a missing occluder; the few holes of a parallax
+    /// warp are thin cracks at depth edges that the neighbours fill correctly), umbra culling
+    /// on, default bias, jittered samples, ambient 0.25 (the renderer's).
+    fn default() -> Self {
+        ShadowParams {
+            samples: 16,
+            sm_size: 1024,
+            layers: 3,
+            n_seeds: 4,
+            iterations: 3,
+            threshold: 0.25,
+            holes: HolePolicy::Dilate { radius: 2 },
+            umbra: true,
+            bias: DepthBias::default(),
+            seed: 1,
+            jitter: true,
+            ambient: zwarp_raster::shading::AMBIENT,
+            pcss: PcssParams::default(),
+        }
+    }
+}
+
+impl ShadowParams {
+    /// Checks the parameters (one-line errors).
+    pub fn validate(&self) -> Result<()> {
+        if self.samples == 0 || self.samples > MAX_SAMPLES {
+            return Err(Error::invalid(format!("S must be in 1..={MAX_SAMPLES}, got {}", self.samples)));
+        }
+        if self.sm_size == 0 || self.sm_size > 16384 {
+            return Err(Error::invalid(format!("shadow-map size must be in 1..=16384, got {}", self.sm_size)));
+        }
+        if self.layers == 0 || self.layers > 16 {
+            return Err(Error::invalid(format!("L must be in 1..=16, got {}", self.layers)));
+        }
+        if !(self.ambient.is_finite() && (0.0..=1.0).contains(&self.ambient)) {
+            return Err(Error::invalid(format!("ambient must be in [0, 1], got {}", self.ambient)));
+        }
+        self.warp_params().validate()
+    }
+
+    /// The warp parameters used for the zwarp maps: N, T and holes from here, the rest the warp
+    /// crate's defaults (oriented tight bounds — the parallax motion of one sample is parallel
+    /// everywhere, so the PCA frame is a thin strip — cross-layer seeding on).
+    pub fn warp_params(&self) -> WarpParams {
+        WarpParams {
+            n_seeds: self.n_seeds,
+            iterations: self.iterations,
+            threshold: self.threshold,
+            holes: self.holes,
+            ..WarpParams::default()
+        }
+    }
+}
+
+/// Per-stage wall-clock times of one [`run_shadows`] call (ms).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageTimings {
+    /// Camera frame (depth + items) and receiver set-up (normals, light-space coordinates).
+    pub camera: f64,
+    /// Shadow-map rendering: S rasterized maps (reference), the peeled centre layers (zwarp) or
+    /// the one centre map (PCSS).
+    pub render: f64,
+    /// Motion buffers centre -> sample (zwarp).
+    pub motion: f64,
+    /// Motion mipmaps and warps (zwarp).
+    pub warp: f64,
+    /// Visibility tests (accumulation over the maps, or the PCSS filter).
+    pub visibility: f64,
+    /// Shading.
+    pub shade: f64,
+}
+
+/// Output of [`run_shadows`].
+#[derive(Clone, Debug)]
+pub struct ShadowResult {
+    /// Shaded camera image (linear RGB).
+    pub image: Image<[f32; 3]>,
+    /// Visibility per camera pixel in `[0, 1]` (1 where the pixel shows no surface).
+    pub visibility: Image<f32>,
+    /// Total frame time (ms).
+    pub ms: f64,
+    /// Per-stage times.
+    pub timings: StageTimings,
+    /// Pixels of all warped maps that stayed holes after the hole policy (zwarp only).
+    pub warp_holes: usize,
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Renders sample map `i` of `rig` directly (the reference path).
+pub fn render_sample_map(scene: &Scene, rig: &LightRig, t: f32, i: usize) -> Result<Image<f32>> {
+    let cam = rig.cameras.get(i).ok_or_else(|| Error::invalid(format!("no light sample {i}")))?;
+    render_depth(scene, cam, t)
+}
+
+/// The peeling options of the zwarp method: L layers with the ground as the last one when the
+/// scene has ground instances (else L object layers), umbra culling sized from the emitter.
+pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> PeelOptions {
+    let has_ground = scene.instances.iter().any(|i| i.is_ground);
+    let umbra = params.umbra.then(|| rig.umbra());
+    if has_ground && params.layers >= 2 {
+        PeelOptions { layers: params.layers - 1, ground_separate: true, umbra }
+    } else {
+        PeelOptions { layers: params.layers, ground_separate: false, umbra }
+    }
+}
+
+/// The deep depth buffer of the centre light view and the warps to the sample views (seed 000,
+/// Sec. 6: "we efficiently synthesize these shadow maps").
+pub struct ZwarpMaps<'a> {
+    rig: &'a LightRig,
+    layers: Vec<Layer>,
+    params: WarpParams,
+    /// Accumulated time of the motion buffers (ms).
+    pub motion_ms: f64,
+    /// Accumulated time of the mipmaps and warps (ms).
+    pub warp_ms: f64,
+}
+
+impl<'a> ZwarpMaps<'a> {
+    /// Peels the centre map of `rig` (see [`peel_options`]); empty layers are dropped (nothing to
+    /// warp from them).
+    pub fn new(scene: &Scene, rig: &'a LightRig, t: f32, params: &ShadowParams) -> Result<Self> {
+        params.validate()?;
+        let layers = render_layers(scene, &rig.center, t, &peel_options(scene, rig, params))?;
+        let mut layers: Vec<Layer> = layers.into_iter().filter(|l| l.coverage() > 0).collect();
+        if layers.is_empty() {
+            // Nothing in front of the light at all: keep one empty layer so warps still give maps.
+            layers.push(Layer {
+                depth: Image::new(rig.center.width, rig.center.height, 1.0),
+                items: Image::new(rig.center.width, rig.center.height, zwarp_core::NO_ITEM),
+            });
+        }
+        Ok(ZwarpMaps { rig, layers, params: params.warp_params(), motion_ms: 0.0, warp_ms: 0.0 })
+    }
+
+    /// The peeled layers (nearest first, ground last).
+    pub fn layers(&self) -> &[Layer] {
+        &self.layers
+    }
+
+    /// Warps the layers to sample view `i`: motion buffers from `zwarp_core::motion_field`
+    /// (static scene at the frame time), then `zwarp_warp::warp_prepared`.
+    pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+        let cam = self.rig.cameras.get(i).ok_or_else(|| Error::invalid(format!("no light sample {i}")))?;
+        let t0 = Instant::now();
+        let motions = self
+            .layers
+            .iter()
+            .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &self.rig.center, cam, &[]))
+            .collect::<Result<Vec<_>>>()?;
+        self.motion_ms += ms_since(t0);
+        let t1 = Instant::now();
+        let prepared = self
+            .layers
+            .iter()
+            .zip(&motions)
+            .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, self.params.bound))
+            .collect::<Result<Vec<_>>>()?;
+        let out = warp_prepared(&prepared, &self.params)?;
+        self.warp_ms += ms_since(t1);
+        Ok(out)
+    }
+}
+
+/// Soft shadows of `scene` at time `t` seen by `cam`, lit by `light` (seed 000, Sec. 6).
+///
+/// Renders the camera frame, builds the light rig (S samples, `sm_size` maps), obtains the
+/// visibility with `method` and shades. Every stage is timed ([`StageTimings`]); `ms` is the
+/// whole call. Errors: invalid parameters or light, empty scene, unusable camera.
+pub fn run_shadows(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    light: &AreaLight,
+    method: Method,
+    params: &ShadowParams,
+) -> Result<ShadowResult> {
+    params.validate()?;
+    if !t.is_finite() {
+        return Err(Error::invalid(format!("frame time must be finite, got {t}")));
+    }
+    let start = Instant::now();
+    let mut tm = StageTimings::default();
+
+    let t0 = Instant::now();
+    let samples = if method == Method::Pcss { 1 } else { params.samples };
+    let rig = LightRig::new(scene, t, light, samples, params.sm_size, params.seed, params.jitter)?;
+    let frame = render_frame(scene, cam, t, &FrameOptions::default())?;
+    let recv = Receivers::build(&frame, cam, scene, &rig, &params.bias)?;
+    tm.camera = ms_since(t0);
+
+    let mut lit = vec![0u32; recv.list.len()];
+    let mut warp_holes = 0usize;
+    let visibility = match method {
+        Method::Reference => {
+            for i in 0..rig.samples() {
+                let t1 = Instant::now();
+                let map = render_sample_map(scene, &rig, t, i)?;
+                tm.render += ms_since(t1);
+                let t2 = Instant::now();
+                recv.accumulate(&map, rig.shifts[i], &mut lit);
+                tm.visibility += ms_since(t2);
+            }
+            recv.visibility_image(&lit, rig.samples() as u32)
+        }
+        Method::Zwarp => {
+            let t1 = Instant::now();
+            let mut maps = ZwarpMaps::new(scene, &rig, t, params)?;
+            tm.render = ms_since(t1);
+            for i in 0..rig.samples() {
+                let out = maps.map(i)?;
+                warp_holes += out.counts().2;
+                let t2 = Instant::now();
+                recv.accumulate(&out.depth, rig.shifts[i], &mut lit);
+                tm.visibility += ms_since(t2);
+            }
+            tm.motion = maps.motion_ms;
+            tm.warp = maps.warp_ms;
+            recv.visibility_image(&lit, rig.samples() as u32)
+        }
+        Method::Pcss => {
+            let t1 = Instant::now();
+            let map = render_depth(scene, &rig.center, t)?;
+            tm.render = ms_since(t1);
+            let t2 = Instant::now();
+            let v = pcss_visibility(&recv, &rig, &map, &params.pcss)?;
+            let mut img = Image::new(recv.width, recv.height, 1.0f32);
+            for (r, v) in recv.list.iter().zip(v) {
+                img.data_mut()[r.pixel as usize] = v;
+            }
+            tm.visibility = ms_since(t2);
+            img
+        }
+    };
+    let t3 = Instant::now();
+    let image = recv.shade(&visibility, params.ambient)?;
+    tm.shade = ms_since(t3);
+    Ok(ShadowResult { image, visibility, ms: ms_since(start), timings: tm, warp_holes })
+}
+
+#[cfg(test)]
+mod tests;

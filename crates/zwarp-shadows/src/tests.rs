@@ -1,0 +1,324 @@
+//! Analytic and cross-checking tests of the soft-shadow pipeline.
+
+use glam::{Mat4, Vec2, Vec3};
+use proptest::prelude::*;
+use zwarp_core::{Animation, AreaLight, Camera, Image, LightShape, Mesh, Scene};
+use zwarp_raster::scenes::box_mesh;
+
+use super::*;
+
+/// A horizontal quad `[x0, x1] x [y0, y1]` at height `z`.
+fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32) -> Mesh {
+    Mesh::new(
+        vec![Vec3::new(x0, y0, z), Vec3::new(x1, y0, z), Vec3::new(x1, y1, z), Vec3::new(x0, y1, z)],
+        vec![[0, 1, 2], [0, 2, 3]],
+    )
+    .unwrap()
+}
+
+fn add(scene: &mut Scene, mesh: Mesh, albedo: Vec3, ground: bool) {
+    let m = scene.add_mesh(mesh);
+    scene.add_instance(m, Mat4::IDENTITY, albedo, Animation::Static, ground);
+}
+
+/// Ground 16 x 16 at z = 0 and (optionally) a 4 x 4 square occluder at z = 5 centred on the origin.
+fn square_over_plane(occluder: bool) -> Scene {
+    let mut s = Scene { name: "square".into(), ..Scene::default() };
+    add(&mut s, quad(-8.0, 8.0, -8.0, 8.0, 0.0), Vec3::splat(0.8), true);
+    if occluder {
+        add(&mut s, quad(-2.0, 2.0, -2.0, 2.0, 5.0), Vec3::new(0.8, 0.2, 0.2), false);
+    }
+    s
+}
+
+/// Orthographic camera looking straight down on a strip `|x| <= 6`, 0.05 units per pixel,
+/// 16 rows around y = 0.
+fn strip_camera() -> Camera {
+    Camera::orthographic(Vec3::new(0.0, 0.0, 20.0), Vec3::ZERO, Vec3::Y, 0.4, 1.0, 40.0, 240, 16).unwrap()
+}
+
+fn disc_light(center: Vec3, radius: f32, directional: bool) -> AreaLight {
+    AreaLight { center, target: Vec3::ZERO, up: Vec3::Y, shape: LightShape::Disc { radius }, directional }
+}
+
+/// Penumbra on row `y` for `x > x_min` (world): (last x with V = 0, first x after which V = 1).
+fn penumbra_extent(v: &Image<f32>, cam: &Camera, y: u32, x_min: f32) -> (f32, f32) {
+    let px = 2.0 * 6.0 / cam.width as f32;
+    let xw = |i: u32| -6.0 + (i as f32 + 0.5) * px;
+    let row = v.row(y);
+    let mut umbra_end = f32::NAN;
+    let mut lit_start = f32::NAN;
+    for (i, &vis) in row.iter().enumerate() {
+        let x = xw(i as u32);
+        if x <= x_min {
+            continue;
+        }
+        if vis <= 0.0 {
+            umbra_end = x;
+        }
+    }
+    for (i, &vis) in row.iter().enumerate().rev() {
+        let x = xw(i as u32);
+        if x <= x_min {
+            break;
+        }
+        if vis < 1.0 {
+            break;
+        }
+        lit_start = x;
+    }
+    (umbra_end, lit_start)
+}
+
+fn params(samples: u32, sm: u32) -> ShadowParams {
+    ShadowParams { samples, sm_size: sm, jitter: false, ..ShadowParams::default() }
+}
+
+#[test]
+fn penumbra_width_matches_similar_triangles_for_a_local_disc_light() {
+    // Disc of diameter D = 2 at height 10, occluder edge at height 5 (x = 2), receiver at 0:
+    // w = D (d_r - d_o) / d_o = 2 (10 - 5) / 5 = 2, centred on the edge's projection x = 4.
+    let scene = square_over_plane(true);
+    let cam = strip_camera();
+    let light = disc_light(Vec3::new(0.0, 0.0, 10.0), 1.0, false);
+    let r = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &params(1024, 512)).unwrap();
+    let (a, b) = penumbra_extent(&r.visibility, &cam, 8, 2.2);
+    let px = 0.05;
+    // The penumbra pixels lie strictly between a and b: width = b - a - px.
+    let w = b - a - px;
+    assert!((w - 2.0).abs() <= 2.0 * px, "penumbra [{a}, {b}] width {w}, expected 2");
+    assert!(((a + b) * 0.5 - 4.0).abs() <= 1.5 * px, "penumbra centre {} expected 4", (a + b) * 0.5);
+    // Zwarp at the same S reproduces the reference profile.
+    let z = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &params(256, 512)).unwrap();
+    let rr = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &params(256, 512)).unwrap();
+    let diffs: Vec<f32> = z.visibility.data().iter().zip(rr.visibility.data()).map(|(a, b)| (a - b).abs()).collect();
+    let max_diff = diffs.iter().copied().fold(0.0, f32::max);
+    let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
+    let (za, zb) = penumbra_extent(&z.visibility, &cam, 8, 2.2);
+    let (ra, rb) = penumbra_extent(&rr.visibility, &cam, 8, 2.2);
+    eprintln!("zwarp vs reference: max {max_diff} mean {mean}, penumbra [{za}, {zb}] vs [{ra}, {rb}]");
+    // The warp moves texel-sized source squares, so a silhouette may shift by up to a texel
+    // (seed 000, Sec. 7: "limited in sub-pixel accuracy"): a few samples per pixel, on average
+    // well under one.
+    assert!(
+        max_diff <= 10.0 / 256.0 + 1e-6 && mean < 3.0 / 256.0,
+        "zwarp vs reference visibility: max {max_diff} mean {mean}"
+    );
+    assert!((za - ra).abs() <= px + 1e-4 && (zb - rb).abs() <= px + 1e-4);
+}
+
+#[test]
+fn penumbra_width_of_a_directional_disc_light() {
+    // Sun-like disc of angular radius 0.1 (R = 10 at D = |(30, 0, 100)|), tilted in x. The edge
+    // (x = 2, z = 5) casts rays along the extreme directions d = (target - center) -+ R right.
+    let scene = square_over_plane(true);
+    let cam = strip_camera();
+    let center = Vec3::new(-30.0, 0.0, 100.0);
+    let light = disc_light(center, 10.0, true);
+    let axis = (-center).normalize();
+    let right = axis.cross(Vec3::Y).normalize();
+    let hit = |o: f32| {
+        let d = -center - right * o;
+        2.0 + d.x / d.z * (0.0 - 5.0)
+    };
+    let (x1, x2) = (hit(10.0).min(hit(-10.0)), hit(10.0).max(hit(-10.0)));
+    let r = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &params(1024, 512)).unwrap();
+    let (a, b) = penumbra_extent(&r.visibility, &cam, 8, 2.2);
+    let px = 0.05;
+    let w = b - a - px;
+    assert!(((x2 - x1) - w).abs() <= 2.0 * px, "penumbra [{a}, {b}] width {w}, expected [{x1}, {x2}]");
+    assert!(((a + b) - (x1 + x2)).abs() * 0.5 <= 1.5 * px);
+}
+
+#[test]
+fn one_centre_sample_is_the_hard_shadow() {
+    let scene = square_over_plane(true);
+    let cam = strip_camera();
+    // Rect light: S = 1 must be its centre whatever the jitter.
+    let light = AreaLight {
+        center: Vec3::new(0.5, 0.3, 10.0),
+        target: Vec3::new(0.5, 0.3, 0.0),
+        up: Vec3::Y,
+        shape: LightShape::Rect { width: 3.0, height: 1.0 },
+        directional: false,
+    };
+    let p = ShadowParams { samples: 1, sm_size: 1024, jitter: true, ..ShadowParams::default() };
+    let r = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &p).unwrap();
+    let z = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
+    // Zero parallax: the warp is the identity, the maps and so the images are identical.
+    assert_eq!(r.visibility, z.visibility);
+    assert_eq!(r.image, z.image);
+    // Analytic hard shadow from the point (0.5, 0.3, 10): ground point (x, y) is shadowed iff the
+    // segment to the light crosses z = 5 inside the square, i.e. (x + 0.5) / 2 in [-2, 2] (same in y).
+    let texel = 0.05; // ground-texel footprint of a 1024 map covering ~18 units is ~0.02; be generous
+    let mut checked = 0;
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let w = cam.unproject(x as f32 + 0.5, y as f32 + 0.5, 0.5);
+            let mx = (w.x + 0.5) * 0.5;
+            let my = (w.y + 0.3) * 0.5;
+            // Pixels seeing the occluder itself are lit (nothing above it).
+            if w.x.abs() <= 2.0 && w.y.abs() <= 2.0 {
+                continue;
+            }
+            let dist = (mx.abs() - 2.0).abs().min((my.abs() - 2.0).abs());
+            if dist < texel {
+                continue;
+            }
+            let shadowed = mx.abs() <= 2.0 && my.abs() <= 2.0;
+            let v = *r.visibility.get(x, y);
+            assert_eq!(v, if shadowed { 0.0 } else { 1.0 }, "pixel ({x}, {y}) world {w:?}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 2000, "{checked}");
+}
+
+#[test]
+fn scene_without_occluder_is_fully_lit_by_every_method() {
+    // A bent sheet (flat ground for x <= 2, rising with slope 0.6 beyond) lit from the flat side:
+    // a concave height field, nothing can shadow it; no acne with the default bias.
+    let mut scene = Scene { name: "sheet".into(), ..Scene::default() };
+    add(&mut scene, quad(-8.0, 2.0, -8.0, 8.0, 0.0), Vec3::splat(0.8), true);
+    let tilted = Mesh::new(
+        vec![Vec3::new(2.0, -8.0, 0.0), Vec3::new(6.0, -8.0, 2.4), Vec3::new(6.0, 8.0, 2.4), Vec3::new(2.0, 8.0, 0.0)],
+        vec![[0, 1, 2], [0, 2, 3]],
+    )
+    .unwrap();
+    add(&mut scene, tilted, Vec3::splat(0.5), false);
+    let cam =
+        Camera::perspective(Vec3::new(-6.0, -9.0, 9.0), Vec3::new(1.0, 0.0, 0.0), Vec3::Z, 0.9, 0.5, 60.0, 96, 64)
+            .unwrap();
+    let light = disc_light(Vec3::new(-3.0, 2.0, 12.0), 1.0, false);
+    for method in [Method::Reference, Method::Zwarp, Method::Pcss] {
+        for sm in [256, 1024] {
+            let r = run_shadows(&scene, &cam, 0.0, &light, method, &params(16, sm)).unwrap();
+            let dark = r.visibility.data().iter().filter(|&&v| v < 1.0).count();
+            assert_eq!(dark, 0, "{method:?} sm {sm}: {dark} pixels not fully lit");
+        }
+    }
+}
+
+/// Three boxes on a ground, seen obliquely.
+fn boxes_scene() -> (Scene, Camera, AreaLight) {
+    let mut s = Scene { name: "boxes".into(), ..Scene::default() };
+    add(&mut s, quad(-10.0, 10.0, -10.0, 10.0, 0.0), Vec3::new(0.7, 0.7, 0.6), true);
+    add(&mut s, box_mesh(Vec3::new(-3.0, -1.0, 0.0), Vec3::new(-1.0, 1.0, 3.0)), Vec3::new(0.8, 0.3, 0.2), false);
+    add(&mut s, box_mesh(Vec3::new(1.0, -2.0, 0.0), Vec3::new(2.0, 2.0, 1.5)), Vec3::new(0.2, 0.6, 0.8), false);
+    add(&mut s, box_mesh(Vec3::new(0.5, 2.5, 2.0), Vec3::new(2.5, 4.0, 2.5)), Vec3::new(0.3, 0.8, 0.3), false);
+    let cam =
+        Camera::perspective(Vec3::new(2.0, -14.0, 9.0), Vec3::new(0.0, 0.5, 0.5), Vec3::Z, 0.8, 0.5, 60.0, 128, 96)
+            .unwrap();
+    let light = disc_light(Vec3::new(-6.0, 3.0, 14.0), 1.5, false);
+    (s, cam, light)
+}
+
+#[test]
+fn zwarp_matches_the_reference_on_a_simple_scene_and_beats_pcss() {
+    let (scene, cam, light) = boxes_scene();
+    let p = ShadowParams { samples: 16, sm_size: 512, ..ShadowParams::default() };
+    let r = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &p).unwrap();
+    let z = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
+    let c = run_shadows(&scene, &cam, 0.0, &light, Method::Pcss, &p).unwrap();
+    let sz = zwarp_metrics::ssim_rgb(&z.image, &r.image, 1.0).unwrap();
+    let sc = zwarp_metrics::ssim_rgb(&c.image, &r.image, 1.0).unwrap();
+    let pz = zwarp_metrics::psnr_rgb(&z.image, &r.image, 1.0).unwrap();
+    let pc = zwarp_metrics::psnr_rgb(&c.image, &r.image, 1.0).unwrap();
+    assert!(sz > 0.99, "zwarp SSIM {sz}");
+    assert!(sz > sc && pz > pc, "zwarp {sz}/{pz} dB vs pcss {sc}/{pc} dB");
+    // Shadows exist at all (the test is not vacuous).
+    let shadowed = r.visibility.data().iter().filter(|&&v| v < 0.5).count();
+    assert!(shadowed > 500, "{shadowed}");
+}
+
+#[test]
+fn directional_rect_light_zwarp_matches_reference() {
+    let (scene, cam, _) = boxes_scene();
+    let light = AreaLight {
+        center: Vec3::new(-40.0, 20.0, 80.0),
+        target: Vec3::ZERO,
+        up: Vec3::Z,
+        shape: LightShape::Rect { width: 6.0, height: 3.0 },
+        directional: true,
+    };
+    let p = ShadowParams { samples: 16, sm_size: 512, ..ShadowParams::default() };
+    let r = run_shadows(&scene, &cam, 0.0, &light, Method::Reference, &p).unwrap();
+    let z = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
+    let sz = zwarp_metrics::ssim_rgb(&z.image, &r.image, 1.0).unwrap();
+    assert!(sz > 0.99, "zwarp SSIM {sz}");
+}
+
+#[test]
+fn default_light_is_above_and_aside() {
+    let (scene, _, _) = boxes_scene();
+    let l = default_light(&scene).unwrap();
+    validate_light(&l).unwrap();
+    let b = scene.bounds();
+    assert!(l.center.z > b.max.z + b.extent().length() * 0.9, "{l:?}");
+    assert!(Vec2::new(l.center.x - b.center().x, l.center.y - b.center().y).length() > 1.0);
+    assert!(matches!(l.shape, LightShape::Disc { radius } if radius > 0.0));
+    assert!(!l.directional);
+    assert!(default_light(&Scene::default()).is_err());
+    // It lights the scene without errors, with visible shadows.
+    let cam = boxes_scene().1;
+    let r = run_shadows(&scene, &cam, 0.0, &l, Method::Reference, &params(4, 256)).unwrap();
+    assert!(r.visibility.data().iter().any(|&v| v < 1.0));
+}
+
+#[test]
+fn bad_inputs_are_errors_not_panics() {
+    let (scene, cam, light) = boxes_scene();
+    let bad = |p: ShadowParams| run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).is_err();
+    assert!(bad(ShadowParams { samples: 0, ..ShadowParams::default() }));
+    assert!(bad(ShadowParams { sm_size: 0, ..ShadowParams::default() }));
+    assert!(bad(ShadowParams { layers: 0, ..ShadowParams::default() }));
+    assert!(bad(ShadowParams { n_seeds: 0, ..ShadowParams::default() }));
+    assert!(bad(ShadowParams { ambient: 2.0, ..ShadowParams::default() }));
+    assert!(bad(ShadowParams { bias: DepthBias { constant: -1.0, slope: 0.0 }, ..ShadowParams::default() }));
+    assert!(run_shadows(&scene, &cam, f32::NAN, &light, Method::Reference, &params(4, 64)).is_err());
+    assert!(run_shadows(&Scene::default(), &cam, 0.0, &light, Method::Reference, &params(4, 64)).is_err());
+    // A local light inside the scene bounds cannot be covered by one perspective map.
+    let inside = disc_light(Vec3::new(0.0, 0.0, 1.0), 0.5, false);
+    let e = run_shadows(&scene, &cam, 0.0, &inside, Method::Reference, &params(4, 64)).unwrap_err();
+    assert!(e.to_string().contains("not in front"), "{e}");
+    assert!("nope".parse::<Method>().is_err());
+    assert_eq!("ZWARP".parse::<Method>().unwrap(), Method::Zwarp);
+    // Receivers need a frame of the camera's size.
+    let rig = LightRig::new(&scene, 0.0, &light, 4, 64, 1, true).unwrap();
+    let frame = zwarp_raster::render_frame(&scene, &cam, 0.0, &Default::default()).unwrap();
+    let small = cam.with_size(8, 8).unwrap();
+    assert!(Receivers::build(&frame, &small, &scene, &rig, &DepthBias::default()).is_err());
+    let recv = Receivers::build(&frame, &cam, &scene, &rig, &DepthBias::default()).unwrap();
+    assert!(recv.shade(&Image::new(3, 3, 1.0), 0.25).is_err());
+    assert!(pcss_visibility(&recv, &rig, &Image::new(3, 3, 1.0), &PcssParams::default()).is_err());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// The visibility pass's two multiply-adds `p_c + K_i g` equal a full projection with the
+    /// sample cameras the maps are rendered with (local and directional lights).
+    #[test]
+    fn sample_shift_equals_projection(
+        px in -4.0f32..4.0, py in -4.0f32..4.0, pz in 0.0f32..3.0, directional in any::<bool>(), i in 0usize..16,
+    ) {
+        let (scene, _, _) = boxes_scene();
+        let light = AreaLight {
+            center: Vec3::new(-6.0, 3.0, 14.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            shape: LightShape::Rect { width: 3.0, height: 2.0 },
+            directional,
+        };
+        let rig = LightRig::new(&scene, 0.0, &light, 16, 512, 3, true).unwrap();
+        let p = Vec3::new(px, py, pz);
+        let c = rig.center.project(p).unwrap();
+        let z = -(rig.center.view * p.extend(1.0)).z;
+        let s = rig.cameras[i].project(p).unwrap();
+        let pred = Vec2::new(c.x, c.y) + rig.shifts[i] * rig.depth_param(z);
+        prop_assert!((pred - Vec2::new(s.x, s.y)).length() < 2e-2, "{:?} vs {:?}", pred, s);
+        // Same view depth in every sample map.
+        prop_assert!((s.z - c.z).abs() < 1e-5);
+        // And the point is inside every map (the rig covers the bounds from every sample).
+        prop_assert!(s.x >= 0.0 && s.y >= 0.0 && s.x <= 512.0 && s.y <= 512.0);
+    }
+}
