@@ -1,22 +1,27 @@
 //! Prints object / triangle / mesh counts and load (generation) times of scenes.
 //!
 //! `cargo run --release -p zwarp-scene --example scene_stats -- yr mo bl cb /path/to/sponza /path/to/munich`
-//! Optional `--scale S`, `--seed N`, `--write-paths DIR` (writes `<name>.path.json`).
+//! Optional `--scale S`, `--seed N`, `--write-paths DIR` (writes `<name>.path.json`),
+//! `--street` (files: street-level walk instead of the default flight), `--path FILE.json`.
 
 use std::time::Instant;
 
-use zwarp_scene::{load_scene, motion_profile, SceneOptions};
+use zwarp_scene::{load_scene, motion_profile, street_level_path, CameraPath, SceneOptions};
 
 fn main() {
     let mut opts = SceneOptions::default();
     let mut specs = Vec::new();
     let mut write_paths = None;
+    let mut street = false;
+    let mut path_file = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--scale" => opts.scale = args.next().and_then(|v| v.parse().ok()).expect("--scale needs a number"),
             "--seed" => opts.seed = args.next().and_then(|v| v.parse().ok()).expect("--seed needs an integer"),
             "--write-paths" => write_paths = args.next(),
+            "--street" => street = true,
+            "--path" => path_file = args.next(),
             _ => specs.push(a),
         }
     }
@@ -44,7 +49,18 @@ fn main() {
         times.sort_by(f64::total_cmp);
         let s = last.unwrap();
         let sc = &s.scene;
-        let path = s.path_or_default();
+        let path = match (&path_file, &s.path) {
+            (Some(f), _) => CameraPath::from_json_file(f).unwrap_or_else(|e| {
+                eprintln!("error: {e}");
+                std::process::exit(1)
+            }),
+            (None, Some(p)) => p.clone(),
+            (None, None) if street => street_level_path(sc, 1.8, 1.4, 10.0, 1.0).unwrap_or_else(|e| {
+                eprintln!("error: {e}");
+                std::process::exit(1)
+            }),
+            (None, None) => CameraPath::default_for(sc),
+        };
         let motion = motion_profile(sc, &path, 1920, 1080, 1.0).expect("motion profile");
         println!(
             "| {} | {} | {} | {} | {} | {} | {:.0} ({:.0}-{:.0}) | {:.1}{} | {:.1} / {:.1} |",
@@ -58,7 +74,13 @@ fn main() {
             times[0],
             times[2],
             path.duration(),
-            if s.path.is_some() { "" } else { " (default)" },
+            if s.path.is_some() || path_file.is_some() {
+                ""
+            } else if street {
+                " (street)"
+            } else {
+                " (default)"
+            },
             motion.mean_max(),
             motion.peak(),
         );

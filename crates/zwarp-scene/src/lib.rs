@@ -23,7 +23,7 @@ use std::path::Path;
 use glam::Vec3;
 use zwarp_core::{Error, Result, Scene};
 
-pub use path::{motion_profile, CameraPath, MotionProfile, PathKey};
+pub use path::{motion_profile, street_level_path, CameraPath, MotionProfile, PathKey};
 
 /// How a triangle soup (raw `VertexBuffer.bin`/`IndexBuffer.bin` folder or a standalone PLY
 /// file, which have no object structure) is split into objects for per-object culling

@@ -284,6 +284,165 @@ pub fn motion_profile(scene: &Scene, path: &CameraPath, width: u32, height: u32,
     Ok(MotionProfile { max_per_frame })
 }
 
+/// Street-level walk for a loaded city-like scene (DESIGN.md "Scenes": Munich wants "a
+/// street-level camera (eye ~1.8 m above the ground) walking along the streets"; seed 000
+/// Sec. 5 tests occlusion culling in such street canyons).
+///
+/// The scene's objects (boxes at t = 0, inflated by `clearance`) are rasterized into a
+/// horizontal occupancy grid at eye height; the straight axis-aligned free corridor of length
+/// `speed * duration` that has walls on both sides (a street canyon) and runs along the middle
+/// of its street is chosen, preferring corridors near the centre of the scene. It needs a
+/// ground object (`is_ground`) or a floor at the scene's lowest point: in a soup whose floor is
+/// not flagged (Sponza) the floor blocks every cell; use a hand-made path there. The camera walks it at `eye_height` above the ground
+/// level (lowest point of the ground objects, or of the scene), looking ahead with a slow
+/// side-to-side head turn. Works for Z-up and Y-up scenes. Errors if no corridor exists.
+pub fn street_level_path(
+    scene: &Scene,
+    eye_height: f32,
+    speed: f32,
+    duration: f32,
+    clearance: f32,
+) -> Result<CameraPath> {
+    let finite_pos = |v: f32| v.is_finite() && v > 0.0;
+    if !(finite_pos(eye_height)
+        && finite_pos(speed)
+        && finite_pos(duration)
+        && clearance.is_finite()
+        && clearance >= 0.0)
+    {
+        return Err(Error::invalid("street-level path: eye height, speed, duration must be > 0 and clearance >= 0"));
+    }
+    let up = scene.up.normalize_or(Vec3::Z);
+    let a_up = up.abs().max_position();
+    if up.abs()[a_up] < 0.999 {
+        return Err(Error::invalid("street-level path: the scene's up vector must be a coordinate axis"));
+    }
+    let sign = up[a_up].signum();
+    let (a0, a1) = ((a_up + 1) % 3, (a_up + 2) % 3);
+    let b = scene.bounds();
+    if b.is_empty() {
+        return Err(Error::invalid("street-level path: the scene is empty"));
+    }
+    // Heights are measured along `up` (sign handles a -axis up).
+    let hmin = |bb: &zwarp_core::Aabb| if sign > 0.0 { bb.min[a_up] } else { -bb.max[a_up] };
+    let hmax = |bb: &zwarp_core::Aabb| if sign > 0.0 { bb.max[a_up] } else { -bb.min[a_up] };
+    let ground =
+        scene.instances.iter().filter(|i| i.is_ground).map(|i| hmin(&i.world_aabb)).fold(f32::INFINITY, f32::min);
+    let ground = if ground.is_finite() { ground } else { hmin(&b) };
+    let len = speed * duration;
+    let (lo0, lo1) = (b.min[a0] - 1.0, b.min[a1] - 1.0);
+    let (ext0, ext1) = (b.max[a0] - lo0 + 1.0, b.max[a1] - lo1 + 1.0);
+    // About 1 m cells, at most 2048 per side.
+    let cell = (ext0.max(ext1) / 2048.0).max(0.5).min(len / 8.0).max(1e-3);
+    let (n0, n1) = ((ext0 / cell).ceil() as usize + 1, (ext1 / cell).ceil() as usize + 1);
+    let mut occ = vec![false; n0 * n1];
+    let cell_of = |v: f32, lo: f32, n: usize| (((v - lo) / cell).floor().max(0.0) as usize).min(n - 1);
+    for inst in scene.instances.iter().filter(|i| !i.is_ground) {
+        let bb = inst.world_aabb;
+        // Only what blocks a walker: reaches above the ankles and below the head.
+        if hmax(&bb) < ground + 0.3 || hmin(&bb) > ground + eye_height + 1.0 {
+            continue;
+        }
+        let (i0, i1) = (cell_of(bb.min[a0] - clearance, lo0, n0), cell_of(bb.max[a0] + clearance, lo0, n0));
+        let (j0, j1) = (cell_of(bb.min[a1] - clearance, lo1, n1), cell_of(bb.max[a1] + clearance, lo1, n1));
+        for j in j0..=j1 {
+            occ[j * n0 + i0..=j * n0 + i1].fill(true);
+        }
+    }
+    // The grid has a 1 m margin around the bounds: corridors must stay inside the bounds (an
+    // enclosed building's outside is not a street), but the margin is no wall either.
+    let inside = |i: usize, j: usize| {
+        let (u, v) = (lo0 + (i as f32 + 0.5) * cell, lo1 + (j as f32 + 0.5) * cell);
+        u >= b.min[a0] && u <= b.max[a0] && v >= b.min[a1] && v <= b.max[a1]
+    };
+    let need = (len / cell).ceil() as usize + 1;
+    let reach = (20.0 / cell).ceil() as usize; // canyon walls searched up to 20 m aside
+    let at = |i: usize, j: usize| occ[j * n0 + i];
+    // Best corridor: (score, axis 0 or 1, fixed index, start index along the corridor).
+    let mut best: Option<(f32, usize, usize, usize)> = None;
+    let centre = (n0 as f32 * 0.5, n1 as f32 * 0.5);
+    for axis in 0..2 {
+        let (n_along, n_across) = if axis == 0 { (n0, n1) } else { (n1, n0) };
+        let get = |along: usize, across: usize| if axis == 0 { at(along, across) } else { at(across, along) };
+        let blocked = |along: usize, across: usize| {
+            get(along, across) || if axis == 0 { !inside(along, across) } else { !inside(across, along) }
+        };
+        for across in 1..n_across.saturating_sub(1) {
+            let mut run_start = 0;
+            for along in 0..=n_along {
+                if along < n_along && !blocked(along, across) {
+                    continue;
+                }
+                let run = along - run_start;
+                if run >= need {
+                    let start = run_start + (run - need) / 2;
+                    // Street score per sample along the corridor: a wall on both sides
+                    // within `reach` (a canyon, not an open field), and the distance to the
+                    // nearer wall (walk the middle of wide streets, not alleys).
+                    let (mut canyon, mut middle, mut samples) = (0.0f32, 0.0f32, 0.0f32);
+                    let step = (need / 16).max(1);
+                    for k in (start..start + need).step_by(step) {
+                        let side = |dir: i64| {
+                            (1..=reach).find(|&d| {
+                                let c = across as i64 + dir * d as i64;
+                                c >= 0 && c < n_across as i64 && get(k, c as usize)
+                            })
+                        };
+                        let (l, r) = (side(-1), side(1));
+                        if l.is_some() && r.is_some() {
+                            canyon += 1.0;
+                        }
+                        let near = l.unwrap_or(reach).min(r.unwrap_or(reach)) as f32 * cell;
+                        middle += near.min(6.0) / 6.0;
+                        samples += 1.0;
+                    }
+                    let mut score = (canyon + 0.5 * middle) / samples;
+                    // Mild preference for the middle of the scene.
+                    let mid = start as f32 + need as f32 * 0.5;
+                    let (c_along, c_across) = if axis == 0 { centre } else { (centre.1, centre.0) };
+                    let off = ((mid - c_along) / n_along as f32).powi(2)
+                        + ((across as f32 - c_across) / n_across as f32).powi(2);
+                    score *= 1.0 / (1.0 + 4.0 * off);
+                    if best.is_none_or(|b| score > b.0) {
+                        best = Some((score, axis, across, start));
+                    }
+                }
+                run_start = along + 1;
+            }
+        }
+    }
+    let (_, axis, across, start) = best.ok_or_else(|| {
+        Error::invalid(format!("street-level path: no free straight corridor of {len} m at eye height in the scene"))
+    })?;
+    let world = |along: f32, across: f32, h: f32| {
+        let (u, v) = if axis == 0 { (along, across) } else { (across, along) };
+        let mut p = Vec3::ZERO;
+        p[a0] = lo0 + u * cell;
+        p[a1] = lo1 + v * cell;
+        p[a_up] = sign * h;
+        p
+    };
+    let along0 = start as f32 + 0.5;
+    let across_c = across as f32 + 0.5;
+    let p0 = world(along0, across_c, ground + eye_height);
+    let p1 = world(along0 + len / cell, across_c, ground + eye_height);
+    let dir = (p1 - p0).normalize();
+    let side = up.cross(dir);
+    let keys = (0..=duration.ceil() as usize)
+        .map(|k| {
+            let t = (k as f32).min(duration);
+            let eye = p0 + dir * (speed * t);
+            // Look 15 m ahead, slightly down, turning the head +-15 degrees every ~10 s.
+            let target = eye + dir * 15.0 + side * (4.0 * (0.6 * t).sin()) - up * 0.5;
+            PathKey { t, eye, target }
+        })
+        .collect::<Vec<_>>();
+    let diag = b.extent().length();
+    let path = CameraPath { fov_y_deg: 60.0, near: 0.1, far: diag.max(10.0), up, fps: 30.0, keys };
+    path.validate()?;
+    Ok(path)
+}
+
 /// Catmull-Rom (cardinal spline with tension 0) on segment `i` at time `t`, knots at the key
 /// times: Hermite interpolation with tangents `(p_{i+1} - p_{i-1}) / (t_{i+1} - t_{i-1})`
 /// (one-sided at the ends). It passes through every key and has continuous velocity, and it
@@ -447,6 +606,41 @@ mod tests {
         }
         let fast = motion_profile(&s, &p, 640, 480, 4.0).unwrap();
         assert!((fast.peak() - 4.0 * want).abs() < 4e-2 * want);
+    }
+
+    #[test]
+    fn street_level_path_walks_the_canyon() {
+        // Two rows of 20 m tall buildings along x with a 12 m street between y = -6 and 6,
+        // plus a ground plane and a narrower 4 m alley at y = 30 between the north row and a
+        // third row.
+        let mut s = Scene::default();
+        let cube = s.add_mesh(crate::shapes::unit_box().build().unwrap());
+        let quad =
+            s.add_mesh(crate::shapes::height_field(-100.0, -100.0, 100.0, 100.0, 1, 1, |_, _| 0.0).build().unwrap());
+        s.add_instance(quad, glam::Mat4::IDENTITY, Vec3::ONE, Default::default(), true);
+        for (yc, depth) in [(-16.0, 20.0), (17.0, 22.0), (48.0, 28.0)] {
+            for k in 0..8 {
+                let x = -70.0 + k as f32 * 20.0;
+                let t = glam::Mat4::from_scale_rotation_translation(
+                    Vec3::new(19.0, depth, 20.0),
+                    glam::Quat::IDENTITY,
+                    Vec3::new(x, yc, 0.0),
+                );
+                s.add_instance(cube, t, Vec3::ONE, Default::default(), false);
+            }
+        }
+        let p = street_level_path(&s, 1.8, 1.5, 10.0, 1.0).unwrap();
+        assert_eq!(p.duration(), 10.0);
+        let (a, b) = (p.keys[0].eye, p.keys.last().unwrap().eye);
+        assert!(((b - a).length() - 15.0).abs() < 1e-3, "walks speed * duration");
+        for k in &p.keys {
+            assert!((k.eye.z - 1.8).abs() < 1e-4);
+            assert!(k.eye.y.abs() < 5.0, "in the main street, got {}", k.eye);
+            assert!((k.target - k.eye).x.abs() > 10.0, "looks along the street");
+        }
+        // No room for a 1000 m walk.
+        assert!(street_level_path(&s, 1.8, 100.0, 10.0, 1.0).unwrap_err().to_string().contains("no free"));
+        assert!(street_level_path(&s, 0.0, 1.0, 10.0, 1.0).is_err());
     }
 
     #[test]

@@ -310,3 +310,13 @@ fn decode_b64(s: &str) -> Vec<u8> {
     }
     out
 }
+
+#[test]
+fn committed_paths_for_the_real_scenes_are_valid() {
+    for f in ["sponza_court.json", "munich_street.json"] {
+        let p = CameraPath::from_json_file(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("paths").join(f)).unwrap();
+        assert_eq!(p.duration(), 10.0, "{f}");
+        assert_eq!(p.frame_count(), 301, "{f}");
+        assert_eq!(p.up, Vec3::Z, "{f}");
+    }
+}
