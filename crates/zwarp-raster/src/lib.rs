@@ -19,6 +19,8 @@
 //! chunks, binning into 64x32 tiles, parallel tile rasterization with 8-wide incremental edge
 //! functions (AVX2 selected at run time), per-tile early-z and front-to-back instance order.
 
+#![warn(missing_docs)]
+
 mod kernel;
 mod peel;
 pub mod scenes;

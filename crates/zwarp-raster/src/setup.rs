@@ -570,6 +570,7 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
         if mesh.indices.is_empty() {
             continue;
         }
+
         let model = inst.transform_at(t);
         if !model.is_finite() {
             return Err(Error::invalid(format!("instance {id} has a non-finite transform at t={t}")));
@@ -582,6 +583,18 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
         sel.push((dist, id, model));
     }
     sel.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // `Mesh::new` validates indices, but the fields are public: check every mesh in use once so
+    // set-up never indexes out of range.
+    let mut used = vec![false; scene.meshes.len()];
+    for &(_, id, _) in &sel {
+        used[scene.instances[id as usize].mesh as usize] = true;
+    }
+    for (mi, mesh) in scene.meshes.iter().enumerate().filter(|(mi, _)| used[*mi]) {
+        let nv = mesh.positions.len() as u32;
+        if mesh.indices.par_iter().any(|t| t[0] >= nv || t[1] >= nv || t[2] >= nv) {
+            return Err(Error::invalid(format!("mesh {mi} has a triangle indexing beyond its {nv} vertices")));
+        }
+    }
     let mut draws = Vec::with_capacity(sel.len());
     let (mut vo, mut to) = (0usize, 0usize);
     for &(_, id, model) in &sel {

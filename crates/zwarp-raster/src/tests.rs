@@ -559,6 +559,9 @@ fn bad_input_is_an_error() {
     let mut zero = cam;
     zero.width = 0;
     assert!(render_depth(&s, &zero, 0.0).is_err());
+    let mut broken = stacked_cards();
+    broken.meshes[0].indices.push([0, 1, 99]);
+    assert!(matches!(render_depth(&broken, &cam, 0.0), Err(Error::Invalid(_))));
     let huge = cam.with_size(20000, 8).unwrap();
     assert!(render_depth(&s, &huge, 0.0).is_err());
 }
