@@ -184,15 +184,29 @@ fn gltf_mesh(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> 
     let mut positions: Vec<Vec3> = Vec::new();
     let mut indices: Vec<[u32; 3]> = Vec::new();
     for prim in mesh.primitives() {
+        // Check the accessors against their buffers first: the gltf reader silently yields
+        // nothing for an accessor that overruns its buffer, which would drop geometry or
+        // turn an indexed primitive into a non-indexed one.
+        let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else { continue };
+        check_accessor(&pos_acc, buffers)
+            .map_err(|m| Error::parse(path, format!("glTF mesh {}: {m}", mesh.index())))?;
+        if let Some(ia) = prim.indices() {
+            check_accessor(&ia, buffers).map_err(|m| Error::parse(path, format!("glTF mesh {}: {m}", mesh.index())))?;
+        }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let Some(pos) = reader.read_positions() else { continue };
+        let Some(pos) = reader.read_positions() else {
+            return Err(Error::parse(path, format!("glTF mesh {}: unreadable POSITION accessor", mesh.index())));
+        };
         let base = positions.len() as u32;
         let start = positions.len();
         positions.extend(pos.map(Vec3::from_array));
         let n = (positions.len() - start) as u32;
-        let idx: Vec<u32> = match reader.read_indices() {
-            Some(i) => i.into_u32().collect(),
-            None => (0..n).collect(),
+        let idx: Vec<u32> = match (prim.indices(), reader.read_indices()) {
+            (_, Some(i)) => i.into_u32().collect(),
+            (None, None) => (0..n).collect(),
+            (Some(_), None) => {
+                return Err(Error::parse(path, format!("glTF mesh {}: unreadable index accessor", mesh.index())))
+            }
         };
         if let Some(&bad) = idx.iter().find(|&&i| i >= n) {
             return Err(Error::parse(
@@ -212,6 +226,32 @@ fn gltf_mesh(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> 
         indices.extend(tris.into_iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
     }
     Mesh::new(positions, indices).map_err(|e| Error::parse(path, format!("glTF mesh {}: {}", mesh.index(), strip(e))))
+}
+
+/// `Err(message)` unless accessor `a` lies inside its buffer view and the view inside its
+/// buffer (sparse accessors without a view are rejected: not used for positions in practice).
+fn check_accessor(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> std::result::Result<(), String> {
+    let view =
+        a.view().ok_or_else(|| format!("accessor {} has no buffer view (sparse-only is unsupported)", a.index()))?;
+    let elem = a.size();
+    let stride = view.stride().unwrap_or(elem);
+    let need = if a.count() == 0 { 0 } else { a.offset() + (a.count() - 1) * stride + elem };
+    if need > view.length() {
+        return Err(format!(
+            "accessor {} needs {need} bytes but its buffer view has {} (truncated?)",
+            a.index(),
+            view.length()
+        ));
+    }
+    let buf_len = buffers.get(view.buffer().index()).map_or(0, |b| b.0.len());
+    if view.offset() + view.length() > buf_len {
+        return Err(format!(
+            "buffer view {} ends at byte {} but its buffer has {buf_len} bytes (truncated?)",
+            view.index(),
+            view.offset() + view.length()
+        ));
+    }
+    Ok(())
 }
 
 /// Loads any supported single mesh file into its objects.

@@ -218,6 +218,19 @@ fn malformed_gltf_files_are_reported() {
     std::fs::write(&f, serde_json::to_string(&v2).unwrap()).unwrap();
     let msg = err_of(f.to_str().unwrap());
     assert!(msg.contains("oor.gltf") && msg.contains("indexes vertex 7"), "{msg}");
+    // Accessors overrunning their buffer views / buffers are caught, not silently dropped.
+    for (k, (field, idx, key, val)) in
+        [("accessors", 0, "count", 300), ("bufferViews", 0, "byteLength", 3600), ("accessors", 1, "byteOffset", 1000)]
+            .into_iter()
+            .enumerate()
+    {
+        let mut bad = v.clone();
+        bad[field][idx][key] = val.into();
+        let f = d.join(format!("overrun{k}.gltf"));
+        std::fs::write(&f, serde_json::to_string(&bad).unwrap()).unwrap();
+        let msg = err_of(f.to_str().unwrap());
+        assert!(msg.contains(&format!("overrun{k}.gltf")) && msg.contains("truncated?"), "{msg}");
+    }
     // A NaN position.
     let mut bytes = decode_b64(b64);
     bytes[12..16].copy_from_slice(&f32::NAN.to_le_bytes());
@@ -318,5 +331,19 @@ fn committed_paths_for_the_real_scenes_are_valid() {
         assert_eq!(p.duration(), 10.0, "{f}");
         assert_eq!(p.frame_count(), 301, "{f}");
         assert_eq!(p.up, Vec3::Z, "{f}");
+    }
+}
+
+#[test]
+fn default_path_of_a_y_up_file_flies_above_it() {
+    let l = load_scene(&fixture("two_tris.obj"), &SceneOptions::default()).unwrap();
+    let p = l.path_or_default();
+    assert_eq!(p.up, Vec3::Y);
+    let b = l.scene.bounds();
+    for (_, cam) in p.frames(64, 48, 2.0).unwrap() {
+        let e = cam.eye();
+        assert!(e.y > b.max.y + 1.0, "eye {e} must be above the Y-up scene");
+        let c = cam.project(b.center()).unwrap();
+        assert!(c.x > 0.0 && c.x < 64.0 && c.y > 0.0 && c.y < 48.0 && c.z < 1.0);
     }
 }
