@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use zwarp_core::{Camera, Image};
-use zwarp_metrics::{depth_quality, psnr, signed_depth_errors, ssim, ssim_map};
+use zwarp_metrics::{depth_quality, normalized_linear_depth, psnr, signed_depth_errors, ssim, ssim_map, surface_range};
 
 /// Process CPU time (user + system) in ms from /proc/self/stat (Linux; 10 ms ticks), so the
 /// figures stay meaningful on a machine shared with other jobs; `None` elsewhere.
@@ -61,6 +61,8 @@ fn main() -> zwarp_core::Result<()> {
     time("ssim 1920x1080", 15, || ssim(&predicted, &reference, 1.0));
     time("ssim_map 1920x1080", 15, || ssim_map(&predicted, &reference, 1.0));
     time("signed_depth_errors", 15, || signed_depth_errors(&predicted, &reference, 1e-4, 1.0));
+    time("normalized_linear_depth", 9, || normalized_linear_depth(&predicted, &cam, (2.0, 6.0)));
+    time("surface_range", 9, || surface_range(&reference, &cam));
     time("depth_quality (2 psnr+2 ssim)", 9, || depth_quality(&predicted, &reference, &cam));
     println!("{:?}", depth_quality(&predicted, &reference, &cam)?);
     Ok(())

@@ -6,7 +6,9 @@
 use rayon::prelude::*;
 use zwarp_core::{is_surface, Camera, Error, Image, Result};
 
-use crate::{check_finite, psnr, ssim};
+use crate::psnr::sum_sq_diff;
+use crate::ssim::{prepare, ssim_validated};
+use crate::{check_finite, psnr_from_mse};
 
 /// Nearest and farthest *linear* view depth (camera units along the view axis) of the surfaces
 /// in a reference depth buffer: the normalization range of the headline depth metrics.
@@ -104,15 +106,26 @@ pub fn depth_quality(predicted: &Image<f32>, reference: &Image<f32>, cam: &Camer
     };
     let np = normalized_linear_depth(predicted, cam, range);
     let nr = normalized_linear_depth(reference, cam, range);
-    let cp = predicted.map(|d| d.clamp(0.0, 1.0));
-    let cr = reference.map(|d| d.clamp(0.0, 1.0));
-    let holes =
-        predicted.data().iter().zip(reference.data()).filter(|(p, r)| !is_surface(**p) && is_surface(**r)).count();
+    // Stored buffers clamped to [0, 1]; copied only when something lies outside.
+    let clamp = |img: &Image<f32>| -> Option<Image<f32>> {
+        img.data().iter().any(|d| !(0.0..=1.0).contains(d)).then(|| img.map(|d| d.clamp(0.0, 1.0)))
+    };
+    let (cp, cr) = (clamp(predicted), clamp(reference));
+    let (cp, cr) = (cp.as_ref().unwrap_or(predicted), cr.as_ref().unwrap_or(reference));
+    let holes = predicted
+        .data()
+        .par_iter()
+        .zip(reference.data().par_iter())
+        .filter(|(p, r)| !is_surface(**p) && is_surface(**r))
+        .count();
+    // Everything is validated above: all four buffers are finite and of one size >= 11x11.
+    let (w, h, c) = prepare(&np, &nr, 1.0, "depth_quality")?;
+    let n = reference.len() as f64;
     Ok(DepthQuality {
-        psnr: psnr(&np, &nr, 1.0)?,
-        ssim: ssim(&np, &nr, 1.0)?,
-        psnr_buffer: psnr(&cp, &cr, 1.0)?,
-        ssim_buffer: ssim(&cp, &cr, 1.0)?,
+        psnr: psnr_from_mse(sum_sq_diff(np.data(), nr.data()) / n, 1.0)?,
+        ssim: ssim_validated(np.data(), nr.data(), w, h, c),
+        psnr_buffer: psnr_from_mse(sum_sq_diff(cp.data(), cr.data()) / n, 1.0)?,
+        ssim_buffer: ssim_validated(cp.data(), cr.data(), w, h, c),
         range,
         hole_fraction: holes as f64 / reference.len() as f64,
     })

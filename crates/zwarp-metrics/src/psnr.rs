@@ -10,7 +10,7 @@ use crate::{check_pair, check_range, split_rgb};
 const CHUNK: usize = 1 << 14;
 
 /// Sum of squared differences in f64 over two equally long slices.
-fn sum_sq_diff(a: &[f32], b: &[f32]) -> f64 {
+pub(crate) fn sum_sq_diff(a: &[f32], b: &[f32]) -> f64 {
     a.par_chunks(CHUNK)
         .zip(b.par_chunks(CHUNK))
         .map(|(ca, cb)| ca.iter().zip(cb).map(|(&x, &y)| (x as f64 - y as f64).powi(2)).sum::<f64>())

@@ -231,7 +231,12 @@ fn ssim_band_generic(
 }
 
 /// Validates an SSIM input pair and returns `(w, h, (C1, C2))`.
-fn prepare(a: &Image<f32>, b: &Image<f32>, data_range: f32, what: &str) -> Result<(usize, usize, (f64, f64))> {
+pub(crate) fn prepare(
+    a: &Image<f32>,
+    b: &Image<f32>,
+    data_range: f32,
+    what: &str,
+) -> Result<(usize, usize, (f64, f64))> {
     check_range(data_range, what)?;
     check_pair(a, b, what)?;
     let (w, h) = (a.width() as usize, a.height() as usize);
@@ -255,6 +260,12 @@ fn prepare(a: &Image<f32>, b: &Image<f32>, data_range: f32, what: &str) -> Resul
 /// `data_range`. Parallel over row bands (rayon); the result does not depend on the thread count.
 pub fn ssim(a: &Image<f32>, b: &Image<f32>, data_range: f32) -> Result<f64> {
     let (w, h, c) = prepare(a, b, data_range, "ssim")?;
+    Ok(ssim_validated(a.data(), b.data(), w, h, c))
+}
+
+/// [`ssim`] on inputs already validated by [`prepare`] (callers computing several metrics on
+/// the same buffers validate once).
+pub(crate) fn ssim_validated(a: &[f32], b: &[f32], w: usize, h: usize, c: (f64, f64)) -> f64 {
     let r = SSIM_RADIUS;
     // Only the rows that survive the crop are computed.
     let (lo, hi) = (r, h - r);
@@ -263,12 +274,12 @@ pub fn ssim(a: &Image<f32>, b: &Image<f32>, data_range: f32) -> Result<f64> {
         .par_iter()
         .map(|&(y0, y1)| {
             let mut s = 0.0;
-            ssim_band(a.data(), b.data(), w, h, y0, y1, c, |_, row| s += row[r..w - r].iter().sum::<f64>());
+            ssim_band(a, b, w, h, y0, y1, c, |_, row| s += row[r..w - r].iter().sum::<f64>());
             s
         })
         .collect();
     let n = ((w - 2 * r) * (h - 2 * r)) as f64;
-    Ok(sums.iter().sum::<f64>() / n)
+    sums.iter().sum::<f64>() / n
 }
 
 /// The full-size local SSIM map (Wang et al. 2004; scikit-image's `full=True` output) for heat
