@@ -89,6 +89,9 @@ pub fn read_ply(path: &Path) -> Result<PlyMesh> {
 /// Parses PLY bytes; the error is a one-line message (without the file name).
 pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
     let (format, elements, body) = parse_header(bytes)?;
+    // Every element takes at least one byte of the body, so this caps reservations driven by
+    // a (possibly corrupt) header count.
+    let cap = body.len();
     let mut reader: Box<dyn ValueReader> = match format {
         Format::Ascii => Box::new(AsciiReader::new(body)?),
         Format::BinaryLe => Box::new(BinReader { data: body, pos: 0, big: false }),
@@ -105,7 +108,7 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                     (Some(x), Some(y), Some(z)) => (x, y, z),
                     _ => return Err("vertex element lacks x, y or z".into()),
                 };
-                out.positions.reserve(el.count.min(1 << 26));
+                out.positions.reserve(el.count.min(cap));
                 for v in 0..el.count {
                     let mut p = [0.0f64; 3];
                     for (k, prop) in el.props.iter().enumerate() {
@@ -141,7 +144,7 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                     )
                     .ok_or("face element has no vertex_indices list")?;
                 let mut poly: Vec<u32> = Vec::with_capacity(8);
-                out.indices.reserve(el.count.min(1 << 26));
+                out.indices.reserve(el.count.min(cap));
                 for f in 0..el.count {
                     for (k, prop) in el.props.iter().enumerate() {
                         match prop {
@@ -380,6 +383,34 @@ property list int uint vertex_index\nelement edge 1\nproperty int a\nproperty in
             let m = parse_ply(&binary(big)).unwrap();
             assert_eq!(m.positions, vec![Vec3::new(0.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 1.0), Vec3::new(0.0, 3.0, 1.5)]);
             assert_eq!(m.indices, vec![[2, 1, 0]]);
+        }
+    }
+
+    proptest::proptest! {
+        /// Corrupted or truncated files never panic: the parser returns a mesh or an error,
+        /// and any mesh it returns has finite positions and in-range indices.
+        #[test]
+        fn corrupted_files_never_panic(
+            which in 0usize..3,
+            edits in proptest::collection::vec((0usize..400, proptest::prelude::any::<u8>()), 0..6),
+            cut in 0usize..400,
+        ) {
+            let mut b = match which {
+                0 => QUAD_ASCII.as_bytes().to_vec(),
+                1 => binary(false),
+                _ => binary(true),
+            };
+            for (pos, val) in edits {
+                let n = b.len();
+                b[pos % n] = val;
+            }
+            let n = b.len();
+            b.truncate(n - cut.min(n));
+            if let Ok(m) = parse_ply(&b) {
+                proptest::prop_assert!(m.positions.iter().all(|p| p.is_finite()));
+                let nv = m.positions.len() as u32;
+                proptest::prop_assert!(m.indices.iter().flatten().all(|&i| i < nv));
+            }
         }
     }
 

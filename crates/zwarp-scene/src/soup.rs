@@ -224,6 +224,39 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// For random soups, every split mode partitions the triangles (each exactly once) and
+        /// Components never separates two triangles that share a vertex.
+        #[test]
+        fn splits_partition_the_soup(
+            tris in proptest::collection::vec((0u32..60, 0u32..60, 0u32..60), 1..200),
+            k in 1usize..20,
+        ) {
+            let positions: Vec<Vec3> = (0..60).map(|i| Vec3::new((i * 7 % 13) as f32, (i * 5 % 11) as f32, i as f32 * 0.1)).collect();
+            let indices: Vec<[u32; 3]> = tris.iter().map(|&(a, b, c)| [a, b, c]).collect();
+            for mode in [SplitMode::None, SplitMode::Components, SplitMode::Clusters(k)] {
+                let g = split_soup(&positions, &indices, mode);
+                let mut all: Vec<u32> = g.iter().flatten().copied().collect();
+                all.sort_unstable();
+                proptest::prop_assert_eq!(all, (0..indices.len() as u32).collect::<Vec<_>>());
+                if let SplitMode::Clusters(k) = mode {
+                    proptest::prop_assert!(g.len() <= k);
+                }
+                if mode == SplitMode::Components {
+                    let mut owner = vec![usize::MAX; 60];
+                    for (gi, grp) in g.iter().enumerate() {
+                        for &t in grp {
+                            for v in indices[t as usize] {
+                                proptest::prop_assert!(owner[v as usize] == usize::MAX || owner[v as usize] == gi);
+                                owner[v as usize] = gi;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn clusters_are_balanced_and_spatially_ordered() {
         let (p, t) = quads(64);
