@@ -370,6 +370,26 @@ mod tests {
         assert!(motion_to_rgb8(&Image::new(2, 2, m(0.0, 0.0)), None).data().iter().all(|p| *p == [255; 3]));
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        #[test]
+        fn motion_saturation_grows_with_magnitude(angle in 0.0f32..std::f32::consts::TAU) {
+            // Along one direction, the whitest channel darkens monotonically up to |v| = max,
+            // where the colour is fully saturated (every wheel entry has a 255 channel and
+            // neighbours share it).
+            let dir = Vec2::new(angle.cos(), angle.sin());
+            let samples: Vec<Motion> = (0..=10).map(|i| Motion { v: dir * (i as f32 / 10.0), depth: 0.5 }).collect();
+            // max slightly above 1: f32 rounding of dir * 1.0 may exceed 1 and trip the "beyond
+            // max" darkening.
+            let img = motion_to_rgb8(&Image::from_vec(11, 1, samples).unwrap(), Some(1.0001));
+            let mins: Vec<u8> = img.data().iter().map(|p| *p.iter().min().unwrap()).collect();
+            proptest::prop_assert!(mins.windows(2).all(|w| w[1] <= w[0]), "{:?}", mins);
+            let full = img.data()[10];
+            proptest::prop_assert!(*full.iter().max().unwrap() >= 254, "{:?}", full);
+            proptest::prop_assert_eq!(img.data()[0], [255, 255, 255]);
+        }
+    }
+
     #[test]
     fn srgb_transfer() {
         assert_eq!(linear_to_srgb8(0.0), 0);
