@@ -140,6 +140,7 @@ pub fn run_sequence(
         let full_draw_ms = ms(t0);
         let reference = visible_from_items(&full.items, n);
 
+        let mut next_first: Option<Vec<u32>> = None;
         let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
         let bootstrap = history && prev.is_none();
         let (visible, cull, stats, drawn, draw_ms) = if bootstrap && method != Method::TwoPhase {
@@ -150,6 +151,7 @@ pub fn run_sequence(
             match method {
                 Method::TwoPhase => {
                     let pv = prev.as_ref().map(|(_, v)| v.as_slice()).unwrap_or(&[]);
+                    // For two-phase, `prev`'s set is the re-tested `next_visible` (see below).
                     let r = twophase(scene, pv, cam, t, params.max_depth)?;
                     // The items of the final frame are not needed by two-phase; re-rendering
                     // them would distort the timing, so the drawn frame is rebuilt from depth.
@@ -159,6 +161,7 @@ pub fn run_sequence(
                     cull.draw_ms = 0.0;
                     cull.total_ms -= draw_ms;
                     let stats = CullStats { objects: n, ..CullStats::default() };
+                    next_first = Some(r.next_visible);
                     (r.visible, cull, stats, drawn, draw_ms)
                 }
                 _ => {
@@ -198,7 +201,7 @@ pub fn run_sequence(
             full_triangles,
             bootstrap,
         });
-        prev = Some((drawn, visible));
+        prev = Some((drawn, next_first.unwrap_or(visible)));
     }
     Ok(out)
 }

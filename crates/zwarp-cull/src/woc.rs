@@ -573,6 +573,10 @@ pub struct TwoPhaseResult {
     pub second: Vec<u32>,
     /// `first` and `second` together, increasing.
     pub visible: Vec<u32>,
+    /// The drawn objects that pass the screen-space test against the *final* depth: the set
+    /// the next frame draws first (without this re-test an object drawn once would be drawn in
+    /// phase 1 forever, and the set would only grow).
+    pub next_visible: Vec<u32>,
     /// Depth after both draws (the frame's final depth buffer).
     pub depth: Image<f32>,
     /// Triangles drawn in phase 1 and phase 2.
@@ -633,8 +637,30 @@ pub fn twophase(
     tm.draw_ms += ms(t0);
     let mut visible = [first.as_slice(), second.as_slice()].concat();
     visible.sort_unstable();
+
+    // Visibility for the next frame: re-test the drawn objects against the final depth.
+    let t0 = Instant::now();
+    let final_map = MaxDepthMap::build(kind, &depth)?;
+    let mut drawn = vec![false; n];
+    for &id in &visible {
+        drawn[id as usize] = true;
+    }
+    let recheck = test_objects(&aabbs, cam, &final_map, None);
+    let next_visible: Vec<u32> = (0..n)
+        .filter(|&id| drawn[id] && matches!(recheck[id], Class::Visible | Class::CrossesNear))
+        .map(|id| id as u32)
+        .collect();
+    tm.build_ms += ms(t0);
     tm.total_ms = ms(start);
-    Ok(TwoPhaseResult { triangles: (tris(&first), tris(&second)), first, second, visible, depth, timings: tm })
+    Ok(TwoPhaseResult {
+        triangles: (tris(&first), tris(&second)),
+        first,
+        second,
+        visible,
+        next_visible,
+        depth,
+        timings: tm,
+    })
 }
 
 /// Culling accuracy of a visible set against REF (thesis Sec. V.1, Table 1 and 3).

@@ -265,6 +265,7 @@ fn baselines_and_accuracy() {
     let tp = twophase(&s, &[], &cam, 0.0, MaxDepthKind::NBuffer).unwrap();
     assert!(tp.first.is_empty());
     assert_eq!(tp.visible, vec![0, 1, 2], "nothing drawn yet: no occlusion in phase 2");
+    assert_eq!(tp.next_visible, vec![0, 2], "the re-test against the final depth drops the hidden box");
     // From REF's set: the hidden box stays culled.
     let tp = twophase(&s, &r.visible, &cam, 0.0, MaxDepthKind::NBuffer).unwrap();
     assert_eq!((tp.first.clone(), tp.second.clone()), (vec![0, 2], vec![]));
