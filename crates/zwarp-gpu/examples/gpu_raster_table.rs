@@ -1,5 +1,8 @@
 //! Depth-only GPU render time of Crytek Sponza at 1920x1080 on the current adapter (lavapipe on
 //! a machine without GPU): the bar the CPU rasterizer is compared with (seed 000 Sec. 4, REF).
+//! The CPU rasterizer (`zwarp_raster::render_depth`) is timed in the same run on the same scene
+//! and camera, and the two depth buffers are compared (DESIGN.md: a ratio measured side by side
+//! is the figure).
 //!
 //! Usage: `cargo run --release -p zwarp-gpu --example gpu_raster_table -- /work/shared/scenes/sponza [runs]`
 //!
@@ -7,11 +10,11 @@
 //! (f32 x, y, z, w per vertex) and `IndexBuffer.bin` (u32, 3 per triangle).
 
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use glam::{Mat4, Vec3};
 use zwarp_core::{Animation, Camera, Error, Mesh, Result, Scene};
-use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, Renderer, TimingStats};
+use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, PeelOptions, Renderer, TimingStats};
 
 /// Tiny reader of the raw Sponza format (see `shared/scenes/README.md`).
 fn load_sponza(dir: &Path) -> Result<Scene> {
@@ -69,7 +72,20 @@ fn main() -> Result<()> {
             .collect::<Result<_>>()?;
         rows.push((timer.method(), TimingStats::from_samples(&samples)?));
     }
+    // The CPU rasterizer, same scene, same camera, same number of warm runs.
+    for _ in 0..2 {
+        zwarp_raster::render_depth(&scene, &cam, 0.0)?;
+    }
+    let cpu_samples: Vec<Duration> = (0..runs)
+        .map(|_| {
+            let t0 = Instant::now();
+            zwarp_raster::render_depth(&scene, &cam, 0.0).map(|_| t0.elapsed())
+        })
+        .collect::<Result<_>>()?;
+    let cpu = TimingStats::from_samples(&cpu_samples)?;
     let depth = r.render_depth(&gs, &cam, 0.0)?;
+    let cpu_depth = zwarp_raster::render_depth(&scene, &cam, 0.0)?;
+    let same = depth.data().iter().zip(cpu_depth.data()).filter(|(a, b)| (**a - **b).abs() < 1e-6).count();
     let covered = depth.data().iter().filter(|d| **d < 1.0).count() as f64 / depth.len() as f64;
     println!("adapter: {}", ctx.adapter);
     println!(
@@ -77,15 +93,60 @@ fn main() -> Result<()> {
         gs.triangle_count()
     );
     println!("covered pixels: {:.1}%", covered * 100.0);
+    println!(
+        "GPU vs CPU depth: {:.4}% of pixels within 1e-6 ({} threads for the CPU rasterizer)",
+        same as f64 * 100.0 / depth.len() as f64,
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
     println!("| pass | method | runs | median ms | min ms | max ms |");
     println!("|---|---|---|---|---|---|");
+    let gpu_median = rows[0].1.median;
     for (method, s) in rows {
         println!(
-            "| GPU depth-only | {method} | {} | {:.2} | {:.2} | {:.2} |",
+            "| GPU depth-only ({}) | {method} | {} | {:.2} | {:.2} | {:.2} |",
+            ctx.adapter.name,
             s.runs,
             ms(s.median),
             ms(s.min),
             ms(s.max)
+        );
+    }
+    println!(
+        "| CPU zwarp-raster depth-only | wall clock | {} | {:.2} | {:.2} | {:.2} |",
+        cpu.runs,
+        ms(cpu.median),
+        ms(cpu.min),
+        ms(cpu.max)
+    );
+    println!("CPU / GPU median ratio: {:.2}", cpu.median.as_secs_f64() / gpu_median.as_secs_f64());
+
+    // Depth peeling (seed 000 Table 4): L layers with item ids, GPU vs CPU, same run.
+    let peel_runs = (runs / 3).max(5);
+    println!();
+    println!("| depth peeling L | GPU median ms ({}) | CPU median ms | CPU / GPU |", GpuTimer::new(&ctx).method());
+    println!("|---|---|---|---|");
+    for l in [1u32, 2, 4] {
+        let opts = PeelOptions { layers: l, ..Default::default() };
+        let targets = LayerTargets::new(&r, cam.width, cam.height, l as usize, false)?;
+        let timer = GpuTimer::new(&ctx);
+        timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets))?;
+        let g: Vec<Duration> = (0..peel_runs)
+            .map(|_| timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets)))
+            .collect::<Result<_>>()?;
+        let cpu_opts = zwarp_raster::PeelOptions { layers: l as usize, ground_separate: false, umbra: None };
+        zwarp_raster::render_layers(&scene, &cam, 0.0, &cpu_opts)?;
+        let c: Vec<Duration> = (0..peel_runs)
+            .map(|_| {
+                let t0 = Instant::now();
+                zwarp_raster::render_layers(&scene, &cam, 0.0, &cpu_opts).map(|_| t0.elapsed())
+            })
+            .collect::<Result<_>>()?;
+        let (g, c) = (TimingStats::from_samples(&g)?, TimingStats::from_samples(&c)?);
+        println!(
+            "| {l} | {:.2} | {:.2} | {:.2} |",
+            ms(g.median),
+            ms(c.median),
+            c.median.as_secs_f64() / g.median.as_secs_f64()
         );
     }
     Ok(())

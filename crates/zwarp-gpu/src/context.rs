@@ -156,6 +156,24 @@ impl GpuContext {
             .map_err(|e| Error::Unavailable(format!("GPU device poll failed: {e}")))
     }
 
+    /// Runs `f` (resource or pipeline creation) inside validation and out-of-memory error
+    /// scopes, turning a wgpu error into `Error::Unavailable` instead of wgpu's default panic
+    /// (e.g. a format or feature the adapter lacks).
+    pub(crate) fn catch<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let v = f();
+        let e1 = pollster::block_on(validation.pop());
+        let e2 = pollster::block_on(oom.pop());
+        match e1.or(e2) {
+            Some(e) => {
+                let msg = e.to_string().split_whitespace().collect::<Vec<_>>().join(" ");
+                Err(Error::Unavailable(format!("{what} failed on {}: {msg}", self.adapter.name)))
+            }
+            None => Ok(v),
+        }
+    }
+
     /// Errors if a `width x height` 2-D texture exceeds the device limits.
     pub(crate) fn check_texture_size(&self, width: u32, height: u32, what: &str) -> Result<()> {
         let max = self.device.limits().max_texture_dimension_2d;

@@ -20,5 +20,5 @@ pub mod timer;
 
 pub use compute::{GpuMotionPyramid, MotionInput, MotionKernel, PyramidKernel};
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
-pub use render::{DepthTarget, FrameOptions, GpuFrame, GpuScene, PeelOptions, Renderer, Shading, Umbra};
+pub use render::{DepthTarget, FrameOptions, GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer, Shading, Umbra};
 pub use timer::{GpuTimer, TimingMethod, TimingStats};

@@ -130,3 +130,28 @@ proptest! {
         assert_close(&gpu, &cpu);
     }
 }
+
+/// The all-GPU chain (render A, copy, motion kernel) vs `zwarp_raster::render_motion`.
+#[test]
+fn render_motion_matches_zwarp_raster() {
+    let Some(ctx) = test_context() else { return };
+    let scene = test_scene();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let k = MotionKernel::new(&ctx).unwrap();
+    let (a, b) = (camera_a(), camera_b());
+    let (gf, gm) = k.render_motion(&r, &gs, &a, 0.1, &b, 0.6).unwrap();
+    let (cf, cm) = zwarp_raster::render_motion(&scene, &a, 0.1, &b, 0.6).unwrap();
+    assert_eq!(gf.depth, r.render_depth(&gs, &a, 0.1).unwrap(), "readback through the padded buffer");
+    let mut compared = 0;
+    for i in 0..gm.len() {
+        if (gf.depth.data()[i] - cf.depth.data()[i]).abs() < 1e-6 && gf.items.data()[i] == cf.items.data()[i] {
+            compared += 1;
+            let (g, c) = (gm.data()[i], cm.data()[i]);
+            assert!((g.v - c.v).abs().max_element() < 1e-3, "pixel {i}: gpu {g:?} cpu {c:?}");
+            assert!((g.depth - c.depth).abs() < 1e-5, "pixel {i}: gpu {g:?} cpu {c:?}");
+        }
+    }
+    assert!(compared as f64 >= 0.999 * gm.len() as f64);
+    assert!(k.render_motion(&r, &gs, &a, 0.0, &b, f32::INFINITY).is_err());
+}

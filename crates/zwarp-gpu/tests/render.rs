@@ -184,13 +184,15 @@ fn depth_peeling_matches_reference_layers() {
     assert_eq!(layers[0].items, frame.items);
 }
 
-fn compare_layers(gpu: &[zwarp_gpu::GpuFrame], cpu: &[zwarp_raster::Layer]) {
+/// `bar`: fraction of pixels that must agree (0.998 on Vulkan/lavapipe; the GLES fallback
+/// evaluates the umbra threshold with slightly different rounding).
+fn compare_layers(gpu: &[zwarp_gpu::GpuFrame], cpu: &[zwarp_raster::Layer], bar: f64) {
     assert_eq!(gpu.len(), cpu.len());
     for (k, (g, c)) in gpu.iter().zip(cpu).enumerate() {
         let agree = agreement(&g.depth, &c.depth, 1e-6);
-        assert!(agree >= 0.998, "layer {k}: only {:.3}% agree", agree * 100.0);
+        assert!(agree >= bar, "layer {k}: only {:.3}% agree", agree * 100.0);
         let ids = g.items.data().iter().zip(c.items.data()).filter(|(a, b)| a == b).count();
-        assert!(ids as f64 >= 0.998 * g.items.len() as f64, "layer {k}: item ids differ on {} px", g.items.len() - ids);
+        assert!(ids as f64 >= bar * g.items.len() as f64, "layer {k}: item ids differ on {} px", g.items.len() - ids);
     }
 }
 
@@ -208,7 +210,7 @@ fn ground_separate_layers_match_zwarp_raster() {
         &zwarp_raster::PeelOptions { layers: 3, ground_separate: true, umbra: None },
     )
     .unwrap();
-    compare_layers(&layers, &cpu);
+    compare_layers(&layers, &cpu, 0.998);
     // The ground layer holds only the ground (object 0); peeled layers never do.
     assert!(layers[3].items.data().iter().all(|&id| id == 0 || id == NO_ITEM));
     assert!(layers[3].items.data().contains(&0));
@@ -219,6 +221,7 @@ fn ground_separate_layers_match_zwarp_raster() {
 fn umbra_peeling_matches_zwarp_raster_and_peels_faster() {
     let Some((r, gs, scene)) = setup() else { return };
     let cam = camera_a();
+    let bar = if r.context().adapter.backend == "Gl" { 0.99 } else { 0.998 };
     for (umbra, cpu_region) in [
         (Umbra::Disc { e: 0.3, c: 0.0 }, zwarp_raster::ViewRegion::Disc { e: 0.3, c: 0.0 }),
         (Umbra::Disc { e: 0.05, c: -1.0 }, zwarp_raster::ViewRegion::Disc { e: 0.05, c: -1.0 }),
@@ -238,7 +241,7 @@ fn umbra_peeling_matches_zwarp_raster_and_peels_faster() {
             },
         )
         .unwrap();
-        compare_layers(&gpu, &cpu);
+        compare_layers(&gpu, &cpu, bar);
     }
     // A positive umbra extent never peels more than standard peeling does.
     let std_l = r.render_layers(&gs, &cam, 0.0, &PeelOptions { layers: 3, ..Default::default() }).unwrap();
@@ -280,8 +283,10 @@ fn colour_is_lambert_with_sky() {
     let c = f.color.unwrap();
     let lit = albedo * (0.1 + 0.9 * 0.8);
     let px = *c.get(16, 16);
+    // f32 colour targets are exact to rounding; the half-float fallback to ~1e-3.
+    let tol = if r.color_format() == zwarp_gpu::render::COLOR_FORMAT { 1e-5 } else { 1e-3 };
     for k in 0..3 {
-        assert!((px[k] - lit[k]).abs() < 1e-5, "{px:?} vs {lit}");
+        assert!((px[k] - lit[k]).abs() < tol, "{px:?} vs {lit}");
     }
     assert_eq!(*c.get(0, 0), [0.0, 0.5, 1.0]);
 }
@@ -303,5 +308,19 @@ fn bad_inputs_are_errors() {
     let mut enc = r.context().device.create_command_encoder(&Default::default());
     assert!(r.encode_depth(&mut enc, &gs, &cam, 0.0, &target).is_err());
     assert!(zwarp_gpu::DepthTarget::new(r.context(), 0, 8).is_err());
+    // Layer targets must match the peel (L + ground layer) and the requested outputs.
+    let targets = zwarp_gpu::LayerTargets::new(&r, W, H, 2, false).unwrap();
+    let peel3 = PeelOptions { layers: 3, ..Default::default() };
+    let e = r.encode_layers(&mut enc, &gs, &cam, 0.0, &peel3, &targets).unwrap_err();
+    assert!(e.to_string().contains("layer targets hold 2"), "{e}");
+    let ground = PeelOptions { layers: 1, ground_separate: true, ..Default::default() };
+    assert!(r.encode_layers(&mut enc, &gs, &cam, 0.0, &ground, &targets).is_ok());
+    let colour =
+        PeelOptions { layers: 2, frame: FrameOptions { color: true, ..Default::default() }, ..Default::default() };
+    assert!(r.encode_layers(&mut enc, &gs, &cam, 0.0, &colour, &targets).unwrap_err().to_string().contains("colour"));
+    assert!(r.render_layers(&gs, &cam, 0.0, &PeelOptions { layers: 65, ..Default::default() }).is_err());
+    assert!(zwarp_gpu::LayerTargets::new(&r, W, H, 0, false).is_err());
+    let dark = FrameOptions { color: true, shading: Shading { light_dir_view: Vec3::ZERO, ..Default::default() } };
+    assert!(r.render_frame(&gs, &cam, 0.0, &dark).is_err());
     let _ = Image::new(1, 1, 0.0f32);
 }

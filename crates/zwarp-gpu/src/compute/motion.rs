@@ -6,7 +6,8 @@ use glam::Mat4;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Camera, Error, Image, Motion, Result};
 
-use crate::readback::read_buffer;
+use crate::readback::{padded_bytes_per_row, read_buffer};
+use crate::render::{GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer};
 use crate::GpuContext;
 
 #[repr(C)]
@@ -46,10 +47,12 @@ impl MotionKernel {
     /// Compiles `motion.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("motion.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("motion.wgsl").into()),
-        });
+        let module = ctx.catch("compiling motion.wgsl", || {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("motion.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("motion.wgsl").into()),
+            })
+        })?;
         let buf = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -72,14 +75,16 @@ impl MotionKernel {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("zwarp motion"),
-            layout: Some(&pl),
-            module: &module,
-            entry_point: Some("motion_field"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = ctx.catch("building the motion pipeline", || {
+            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("zwarp motion"),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some("motion_field"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })?;
         // Bound where a caller has no item buffer / no deltas (bindings cannot be empty).
         let dummy = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("zwarp dummy"),
@@ -218,5 +223,86 @@ impl MotionKernel {
         self.ctx.queue.submit([enc.finish()]);
         let data: Vec<Motion> = read_buffer(&self.ctx, &out, n)?;
         Image::from_vec(depth.width(), depth.height(), data)
+    }
+
+    /// Renders view A (depth + items) and its motion field towards view B entirely on the GPU
+    /// (render pass, texture-to-buffer copies, motion kernel in one submission), the twin of
+    /// `zwarp_raster::render_motion` (seed 000 Sec. 3.1, object motion from
+    /// [`GpuScene::object_deltas`]`(t_a, t_b)`).
+    pub fn render_motion(
+        &self,
+        renderer: &Renderer,
+        scene: &GpuScene,
+        cam_a: &Camera,
+        t_a: f32,
+        cam_b: &Camera,
+        t_b: f32,
+    ) -> Result<(GpuFrame, Image<Motion>)> {
+        if !t_b.is_finite() {
+            return Err(Error::invalid(format!("target time t_b must be finite, got {t_b}")));
+        }
+        self.ctx.check_texture_size(cam_b.width, cam_b.height, "motion target view")?;
+        let (w, h) = (cam_a.width, cam_a.height);
+        let targets = LayerTargets::new(renderer, w, h, 1, false)?;
+        let dev = &self.ctx.device;
+        let mut enc = dev.create_command_encoder(&Default::default());
+        renderer.encode_layers(
+            &mut enc,
+            scene,
+            cam_a,
+            t_a,
+            &PeelOptions { layers: 1, ..Default::default() },
+            &targets,
+        )?;
+        // The item texture -> buffer copy needs 256-byte row padding; depth is copied with the
+        // same stride, and the kernel reads with that row stride instead of repacking.
+        let bpr = padded_bytes_per_row(w, 4);
+        let bytes = bpr as u64 * h as u64;
+        self.ctx.check_storage_size(bytes, "padded depth buffer")?;
+        let make = |label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let (dbuf, ibuf) = (make("zwarp depth copy"), make("zwarp items copy"));
+        renderer.encode_depth_copy(&mut enc, &targets.depth[0], &dbuf, bpr / 4)?;
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &targets.items[0],
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &ibuf,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(bpr), rows_per_image: Some(h) },
+            },
+            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        );
+        let n = w as usize * h as usize;
+        let out = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("zwarp motion out"),
+            size: (n * std::mem::size_of::<Motion>()) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let input = MotionInput { depth: &dbuf, items: Some(&ibuf), row_stride: bpr / 4 };
+        let deltas = scene.object_deltas(t_a, t_b);
+        self.encode(&mut enc, &input, cam_a, cam_b, &deltas, &out)?;
+        self.ctx.queue.submit([enc.finish()]);
+        let stride = (bpr / 4) as usize;
+        let unpad = |v: Vec<u32>| -> Vec<u32> { v.chunks(stride).flat_map(|row| row[..w as usize].to_vec()).collect() };
+        let depth_bits = unpad(read_buffer::<u32>(&self.ctx, &dbuf, stride * h as usize)?);
+        let items = unpad(read_buffer::<u32>(&self.ctx, &ibuf, stride * h as usize)?);
+        let motion: Vec<Motion> = read_buffer(&self.ctx, &out, n)?;
+        let frame = GpuFrame {
+            depth: Image::from_vec(w, h, depth_bits.into_iter().map(f32::from_bits).collect())?,
+            items: Image::from_vec(w, h, items)?,
+            color: None,
+        };
+        Ok((frame, Image::from_vec(w, h, motion)?))
     }
 }

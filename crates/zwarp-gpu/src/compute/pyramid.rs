@@ -44,6 +44,7 @@ pub fn pyramid_level_sizes(w: u32, h: u32) -> Vec<(u32, u32)> {
 
 /// A min-max motion mipmap resident on the GPU: one storage buffer of `vec4<f32>` texels
 /// `(lo.x, lo.y, hi.x, hi.y)` per level `1..=top` (empty texel: `lo = +inf`, `hi = -inf`).
+#[derive(Debug)]
 pub struct GpuMotionPyramid {
     /// `levels[i]` is mip level `i + 1`.
     pub levels: Vec<wgpu::Buffer>,
@@ -77,10 +78,12 @@ impl PyramidKernel {
     /// Compiles `pyramid.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("pyramid.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("pyramid.wgsl").into()),
-        });
+        let module = ctx.catch("compiling pyramid.wgsl", || {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("pyramid.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("pyramid.wgsl").into()),
+            })
+        })?;
         let buf = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
@@ -119,8 +122,8 @@ impl PyramidKernel {
         });
         Ok(PyramidKernel {
             ctx: ctx.clone(),
-            from_motion: pipe("level_from_motion"),
-            from_level: pipe("level_from_level"),
+            from_motion: ctx.catch("building the mipmap pipeline", || pipe("level_from_motion"))?,
+            from_level: ctx.catch("building the mipmap pipeline", || pipe("level_from_level"))?,
             layout,
             dummy,
         })

@@ -4,10 +4,11 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
+use wgpu::util::DeviceExt;
 use zwarp_core::{Camera, Error, Image, Projection, Result, NO_ITEM};
 
 use super::GpuScene;
-use crate::readback::copy_texture;
+use crate::readback::{copy_texture, read_buffer};
 use crate::GpuContext;
 
 /// Depth format of every render: 32-bit float, the same `[0, 1]` values the CPU rasterizer
@@ -15,9 +16,12 @@ use crate::GpuContext;
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Item-buffer format (object id per pixel, [`NO_ITEM`] where empty).
 pub const ITEM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
-/// Colour format: 32-bit float RGBA, so the linear RGB matches the CPU renderer's `[f32; 3]`
-/// colour buffer without quantization.
+/// Preferred colour format: 32-bit float RGBA, so the linear RGB matches the CPU renderer's
+/// `[f32; 3]` colour buffer without quantization. Adapters that cannot render to it (GLES)
+/// get [`COLOR_FORMAT_FALLBACK`]; see [`Renderer::color_format`].
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Colour format where [`COLOR_FORMAT`] is not renderable (half floats, ~3 decimal digits).
+pub const COLOR_FORMAT_FALLBACK: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
 /// Lighting of the colour target, the CPU renderer's model (`zwarp_raster::shading`): flat
 /// two-sided per-triangle normal (turned towards the eye), headlight given in view space,
@@ -173,9 +177,14 @@ pub struct Renderer {
     scene_layout: wgpu::BindGroupLayout,
     peel_layout: wgpu::BindGroupLayout,
     depth_pipeline: wgpu::RenderPipeline,
-    frame_pipeline: wgpu::RenderPipeline,
-    peel_pipeline: wgpu::RenderPipeline,
+    /// `[item only, item + colour]` for the first layer / plain frames.
+    frame_pipeline: [wgpu::RenderPipeline; 2],
+    /// `[item only, item + colour]` for peeled layers.
+    peel_pipeline: [wgpu::RenderPipeline; 2],
     uniform: wgpu::Buffer,
+    color_format: wgpu::TextureFormat,
+    copy_layout: wgpu::BindGroupLayout,
+    copy_pipeline: wgpu::ComputePipeline,
 }
 
 const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
@@ -188,10 +197,12 @@ impl Renderer {
     /// Compiles the shaders and builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("depth.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("depth.wgsl").into()),
-        });
+        let module = ctx.catch("compiling depth.wgsl", || {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("depth.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("depth.wgsl").into()),
+            })
+        })?;
         let storage = |binding, stages| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: stages,
@@ -226,7 +237,7 @@ impl Renderer {
                 binding: 0,
                 visibility: wgpu::ShaderStages::FRAGMENT,
                 ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Depth,
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
                     view_dimension: wgpu::TextureViewDimension::D2,
                     multisampled: false,
                 },
@@ -257,27 +268,32 @@ impl Renderer {
             stencil: wgpu::StencilState::default(),
             bias: wgpu::DepthBiasState::default(),
         });
-        let depth_pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("zwarp depth-only"),
-            layout: Some(&layout_scene),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_depth"),
-                compilation_options: Default::default(),
-                buffers: &[Some(VERTEX_LAYOUT)],
-            },
-            primitive,
-            depth_stencil: depth_state.clone(),
-            multisample: Default::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
-        let targets = [
-            Some(wgpu::ColorTargetState { format: ITEM_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
-            Some(wgpu::ColorTargetState { format: COLOR_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
-        ];
-        let frame_like = |label, layout, entry| {
+        let depth_pipeline = ctx.catch("building the depth-only pipeline", || {
+            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("zwarp depth-only"),
+                layout: Some(&layout_scene),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_depth"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(VERTEX_LAYOUT)],
+                },
+                primitive,
+                depth_stencil: depth_state.clone(),
+                multisample: Default::default(),
+                fragment: None,
+                multiview_mask: None,
+                cache: None,
+            })
+        })?;
+        // Item-only variants (no colour attachment: cheaper, and no 16-byte colour texel per
+        // pixel and layer when only the deep depth buffer is wanted).
+        let frame_like = |label, layout, entry: &str, color_format| {
+            let targets = [
+                Some(wgpu::ColorTargetState { format: ITEM_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
+                Some(wgpu::ColorTargetState { format: color_format, blend: None, write_mask: wgpu::ColorWrites::ALL }),
+            ];
+            let n_targets = if entry.ends_with("_item") { 1 } else { 2 };
             dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(layout),
@@ -294,14 +310,95 @@ impl Renderer {
                     module: &module,
                     entry_point: Some(entry),
                     compilation_options: Default::default(),
-                    targets: &targets,
+                    targets: &targets[..n_targets],
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
-        let frame_pipeline = frame_like("zwarp frame", &layout_scene, "fs_frame");
-        let peel_pipeline = frame_like("zwarp peel", &layout_peel, "fs_peel");
+        let frame_pipeline = ctx.catch("building the frame pipeline", || {
+            frame_like("zwarp frame (items)", &layout_scene, "fs_frame_item", COLOR_FORMAT)
+        })?;
+        let peel_pipeline = ctx.catch("building the peel pipeline", || {
+            frame_like("zwarp peel (items)", &layout_peel, "fs_peel_item", COLOR_FORMAT)
+        })?;
+        // Colour pipelines: f32 colour where renderable, else half floats.
+        let mut color_format = COLOR_FORMAT;
+        let mut colour = ctx.catch("building the colour pipelines", || {
+            [
+                frame_like("zwarp frame", &layout_scene, "fs_frame", color_format),
+                frame_like("zwarp peel", &layout_peel, "fs_peel", color_format),
+            ]
+        });
+        if colour.is_err() {
+            color_format = COLOR_FORMAT_FALLBACK;
+            colour = ctx.catch("building the colour pipelines", || {
+                [
+                    frame_like("zwarp frame", &layout_scene, "fs_frame", color_format),
+                    frame_like("zwarp peel", &layout_peel, "fs_peel", color_format),
+                ]
+            });
+        }
+        let [frame_color, peel_color] = colour?;
+        let frame_pipeline = [frame_pipeline, frame_color];
+        let peel_pipeline = [peel_pipeline, peel_color];
+        let copy_module = ctx.catch("compiling depth_copy.wgsl", || {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("depth_copy.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("depth_copy.wgsl").into()),
+            })
+        })?;
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let copy_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("zwarp depth copy"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: cs,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: cs,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: cs,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let copy_pl = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("zwarp depth copy"),
+            bind_group_layouts: &[Some(&copy_layout)],
+            immediate_size: 0,
+        });
+        let copy_pipeline = ctx.catch("building the depth copy pipeline", || {
+            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("zwarp depth copy"),
+                layout: Some(&copy_pl),
+                module: &copy_module,
+                entry_point: Some("copy_depth"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })?;
         let uniform = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("zwarp frame uniform"),
             size: std::mem::size_of::<FrameUniform>() as u64,
@@ -316,7 +413,16 @@ impl Renderer {
             frame_pipeline,
             peel_pipeline,
             uniform,
+            color_format,
+            copy_layout,
+            copy_pipeline,
         })
+    }
+
+    /// The colour target format: [`COLOR_FORMAT`], or [`COLOR_FORMAT_FALLBACK`] on adapters that
+    /// cannot render to 32-bit float RGBA.
+    pub fn color_format(&self) -> wgpu::TextureFormat {
+        self.color_format
     }
 
     /// The context this renderer draws with.
@@ -395,15 +501,77 @@ impl Renderer {
         Ok(())
     }
 
+    /// Records a copy of `depth` into `dst` as f32 with `stride` elements per row (bit-exact;
+    /// a compute pass, because GLES-class adapters cannot copy depth textures to buffers).
+    /// `dst` needs `STORAGE` usage and `stride * (height - 1) + width` floats.
+    pub fn encode_depth_copy(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        depth: &DepthTarget,
+        dst: &wgpu::Buffer,
+        stride: u32,
+    ) -> Result<()> {
+        let (w, h) = (depth.texture.width(), depth.texture.height());
+        let need = (stride as u64 * (h as u64 - 1) + w as u64) * 4;
+        if stride < w || dst.size() < need {
+            return Err(Error::invalid(format!(
+                "depth copy: stride {stride} for width {w} or buffer of {} < {need} bytes",
+                dst.size()
+            )));
+        }
+        let dev = &self.ctx.device;
+        let params = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("zwarp depth copy params"),
+            contents: bytemuck::cast_slice(&[w, h, stride, 0u32]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp depth copy"),
+            layout: &self.copy_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&depth.view) },
+                wgpu::BindGroupEntry { binding: 1, resource: dst.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: params.as_entire_binding() },
+            ],
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("zwarp depth copy"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.copy_pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        Ok(())
+    }
+
+    /// Records the depth copy into a fresh buffer of `width * height` floats.
+    fn depth_to_buffer(&self, encoder: &mut wgpu::CommandEncoder, depth: &DepthTarget) -> Result<wgpu::Buffer> {
+        let (w, h) = (depth.texture.width(), depth.texture.height());
+        let bytes = w as u64 * h as u64 * 4;
+        self.ctx.check_storage_size(bytes, "depth read-back")?;
+        let buf = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("zwarp depth read-back"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        self.encode_depth_copy(encoder, depth, &buf, w)?;
+        Ok(buf)
+    }
+
+    fn read_depth(&self, buf: &wgpu::Buffer, w: u32, h: u32) -> Result<Image<f32>> {
+        Image::from_vec(w, h, read_buffer::<f32>(&self.ctx, buf, w as usize * h as usize)?)
+    }
+
     /// Depth-only render (the paper's REF pass): depth in `[0, 1]`, 1 where empty, row 0 at
     /// the top; the GPU twin of `zwarp_raster::render_depth`.
     pub fn render_depth(&self, scene: &GpuScene, camera: &Camera, t: f32) -> Result<Image<f32>> {
         let target = DepthTarget::new(&self.ctx, camera.width, camera.height)?;
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         self.encode_depth(&mut enc, scene, camera, t, &target)?;
-        let pending = copy_texture(&self.ctx, &mut enc, &target.texture, wgpu::TextureAspect::DepthOnly, 4);
+        let buf = self.depth_to_buffer(&mut enc, &target)?;
         self.ctx.queue.submit([enc.finish()]);
-        pending.read(&self.ctx)
+        self.read_depth(&buf, camera.width, camera.height)
     }
 
     /// One pass with depth, item ids and (optionally) colour: the GPU twin of
@@ -444,12 +612,108 @@ impl Renderer {
         }
     }
 
+    /// Records depth peeling (seed 000 Sec. 3.4, [Everitt 2001]) into one encoder: layer k of
+    /// `targets` receives depth, item ids (and colour if `targets` has colour). Semantics as
+    /// [`Renderer::render_layers`]; `targets.layers()` must equal L (+1 with
+    /// [`PeelOptions::ground_separate`]). Writes per-object matrices and the frame uniform now
+    /// (queue writes), so submit before encoding another camera.
+    pub fn encode_layers(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        opts: &PeelOptions,
+        targets: &LayerTargets,
+    ) -> Result<()> {
+        check_peel(opts)?;
+        self.check_camera(camera)?;
+        let sh = &opts.frame.shading;
+        let total = opts.layers as usize + opts.ground_separate as usize;
+        if targets.layers() != total || targets.size() != (camera.width, camera.height) {
+            return Err(Error::invalid(format!(
+                "layer targets hold {} layers of {}x{}, the render needs {total} of {}x{}",
+                targets.layers(),
+                targets.width,
+                targets.height,
+                camera.width,
+                camera.height
+            )));
+        }
+        if opts.frame.color && targets.color.is_empty() {
+            return Err(Error::invalid("colour requested but the layer targets have no colour textures"));
+        }
+        scene.write_objects(&self.ctx, camera, t)?;
+        let uni = self.frame_uniform(camera, opts);
+        self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uni));
+        let bind = self.scene_bind_group(scene);
+        let with_color = !targets.color.is_empty();
+        let variant = with_color as usize;
+        let sky = sh.sky;
+        let peeled = if opts.ground_separate { Some(false) } else { None };
+        for k in 0..total {
+            let ground_layer = k == opts.layers as usize;
+            let item_view = targets.items[k].create_view(&Default::default());
+            let color_view = targets.color.get(k).map(|c| c.create_view(&Default::default()));
+            let mut attachments = vec![Some(wgpu::RenderPassColorAttachment {
+                view: &item_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r: NO_ITEM as f64, g: 0.0, b: 0.0, a: 0.0 }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })];
+            if let Some(cv) = &color_view {
+                attachments.push(Some(wgpu::RenderPassColorAttachment {
+                    view: cv,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: sky[0] as f64,
+                            g: sky[1] as f64,
+                            b: sky[2] as f64,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                }));
+            }
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("zwarp layer"),
+                color_attachments: &attachments,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth[k].view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            pass.set_bind_group(0, &bind, &[]);
+            if ground_layer {
+                // The ground alone, not a peel (Sec. 3.4: the separate last layer).
+                pass.set_pipeline(&self.frame_pipeline[variant]);
+                Self::draw(&mut pass, scene, Some(true));
+            } else if k == 0 {
+                pass.set_pipeline(&self.frame_pipeline[variant]);
+                Self::draw(&mut pass, scene, peeled);
+            } else {
+                // Layer k reads layer k-1's depth texture.
+                pass.set_pipeline(&self.peel_pipeline[variant]);
+                pass.set_bind_group(1, &targets.peel_binds[k - 1], &[]);
+                Self::draw(&mut pass, scene, peeled);
+            }
+        }
+        Ok(())
+    }
+
     /// Depth peeling (seed 000 Sec. 3.4, [Everitt 2001]), the GPU twin of
     /// `zwarp_raster::render_layers`: layer 0 is the ordinary frame; layer k keeps, per pixel,
     /// the nearest fragment strictly behind layer k-1 (plus the umbra extent of eq. (1) with
     /// [`PeelOptions::umbra`]); a pixel empty in a layer stays empty in all later ones. With
     /// [`PeelOptions::ground_separate`] the ground is left out of the L layers and rendered
-    /// alone as layer L (L + 1 layers in all).
+    /// alone as layer L (L + 1 layers in all). All layers are drawn in one submission.
     pub fn render_layers(
         &self,
         scene: &GpuScene,
@@ -457,33 +721,109 @@ impl Renderer {
         t: f32,
         opts: &PeelOptions,
     ) -> Result<Vec<GpuFrame>> {
-        if opts.layers == 0 {
-            return Err(Error::invalid("depth peeling needs at least one layer (L >= 1)"));
-        }
-        if opts.layers > 64 {
-            return Err(Error::invalid(format!("depth peeling: L = {} layers is unreasonable (max 64)", opts.layers)));
-        }
-        if let Some(u) = &opts.umbra {
-            u.validate()?;
-        }
-        let sh = &opts.frame.shading;
-        if !sh.light_dir_view.is_finite() || sh.light_dir_view.length_squared() == 0.0 || !sh.ambient.is_finite() {
-            return Err(Error::invalid("shading light direction must be finite and non-zero"));
-        }
+        check_peel(opts)?;
+        let total = opts.layers as usize + opts.ground_separate as usize;
         self.check_camera(camera)?;
-        scene.write_objects(&self.ctx, camera, t)?;
-        let uni = self.frame_uniform(camera, opts);
-        self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uni));
-        let bind = self.scene_bind_group(scene);
         let (w, h) = (camera.width, camera.height);
-        // Ping-pong depth targets: layer k reads layer k-1's depth as a texture.
-        let depth = [DepthTarget::new(&self.ctx, w, h)?, DepthTarget::new(&self.ctx, w, h)?];
-        let peel_binds: Vec<wgpu::BindGroup> = depth
+        let targets = LayerTargets::new(self, w, h, total, opts.frame.color)?;
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        self.encode_layers(&mut enc, scene, camera, t, opts, &targets)?;
+        let pending: Vec<_> = (0..total)
+            .map(|k| {
+                Ok((
+                    self.depth_to_buffer(&mut enc, &targets.depth[k])?,
+                    copy_texture(&self.ctx, &mut enc, &targets.items[k], wgpu::TextureAspect::All, 4),
+                    targets.color.get(k).map(|c| {
+                        let texel = if self.color_format == COLOR_FORMAT { 16 } else { 8 };
+                        copy_texture(&self.ctx, &mut enc, c, wgpu::TextureAspect::All, texel)
+                    }),
+                ))
+            })
+            .collect::<Result<_>>()?;
+        self.ctx.queue.submit([enc.finish()]);
+        pending
+            .into_iter()
+            .map(|(pd, pi, pc)| {
+                let color = match pc {
+                    None => None,
+                    Some(p) if self.color_format == COLOR_FORMAT => {
+                        Some(p.read::<[f32; 4]>(&self.ctx)?.map(|p| [p[0], p[1], p[2]]))
+                    }
+                    Some(p) => Some(p.read::<[u16; 4]>(&self.ctx)?.map(|p| [0, 1, 2].map(|k| f16_to_f32(p[k])))),
+                };
+                Ok(GpuFrame { depth: self.read_depth(&pd, w, h)?, items: pi.read(&self.ctx)?, color })
+            })
+            .collect()
+    }
+}
+
+/// IEEE half -> f32 (for the [`COLOR_FORMAT_FALLBACK`] read-back).
+fn f16_to_f32(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0f32 } else { 1.0 };
+    let exp = ((h >> 10) & 0x1f) as i32;
+    let mant = (h & 0x3ff) as f32;
+    match exp {
+        0 => sign * mant * 2f32.powi(-24),
+        31 if mant == 0.0 => sign * f32::INFINITY,
+        31 => f32::NAN,
+        e => sign * (1.0 + mant / 1024.0) * 2f32.powi(e - 15),
+    }
+}
+
+fn check_peel(opts: &PeelOptions) -> Result<()> {
+    if opts.layers == 0 {
+        return Err(Error::invalid("depth peeling needs at least one layer (L >= 1)"));
+    }
+    if opts.layers > 64 {
+        return Err(Error::invalid(format!("depth peeling: L = {} layers is unreasonable (max 64)", opts.layers)));
+    }
+    if let Some(u) = &opts.umbra {
+        u.validate()?;
+    }
+    let sh = &opts.frame.shading;
+    if !sh.light_dir_view.is_finite() || sh.light_dir_view.length_squared() == 0.0 || !sh.ambient.is_finite() {
+        return Err(Error::invalid("shading light direction must be finite and non-zero"));
+    }
+    Ok(())
+}
+
+/// GPU-resident render targets of a stack of layers (one per peeled layer, plus the ground
+/// layer): depth (`Depth32Float`, readable as a texture by the next peel), item ids (`R32Uint`)
+/// and optionally colour (`Rgba32Float`). All textures allow `COPY_SRC`.
+pub struct LayerTargets {
+    width: u32,
+    height: u32,
+    /// Depth per layer.
+    pub depth: Vec<DepthTarget>,
+    /// Item ids per layer.
+    pub items: Vec<wgpu::Texture>,
+    /// Colour per layer (empty when created without colour).
+    pub color: Vec<wgpu::Texture>,
+    peel_binds: Vec<wgpu::BindGroup>,
+}
+
+impl LayerTargets {
+    /// Targets for `layers` layers of `width x height` (with colour textures if `color`).
+    pub fn new(renderer: &Renderer, width: u32, height: u32, layers: usize, color: bool) -> Result<Self> {
+        let ctx = &renderer.ctx;
+        ctx.check_texture_size(width, height, "layer targets")?;
+        if layers == 0 {
+            return Err(Error::invalid("layer targets need at least one layer"));
+        }
+        let depth: Vec<DepthTarget> =
+            (0..layers).map(|_| DepthTarget::new(ctx, width, height)).collect::<Result<_>>()?;
+        let items = (0..layers).map(|_| color_target(ctx, width, height, ITEM_FORMAT, "zwarp items")).collect();
+        let color = if color {
+            (0..layers).map(|_| color_target(ctx, width, height, renderer.color_format, "zwarp colour")).collect()
+        } else {
+            Vec::new()
+        };
+        let peel_binds = depth
             .iter()
             .map(|d| {
-                self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("zwarp peel"),
-                    layout: &self.peel_layout,
+                    layout: &renderer.peel_layout,
                     entries: &[wgpu::BindGroupEntry {
                         binding: 0,
                         resource: wgpu::BindingResource::TextureView(&d.view),
@@ -491,84 +831,34 @@ impl Renderer {
                 })
             })
             .collect();
-        let items = color_target(&self.ctx, w, h, ITEM_FORMAT, "zwarp items");
-        let color = color_target(&self.ctx, w, h, COLOR_FORMAT, "zwarp colour");
-        let (items_view, color_view) = (items.create_view(&Default::default()), color.create_view(&Default::default()));
-        let sky = sh.sky;
-        let peeled = if opts.ground_separate { Some(false) } else { None };
-        let total = opts.layers as usize + opts.ground_separate as usize;
-        let mut out: Vec<GpuFrame> = Vec::with_capacity(total);
-        for k in 0..total {
-            let ground_layer = k == opts.layers as usize;
-            // Once a layer is empty every later peel is: skip its pass (the ground layer is
-            // not a peel and is always drawn).
-            let skip = !ground_layer && out.last().is_some_and(|l| l.items.data().iter().all(|&i| i == NO_ITEM));
-            let cur = &depth[k % 2];
-            let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("zwarp frame"),
-                    color_attachments: &[
-                        Some(wgpu::RenderPassColorAttachment {
-                            view: &items_view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color { r: NO_ITEM as f64, g: 0.0, b: 0.0, a: 0.0 }),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        }),
-                        Some(wgpu::RenderPassColorAttachment {
-                            view: &color_view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color {
-                                    r: sky[0] as f64,
-                                    g: sky[1] as f64,
-                                    b: sky[2] as f64,
-                                    a: 1.0,
-                                }),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        }),
-                    ],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &cur.view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(1.0),
-                            store: wgpu::StoreOp::Store,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    ..Default::default()
-                });
-                pass.set_bind_group(0, &bind, &[]);
-                if skip {
-                    // Cleared only.
-                } else if ground_layer {
-                    pass.set_pipeline(&self.frame_pipeline);
-                    Self::draw(&mut pass, scene, Some(true));
-                } else if k == 0 {
-                    pass.set_pipeline(&self.frame_pipeline);
-                    Self::draw(&mut pass, scene, peeled);
-                } else {
-                    pass.set_pipeline(&self.peel_pipeline);
-                    pass.set_bind_group(1, &peel_binds[(k + 1) % 2], &[]);
-                    Self::draw(&mut pass, scene, peeled);
-                }
-            }
-            let pd = copy_texture(&self.ctx, &mut enc, &cur.texture, wgpu::TextureAspect::DepthOnly, 4);
-            let pi = copy_texture(&self.ctx, &mut enc, &items, wgpu::TextureAspect::All, 4);
-            let pc = opts.frame.color.then(|| copy_texture(&self.ctx, &mut enc, &color, wgpu::TextureAspect::All, 16));
-            self.ctx.queue.submit([enc.finish()]);
-            let rgba: Option<Image<[f32; 4]>> = pc.map(|p| p.read(&self.ctx)).transpose()?;
-            out.push(GpuFrame {
-                depth: pd.read(&self.ctx)?,
-                items: pi.read(&self.ctx)?,
-                color: rgba.map(|c| c.map(|p| [p[0], p[1], p[2]])),
-            });
-        }
-        Ok(out)
+        Ok(LayerTargets { width, height, depth, items, color, peel_binds })
+    }
+
+    /// Number of layers.
+    pub fn layers(&self) -> usize {
+        self.depth.len()
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::f16_to_f32;
+
+    #[test]
+    fn half_floats_decode() {
+        assert_eq!(f16_to_f32(0x0000), 0.0);
+        assert_eq!(f16_to_f32(0x3c00), 1.0);
+        assert_eq!(f16_to_f32(0xc000), -2.0);
+        assert_eq!(f16_to_f32(0x3800), 0.5);
+        assert_eq!(f16_to_f32(0x0001), 2f32.powi(-24));
+        assert_eq!(f16_to_f32(0x7c00), f32::INFINITY);
+        assert!(f16_to_f32(0x7e00).is_nan());
+        // 0.55 as half is 0x3866 = 0.54980...
+        assert!((f16_to_f32(0x3866) - 0.55).abs() < 5e-4);
     }
 }

@@ -37,8 +37,9 @@ struct Frame {
 @group(0) @binding(1) var<storage, read> draw_ids: array<u32>;
 @group(0) @binding(2) var<uniform> frame: Frame;
 
-// Depth of the previously peeled layer (peel pass only).
-@group(1) @binding(0) var prev_depth: texture_depth_2d;
+// Depth of the previously peeled layer (peel pass only), bound as an unfilterable float
+// texture: `textureLoad` from `texture_depth_2d` has no GLSL translation (GLES backend).
+@group(1) @binding(0) var prev_depth: texture_2d<f32>;
 
 @vertex
 fn vs_depth(@location(0) pos: vec3<f32>, @builtin(instance_index) inst: u32) -> @builtin(position) vec4<f32> {
@@ -88,6 +89,11 @@ fn shade(world: vec3<f32>, id: u32) -> vec4<f32> {
     let ambient = frame.light.w;
     let k = ambient + (1.0 - ambient) * max(dot(n, frame.light.xyz), 0.0);
     return vec4<f32>(objects[id].albedo.xyz * k, 1.0);
+}
+
+@fragment
+fn fs_frame_item(v: VsOut) -> @location(0) u32 {
+    return v.id;
 }
 
 @fragment
@@ -179,12 +185,21 @@ fn peel_threshold(px: f32, py: f32, d: f32) -> f32 {
 // Depth peeling: keep only fragments strictly behind the previous layer's threshold. Where the
 // previous layer is empty (depth 1) nothing can lie behind it, so the layer stays empty.
 @fragment
+fn fs_peel_item(v: VsOut) -> @location(0) u32 {
+    let prev = textureLoad(prev_depth, vec2<i32>(v.clip.xy), 0).x;
+    if (v.clip.z <= peel_threshold(v.clip.x, v.clip.y, prev)) {
+        discard;
+    }
+    return v.id;
+}
+
+@fragment
 fn fs_peel(v: VsOut) -> FsOut {
     // Shade first: derivatives must be taken while the whole 2x2 quad is still active.
     var out: FsOut;
     out.item = v.id;
     out.color = shade(v.world, v.id);
-    let prev = textureLoad(prev_depth, vec2<i32>(v.clip.xy), 0);
+    let prev = textureLoad(prev_depth, vec2<i32>(v.clip.xy), 0).x;
     // v.clip.xy is the pixel centre (x + 0.5, y + 0.5), as on the CPU.
     if (v.clip.z <= peel_threshold(v.clip.x, v.clip.y, prev)) {
         discard;
