@@ -148,12 +148,20 @@ pub struct TightBound {
     pub motion: Bound,
     /// Search region in frame coordinates: `[R p - motion.hi, R p - motion.lo]`.
     pub region: Bound,
+    /// Lower bound of the target depth of every valid sample the region's look-up covers: no
+    /// solution in the region is nearer. The multi-layer warp skips a layer whose `min_depth`
+    /// is not below the best candidate found so far.
+    pub min_depth: f32,
 }
 
 struct Level {
     w: u32,
     h: u32,
+    /// Min-max motion per texel.
     data: Vec<[f32; 4]>,
+    /// Minimal target depth of the valid samples per texel (`+inf` if none). Kept apart: only
+    /// the final look-up of a tightening reads it.
+    zmin: Vec<f32>,
 }
 
 /// Min-max motion mipmap (Sec. 3.3) of one motion buffer in a [`BoundFrame`]. Levels `1..=top`
@@ -223,7 +231,21 @@ impl MotionPyramid {
                 *out = b.to_texel();
             }
         });
-        levels.push(Level { w: lw, h: lh, data });
+        let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
+        zmin.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
+            let (y0, y1) = (ty * 2, (ty * 2 + 2).min(h as usize));
+            for (tx, out) in row.iter_mut().enumerate() {
+                let (x0, x1) = (tx * 2, (tx * 2 + 2).min(w as usize));
+                for y in y0..y1 {
+                    for m in &samples[y * w as usize + x0..y * w as usize + x1] {
+                        if is_valid_sample(m) {
+                            *out = out.min(m.depth);
+                        }
+                    }
+                }
+            }
+        });
+        levels.push(Level { w: lw, h: lh, data, zmin });
         for _ in 1..top {
             let prev = levels.last().expect("level 1 exists");
             let (lw, lh) = (prev.w.div_ceil(2), prev.h.div_ceil(2));
@@ -243,7 +265,19 @@ impl MotionPyramid {
                     *out = b.to_texel();
                 }
             });
-            levels.push(Level { w: lw, h: lh, data });
+            let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
+            zmin.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
+                let (y0, y1) = (ty * 2, (ty * 2 + 2).min(prev.h as usize));
+                for (tx, out) in row.iter_mut().enumerate() {
+                    let (x0, x1) = (tx * 2, (tx * 2 + 2).min(prev.w as usize));
+                    for y in y0..y1 {
+                        for z in &prev.zmin[y * prev.w as usize + x0..y * prev.w as usize + x1] {
+                            *out = out.min(*z);
+                        }
+                    }
+                }
+            });
+            levels.push(Level { w: lw, h: lh, data, zmin });
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
         MotionPyramid { width: w, height: h, frame, levels }
@@ -311,6 +345,24 @@ impl MotionPyramid {
         b
     }
 
+    /// Minimal target depth of the valid samples over the inclusive pixel range (same four
+    /// corner look-ups as [`Self::lookup_range`]); `+inf` if none.
+    #[inline]
+    pub fn lookup_min_depth(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> f32 {
+        let level = self.level_for_range(ix0, iy0, ix1, iy1);
+        let l = &self.levels[(level - 1) as usize];
+        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
+        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
+        let mut z = f32::INFINITY;
+        for ty in ty0..=ty1 {
+            let row = &l.zmin[ty as usize * l.w as usize..];
+            for t in &row[tx0 as usize..=tx1 as usize] {
+                z = z.min(*t);
+            }
+        }
+        z
+    }
+
     /// Search region of target pixel position `p` under motion bound `b`, in frame coordinates.
     #[inline]
     pub fn region(&self, p: Vec2, b: &Bound) -> Bound {
@@ -360,11 +412,47 @@ impl MotionPyramid {
     /// intersection of both therefore still contains it.
     #[inline]
     pub fn tight_bound(&self, p: Vec2, iterations: u32, expand: f32) -> Option<TightBound> {
-        let mut b = self.global();
+        self.tight_bound_box(p, p, self.global(), iterations, expand)
+    }
+
+    /// [`Self::tight_bound`] for every target position in the box `[p_lo, p_hi]` at once,
+    /// starting from `start` (which must contain the motion of every solution, e.g. the global
+    /// bound or the bound of an enclosing box). The search region is the union over the box,
+    /// `[c_lo - hi, c_hi - lo]` with `[c_lo, c_hi]` the frame bounds of the box, so the result
+    /// is a valid start for any pixel inside it: the warp tightens per 4x4 tile first, then per
+    /// pixel from the tile's bound, which gives the same per-pixel bound for a fraction of the
+    /// look-ups. Stops early at the fixed point of the tightening. `min_depth` is left at
+    /// `-inf` (unknown); see [`Self::tight_bound_box_with_depth`].
+    #[inline]
+    pub fn tight_bound_box(
+        &self,
+        p_lo: Vec2,
+        p_hi: Vec2,
+        start: Bound,
+        iterations: u32,
+        expand: f32,
+    ) -> Option<TightBound> {
+        let mut b = start;
         if b.is_empty() {
             return None;
         }
-        let mut region = self.region(p, &b);
+        let (c_lo, c_hi) = if self.frame.is_identity() {
+            (p_lo, p_hi)
+        } else if p_lo == p_hi {
+            let c = self.frame.to_frame(p_lo);
+            (c, c)
+        } else {
+            let f = &self.frame;
+            let c = [
+                f.to_frame(p_lo),
+                f.to_frame(p_hi),
+                f.to_frame(Vec2::new(p_lo.x, p_hi.y)),
+                f.to_frame(Vec2::new(p_hi.x, p_lo.y)),
+            ];
+            (c[0].min(c[1]).min(c[2]).min(c[3]), c[0].max(c[1]).max(c[2]).max(c[3]))
+        };
+        let region_of = |b: &Bound| Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
+        let mut region = region_of(&b);
         let mut range = self.pixel_range(&region, expand)?;
         for _ in 0..iterations {
             let m = self.lookup_range(range.0, range.1, range.2, range.3);
@@ -377,10 +465,27 @@ impl MotionPyramid {
                 break;
             }
             b = nb;
-            region = self.region(p, &b);
+            region = region_of(&b);
             range = self.pixel_range(&region, expand)?;
         }
-        Some(TightBound { motion: b, region })
+        Some(TightBound { motion: b, region, min_depth: f32::NEG_INFINITY })
+    }
+
+    /// [`Self::tight_bound_box`] plus [`TightBound::min_depth`] over the final region (one more
+    /// four-texel look-up).
+    #[inline]
+    pub fn tight_bound_box_with_depth(
+        &self,
+        p_lo: Vec2,
+        p_hi: Vec2,
+        start: Bound,
+        iterations: u32,
+        expand: f32,
+    ) -> Option<TightBound> {
+        let mut tb = self.tight_bound_box(p_lo, p_hi, start, iterations, expand)?;
+        let r = self.pixel_range(&tb.region, expand)?;
+        tb.min_depth = self.lookup_min_depth(r.0, r.1, r.2, r.3);
+        Some(tb)
     }
 }
 
@@ -518,6 +623,19 @@ mod tests {
                         }
                     }
                 }
+                // Min depth texels against brute force at the automatic level of random ranges.
+                for (x0, y0) in [(0, 0), (w / 3, h / 2), (w - 1, h - 1)] {
+                    let (x1, y1) = ((x0 + 5).min(w - 1), (y0 + 3).min(h - 1));
+                    let mut want = f32::INFINITY;
+                    for y in y0..=y1 {
+                        for x in x0..=x1 {
+                            if is_valid_sample(m.get(x, y)) {
+                                want = want.min(m.get(x, y).depth);
+                            }
+                        }
+                    }
+                    assert!(pyr.lookup_min_depth(x0, y0, x1, y1) <= want);
+                }
                 let g = brute(&m, frame, 0, 0, w - 1, h - 1);
                 assert!((pyr.global().lo - g.lo).abs().max_element() < 1e-4);
                 assert!((pyr.global().hi - g.hi).abs().max_element() < 1e-4);
@@ -604,6 +722,41 @@ mod tests {
         let tight = pyr.tight_bound(p, 3, 0.5).unwrap();
         assert_eq!(global.motion, pyr.global());
         assert!(tight.motion.pixel_area() < 0.1 * global.motion.pixel_area(), "{tight:?} vs {global:?}");
+    }
+
+    #[test]
+    fn tile_bound_contains_every_pixel_bound_and_refines_to_it() {
+        let (w, h) = (96u32, 64u32);
+        let m = Image::from_fn(w, h, |x, y| {
+            let v = Vec2::new(0.12 * x as f32 - 4.0 + if x > 50 { 6.0 } else { 0.0 }, 0.07 * y as f32);
+            Motion { v, depth: if (x + 2 * y) % 17 == 0 { 1.0 } else { 0.5 } }
+        });
+        for frame in [BoundFrame::IDENTITY, BoundFrame::from_angle(0.4)] {
+            let pyr = MotionPyramid::build_in_frame(&m, frame).unwrap();
+            for (tx, ty) in [(0u32, 0u32), (12, 3), (13, 7), (23, 15)] {
+                let (lo, hi) = (Vec2::new(tx as f32 * 4.0 + 0.5, ty as f32 * 4.0 + 0.5), Vec2::ZERO);
+                let hi = hi + lo + Vec2::splat(3.0);
+                let tile = pyr.tight_bound_box(lo, hi, pyr.global(), 6, 0.5);
+                for j in 0..4 {
+                    for i in 0..4 {
+                        let p = lo + Vec2::new(i as f32, j as f32);
+                        let direct = pyr.tight_bound(p, 6, 0.5);
+                        match (tile, direct) {
+                            (None, d) => assert!(d.is_none()),
+                            (Some(t), Some(d)) => {
+                                // The tile bound contains the pixel's own bound ...
+                                assert_eq!(t.motion.union(&d.motion), t.motion);
+                                // ... and refining from it is at least as tight as from global
+                                // (by induction: a sub-range's texels lie inside the range's).
+                                let r = pyr.tight_bound_box(p, p, t.motion, 6, 0.5).unwrap();
+                                assert_eq!(r.motion.union(&d.motion), d.motion);
+                            }
+                            (Some(_), None) => {}
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

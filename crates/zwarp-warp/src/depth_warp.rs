@@ -12,12 +12,17 @@
 //! above (towards the camera) at the same position; landing in empty space a second time makes
 //! the seed non-convergent. In addition, the converged position of an earlier layer seeds the
 //! search of the later ones (it replaces the last stratified seed when it lies in the region).
+//!
+//! Pruning: once a layer converged, a later layer is searched only if the min-depth mipmap says
+//! some sample of its search region is nearer than the best candidate (exact for the layer's
+//! own samples; a later layer's cross-layer borrowing from earlier layers is then skipped too,
+//! which only drops duplicates of what those layers' own searches could find).
 
 use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
-use crate::bounds::{choose_frame, BoundFrame, MotionPyramid, TightBound};
+use crate::bounds::{choose_frame, Bound, BoundFrame, MotionPyramid, TightBound};
 use crate::holes::{awoc_depth, dilate_holes, HolePolicy};
 use crate::search::{
     effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SearchParams,
@@ -116,7 +121,7 @@ struct StackSampler<'a> {
 impl MotionSource for StackSampler<'_> {
     /// Number of empty landings so far.
     type Walk = u8;
-    #[inline]
+    #[inline(always)]
     fn sample(&self, q: Vec2, empties: &mut u8) -> Option<Sample> {
         let own = &self.layers[self.k];
         if !own.inside(q) {
@@ -171,19 +176,21 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     let mut depth = vec![EMPTY_DEPTH; n];
     let mut state = vec![PixelState::Hole; n];
     let mut source = if params.record_source { vec![SourcePos::default(); n] } else { Vec::new() };
+    // Bands of TILE rows: tiles of TILE x TILE pixels share a first tightening stage.
+    let band = (w * TILE) as usize;
     if params.record_source {
         depth
-            .par_chunks_mut(w as usize)
-            .zip(state.par_chunks_mut(w as usize))
-            .zip(source.par_chunks_mut(w as usize))
+            .par_chunks_mut(band)
+            .zip(state.par_chunks_mut(band))
+            .zip(source.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(y, ((d, s), src))| kernel.row(y as u32, d, s, Some(src)));
+            .for_each(|(ty, ((d, s), src))| kernel.band(ty as u32, d, s, Some(src)));
     } else {
         depth
-            .par_chunks_mut(w as usize)
-            .zip(state.par_chunks_mut(w as usize))
+            .par_chunks_mut(band)
+            .zip(state.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(y, (d, s))| kernel.row(y as u32, d, s, None));
+            .for_each(|(ty, (d, s))| kernel.band(ty as u32, d, s, None));
     }
     let mut depth = Image::from_vec(w, h, depth)?;
     let mut state = Image::from_vec(w, h, state)?;
@@ -202,21 +209,57 @@ struct Kernel<'a> {
     h: u32,
 }
 
+/// Tile size of the two-stage bound tightening (pixels per side).
+const TILE: u32 = 4;
+
 impl Kernel<'_> {
-    fn row(&self, y: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
-        for x in 0..self.w {
-            let (z, st, src) = self.pixel(x, y);
-            depth[x as usize] = z;
-            state[x as usize] = st;
-            if let Some(s) = source.as_deref_mut() {
-                s[x as usize] = src;
+    /// Number of tightening steps (0 for the global bound).
+    fn bound_iterations(&self) -> u32 {
+        if self.params.bound == BoundKind::Global {
+            0
+        } else {
+            self.params.bound_iterations
+        }
+    }
+
+    /// Warps the band of rows `ty * TILE ..`: per TILE x TILE tile, tighten the bound of every
+    /// layer once for the whole tile (Fig. 5 on the union of the tile's search regions), then
+    /// warp each pixel starting its own tightening from the tile's bound. Same per-pixel bounds
+    /// (see [`MotionPyramid::tight_bound_box`]), a fraction of the look-ups; layers whose tile
+    /// region holds no valid sample are skipped for all 16 pixels at once.
+    fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
+        let w = self.w as usize;
+        let rows = (depth.len() / w) as u32;
+        let y0 = ty * TILE;
+        let iters = self.bound_iterations();
+        let expand = self.params.sampling.footprint();
+        let mut tile_bounds: Vec<Option<Bound>> = vec![None; self.layers.len()];
+        for x0 in (0..self.w).step_by(TILE as usize) {
+            let x1 = (x0 + TILE).min(self.w) - 1;
+            let y1 = y0 + rows - 1;
+            let p_lo = Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5);
+            let p_hi = Vec2::new(x1 as f32 + 0.5, y1 as f32 + 0.5);
+            for (tb, layer) in tile_bounds.iter_mut().zip(self.layers) {
+                let pyr = &layer.pyramid;
+                *tb = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), iters, expand).map(|t| t.motion);
+            }
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let (z, st, src) = self.pixel(x, y, &tile_bounds);
+                    let i = (y - y0) as usize * w + x as usize;
+                    depth[i] = z;
+                    state[i] = st;
+                    if let Some(s) = source.as_deref_mut() {
+                        s[i] = src;
+                    }
+                }
             }
         }
     }
 
     /// The warp of one target pixel over all layers.
     #[inline]
-    fn pixel(&self, x: u32, y: u32) -> (f32, PixelState, SourcePos) {
+    fn pixel(&self, x: u32, y: u32, tile_bounds: &[Option<Bound>]) -> (f32, PixelState, SourcePos) {
         let params = self.params;
         let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let expand = params.sampling.footprint();
@@ -228,9 +271,22 @@ impl Kernel<'_> {
         let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
         for (k, layer) in self.layers.iter().enumerate() {
             let pyr = &layer.pyramid;
-            let iters = if params.bound == BoundKind::Global { 0 } else { params.bound_iterations };
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
-            let Some(tb) = pyr.tight_bound(p, iters, expand) else { continue };
+            let Some(start) = tile_bounds[k] else { continue };
+            let tb = if k > 0 && best.is_some() {
+                // A later layer only matters if it can beat the best candidate so far: skip it
+                // when no sample of its search region is nearer (min-depth mipmap look-up).
+                let Some(tb) = pyr.tight_bound_box_with_depth(p, p, start, self.bound_iterations(), expand) else {
+                    continue;
+                };
+                if best.is_some_and(|b| tb.min_depth >= b.depth) {
+                    continue;
+                }
+                tb
+            } else {
+                let Some(tb) = pyr.tight_bound_box(p, p, start, self.bound_iterations(), expand) else { continue };
+                tb
+            };
             if params.holes == HolePolicy::Awoc && awoc.is_none() {
                 awoc = Some((pyr.frame(), tb));
             }

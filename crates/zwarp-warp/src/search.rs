@@ -101,22 +101,25 @@ impl<'a> LayerSampler<'a> {
 
     #[inline]
     fn at(&self, x: u32, y: u32) -> &Motion {
-        // SAFETY-free: indices are clamped by the callers.
+        // Callers clamp the indices; slice indexing still bounds-checks.
         &self.samples[y as usize * self.w as usize + x as usize]
     }
 
     /// The sample at `q` (must be inside, see [`Self::inside`]); `None` if empty.
-    #[inline]
+    #[inline(always)]
     pub fn fetch(&self, q: Vec2) -> Option<Sample> {
-        let (xn, yn) = ((q.x as u32).min(self.w - 1), (q.y as u32).min(self.h - 1));
+        // `q >= 0` inside the image: truncation is floor. (`f32::floor` is a libm call on
+        // baseline x86-64, which showed up at ~9 % of the warp in a profile.)
+        let (wm, hm) = (self.w - 1, self.h - 1);
+        let (xn, yn) = ((q.x as u32).min(wm), (q.y as u32).min(hm));
         if self.sampling == Sampling::Adaptive {
-            let t = q - Vec2::splat(0.5);
-            let (fx, fy) = (t.x.floor(), t.y.floor());
-            let (ax, ay) = (t.x - fx, t.y - fy);
-            let x0 = (fx.max(0.0) as u32).min(self.w - 1);
-            let y0 = (fy.max(0.0) as u32).min(self.h - 1);
-            let x1 = ((fx + 1.0).max(0.0) as u32).min(self.w - 1);
-            let y1 = ((fy + 1.0).max(0.0) as u32).min(self.h - 1);
+            // Texel-centre coordinates t = q - 0.5 >= -0.5: floor(t) = trunc(t + 1) - 1.
+            let (tx, ty) = (q.x + 0.5, q.y + 0.5);
+            let (ix, iy) = (tx as u32, ty as u32); // floor(t) + 1
+            let (ax, ay) = (tx - ix as f32, ty - iy as f32);
+            let x0 = ix.saturating_sub(1).min(wm);
+            let y0 = iy.saturating_sub(1).min(hm);
+            let (x1, y1) = (ix.min(wm), iy.min(hm));
             let (s00, s10, s01, s11) = (self.at(x0, y0), self.at(x1, y0), self.at(x0, y1), self.at(x1, y1));
             // Invalid samples carry depth >= 1 (or < 0): one compare per texel.
             let valid = |m: &Motion| m.depth >= 0.0 && m.depth < 1.0;
