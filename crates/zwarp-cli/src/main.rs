@@ -1,1 +1,44 @@
-fn main() {}
+//! `zwarp`: the command-line front end of zwarp (image-based depth warping for real-time
+//! rendering). One file per command under `commands/`.
+
+mod args;
+mod commands;
+mod report;
+
+use clap::{Parser, Subcommand};
+
+/// zwarp: predict depth (and colour) buffers of new views by warping buffers already rendered.
+#[derive(Parser)]
+#[command(name = "zwarp", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the main job on an embedded procedural scene and show the key figures.
+    Demo(commands::demo::DemoArgs),
+    /// Render the buffers of one frame (depth, items, motion, layers, colour) as PNG + EXR.
+    Render(commands::render::RenderArgs),
+    /// Warp frame k to frame k+1 and compare with a direct render (paper 000, Sec. 4).
+    Eval(commands::eval::EvalArgs),
+    /// List the compute devices (GPU adapters) zwarp can use.
+    Info(commands::info::InfoArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(a) => commands::demo::run(a),
+        Command::Render(a) => commands::render::run(a),
+        Command::Eval(a) => commands::eval::run(a),
+        Command::Info(a) => commands::info::run(a),
+    };
+    if let Err(e) = result {
+        // One line: the error and its causes, joined.
+        let msg = e.chain().map(|c| c.to_string()).collect::<Vec<_>>().join(": ");
+        eprintln!("error: {msg}");
+        std::process::exit(1);
+    }
+}

@@ -1,0 +1,566 @@
+//! `zwarp eval`: iterative depth warping against its baselines and a direct render
+//! (paper 000, Sec. 4: Tables 1-3, Figs. 10-12).
+//!
+//! For each frame pair (frame k as source, k+1 as target) the source view is rendered and
+//! peeled into L layers, each layer's motion buffer is computed, and the target depth is
+//! predicted by our backward warp and by the forward baselines VFW and AFW; the target view
+//! rendered directly is the reference for quality and for time.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde::Serialize;
+use zwarp_core::{motion_field, Camera, Image, Motion, Scene};
+use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_scene::CameraPath;
+use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
+
+use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::report::{self, fmt, ser_f64, Table, Timing};
+
+/// Arguments of `zwarp eval`.
+#[derive(Args, Clone, Debug)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub size: SizeArgs,
+    /// Number of frame pairs (k, k+1), spread evenly along the camera path.
+    #[arg(long, default_value_t = 4)]
+    pub frames: usize,
+    /// Motion-speed factors (comma list): frame k is taken at time k * speed / fps.
+    #[arg(long, default_value = "1")]
+    pub speed: String,
+    /// Search seeds N (comma list).
+    #[arg(long, default_value = "4,16")]
+    pub n: String,
+    /// Depth layers L (comma list); with a ground in the scene the last layer is the ground.
+    #[arg(long, default_value = "1,3,4")]
+    pub l: String,
+    /// Fixed-point iterations T per seed (comma list).
+    #[arg(long, default_value = "3")]
+    pub t: String,
+    /// Search-region bounds (comma list of global, tight, oriented).
+    #[arg(long, default_value = "oriented")]
+    pub bound: String,
+    /// Methods (comma list of ours, vfw, afw).
+    #[arg(long, default_value = "ours,vfw,afw")]
+    pub methods: String,
+    /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
+    #[arg(long, default_value = "umbra")]
+    pub peel: String,
+    /// Timed repetitions per measurement (after one warm-up run).
+    #[arg(long, default_value_t = 3)]
+    pub reps: usize,
+    /// Write source / warped / reference / difference images here (first frame pair).
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+    /// Write the results as JSON (`rows`, one per configuration).
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// One configuration's results, aggregated over the frame pairs (JSON `rows`).
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalRow {
+    /// `ours`, `vfw` or `afw`.
+    pub method: String,
+    /// Scene spec.
+    pub scene: String,
+    /// Seeds N (0 for the forward warps).
+    pub n: u32,
+    /// Layers L.
+    pub l: usize,
+    /// Iterations T (0 for the forward warps).
+    pub t: u32,
+    /// `global`, `tight`, `oriented` (`-` for the forward warps).
+    pub bound: String,
+    /// Motion-speed factor.
+    pub speed: f32,
+    /// Frame pairs evaluated.
+    pub frames: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Mean PSNR (dB) on linear depth normalised by the reference's surface range.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr: f64,
+    /// Mean SSIM on the same normalised linear depth.
+    pub ssim: f64,
+    /// Worst frame PSNR.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr_min: f64,
+    /// Mean PSNR on the stored `[0,1]` buffer.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr_buffer: f64,
+    /// Mean SSIM on the stored `[0,1]` buffer.
+    pub ssim_buffer: f64,
+    /// Mean fraction of the reference's surface pixels where the method produced a depth
+    /// (ours: a converged search; forward warps: a splat landed).
+    pub converged: f64,
+    /// Median warp time (ms) including the motion min-max mipmap; excluding the motion field.
+    pub warp_ms: f64,
+    /// Spread of the warp time (min, max ms).
+    pub warp_ms_min: f64,
+    /// Spread of the warp time.
+    pub warp_ms_max: f64,
+    /// Median depth-only render time of the target (ms), same run, peeling excluded.
+    pub ref_ms: f64,
+    /// `ref_ms / warp_ms`.
+    pub speedup: f64,
+    /// Median motion-field time for the L layers (ms), reported apart.
+    pub motion_ms: f64,
+    /// Warp throughput: output pixels per second per core (millions).
+    pub mpix_per_s_per_core: f64,
+}
+
+/// The parsed evaluation plan.
+#[derive(Clone, Debug)]
+pub struct EvalPlan {
+    pub frames: usize,
+    pub speeds: Vec<f32>,
+    pub ns: Vec<u32>,
+    pub ls: Vec<usize>,
+    pub ts: Vec<u32>,
+    pub bounds: Vec<BoundKind>,
+    pub methods: Vec<String>,
+    pub umbra: bool,
+    pub reps: usize,
+    pub width: u32,
+    pub height: u32,
+    pub images: Option<PathBuf>,
+}
+
+fn bound_name(b: BoundKind) -> &'static str {
+    match b {
+        BoundKind::Global => "global",
+        BoundKind::Tight => "tight",
+        BoundKind::Oriented => "oriented",
+    }
+}
+
+impl EvalArgs {
+    /// Validates and parses the lists.
+    pub fn plan(&self) -> Result<EvalPlan> {
+        self.size.check()?;
+        if self.frames == 0 {
+            bail!("--frames must be at least 1");
+        }
+        let speeds: Vec<f32> = parse_list(&self.speed, "--speed")?;
+        if speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            bail!("--speed values must be positive");
+        }
+        let ns: Vec<u32> = parse_list(&self.n, "--n")?;
+        let ls: Vec<usize> = parse_list(&self.l, "--l")?;
+        if ls.contains(&0) {
+            bail!("--l values must be at least 1");
+        }
+        let ts: Vec<u32> = parse_list(&self.t, "--t")?;
+        let bounds = parse_list::<String>(&self.bound, "--bound")?
+            .iter()
+            .map(|b| match b.as_str() {
+                "global" => Ok(BoundKind::Global),
+                "tight" => Ok(BoundKind::Tight),
+                "oriented" => Ok(BoundKind::Oriented),
+                o => bail!("--bound: unknown bound '{o}' (global, tight, oriented)"),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let methods: Vec<String> = parse_list(&self.methods, "--methods")?;
+        for m in &methods {
+            if !["ours", "vfw", "afw"].contains(&m.as_str()) {
+                bail!("--methods: unknown method '{m}' (ours, vfw, afw)");
+            }
+        }
+        let umbra = match self.peel.as_str() {
+            "umbra" => true,
+            "standard" => false,
+            o => bail!("--peel: unknown peeling '{o}' (umbra, standard)"),
+        };
+        // Validate every warp configuration before any rendering starts.
+        for &n in &ns {
+            for &t in &ts {
+                WarpParams { n_seeds: n, iterations: t, ..WarpParams::default() }.validate()?;
+            }
+        }
+        Ok(EvalPlan {
+            frames: self.frames,
+            speeds,
+            ns,
+            ls,
+            ts,
+            bounds,
+            methods,
+            umbra,
+            reps: self.reps.max(1),
+            width: self.size.width,
+            height: self.size.height,
+            images: self.images.clone(),
+        })
+    }
+}
+
+/// Source-view buffers of one frame pair: depth + motion of the plain depth buffer (L = 1), of
+/// the peeled layers and of the separate ground layer (seed 000, Sec. 3.4).
+struct PairBuffers {
+    single: (Image<f32>, Image<Motion>),
+    peeled: Vec<(Image<f32>, Image<Motion>)>,
+    ground: Option<(Image<f32>, Image<Motion>)>,
+}
+
+impl PairBuffers {
+    /// The `l` layers to warp: L = 1 is the plain depth buffer; otherwise `l - 1` peeled layers
+    /// plus the ground layer when the scene has ground, else `l` peeled layers.
+    fn prefix(&self, l: usize) -> Vec<WarpLayer<'_>> {
+        fn as_layer((d, m): &(Image<f32>, Image<Motion>)) -> WarpLayer<'_> {
+            WarpLayer { depth: d, motion: m }
+        }
+        if l == 1 {
+            return vec![as_layer(&self.single)];
+        }
+        match &self.ground {
+            Some(g) => self.peeled.iter().take(l - 1).chain(std::iter::once(g)).map(as_layer).collect(),
+            None => self.peeled.iter().take(l).map(as_layer).collect(),
+        }
+    }
+}
+
+/// Frame pairs `(t_a, cam_a, t_b, cam_b)` spread evenly along the path at `speed`.
+pub fn frame_pairs(
+    path: &CameraPath,
+    count: usize,
+    speed: f32,
+    w: u32,
+    h: u32,
+) -> Result<Vec<(f32, Camera, f32, Camera)>> {
+    let total = path.frame_count_at(speed);
+    if total < 2 {
+        bail!("the camera path is too short for a frame pair at speed {speed}x ({total} frame)");
+    }
+    let last_source = total - 2;
+    let count = count.min(last_source + 1);
+    let mut out = Vec::with_capacity(count);
+    for i in 0..count {
+        let k = if count == 1 { 0 } else { i * last_source / (count - 1) };
+        let (ta, tb) = (path.time_of_frame(k, speed), path.time_of_frame(k + 1, speed));
+        out.push((ta, path.camera_at(ta, w, h)?, tb, path.camera_at(tb, w, h)?));
+    }
+    Ok(out)
+}
+
+/// Renders the source view's layers and their motion buffers towards the target view.
+fn source_buffers(
+    scene: &Scene,
+    ca: &Camera,
+    ta: f32,
+    cb: &Camera,
+    tb: f32,
+    max_l: usize,
+    umbra: bool,
+) -> Result<(PairBuffers, f64)> {
+    let deltas = scene.object_deltas(ta, tb);
+    let has_ground = scene.instances.iter().any(|i| i.is_ground);
+    let frame = render_frame(scene, ca, ta, &FrameOptions::default())?;
+    // Umbra culling serves every viewpoint within the eye displacement to the target (with a
+    // margin for the path's curvature); object motion is covered by the motion field, not here.
+    let e = (cb.eye() - ca.eye()).length() * 1.5;
+    let peel = PeelOptions {
+        layers: if has_ground { max_l.saturating_sub(1).max(1) } else { max_l },
+        ground_separate: has_ground,
+        umbra: umbra.then_some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
+    };
+    let layers = if max_l > 1 { render_layers(scene, ca, ta, &peel)? } else { Vec::new() };
+    let t0 = std::time::Instant::now();
+    let single_motion = motion_field(&frame.depth, Some(&frame.items), ca, cb, &deltas)?;
+    let mut with_motion = Vec::with_capacity(layers.len());
+    for layer in layers {
+        let m = motion_field(&layer.depth, Some(&layer.items), ca, cb, &deltas)?;
+        with_motion.push((layer.depth, m));
+    }
+    let motion_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let ground = if has_ground && max_l > 1 { with_motion.pop() } else { None };
+    Ok((PairBuffers { single: (frame.depth, single_motion), peeled: with_motion, ground }, motion_ms))
+}
+
+/// Per-configuration accumulator over frame pairs.
+#[derive(Default)]
+struct Acc {
+    psnr: Vec<f64>,
+    ssim: Vec<f64>,
+    psnr_buffer: Vec<f64>,
+    ssim_buffer: Vec<f64>,
+    converged: Vec<f64>,
+    warp_ms: Vec<f64>,
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+/// Fraction of the reference's surface pixels where `predicted` holds a surface (and, for our
+/// warp, the search converged).
+fn coverage(predicted: &Image<f32>, reference: &Image<f32>, converged: Option<&Image<zwarp_warp::PixelState>>) -> f64 {
+    let mut surf = 0usize;
+    let mut hit = 0usize;
+    for (i, (&p, &r)) in predicted.data().iter().zip(reference.data()).enumerate() {
+        if r < 1.0 {
+            surf += 1;
+            let ok = match converged {
+                Some(s) => s.data()[i] == zwarp_warp::PixelState::Converged,
+                None => p < 1.0,
+            };
+            hit += ok as usize;
+        }
+    }
+    if surf == 0 {
+        1.0
+    } else {
+        hit as f64 / surf as f64
+    }
+}
+
+/// Runs the evaluation plan on a loaded scene; returns one row per configuration.
+pub fn evaluate(
+    scene_name: &str,
+    scene: &Scene,
+    path: &CameraPath,
+    plan: &EvalPlan,
+    progress: bool,
+) -> Result<Vec<EvalRow>> {
+    let max_l = *plan.ls.iter().max().unwrap_or(&1);
+    let cores = rayon::current_num_threads() as f64;
+    let mut rows = Vec::new();
+    let configs_per_pair = plan
+        .methods
+        .iter()
+        .map(|m| {
+            if m == "ours" {
+                plan.ns.len() * plan.ts.len() * plan.bounds.len() * plan.ls.len()
+            } else {
+                plan.ls.len()
+            }
+        })
+        .sum::<usize>();
+    for &speed in &plan.speeds {
+        let pairs = frame_pairs(path, plan.frames, speed, plan.width, plan.height)?;
+        let bar = if progress {
+            let b = indicatif::ProgressBar::new((pairs.len() * (configs_per_pair + 1)) as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
+                    .unwrap()
+                    .progress_chars("=> "),
+            );
+            b.set_message(format!("eval {scene_name} {speed}x"));
+            b
+        } else {
+            indicatif::ProgressBar::hidden()
+        };
+        let mut keys: Vec<(String, usize, u32, u32, Option<BoundKind>)> = Vec::new();
+        let mut accs: Vec<Acc> = Vec::new();
+        let mut ref_samples = Vec::new();
+        let mut motion_samples = Vec::new();
+        for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
+            let (reference, samples) = report::time_repeated(plan.reps, || Ok(render_depth(scene, cb, *tb)?))?;
+            ref_samples.extend(samples);
+            let (bufs, motion_ms) = source_buffers(scene, ca, *ta, cb, *tb, max_l, plan.umbra)?;
+            motion_samples.push(motion_ms);
+            bar.inc(1);
+            let mut run = |key: (String, usize, u32, u32, Option<BoundKind>),
+                           f: &mut dyn FnMut() -> Result<(Image<f32>, Option<Image<zwarp_warp::PixelState>>)>|
+             -> Result<()> {
+                let (out, samples) = report::time_repeated(plan.reps, &mut *f)?;
+                let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
+                let idx = match keys.iter().position(|k| *k == key) {
+                    Some(i) => i,
+                    None => {
+                        keys.push(key.clone());
+                        accs.push(Acc::default());
+                        keys.len() - 1
+                    }
+                };
+                let a = &mut accs[idx];
+                a.psnr.push(q.psnr);
+                a.ssim.push(q.ssim);
+                a.psnr_buffer.push(q.psnr_buffer);
+                a.ssim_buffer.push(q.ssim_buffer);
+                a.converged.push(coverage(&out.0, &reference, out.1.as_ref()));
+                a.warp_ms.extend(samples);
+                if pi == 0 {
+                    if let Some(dir) = &plan.images {
+                        write_images(dir, scene_name, speed, &key, &bufs.single.0, &out.0, &reference, ca, cb)?;
+                    }
+                }
+                bar.inc(1);
+                Ok(())
+            };
+            for method in &plan.methods {
+                for &l in &plan.ls {
+                    let layers = bufs.prefix(l);
+                    match method.as_str() {
+                        "ours" => {
+                            for &n in &plan.ns {
+                                for &t in &plan.ts {
+                                    for &bound in &plan.bounds {
+                                        let params = WarpParams {
+                                            n_seeds: n,
+                                            iterations: t,
+                                            bound,
+                                            holes: HolePolicy::FarDepth,
+                                            ..WarpParams::default()
+                                        };
+                                        run(("ours".into(), l, n, t, Some(bound)), &mut || {
+                                            let o = zwarp_warp::warp_depth(&layers, &params)?;
+                                            Ok((o.depth, Some(o.state)))
+                                        })?;
+                                    }
+                                }
+                            }
+                        }
+                        "vfw" => {
+                            run(("vfw".into(), l, 0, 0, None), &mut || Ok((zwarp_warp::vfw_layers(&layers)?, None)))?
+                        }
+                        _ => run(("afw".into(), l, 0, 0, None), &mut || Ok((zwarp_warp::afw_layers(&layers)?, None)))?,
+                    }
+                }
+            }
+        }
+        bar.finish_and_clear();
+        let ref_t = Timing::of(&ref_samples);
+        let motion_t = Timing::of(&motion_samples);
+        for (key, a) in keys.into_iter().zip(accs) {
+            let wt = Timing::of(&a.warp_ms);
+            rows.push(EvalRow {
+                method: key.0,
+                scene: scene_name.to_string(),
+                n: key.2,
+                l: key.1,
+                t: key.3,
+                bound: key.4.map_or("-", bound_name).to_string(),
+                speed,
+                frames: pairs.len(),
+                width: plan.width,
+                height: plan.height,
+                psnr: mean(&a.psnr),
+                ssim: mean(&a.ssim),
+                psnr_min: a.psnr.iter().copied().fold(f64::INFINITY, f64::min),
+                psnr_buffer: mean(&a.psnr_buffer),
+                ssim_buffer: mean(&a.ssim_buffer),
+                converged: mean(&a.converged),
+                warp_ms: wt.median,
+                warp_ms_min: wt.min,
+                warp_ms_max: wt.max,
+                ref_ms: ref_t.median,
+                speedup: ref_t.median / wt.median.max(1e-9),
+                motion_ms: motion_t.median,
+                mpix_per_s_per_core: (plan.width as f64 * plan.height as f64)
+                    / (wt.median.max(1e-9) * 1e-3)
+                    / cores
+                    / 1e6,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_images(
+    dir: &std::path::Path,
+    scene: &str,
+    speed: f32,
+    key: &(String, usize, u32, u32, Option<BoundKind>),
+    source: &Image<f32>,
+    warped: &Image<f32>,
+    reference: &Image<f32>,
+    ca: &Camera,
+    cb: &Camera,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    let safe: String = scene.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let base = format!("{safe}_{speed}x");
+    let src = dir.join(format!("{base}_source.png"));
+    if !src.exists() {
+        zwarp_viz::write_png(&src, &zwarp_viz::depth_to_rgb8(source, Some(ca)))?;
+        zwarp_viz::write_png(
+            dir.join(format!("{base}_reference.png")),
+            &zwarp_viz::depth_to_rgb8(reference, Some(cb)),
+        )?;
+        // Heat-map legend: red = predicted nearer than the reference, blue = farther,
+        // full intensity at 5% of the reference's depth range.
+    }
+    let cfg = match key.4 {
+        Some(b) => format!("{}_l{}_n{}_t{}_{}", key.0, key.1, key.2, key.3, bound_name(b)),
+        None => format!("{}_l{}", key.0, key.1),
+    };
+    // The warped panel uses the reference's colour range so the two compare pixel for pixel.
+    let shown = zwarp_viz::depth_range(reference, Some(cb)).unwrap_or((cb.near, cb.far));
+    zwarp_viz::write_png(
+        dir.join(format!("{base}_{cfg}_warped.png")),
+        &zwarp_viz::depth_to_rgb8_in_range(warped, Some(cb), shown),
+    )?;
+    // Heat map on linear depth normalised like the headline metric.
+    let range = zwarp_metrics::surface_range(reference, cb).unwrap_or((cb.near, cb.far));
+    let (wn, rn) = (
+        zwarp_metrics::normalized_linear_depth(warped, cb, range),
+        zwarp_metrics::normalized_linear_depth(reference, cb, range),
+    );
+    zwarp_viz::write_png(dir.join(format!("{base}_{cfg}_diff.png")), &zwarp_viz::diff_heatmap(&wn, &rn, 0.05)?)?;
+    Ok(())
+}
+
+/// Prints the rows as a table.
+pub fn table(rows: &[EvalRow]) -> String {
+    let mut t = Table::new(&[
+        "method", "L", "N", "T", "bound", "speed", "PSNR", "SSIM", "conv", "warp ms", "ref ms", "speedup",
+    ]);
+    for r in rows {
+        t.row(vec![
+            r.method.clone(),
+            r.l.to_string(),
+            if r.n > 0 { r.n.to_string() } else { "-".into() },
+            if r.t > 0 { r.t.to_string() } else { "-".into() },
+            r.bound.clone(),
+            format!("{}x", r.speed),
+            fmt(r.psnr, 2),
+            fmt(r.ssim, 4),
+            fmt(r.converged, 4),
+            fmt(r.warp_ms, 2),
+            fmt(r.ref_ms, 2),
+            fmt(r.speedup, 2),
+        ]);
+    }
+    t.render()
+}
+
+/// `zwarp eval`.
+pub fn run(args: EvalArgs) -> Result<()> {
+    let plan = args.plan()?;
+    let loaded = args.scene.load()?;
+    let rows = evaluate(&args.scene.scene, &loaded.scene, &loaded.path, &plan, true)?;
+    println!(
+        "zwarp eval: {} ({} objects, {} triangles), {}x{}, {} frame pair(s), CPU with {} threads",
+        args.scene.scene,
+        loaded.scene.instances.len(),
+        loaded.scene.triangle_count(),
+        plan.width,
+        plan.height,
+        plan.frames,
+        rayon::current_num_threads()
+    );
+    println!("{}", table(&rows));
+    report::write_json(
+        &args.json,
+        "eval",
+        &rows,
+        serde_json::json!({ "backend": "cpu", "threads": rayon::current_num_threads() }),
+    )?;
+    println!("wrote {}", args.json.display());
+    if let Some(d) = &plan.images {
+        println!("images in {}", d.display());
+    }
+    Ok(())
+}

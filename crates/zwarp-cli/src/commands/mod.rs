@@ -1,0 +1,6 @@
+//! One file per `zwarp` command.
+
+pub mod demo;
+pub mod eval;
+pub mod info;
+pub mod render;

@@ -1,0 +1,151 @@
+//! Result reporting shared by the commands: JSON files with a `rows` array, markdown tables,
+//! and timing statistics (median and spread of warm repetitions).
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+/// Writes `{"command": ..., "rows": [...], ...extra}` as pretty JSON.
+pub fn write_json<T: Serialize>(path: &Path, command: &str, rows: &[T], extra: serde_json::Value) -> Result<()> {
+    let mut obj = serde_json::json!({ "command": command, "rows": rows });
+    if let (Some(o), serde_json::Value::Object(e)) = (obj.as_object_mut(), extra) {
+        o.extend(e);
+    }
+    if let Some(dir) = path.parent() {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+        }
+    }
+    let text = serde_json::to_string_pretty(&obj)?;
+    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))?;
+    Ok(())
+}
+
+/// Median and spread of repeated timings (milliseconds).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Timing {
+    /// Median.
+    pub median: f64,
+    /// Minimum.
+    pub min: f64,
+    /// Maximum.
+    pub max: f64,
+    /// 99th percentile (nearest rank).
+    pub p99: f64,
+}
+
+impl Timing {
+    /// Statistics of `samples` (ms); zeros if empty.
+    pub fn of(samples: &[f64]) -> Timing {
+        if samples.is_empty() {
+            return Timing::default();
+        }
+        let mut s = samples.to_vec();
+        s.sort_by(|a, b| a.total_cmp(b));
+        let n = s.len();
+        let median = if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) };
+        let rank = ((0.99 * n as f64).ceil() as usize).clamp(1, n) - 1;
+        Timing { median, min: s[0], max: s[n - 1], p99: s[rank] }
+    }
+}
+
+/// Times `f` `reps` times after one warm-up run; returns the last result and the samples (ms).
+pub fn time_repeated<T>(reps: usize, mut f: impl FnMut() -> Result<T>) -> Result<(T, Vec<f64>)> {
+    let mut out = f()?;
+    let mut samples = Vec::with_capacity(reps);
+    for _ in 0..reps.max(1) {
+        let t0 = std::time::Instant::now();
+        out = f()?;
+        samples.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((out, samples))
+}
+
+/// A markdown table printer.
+pub struct Table {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table with the given column names.
+    pub fn new(header: &[&str]) -> Self {
+        Table { header: header.iter().map(|s| s.to_string()).collect(), rows: Vec::new() }
+    }
+    /// Appends a row.
+    pub fn row(&mut self, cells: Vec<String>) {
+        self.rows.push(cells);
+    }
+    /// Renders as a markdown table with aligned columns.
+    pub fn render(&self) -> String {
+        let n = self.header.len();
+        let mut w: Vec<usize> = self.header.iter().map(|h| h.len()).collect();
+        for r in &self.rows {
+            for (i, c) in r.iter().enumerate().take(n) {
+                w[i] = w[i].max(c.len());
+            }
+        }
+        let line = |cells: &[String]| {
+            let mut s = String::from("|");
+            for i in 0..n {
+                let c = cells.get(i).map(String::as_str).unwrap_or("");
+                s.push_str(&format!(" {:<width$} |", c, width = w[i]));
+            }
+            s
+        };
+        let mut out = line(&self.header);
+        out.push('\n');
+        out.push('|');
+        for wi in &w {
+            out.push_str(&format!("{}|", "-".repeat(wi + 2)));
+        }
+        for r in &self.rows {
+            out.push('\n');
+            out.push_str(&line(r));
+        }
+        out
+    }
+}
+
+/// Formats a float with `d` decimals, `inf` for infinities.
+pub fn fmt(x: f64, d: usize) -> String {
+    if x.is_infinite() {
+        "inf".into()
+    } else {
+        format!("{:.*}", d, x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn timing_statistics() {
+        let t = Timing::of(&[5.0, 1.0, 3.0, 2.0, 4.0]);
+        assert_eq!((t.median, t.min, t.max, t.p99), (3.0, 1.0, 5.0, 5.0));
+        assert_eq!(Timing::of(&[1.0, 2.0, 3.0, 4.0]).median, 2.5);
+    }
+
+    #[test]
+    fn table_layout() {
+        let mut t = Table::new(&["a", "bb"]);
+        t.row(vec!["xxx".into(), "y".into()]);
+        assert_eq!(t.render(), "| a   | bb |\n|-----|----|\n| xxx | y  |");
+    }
+}
+
+/// Serializes an `f64` as a JSON number, or as the string `"inf"` / `"-inf"` / `"nan"` when it is
+/// not finite (JSON has no infinity; PSNR of identical images is `inf`).
+pub fn ser_f64<S: serde::Serializer>(x: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
+    if x.is_finite() {
+        s.serialize_f64(*x)
+    } else if x.is_nan() {
+        s.serialize_str("nan")
+    } else if *x > 0.0 {
+        s.serialize_str("inf")
+    } else {
+        s.serialize_str("-inf")
+    }
+}
