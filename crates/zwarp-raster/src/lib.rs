@@ -15,9 +15,21 @@
 //! interpolated linearly in screen space (perspective-correct), triangles crossing the near plane
 //! are clipped, fragments beyond the far plane (depth > 1) are discarded, both faces are drawn.
 //!
-//! Speed: per-instance frustum culling, parallel vertex transform, parallel set-up into fixed
-//! chunks, binning into 64x32 tiles, parallel tile rasterization with 8-wide incremental edge
-//! functions (AVX2 selected at run time), per-tile early-z and front-to-back instance order.
+//! Speed: per-instance frustum culling, front-to-back instance order, parallel vertex transform
+//! and projection (once per vertex), parallel set-up into fixed chunks of 4096 triangles (so the
+//! result never depends on the thread count), binning into 64x32 tiles, tiles rasterized in
+//! parallel bands (no locks) into L1-resident tile buffers with 8-wide incremental i32 edge
+//! functions and a branch-free depth blend (an AVX2 build selected at run time; the portable build
+//! gives bit-identical results), per-tile early-z (max depth) and, for peeling, per-tile rejection
+//! of triangles entirely in front of the previous layer. Crytek Sponza (262K triangles) at
+//! 1920x1080 costs about 45 ms of CPU time per depth-only frame (9 ms set-up, 35 ms tiles), i.e.
+//! about 25 ms on two idle cores; side by side with Mesa llvmpipe (lavapipe) on the same loaded
+//! machine it takes 0.64x llvmpipe's time. What limits it: the ~2.8 M 8-pixel chunks that the
+//! ~200 K triangle/tile pairs of Sponza touch (depth complexity ~5; many tiny triangles make
+//! per-row and per-triangle overhead comparable to the blend itself) and the f64 set-up.
+//!
+//! Entry points: [`render_depth`], [`render_frame`], [`render_motion`], [`render_layers`],
+//! [`draw_into`], [`any_fragment_visible`].
 
 #![warn(missing_docs)]
 
