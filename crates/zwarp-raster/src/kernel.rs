@@ -98,6 +98,7 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
                     let th8: &[f32; 8] = if PEEL { (&thr[i..i + 8]).try_into().unwrap() } else { &[0.0; 8] };
                     let xbf = xb as f32;
                     // Branch-free lanes (bitwise `&` on bools) so LLVM emits compares + blends.
+                    let mut m = [0u32; 8];
                     for k in 0..8 {
                         let z = clamp_depth(zrow + zx * (xbf + LANE[k]));
                         let d = d8[k];
@@ -105,9 +106,14 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
                         if PEEL {
                             pass &= z > th8[k];
                         }
+                        m[k] = (pass as u32).wrapping_neg();
                         d8[k] = if pass { z } else { d };
-                        if IDS {
-                            id8[k] = if pass { handle } else { id8[k] };
+                    }
+                    if IDS {
+                        // Separate bitwise select (mixing the f32 and u32 selects in one loop made
+                        // LLVM scalarize both).
+                        for k in 0..8 {
+                            id8[k] = (handle & m[k]) | (id8[k] & !m[k]);
                         }
                     }
                 }
