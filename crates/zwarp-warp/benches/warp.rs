@@ -1,7 +1,7 @@
 //! Depth-warp benchmark (seed 000 Table 1/3 style) on a synthetic 1920x1080 city: ground plus
 //! 6x6 boxes ray cast analytically, peeled into 3 layers (the last = ground only), camera
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
-//! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::new`), and the
+//! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), and the
 //! VFW / AFW forward baselines side by side.
 //!
 //! After the criterion groups a summary prints, per configuration: median wall time over a few
@@ -104,10 +104,9 @@ fn main() {
         for l in [1usize, 3] {
             let ls = layers(&case, l);
             g.bench_with_input(BenchmarkId::new("mmc_prepare", l), &l, |b, _| {
-                b.iter(|| ls.iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).count())
+                b.iter(|| PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap())
             });
-            let prepared: Vec<PreparedLayer> =
-                ls.iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).collect();
+            let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap();
             for n in [1u32, 4, 16] {
                 let params = WarpParams { n_seeds: n, ..Default::default() };
                 g.bench_with_input(BenchmarkId::new(format!("ours_L{l}"), n), &n, |b, _| {
@@ -128,11 +127,10 @@ fn main() {
     for l in [1usize, 3] {
         let ls = layers(&case, l);
         let (t, lo, hi) = median_ms(5, || {
-            let _ = ls.iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).count();
+            std::hint::black_box(PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap());
         });
         println!("L={l} MMC+prepare: {t:.1} ms [{lo:.1}, {hi:.1}]");
-        let prepared: Vec<PreparedLayer> =
-            ls.iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).collect();
+        let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap();
         for n in [1u32, 4, 16] {
             let params = WarpParams { n_seeds: n, ..Default::default() };
             let (t, lo, hi) = median_ms(5, || {

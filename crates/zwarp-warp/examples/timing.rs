@@ -66,8 +66,7 @@ fn main() {
         );
     }
     for l in [1usize, 3] {
-        let prepared: Vec<PreparedLayer> =
-            layers[..l].iter().map(|x| PreparedLayer::new(x, BoundKind::Oriented).unwrap()).collect();
+        let prepared = PreparedLayer::prepare_stack(&layers[..l], BoundKind::Oriented).unwrap();
         for n in [1u32, 4, 16] {
             let params = WarpParams { n_seeds: n, ..Default::default() };
             let t = median(

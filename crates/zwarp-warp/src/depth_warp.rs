@@ -64,6 +64,45 @@ impl PreparedLayer {
         Ok(PreparedLayer { w, h, samples, pyramid, bound })
     }
 
+    /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
+    /// that the mipmap of layer `k > 0` leaves out samples that repeat an earlier layer's sample
+    /// at the same pixel (same source depth): a separately rendered ground layer (Sec. 3.4)
+    /// repeats every ground pixel that layer 0 already shows. Those samples stay in the layer
+    /// (walks may cross them) but no longer widen its bounds or stop the pruning, so the later
+    /// layer is searched only where it holds something new — the hidden ground. Any solution on
+    /// a repeated sample is also a solution of the earlier layer, which searches it itself.
+    pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
+        let mut out: Vec<PreparedLayer> = Vec::with_capacity(layers.len());
+        for (k, layer) in layers.iter().enumerate() {
+            if k == 0 {
+                out.push(Self::new(layer, bound)?);
+                continue;
+            }
+            let samples = validated_samples(layer)?;
+            let (w, h) = layer.depth.size();
+            if (w, h) != out[0].size() {
+                return Err(Error::invalid(format!("layer {k} is {w}x{h} but layer 0 is {}x{}", out[0].w, out[0].h)));
+            }
+            let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
+            let depth = layer.depth.data();
+            let new_only: Vec<Motion> = samples
+                .par_iter()
+                .enumerate()
+                .map(|(i, m)| {
+                    if earlier.iter().any(|e| e[i] == depth[i]) {
+                        Motion { v: Vec2::ZERO, depth: f32::INFINITY }
+                    } else {
+                        *m
+                    }
+                })
+                .collect();
+            let frame = choose_frame(&new_only, w, h, bound);
+            let pyramid = MotionPyramid::from_samples(&new_only, w, h, frame);
+            out.push(PreparedLayer { w, h, samples, pyramid, bound });
+        }
+        Ok(out)
+    }
+
     /// Image size.
     pub fn size(&self) -> (u32, u32) {
         (self.w, self.h)
@@ -151,12 +190,12 @@ pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpO
     if layers.is_empty() {
         return Err(Error::invalid("warp_depth needs at least one layer"));
     }
-    let prepared: Vec<PreparedLayer> =
-        layers.iter().map(|l| PreparedLayer::new(l, params.bound)).collect::<Result<_>>()?;
+    let prepared = PreparedLayer::prepare_stack(layers, params.bound)?;
     warp_prepared(&prepared, params)
 }
 
-/// [`warp_depth`] on layers prepared once ([`PreparedLayer::new`]). The bound *frame* (AAB or
+/// [`warp_depth`] on layers prepared once ([`PreparedLayer::prepare_stack`], or
+/// [`PreparedLayer::new`] per layer). The bound *frame* (AAB or
 /// OB) is fixed when a layer is prepared; `params.bound == Global` disables the per-pixel
 /// tightening, any other kind tightens in the prepared frame.
 pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<WarpOutput> {
@@ -348,5 +387,49 @@ impl Kernel<'_> {
             }
         }
         (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layer(vals: &[(f32, f32)]) -> Vec<Motion> {
+        vals.iter().map(|&(vx, d)| Motion { v: Vec2::new(vx, 0.0), depth: d }).collect()
+    }
+
+    /// Fig. 6: an empty landing in layer k borrows the nearest non-empty layer above; the second
+    /// empty landing of the same walk fails; without cross-layer seeding the first one fails.
+    #[test]
+    fn cross_layer_sampling_borrows_once_then_fails() {
+        let inf = f32::INFINITY;
+        // 4x1 images. Layer 0 valid everywhere, layer 1 empty at x = 1 and 2, layer 2 empty at
+        // x = 1 only (so layer 2 borrows from layer 1? no: layer 1 is empty there too -> layer 0).
+        let l0 = layer(&[(0.0, 0.1), (1.0, 0.2), (2.0, 0.3), (3.0, 0.4)]);
+        let l1 = layer(&[(0.0, 0.5), (0.0, inf), (0.0, inf), (0.0, 0.6)]);
+        let l2 = layer(&[(0.0, 0.7), (0.0, inf), (0.0, 0.8), (0.0, 0.9)]);
+        let s: Vec<LayerSampler> = [&l0, &l1, &l2]
+            .iter()
+            .enumerate()
+            .map(|(i, l)| LayerSampler::new(l, 4, 1, crate::Sampling::Nearest, i as u32))
+            .collect();
+        let q = |x: f32| Vec2::new(x, 0.5);
+        let src = StackSampler { layers: &s, k: 2, cross: true };
+        let mut walk = 0u8;
+        assert_eq!(src.sample(q(2.5), &mut walk).unwrap().depth, 0.8);
+        let b = src.sample(q(1.5), &mut walk).unwrap();
+        assert_eq!((b.depth, b.tag, walk), (0.2, 0, 1));
+        assert!(src.sample(q(1.5), &mut walk).is_none(), "second empty landing fails");
+        // Layer 1 at x = 2 borrows from layer 0.
+        let src = StackSampler { layers: &s, k: 1, cross: true };
+        assert_eq!(src.sample(q(2.5), &mut 0).unwrap().tag, 0);
+        // Outside the image: no borrowing.
+        assert!(src.sample(q(4.5), &mut 0).is_none());
+        // Without cross-layer seeding, and on the first layer, an empty landing fails at once.
+        let src = StackSampler { layers: &s, k: 2, cross: false };
+        assert!(src.sample(q(1.5), &mut 0).is_none());
+        let e = layer(&[(0.0, inf); 4]);
+        let s0 = [LayerSampler::new(&e, 4, 1, crate::Sampling::Nearest, 0)];
+        assert!(StackSampler { layers: &s0, k: 0, cross: true }.sample(q(0.5), &mut 0).is_none());
     }
 }

@@ -268,8 +268,10 @@ fn multi_layer_warp_of_a_city_with_a_moving_object_beats_single_layer() {
     let (acc1, nc1) = quality(&single, &reference, &cam);
     let (acc3, nc3) = quality(&multi, &reference, &cam);
     // Single-layer warps converge onto surfaces behind the revealed one in disocclusions (the
-    // revealed surface is not in the layer); the hidden layers fix most of that.
-    assert!(acc1 > 0.96 && acc3 > 0.985 && acc3 > acc1, "accuracy {acc1} {acc3}");
+    // revealed surface is not in the layer); the hidden layers fix most of that. (Searching the
+    // ground layer also where it repeats layer 0, i.e. `PreparedLayer::new` per layer instead of
+    // `prepare_stack`, gives 0.991 here at about 1.6x the L = 3 cost.)
+    assert!(acc1 > 0.96 && acc3 > 0.975 && acc3 > acc1, "accuracy {acc1} {acc3}");
     assert!(nc3 < nc1, "non-converged L=3 {nc3} vs L=1 {nc1}");
     // Surfaces the L = 3 warp misses are rare (the new strip at the image border).
     assert!(nc3 < 0.02, "{nc3}");
@@ -309,8 +311,7 @@ fn record_source_gives_positions_that_move_to_the_pixel() {
 fn prepared_layers_are_reusable_and_match_warp_depth() {
     let (depths, motions, _, _) = city_case(40, 30, 2, false);
     let layers: Vec<WarpLayer> = depths.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
-    let prepared: Vec<PreparedLayer> =
-        layers.iter().map(|l| PreparedLayer::new(l, BoundKind::Oriented).unwrap()).collect();
+    let prepared = PreparedLayer::prepare_stack(&layers, BoundKind::Oriented).unwrap();
     for n in [1, 4, 16] {
         let params = WarpParams { n_seeds: n, ..Default::default() };
         assert_eq!(warp_prepared(&prepared, &params).unwrap(), warp_depth(&layers, &params).unwrap());
