@@ -312,7 +312,12 @@ impl Kernel<'_> {
             let pyr = &layer.pyramid;
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
             let Some(start) = tile_bounds[k] else { continue };
-            let tb = if k > 0 && best.is_some() {
+            let e = start.extent();
+            let tb = if e.x <= 1.0 && e.y <= 1.0 && best.is_none() {
+                // The tile's bound is already narrower than a pixel: one seed at the centre of
+                // this pixel's region whatever further tightening would give, so skip it.
+                TightBound { motion: start, region: pyr.region(p, &start), min_depth: f32::NEG_INFINITY }
+            } else if k > 0 && best.is_some() {
                 // A later layer only matters if it can beat the best candidate so far: skip it
                 // when no sample of its search region is nearer (min-depth mipmap look-up).
                 let Some(tb) = pyr.tight_bound_box_with_depth(p, p, start, self.bound_iterations(), expand) else {
