@@ -3,8 +3,10 @@
 //! same run.
 //!
 //! `cargo run --release -p zwarp-cull --example woc_eval -- [scene] [width] [height] [frames]
-//! [scale] [speed] [methods]` (defaults: `cb 640 360 20 0.1 1 all`; `methods` is a comma list of
-//! nocull,vfc,woc,awoc,lastframe,twophase,ideal).
+//! [scale] [speed] [methods] [options]` (defaults: `cb 640 360 20 0.1 1 all -`; `methods` is a
+//! comma list of nocull,vfc,woc,awoc,lastframe,twophase,ideal; `options` a comma list of WOC
+//! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`,
+//! `mipmap` / `nbuffer` (max-depth structure)).
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
@@ -37,7 +39,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{:<10} {:>8} {:>9} {:>9} {:>8} {:>7} {:>7} {:>6} {:>8}",
         "method", "cull_ms", "draw_ms", "full_ms", "ratio", "CR", "tris%", "FN", "pix_err"
     );
-    let params = WocParams::default();
+    let mut params = WocParams::default();
+    for opt in arg(7, "-").split(',').filter(|o| *o != "-") {
+        match opt {
+            "bilinear" => params.warp.sampling = zwarp_warp::Sampling::Adaptive,
+            "n4" => params.warp.n_seeds = 4,
+            "noerode" => params.erosion = false,
+            "norapid" => params.rapid_motion_px = None,
+            "mipmap" => params.max_depth = zwarp_cull::MaxDepthKind::Mipmap,
+            "nbuffer" => params.max_depth = zwarp_cull::MaxDepthKind::NBuffer,
+            other => return Err(format!("unknown option '{other}'").into()),
+        }
+    }
+    println!("params: {params:?}");
     for m in methods {
         let reps = run_sequence(scene, frames, m, &params)?;
         let s = summarize(&reps);

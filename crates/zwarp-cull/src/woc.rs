@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, NO_ITEM};
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
-use zwarp_warp::{warp_depth, HolePolicy, WarpLayer, WarpParams};
+use zwarp_warp::{warp_depth, HolePolicy, Sampling, WarpLayer, WarpParams};
 
 use crate::frustum::Frustum;
 use crate::maxdepth::{erode_max, MaxDepthKind, MaxDepthMap, MaxDepthQuery};
@@ -50,7 +50,11 @@ pub struct PrevFrame<'a> {
 pub struct WocParams {
     /// The depth warp (single layer). Default: N = 8 seeds, far-depth holes (Sec. 5.3: "Our
     /// warping solution used a single layer (depth holes are conservatively kept at the
-    /// far-clipping depth). The number of used search seeds (N) was 8.").
+    /// far-clipping depth). The number of used search seeds (N) was 8."), and *nearest* motion
+    /// sampling: bilinear sampling interpolates across the boundary of two objects with similar
+    /// motion and closes the 1-2 pixel gaps between them, which then hide what is seen through
+    /// the gap. Measured on BL (scale 0.1, 640x360, 11 frames): 6 culling errors with adaptive
+    /// bilinear vs 2 with nearest at the same culling ratio, and a faster warp.
     pub warp: WarpParams,
     /// Use AWOC (Sec. 5.3): fill holes from the motion at the extrema of the local search
     /// bound instead of the far depth. Approximate (may cull visible objects), better under
@@ -75,7 +79,12 @@ pub struct WocParams {
 impl Default for WocParams {
     fn default() -> Self {
         WocParams {
-            warp: WarpParams { n_seeds: 8, holes: HolePolicy::FarDepth, ..WarpParams::default() },
+            warp: WarpParams {
+                n_seeds: 8,
+                holes: HolePolicy::FarDepth,
+                sampling: Sampling::Nearest,
+                ..WarpParams::default()
+            },
             awoc: false,
             erosion: true,
             rapid_motion_px: Some(19.2),
