@@ -332,6 +332,6 @@ fn sequence_driver_measures_every_method_side_by_side() {
     assert_eq!(ratio["nocull"], 0.0);
     assert!(ratio["vfc"] <= ratio["woc"] && ratio["woc"] <= ratio["ideal"] + 1e-9, "{ratio:?}");
     assert!(run_sequence(&s, &[], Method::Woc, &params).is_err());
-    let mixed = vec![frames[0].clone(), (DT, frames[1].1.with_size(81, 45).unwrap())];
+    let mixed = vec![frames[0], (DT, frames[1].1.with_size(81, 45).unwrap())];
     assert!(run_sequence(&s, &mixed, Method::Vfc, &params).unwrap_err().to_string().contains("frame 1 renders"));
 }
