@@ -5,7 +5,7 @@
 //! `cargo run --release -p zwarp-cull --example woc_eval -- [scene] [width] [height] [frames]
 //! [scale] [speed] [methods] [options]` (defaults: `cb 640 360 20 0.1 1 all -`; `methods` is a
 //! comma list of nocull,vfc,woc,awoc,lastframe,twophase,ideal; `options` a comma list of WOC
-//! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`,
+//! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`, `verbose` (per-frame lines),
 //! `mipmap` / `nbuffer` (max-depth structure)).
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
@@ -40,12 +40,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "method", "cull_ms", "draw_ms", "full_ms", "ratio", "CR", "tris%", "FN", "pix_err"
     );
     let mut params = WocParams::default();
+    let mut verbose = false;
     for opt in arg(7, "-").split(',').filter(|o| *o != "-") {
         match opt {
             "bilinear" => params.warp.sampling = zwarp_warp::Sampling::Adaptive,
             "n4" => params.warp.n_seeds = 4,
             "noerode" => params.erosion = false,
             "norapid" => params.rapid_motion_px = None,
+            "verbose" => verbose = true,
             "mipmap" => params.max_depth = zwarp_cull::MaxDepthKind::Mipmap,
             "nbuffer" => params.max_depth = zwarp_cull::MaxDepthKind::NBuffer,
             other => return Err(format!("unknown option '{other}'").into()),
@@ -55,6 +57,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for m in methods {
         let reps = run_sequence(scene, frames, m, &params)?;
         let s = summarize(&reps);
+        if verbose {
+            for r in &reps {
+                println!(
+                    "    frame {:>3} t {:.3}: visible {:>6} CR {:5.1}% FN {:>3} stats {:?}",
+                    r.frame,
+                    r.t,
+                    r.visible,
+                    100.0 * r.accuracy.culling_ratio,
+                    r.accuracy.false_negatives,
+                    r.stats
+                );
+            }
+        }
         println!(
             "{:<10} {:>8.2} {:>9.2} {:>9.2} {:>8.3} {:>6.1}% {:>6.1}% {:>6} {:>8.1}",
             m.name(),

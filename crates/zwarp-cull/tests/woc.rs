@@ -335,3 +335,23 @@ fn sequence_driver_measures_every_method_side_by_side() {
     let mixed = vec![frames[0], (DT, frames[1].1.with_size(81, 45).unwrap())];
     assert!(run_sequence(&s, &mixed, Method::Vfc, &params).unwrap_err().to_string().contains("frame 1 renders"));
 }
+
+#[test]
+fn rapid_motion_counts_object_motion_not_camera_motion() {
+    // Static wall scene, camera turning fast: nothing is rapid by default; counting camera
+    // motion makes the on-screen objects rapid (and drawn directly).
+    let s = wall_scene();
+    let a = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::new(-3.0, 0.0, 0.0));
+    let b = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    assert_eq!(screen_speed(&s, 0, &b, 0.0, &b, DT), 0.0);
+    let turn = screen_speed(&s, 0, &a, 0.0, &b, DT);
+    assert!(turn > 19.2, "{turn}");
+    let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &a, t: 0.0 };
+    let r = woc(&s, &pf, &b, DT, &WocParams::default()).unwrap();
+    assert_eq!((r.stats.rapid, r.predrawn.clone()), (0, vec![]));
+    let with_cam = WocParams { rapid_includes_camera: true, ..WocParams::default() };
+    let r = woc(&s, &pf, &b, DT, &with_cam).unwrap();
+    assert_eq!(r.predrawn, vec![0, 2], "the on-screen objects that move faster than 19.2 px");
+    assert_eq!(r.visible, vec![0, 2], "drawn exactly, the hidden box is still culled");
+}
