@@ -355,3 +355,26 @@ fn rapid_motion_counts_object_motion_not_camera_motion() {
     assert_eq!(r.predrawn, vec![0, 2], "the on-screen objects that move faster than 19.2 px");
     assert_eq!(r.visible, vec![0, 2], "drawn exactly, the hidden box is still culled");
 }
+
+#[test]
+fn awoc_fills_holes_that_woc_keeps_far() {
+    // A fast sideways camera move over the random scene leaves disocclusion holes; AWOC fills
+    // some of them (fewer far pixels in the predicted depth) and never culls less than WOC.
+    let s = random_scene(11);
+    let a = Camera::perspective(Vec3::new(0.0, 2.5, 18.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 90, 50)
+        .unwrap();
+    let b = Camera::perspective(Vec3::new(2.0, 2.5, 18.0), Vec3::new(2.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 90, 50)
+        .unwrap();
+    let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &a, t: 0.0 };
+    let w = woc(&s, &pf, &b, DT, &WocParams { erosion: false, ..WocParams::default() }).unwrap();
+    let aw = woc(&s, &pf, &b, DT, &WocParams { erosion: false, awoc: true, ..WocParams::default() }).unwrap();
+    let far =
+        |r: &zwarp_cull::CullResult| r.occlusion_map.as_ref().unwrap().data().iter().filter(|&&d| d >= 1.0).count();
+    assert!(far(&aw) < far(&w), "AWOC {} far pixels vs WOC {}", far(&aw), far(&w));
+    assert!(aw.visible.len() <= w.visible.len());
+    assert!(
+        aw.visible.iter().all(|id| w.visible.contains(id)),
+        "AWOC's depth is never farther, so it culls a superset"
+    );
+}
