@@ -19,16 +19,20 @@
 //!
 //! Conventions (DESIGN.md): depth in `[0, 1]`, 1 = empty; pixel centres at `+0.5`; row 0 on top.
 
+pub mod eval;
 pub mod light;
 pub mod pcss;
 pub mod shade;
 
 use std::time::Instant;
 
-use zwarp_core::{AreaLight, Camera, Error, Image, Result, Scene};
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Result, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
 use zwarp_warp::{warp_prepared, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
 
+pub use eval::{evaluate, EvalConfig, EvalRow};
 pub use light::{
     default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
 };
@@ -91,6 +95,9 @@ pub struct ShadowParams {
     pub holes: HolePolicy,
     /// Generalized umbra culling while peeling (Sec. 3.4).
     pub umbra: bool,
+    /// Motion of each sample view as the scaled parallax field (one `motion_field` per layer,
+    /// see [`ZwarpMaps`]) instead of one `motion_field` per layer and sample.
+    pub parallax_motion: bool,
     /// Depth bias of the shadow test.
     pub bias: DepthBias,
     /// Seed of the sample jitter.
@@ -118,6 +125,7 @@ impl Default for ShadowParams {
             threshold: 0.25,
             holes: HolePolicy::Dilate { radius: 2 },
             umbra: true,
+            parallax_motion: true,
             bias: DepthBias::default(),
             seed: 1,
             jitter: true,
@@ -188,7 +196,8 @@ pub struct ShadowResult {
     pub ms: f64,
     /// Per-stage times.
     pub timings: StageTimings,
-    /// Pixels of all warped maps that stayed holes after the hole policy (zwarp only).
+    /// Pixels of all warped maps without a converged sample after the hole policy, summed over
+    /// the S maps (zwarp only; includes texels where the light sees no surface at all).
     pub warp_holes: usize,
 }
 
@@ -216,13 +225,24 @@ pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> Pee
 
 /// The deep depth buffer of the centre light view and the warps to the sample views (seed 000,
 /// Sec. 6: "we efficiently synthesize these shadow maps").
+///
+/// **Motion.** The motion of a layer to sample view `i` is `zwarp_core::motion_field` from the
+/// centre camera to sample camera `i`. Because every sample view is a pure parallax of the centre
+/// view ([`light`]), that field is exactly linear in the emitter offset: `v_i(q) = K_i g(q)`.
+/// With [`ShadowParams::parallax_motion`] (default) `motion_field` is evaluated **once per layer**
+/// towards a reference offset `o_ref` and each sample's field is that field scaled per axis by
+/// `K_i / K_ref` (a multiply per pixel instead of an unproject + project); without it,
+/// `motion_field` runs per layer and sample. A test checks both agree to 1e-3 px.
 pub struct ZwarpMaps<'a> {
     rig: &'a LightRig,
     layers: Vec<Layer>,
+    /// Per layer: motion to the reference offset camera (parallax mode).
+    reference: Vec<Image<Motion>>,
+    k_ref: Vec2,
     params: WarpParams,
     /// Accumulated time of the motion buffers (ms).
     pub motion_ms: f64,
-    /// Accumulated time of the mipmaps and warps (ms).
+    /// Accumulated time of the motion mipmaps (`PreparedLayer::new`) and warps (ms).
     pub warp_ms: f64,
 }
 
@@ -240,7 +260,28 @@ impl<'a> ZwarpMaps<'a> {
                 items: Image::new(rig.center.width, rig.center.height, zwarp_core::NO_ITEM),
             });
         }
-        Ok(ZwarpMaps { rig, layers, params: params.warp_params(), motion_ms: 0.0, warp_ms: 0.0 })
+        let mut maps = ZwarpMaps {
+            rig,
+            layers,
+            reference: Vec::new(),
+            k_ref: Vec2::ZERO,
+            params: params.warp_params(),
+            motion_ms: 0.0,
+            warp_ms: 0.0,
+        };
+        if params.parallax_motion {
+            let t0 = Instant::now();
+            let m = rig.max_offset();
+            let (cam_ref, k_ref) = rig.offset_camera(Vec2::splat(if m > 0.0 { m } else { 1.0 }));
+            maps.reference = maps
+                .layers
+                .iter()
+                .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &rig.center, &cam_ref, &[]))
+                .collect::<Result<Vec<_>>>()?;
+            maps.k_ref = k_ref;
+            maps.motion_ms += ms_since(t0);
+        }
+        Ok(maps)
     }
 
     /// The peeled layers (nearest first, ground last).
@@ -248,16 +289,36 @@ impl<'a> ZwarpMaps<'a> {
         &self.layers
     }
 
-    /// Warps the layers to sample view `i`: motion buffers from `zwarp_core::motion_field`
-    /// (static scene at the frame time), then `zwarp_warp::warp_prepared`.
-    pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+    /// Motion buffers of every layer to sample view `i` (see the type docs).
+    pub fn motions(&self, i: usize) -> Result<Vec<Image<Motion>>> {
         let cam = self.rig.cameras.get(i).ok_or_else(|| Error::invalid(format!("no light sample {i}")))?;
-        let t0 = Instant::now();
-        let motions = self
-            .layers
+        if self.reference.is_empty() {
+            return self
+                .layers
+                .iter()
+                .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &self.rig.center, cam, &[]))
+                .collect();
+        }
+        let ratio = self.rig.shifts[i] / self.k_ref;
+        Ok(self
+            .reference
             .iter()
-            .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &self.rig.center, cam, &[]))
-            .collect::<Result<Vec<_>>>()?;
+            .map(|m| {
+                let mut out = m.clone();
+                out.data_mut().par_chunks_mut(4096).for_each(|c| {
+                    for s in c {
+                        s.v *= ratio;
+                    }
+                });
+                out
+            })
+            .collect())
+    }
+
+    /// Warps the layers to sample view `i` (`zwarp_warp::warp_prepared`).
+    pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+        let t0 = Instant::now();
+        let motions = self.motions(i)?;
         self.motion_ms += ms_since(t0);
         let t1 = Instant::now();
         let prepared = self

@@ -278,8 +278,6 @@ impl LightRig {
         let zmin = rel.iter().map(|r| r.z).fold(f32::INFINITY, f32::min);
         let zmax = rel.iter().map(|r| r.z).fold(f32::NEG_INFINITY, f32::max);
         let diag = bounds.extent().length().max(1e-6);
-        let mut cameras = Vec::with_capacity(offsets.len());
-        let mut shifts = Vec::with_capacity(offsets.len());
         let (center, pivot);
         if !light.directional {
             if zmin <= 1e-4 * diag {
@@ -298,13 +296,6 @@ impl LightRig {
             let far = 1.02 * zmax;
             center = Camera::perspective(light.center, light.center + axis, upv, fov, near, far, n, n)?;
             pivot = 0.0;
-            let (p00, p11) = (center.proj.x_axis.x, center.proj.y_axis.y);
-            for o in &offsets {
-                let view = Mat4::from_translation(-Vec3::new(o.x, o.y, 0.0)) * center.view;
-                cameras.push(Camera { view, ..center });
-                // px_i = px_c - (W/2) P00 o_x / z ; py_i = py_c + (H/2) P11 o_y / z.
-                shifts.push(Vec2::new(-0.5 * n as f32 * p00 * o.x, 0.5 * n as f32 * p11 * o.y));
-            }
         } else {
             // Orthographic: the eye sits on the axis far enough back that the whole scene is in
             // front; depth is measured from there, the shear pivots at the bounds' mid depth so
@@ -325,21 +316,48 @@ impl LightRig {
             let near = (zmin - 0.02 * diag).max(1e-3 * diag);
             let far = zmax + 0.02 * diag;
             center = Camera::orthographic(eye, eye + axis, upv, hh.max(1e-6), near, far, n, n)?;
-            let (p00, p11) = (center.proj.x_axis.x, center.proj.y_axis.y);
-            for o in &offsets {
-                let (sx, sy) = (o.x / distance, o.y / distance);
-                // x' = x + s_x (z - z_0) with view-space z = -depth.
-                let shear = Mat4::from_cols(
-                    Vec4::new(1.0, 0.0, 0.0, 0.0),
-                    Vec4::new(0.0, 1.0, 0.0, 0.0),
-                    Vec4::new(-sx, -sy, 1.0, 0.0),
-                    Vec4::new(-sx * pivot, -sy * pivot, 0.0, 1.0),
-                );
-                cameras.push(Camera { view: shear * center.view, ..center });
-                shifts.push(Vec2::new(0.5 * n as f32 * p00 * sx, -0.5 * n as f32 * p11 * sy));
-            }
         }
-        Ok(LightRig { light: *light, frame: [right, upv, axis], center, offsets, cameras, shifts, pivot, distance })
+        let mut rig = LightRig {
+            light: *light,
+            frame: [right, upv, axis],
+            center,
+            offsets: Vec::new(),
+            cameras: Vec::with_capacity(offsets.len()),
+            shifts: Vec::with_capacity(offsets.len()),
+            pivot,
+            distance,
+        };
+        for o in &offsets {
+            let (cam, k) = rig.offset_camera(*o);
+            rig.cameras.push(cam);
+            rig.shifts.push(k);
+        }
+        rig.offsets = offsets;
+        Ok(rig)
+    }
+
+    /// The shadow-map camera of an emitter point at offset `o` (right, up) from the centre and
+    /// its pixel shift `K` (a point with depth parameter `g` moves by `K g` pixels from the
+    /// centre map): a shifted eye for local lights, a sheared projection for directional ones.
+    pub fn offset_camera(&self, o: Vec2) -> (Camera, Vec2) {
+        let c = &self.center;
+        let (p00, p11) = (c.proj.x_axis.x, c.proj.y_axis.y);
+        let (hw, hh) = (0.5 * c.width as f32, 0.5 * c.height as f32);
+        if !self.light.directional {
+            let view = Mat4::from_translation(-Vec3::new(o.x, o.y, 0.0)) * c.view;
+            // px_i = px_c - (W/2) P00 o_x / z ; py_i = py_c + (H/2) P11 o_y / z.
+            (Camera { view, ..*c }, Vec2::new(-hw * p00 * o.x, hh * p11 * o.y))
+        } else {
+            let (sx, sy) = (o.x / self.distance, o.y / self.distance);
+            // x' = x + s_x (depth - z_0) with view-space z = -depth.
+            let shear = Mat4::from_cols(
+                Vec4::new(1.0, 0.0, 0.0, 0.0),
+                Vec4::new(0.0, 1.0, 0.0, 0.0),
+                Vec4::new(-sx, -sy, 1.0, 0.0),
+                Vec4::new(-sx * self.pivot, -sy * self.pivot, 0.0, 1.0),
+            );
+            (Camera { view: shear * c.view, ..*c }, Vec2::new(hw * p00 * sx, -hh * p11 * sy))
+        }
     }
 
     /// Number of samples S.

@@ -322,3 +322,32 @@ proptest! {
         prop_assert!(s.x >= 0.0 && s.y >= 0.0 && s.x <= 512.0 && s.y <= 512.0);
     }
 }
+
+#[test]
+fn parallax_motion_equals_motion_field() {
+    for directional in [false, true] {
+        let (scene, _, mut light) = boxes_scene();
+        light.directional = directional;
+        let rig = LightRig::new(&scene, 0.0, &light, 16, 128, 2, true).unwrap();
+        let fast = ZwarpMaps::new(&scene, &rig, 0.0, &ShadowParams::default()).unwrap();
+        let slow =
+            ZwarpMaps::new(&scene, &rig, 0.0, &ShadowParams { parallax_motion: false, ..ShadowParams::default() })
+                .unwrap();
+        for i in [0, 7, 15] {
+            let (a, b) = (fast.motions(i).unwrap(), slow.motions(i).unwrap());
+            assert_eq!(a.len(), b.len());
+            for (layer, (ma, mb)) in a.iter().zip(&b).enumerate() {
+                for (k, (x, y)) in ma.data().iter().zip(mb.data()).enumerate() {
+                    if layer_valid(fast.layers(), layer, k) {
+                        assert!((x.v - y.v).length() < 1e-3, "layer {layer} texel {k}: {:?} vs {:?}", x, y);
+                        assert!((x.depth - y.depth).abs() < 1e-5);
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn layer_valid(layers: &[zwarp_raster::Layer], layer: usize, k: usize) -> bool {
+    layers[layer].depth.data()[k] < 1.0
+}

@@ -1,0 +1,147 @@
+//! The measurement protocol of seed 000, Table 8 / Fig. 15: for every shadow-map size and number
+//! of light samples S, the frame time of the reference, zwarp and PCSS (warm, repeated, median;
+//! DESIGN.md "Timings") and the quality of each shaded image against the reference with the same
+//! S (PSNR and SSIM on linear RGB in `[0, 1]`), with the speed-up measured side by side.
+
+use zwarp_core::{AreaLight, Camera, Error, Result, Scene};
+
+use crate::{run_shadows, Method, ShadowParams, ShadowResult, StageTimings};
+
+/// What [`evaluate`] measures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvalConfig {
+    /// The S values (each gets its own reference).
+    pub samples: Vec<u32>,
+    /// The shadow-map sizes.
+    pub sm_sizes: Vec<u32>,
+    /// Methods besides the reference (which always runs: it is the quality baseline).
+    pub methods: Vec<Method>,
+    /// Timed repetitions after one warm-up run (>= 1).
+    pub reps: usize,
+    /// Everything else (L, N, T, holes, bias, seed...); `samples` and `sm_size` are overridden.
+    pub base: ShadowParams,
+}
+
+/// One measured configuration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvalRow {
+    /// The method.
+    pub method: Method,
+    /// S.
+    pub samples: u32,
+    /// Shadow-map size.
+    pub sm: u32,
+    /// Median frame time of the timed repetitions (ms).
+    pub ms: f64,
+    /// Fastest repetition (ms).
+    pub ms_min: f64,
+    /// Slowest repetition (ms).
+    pub ms_max: f64,
+    /// PSNR (dB) of the shaded image vs the reference with the same S (`inf` if identical).
+    pub psnr: f64,
+    /// SSIM of the shaded image vs the reference with the same S.
+    pub ssim: f64,
+    /// Reference median ms / this method's median ms (same S and map size, same run).
+    pub speedup: f64,
+    /// Stage times of the median repetition.
+    pub timings: StageTimings,
+    /// Hole pixels left in the warped maps (zwarp).
+    pub warp_holes: usize,
+}
+
+fn median(v: &mut [(f64, StageTimings)]) -> (f64, f64, f64, StageTimings) {
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let m = v[v.len() / 2];
+    (m.0, v[0].0, v[v.len() - 1].0, m.1)
+}
+
+/// Runs `method` `reps + 1` times (first one is warm-up), returns the last result and timings.
+fn timed(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    light: &AreaLight,
+    method: Method,
+    p: &ShadowParams,
+    reps: usize,
+) -> Result<(ShadowResult, f64, f64, f64, StageTimings)> {
+    let mut out = run_shadows(scene, cam, t, light, method, p)?;
+    let mut times = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        out = run_shadows(scene, cam, t, light, method, p)?;
+        times.push((out.ms, out.timings));
+    }
+    let (ms, lo, hi, tm) = median(&mut times);
+    Ok((out, ms, lo, hi, tm))
+}
+
+/// Measures every (map size, S, method) of `cfg` on one frame. `on_result` sees each row with
+/// its result and the reference result of the same S and map size (to write images).
+pub fn evaluate(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    light: &AreaLight,
+    cfg: &EvalConfig,
+    mut on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> Result<()>,
+) -> Result<Vec<EvalRow>> {
+    if cfg.samples.is_empty() || cfg.sm_sizes.is_empty() {
+        return Err(Error::invalid("evaluation needs at least one S and one shadow-map size"));
+    }
+    if cfg.reps == 0 {
+        return Err(Error::invalid("evaluation needs at least one timed repetition"));
+    }
+    let mut rows = Vec::new();
+    for &sm in &cfg.sm_sizes {
+        // PCSS does not depend on S: measure it once per map size.
+        let mut pcss: Option<(ShadowResult, f64, f64, f64, StageTimings)> = None;
+        for &s in &cfg.samples {
+            let p = ShadowParams { samples: s, sm_size: sm, ..cfg.base };
+            let (reference, rms, rlo, rhi, rtm) = timed(scene, cam, t, light, Method::Reference, &p, cfg.reps)?;
+            let ref_row = EvalRow {
+                method: Method::Reference,
+                samples: s,
+                sm,
+                ms: rms,
+                ms_min: rlo,
+                ms_max: rhi,
+                psnr: f64::INFINITY,
+                ssim: 1.0,
+                speedup: 1.0,
+                timings: rtm,
+                warp_holes: 0,
+            };
+            on_result(&ref_row, &reference, &reference)?;
+            rows.push(ref_row);
+            for &m in &cfg.methods {
+                let (res, ms, lo, hi, tm) = match m {
+                    Method::Reference => continue,
+                    Method::Pcss => {
+                        if pcss.is_none() {
+                            pcss = Some(timed(scene, cam, t, light, m, &p, cfg.reps)?);
+                        }
+                        let c = pcss.as_ref().map(|c| (c.0.clone(), c.1, c.2, c.3, c.4));
+                        c.ok_or_else(|| Error::invalid("PCSS result missing"))?
+                    }
+                    Method::Zwarp => timed(scene, cam, t, light, m, &p, cfg.reps)?,
+                };
+                let row = EvalRow {
+                    method: m,
+                    samples: s,
+                    sm,
+                    ms,
+                    ms_min: lo,
+                    ms_max: hi,
+                    psnr: zwarp_metrics::psnr_rgb(&res.image, &reference.image, 1.0)?,
+                    ssim: zwarp_metrics::ssim_rgb(&res.image, &reference.image, 1.0)?,
+                    speedup: rms / ms.max(1e-9),
+                    timings: tm,
+                    warp_holes: res.warp_holes,
+                };
+                on_result(&row, &res, &reference)?;
+                rows.push(row);
+            }
+        }
+    }
+    Ok(rows)
+}
