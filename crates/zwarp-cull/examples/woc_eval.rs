@@ -5,7 +5,7 @@
 //! `cargo run --release -p zwarp-cull --example woc_eval -- [scene] [width] [height] [frames]
 //! [scale] [speed] [methods] [options]` (defaults: `cb 640 360 20 0.1 1 all -`; `methods` is a
 //! comma list of nocull,vfc,woc,awoc,lastframe,twophase,ideal; `options` a comma list of WOC
-//! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`, `verbose` (per-frame lines),
+//! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`, `verbose` (per-frame lines), `down2` / `down4` (coarse culling resolution),
 //! `mipmap` / `nbuffer` (max-depth structure)).
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
@@ -48,6 +48,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "noerode" => params.erosion = false,
             "norapid" => params.rapid_motion_px = None,
             "verbose" => verbose = true,
+            "down2" => params.downsample = 2,
+            "down4" => params.downsample = 4,
             "mipmap" => params.max_depth = zwarp_cull::MaxDepthKind::Mipmap,
             "nbuffer" => params.max_depth = zwarp_cull::MaxDepthKind::NBuffer,
             other => return Err(format!("unknown option '{other}'").into()),

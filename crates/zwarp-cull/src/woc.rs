@@ -80,7 +80,18 @@ pub struct WocParams {
     pub hybrid_objects: usize,
     /// Only objects with at least this many triangles are hybrid candidates.
     pub hybrid_min_triangles: usize,
+    /// Run the warp and the tests at `1/downsample` of the resolution (1 = full; at most
+    /// [`MAX_DOWNSAMPLE`]). The thesis (Sec. VI) and Kasyan et al. 2011 cull at a coarse
+    /// resolution for speed. The previous depth is reduced conservatively (each coarse pixel
+    /// takes the max over every fine pixel its footprint touches, with the item of that
+    /// farthest pixel), erosion runs after the rapid-motion objects are drawn (so their
+    /// coarse-raster edges get the 1-coarse-pixel margin too), and the hybrid query is skipped
+    /// (coarse pixel-centre coverage can miss small objects).
+    pub downsample: u32,
 }
+
+/// Largest accepted [`WocParams::downsample`].
+pub const MAX_DOWNSAMPLE: u32 = 8;
 
 impl Default for WocParams {
     fn default() -> Self {
@@ -98,6 +109,7 @@ impl Default for WocParams {
             max_depth: MaxDepthKind::YMap { switch: 2 },
             hybrid_objects: 300,
             hybrid_min_triangles: 10_000,
+            downsample: 1,
         }
     }
 }
@@ -106,6 +118,12 @@ impl WocParams {
     /// Checks the parameters (warp parameters included).
     pub fn validate(&self) -> Result<()> {
         self.warp.validate()?;
+        if !(1..=MAX_DOWNSAMPLE).contains(&self.downsample) {
+            return Err(Error::invalid(format!(
+                "downsample factor must be in 1..={MAX_DOWNSAMPLE}, got {}",
+                self.downsample
+            )));
+        }
         if let Some(px) = self.rapid_motion_px {
             if !(px.is_finite() && px >= 0.0) {
                 return Err(Error::invalid(format!("rapid-motion threshold must be >= 0 pixels, got {px}")));
@@ -167,7 +185,8 @@ pub struct CullResult {
     /// Objects already drawn into the occlusion map (WOC's rapid-motion objects): an engine
     /// that shades them in that pass can skip them in the main pass.
     pub predrawn: Vec<u32>,
-    /// The depth buffer the screen-space tests ran against (predicted depth for WOC), if any.
+    /// The depth buffer the screen-space tests ran against (predicted depth for WOC, at the
+    /// coarse resolution when [`WocParams::downsample`] > 1), if any.
     pub occlusion_map: Option<Image<f32>>,
 }
 
@@ -412,6 +431,58 @@ pub fn cull_against_depth(
     })
 }
 
+/// The same view volume rendered at `1/factor` of the resolution (rounded up): projection and
+/// view are unchanged, only the pixel grid is coarser.
+pub fn coarse_camera(cam: &Camera, factor: u32) -> Camera {
+    Camera { width: cam.width.div_ceil(factor.max(1)), height: cam.height.div_ceil(factor.max(1)), ..*cam }
+}
+
+/// Fine pixels `[lo, hi)` touched by coarse pixel `i` when `fine` pixels map onto `coarse`.
+#[inline]
+fn footprint(i: u32, fine: u32, coarse: u32) -> (u32, u32) {
+    let (i, fine, coarse) = (i as u64, fine as u64, coarse as u64);
+    let lo = i * fine / coarse;
+    let hi = ((i + 1) * fine).div_ceil(coarse).min(fine);
+    (lo as u32, hi as u32)
+}
+
+/// Conservative reduction of a depth + item buffer to `width x height` (the size of
+/// [`coarse_camera`]): each coarse pixel takes the max depth over every fine pixel its
+/// footprint touches, and the item of that farthest pixel (first one on ties).
+pub fn downsample_max(
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    width: u32,
+    height: u32,
+) -> Result<(Image<f32>, Image<u32>)> {
+    depth.check_nonempty("depth buffer")?;
+    depth.check_same_size(items, "depth vs item buffer")?;
+    if width == 0 || height == 0 || width > depth.width() || height > depth.height() {
+        return Err(Error::invalid(format!("cannot reduce {}x{} to {width}x{height}", depth.width(), depth.height())));
+    }
+    let (fw, fh) = depth.size();
+    let pairs: Vec<(f32, u32)> = (0..width as usize * height as usize)
+        .into_par_iter()
+        .map(|i| {
+            let (cx, cy) = (i as u32 % width, i as u32 / width);
+            let (x0, x1) = footprint(cx, fw, width);
+            let (y0, y1) = footprint(cy, fh, height);
+            let mut best = (f32::NEG_INFINITY, NO_ITEM);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let d = *depth.get(x, y);
+                    if d > best.0 {
+                        best = (d, *items.get(x, y));
+                    }
+                }
+            }
+            best
+        })
+        .collect();
+    let (d, it): (Vec<f32>, Vec<u32>) = pairs.into_iter().unzip();
+    Ok((Image::from_vec(width, height, d)?, Image::from_vec(width, height, it)?))
+}
+
 /// WOC for one frame (see the module docs): the visible objects of `scene` at time `t` seen by
 /// `cam`, predicted from the previous frame `prev`.
 ///
@@ -432,10 +503,26 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let start = Instant::now();
     let mut tm = CullTimings::default();
 
-    // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
+    // 0. Optional coarse resolution: the whole pipeline runs on the coarse grid (the rapid-
+    //    motion speed stays in full-resolution pixels).
     let t0 = Instant::now();
+    let (full_prev_cam, full_cam) = (prev.cam, cam);
+    let f = params.downsample;
+    let coarse = if f > 1 {
+        let (ca, cb) = (coarse_camera(prev.cam, f), coarse_camera(cam, f));
+        let (d, it) = downsample_max(prev.depth, prev.items, ca.width, ca.height)?;
+        Some((ca, cb, d, it))
+    } else {
+        None
+    };
+    let (prev_cam, cam, prev_depth, prev_items) = match &coarse {
+        Some((ca, cb, d, it)) => (ca, cb, d, it),
+        None => (prev.cam, cam, prev.depth, prev.items),
+    };
+
+    // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
     let deltas = scene.object_deltas(prev.t, t);
-    let motion = motion_field(prev.depth, Some(prev.items), prev.cam, cam, &deltas)?;
+    let motion = motion_field(prev_depth, Some(prev_items), prev_cam, cam, &deltas)?;
     tm.motion_ms = ms(t0);
 
     // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
@@ -443,13 +530,14 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let mut wp = params.warp;
     wp.holes = if params.awoc { HolePolicy::Awoc } else { params.warp.holes };
     wp.record_source = false;
-    let warped = warp_depth(&[WarpLayer { depth: prev.depth, motion: &motion }], &wp)?;
+    let warped = warp_depth(&[WarpLayer { depth: prev_depth, motion: &motion }], &wp)?;
     tm.warp_ms = ms(t0);
 
     // 3. Erosion: occluder silhouettes pulled back by a pixel (warping is off by 1-2 px at
     //    boundaries, thesis Fig. 4).
     let t0 = Instant::now();
-    let mut predicted = if params.erosion { erode_max(&warped.depth) } else { warped.depth };
+    let erode_late = f > 1;
+    let mut predicted = if params.erosion && !erode_late { erode_max(&warped.depth) } else { warped.depth };
     tm.erosion_ms = ms(t0);
 
     // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
@@ -461,10 +549,12 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let mut forced = vec![false; n];
     let mut predrawn = Vec::new();
     if let Some(thr) = params.rapid_motion_px {
-        let cam_a = if params.rapid_includes_camera { prev.cam } else { cam };
+        let cam_a = if params.rapid_includes_camera { full_prev_cam } else { full_cam };
         let flags: Vec<bool> = (0..n as u32)
             .into_par_iter()
-            .map(|id| frustum.intersects(&aabbs[id as usize]) && screen_speed(scene, id, cam_a, prev.t, cam, t) > thr)
+            .map(|id| {
+                frustum.intersects(&aabbs[id as usize]) && screen_speed(scene, id, cam_a, prev.t, full_cam, t) > thr
+            })
             .collect();
         predrawn = (0..n as u32).filter(|&id| flags[id as usize]).collect();
         forced = flags;
@@ -473,6 +563,11 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         }
     }
     tm.draw_ms = ms(t0);
+    if params.erosion && erode_late {
+        let t0 = Instant::now();
+        predicted = erode_max(&predicted);
+        tm.erosion_ms += ms(t0);
+    }
 
     // 5. Max-depth structure.
     let t0 = Instant::now();
@@ -486,11 +581,11 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
 
     // 7. Hybrid object-space query of the heaviest survivors.
     let t0 = Instant::now();
-    let before = (params.hybrid_objects > 0).then(|| classes.clone());
+    let k = if f > 1 { 0 } else { params.hybrid_objects };
+    let before = (k > 0).then(|| classes.clone());
     let candidates: Vec<u32> =
         (0..n).filter(|&id| matches!(classes[id], Class::Visible | Class::CrossesNear)).map(|id| id as u32).collect();
-    let (hidden, tested) =
-        hybrid_cull(scene, &predicted, cam, t, &candidates, params.hybrid_objects, params.hybrid_min_triangles)?;
+    let (hidden, tested) = hybrid_cull(scene, &predicted, cam, t, &candidates, k, params.hybrid_min_triangles)?;
     for id in hidden {
         classes[id as usize] = Class::Occluded;
     }

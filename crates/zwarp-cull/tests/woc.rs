@@ -4,9 +4,9 @@
 use glam::{Mat4, Vec3};
 use zwarp_core::{Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
-    aabb_triangles, accuracy, cull_against_depth, hybrid_cull, ideal_screen_space, lastframe, nocull, reference,
-    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind,
-    Method, PrevFrame, ScreenRect, WocParams,
+    aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
+    lastframe, nocull, reference, run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull,
+    visible_from_items, woc, MaxDepthKind, Method, PrevFrame, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 
@@ -180,11 +180,18 @@ fn woc_is_conservative_along_a_camera_path_at_odd_sizes() {
         let mut culled_any = false;
         for k in 1..cams.len() {
             let (tp, t) = ((k - 1) as f32 * DT, k as f32 * DT);
-            for kind in [MaxDepthKind::Mipmap, MaxDepthKind::NBuffer, MaxDepthKind::YMap { switch: 2 }] {
-                let params = WocParams { max_depth: kind, hybrid_min_triangles: 0, ..WocParams::default() };
+            let variants = [
+                (MaxDepthKind::Mipmap, 1),
+                (MaxDepthKind::NBuffer, 1),
+                (MaxDepthKind::YMap { switch: 2 }, 1),
+                (MaxDepthKind::YMap { switch: 2 }, 2),
+                (MaxDepthKind::NBuffer, 3),
+            ];
+            for (kind, downsample) in variants {
+                let params = WocParams { max_depth: kind, hybrid_min_triangles: 0, downsample, ..WocParams::default() };
                 let (v, r) = run(&s, &cams[k - 1], tp, &cams[k], t, &params);
                 let acc = accuracy(&v, &r, s.instances.len());
-                assert_eq!(acc.false_negatives, 0, "seed {seed} frame {k} {kind:?}: {v:?} vs REF {r:?}");
+                assert_eq!(acc.false_negatives, 0, "seed {seed} frame {k} {kind:?} /{downsample}: {v:?} vs REF {r:?}");
                 culled_any |= v.len() < vfc_cull(&s, &cams[k], t).unwrap().visible.len();
             }
             // The ideal screen-space test and two-phase culling are conservative too.
@@ -377,4 +384,53 @@ fn awoc_fills_holes_that_woc_keeps_far() {
         aw.visible.iter().all(|id| w.visible.contains(id)),
         "AWOC's depth is never farther, so it culls a superset"
     );
+}
+
+#[test]
+fn coarse_reduction_is_a_conservative_max() {
+    // 7x5 -> coarse 4x3 (factor 2, rounded up): every fine pixel lies in the footprint of the
+    // coarse pixel covering its centre, and the coarse value is the max of its footprint.
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO).with_size(7, 5).unwrap();
+    let c = coarse_camera(&cam, 2);
+    assert_eq!((c.width, c.height), (4, 3));
+    assert_eq!(c.view_proj(), cam.view_proj(), "same view volume");
+    let depth = Image::from_fn(7, 5, |x, y| 0.5 + 0.01 * (x * 5 + y) as f32);
+    let items = Image::from_fn(7, 5, |x, y| x * 10 + y);
+    let (d, it) = downsample_max(&depth, &items, 4, 3).unwrap();
+    for y in 0..5u32 {
+        for x in 0..7u32 {
+            // Coarse pixel under the fine pixel centre.
+            let cx = ((x as f32 + 0.5) * 4.0 / 7.0) as u32;
+            let cy = ((y as f32 + 0.5) * 3.0 / 5.0) as u32;
+            assert!(*d.get(cx, cy) >= *depth.get(x, y), "({x},{y}) -> ({cx},{cy})");
+        }
+    }
+    // Coarse (3, 2) covers fine x in [5.25, 7) and y in [3.33, 5): pixels 5..7 x 3..5, max at (6, 4).
+    assert_eq!(*d.get(3, 2), *depth.get(6, 4));
+    assert_eq!(*it.get(3, 2), 64);
+    assert!(downsample_max(&depth, &items, 8, 3).is_err());
+    assert!(downsample_max(&depth, &Image::new(3, 3, 0u32), 4, 3).is_err());
+    let s = wall_scene();
+    let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
+    for bad in [0, 9] {
+        let e = woc(&s, &pf, &cam, DT, &WocParams { downsample: bad, ..WocParams::default() }).unwrap_err();
+        assert!(e.to_string().contains("downsample"), "{e}");
+    }
+}
+
+#[test]
+fn coarse_woc_culls_the_hidden_box_and_keeps_the_gap_sliver() {
+    let s = scene_of(&[
+        bx([-6.0, -4.0, -0.2], [-0.15, 4.0, 0.2]),
+        bx([0.15, -4.0, -0.2], [6.0, 4.0, 0.2]),
+        bx([-1.0, -1.0, -5.0], [1.0, 1.0, -3.0]),
+        bx([-5.0, 1.5, -5.0], [-3.0, 3.0, -3.0]),
+    ]);
+    let prev = cam_at(Vec3::new(0.1, 0.0, 10.0), Vec3::new(0.1, 0.0, 0.0));
+    let cur = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    for f in [2, 4] {
+        let (v, r) = run(&s, &prev, 0.0, &cur, DT, &WocParams { downsample: f, ..WocParams::default() });
+        assert_eq!(r, vec![0, 1, 2]);
+        assert_eq!(v, vec![0, 1, 2], "factor {f}: id 3 is hidden, id 2 seen through the gap");
+    }
 }
