@@ -437,3 +437,50 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Hostile but non-NaN input (tiny images, huge, infinite or behind-the-eye motion,
+    /// out-of-range target depths, empty layers): every warp returns a finite buffer in [0, 1]
+    /// without panicking.
+    #[test]
+    fn hostile_input_never_panics(
+        w in 1u32..6, h in 1u32..6, l in 1usize..3, seed in 0u64..10_000,
+        holes in 0usize..3, n in 1u32..20,
+    ) {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(seed);
+        let mut depths = Vec::new();
+        let mut motions = Vec::new();
+        for _ in 0..l {
+            let d = Image::from_fn(w, h, |_, _| if rng.random::<f32>() < 0.3 { 1.0 } else { rng.random_range(0.0..1.0) });
+            let m = Image::from_fn(w, h, |_, _| {
+                let pick = rng.random_range(0..6);
+                let v = match pick {
+                    0 => Vec2::splat(1.0e9),
+                    1 => Vec2::new(f32::INFINITY, 0.0),
+                    2 => Vec2::new(-1.0e6, 3.0),
+                    _ => Vec2::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0)),
+                };
+                let depth = match rng.random_range(0..5) {
+                    0 => -0.5,
+                    1 => 1.5,
+                    2 => f32::INFINITY,
+                    _ => rng.random_range(0.0..1.0),
+                };
+                Motion { v, depth }
+            });
+            depths.push(d);
+            motions.push(m);
+        }
+        let layers: Vec<WarpLayer> = depths.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        let holes = [HolePolicy::FarDepth, HolePolicy::Dilate { radius: 2 }, HolePolicy::Awoc][holes];
+        for bound in all_bounds() {
+            let out = warp_depth(&layers, &WarpParams { n_seeds: n, bound, holes, ..Default::default() }).unwrap();
+            prop_assert!(out.depth.data().iter().all(|z| z.is_finite() && (0.0..=1.0).contains(z)));
+        }
+        for out in [vfw_layers(&layers).unwrap(), afw_layers(&layers).unwrap()] {
+            prop_assert!(out.data().iter().all(|z| z.is_finite() && (0.0..=1.0).contains(z)));
+        }
+    }
+}
