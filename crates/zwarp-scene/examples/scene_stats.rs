@@ -2,11 +2,12 @@
 //!
 //! `cargo run --release -p zwarp-scene --example scene_stats -- yr mo bl cb /path/to/sponza /path/to/munich`
 //! Optional `--scale S`, `--seed N`, `--write-paths DIR` (writes `<name>.path.json`),
-//! `--street` (files: street-level walk instead of the default flight), `--path FILE.json`.
+//! `--street` (files: street-level walk instead of the default flight), `--path FILE.json`,
+//! `--split none|components|K` (triangle soups).
 
 use std::time::Instant;
 
-use zwarp_scene::{load_scene, motion_profile, street_level_path, CameraPath, SceneOptions};
+use zwarp_scene::{load_scene, motion_profile, street_level_path, CameraPath, SceneOptions, SplitMode};
 
 fn main() {
     let mut opts = SceneOptions::default();
@@ -21,6 +22,14 @@ fn main() {
             "--seed" => opts.seed = args.next().and_then(|v| v.parse().ok()).expect("--seed needs an integer"),
             "--write-paths" => write_paths = args.next(),
             "--street" => street = true,
+            "--split" => {
+                opts.split = match args.next().as_deref() {
+                    Some("none") => SplitMode::None,
+                    Some("components") => SplitMode::Components,
+                    Some(k) => SplitMode::Clusters(k.parse().expect("--split none|components|<clusters>")),
+                    None => panic!("--split needs a value"),
+                }
+            }
             "--path" => path_file = args.next(),
             _ => specs.push(a),
         }
