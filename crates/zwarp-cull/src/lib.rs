@@ -5,7 +5,7 @@
 //! - [`screen`]: screen-space bounds (pixel rectangle + nearest depth) of an AABB proxy;
 //! - [`maxdepth`]: max-depth structures answering `is_occluded(rect, nearest)` — max mipmap
 //!   (HOM), N-buffers (exact) and Y-maps — plus the 1-pixel erosion of the thesis;
-//! - [`woc`]: the per-frame WOC pipeline (motion, single-layer warp, erosion, rapid-motion
+//! - [`mod@woc`]: the per-frame WOC pipeline (motion, single-layer warp, erosion, rapid-motion
 //!   objects, max-depth test, hybrid query) and the baselines NOCULL, VFC, last-frame depth,
 //!   two-phase, REF and the ideal screen-space test, plus the culling-accuracy figures;
 //! - [`sequence`]: runs a method along a camera path (cull, draw the visible set, feed it to
@@ -13,6 +13,8 @@
 //!
 //! Depth follows the zwarp convention: post-projection depth in `[0, 1]`, 0 = near, 1 = far
 //! and "no surface"; holes of a warped buffer are kept at 1 and never occlude.
+
+#![warn(missing_docs)]
 
 pub mod frustum;
 pub mod maxdepth;
