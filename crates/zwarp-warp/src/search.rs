@@ -185,6 +185,10 @@ pub enum SeedStrategy {
     Offset(Vec2),
 }
 
+/// Residual (pixels) below which a converged seed is not polished: the position error is then
+/// already far below a pixel and the extra sample would not change the depth measurably.
+pub const POLISH_MIN_RESIDUAL: f32 = 0.05;
+
 /// Parameters of one fixed-point search.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SearchParams {
@@ -211,8 +215,8 @@ pub struct Candidate {
 
 /// The fixed-point search of Fig. 3 for target position `p` from each of `seeds`: at most
 /// `params.iterations` (T) samples per seed, converged when `|q_{i+1} - q_i| < threshold`
-/// (plus one polishing sample at `q_{i+1}` for a converged seed whose step was not zero; kept
-/// if its residual is smaller).
+/// (plus one polishing sample at `q_{i+1}` for a converged seed whose step was at least
+/// [`POLISH_MIN_RESIDUAL`]; kept if its residual is smaller).
 /// Returns the chosen candidate, or `None` if no seed converged.
 #[inline]
 pub fn fixed_point_search<S: MotionSource + ?Sized>(
@@ -236,7 +240,7 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
                 // extra sample keeps it if its residual is smaller, which removes most of the
                 // up-to-threshold position error on smooth surfaces (visible on slanted ground
                 // near the horizon) while keeping `|q + v(q) - p| < threshold`.
-                if r2 > 0.0 {
+                if r2 > POLISH_MIN_RESIDUAL * POLISH_MIN_RESIDUAL {
                     if let Some(s2) = src.sample(w, &mut walk) {
                         if (p - s2.v - w).length_squared() < r2 {
                             c = Candidate { q: w, depth: s2.depth, tag: s2.tag, seed: i as u32 };
