@@ -11,6 +11,8 @@
 //! glTF and OBJ are Y up ([`Scene::up`] says which). Objects are [`zwarp_core::Instance`]s,
 //! their index is the item-buffer id.
 
+#![warn(missing_docs)]
+
 pub mod loaders;
 pub mod path;
 pub mod ply;
