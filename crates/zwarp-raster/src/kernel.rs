@@ -38,7 +38,7 @@ struct TileBuf {
 /// `tx0, ty0` = tile origin in pixels. Pixels outside the image but inside the tile buffer are
 /// harmless padding (never written back).
 #[inline(always)]
-fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool, const AVX2: bool>(
     t: &Tri,
     handle: u32,
     tx0: u32,
@@ -83,11 +83,7 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             }
             // Sign-bit mask of the 8 lanes (LLVM turns this into one movmskps); all set <=> no
             // lane covered: skip the chunk.
-            let mut neg = 0u32;
-            for (k, &v) in ee.iter().enumerate() {
-                neg |= ((v < 0) as u32) << k;
-            }
-            if neg != 0xff {
+            if !all_negative::<AVX2>(&ee) {
                 let id8: &mut [u32; 8] = (&mut ids[i..i + 8]).try_into().unwrap();
                 if COUNT {
                     for k in 0..8 {
@@ -124,6 +120,25 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             xb += 8;
         }
     }
+}
+
+/// `true` if all 8 edge values are negative (no lane covered). The AVX2 instantiation (only
+/// ever called from the `target_feature(enable = "avx2")` build) uses one `vmovmskps`; the
+/// portable one builds the same sign mask with scalar ops.
+#[inline(always)]
+fn all_negative<const AVX2: bool>(ee: &[i32; 8]) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 = true only inside `raster_tile_avx2`, which runs after a run-time AVX2
+        // check; the load reads exactly the 32 bytes of `ee`.
+        return unsafe { _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_loadu_si256(ee.as_ptr().cast()))) == 0xff };
+    }
+    let mut neg = 0u32;
+    for (k, &v) in ee.iter().enumerate() {
+        neg |= ((v < 0) as u32) << k;
+    }
+    neg == 0xff
 }
 
 /// Lane offsets as f32 (exact small integers: `xbf + LANE[k]` equals `(xb + k) as f32`).
@@ -174,7 +189,7 @@ fn tile_max(depth: &[f32]) -> f32 {
 
 /// Rasterizes every binned triangle of tile `tile` (origin `tx0, ty0`) into `buf`.
 #[inline(always)]
-fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
+fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool, const AVX2: bool>(
     binned: &Binned,
     handles: bool,
     tile: usize,
@@ -205,7 +220,7 @@ fn raster_tile_impl<const IDS: bool, const PEEL: bool, const COUNT: bool>(
             // Id written per pixel: the instance id directly, or (for colour) a handle to the
             // triangle's compact per-chunk colour/instance entry, resolved at write-back.
             let id = if handles { ((ci as u32) << 16) | li as u32 } else { t.inst };
-            raster_tri::<IDS, PEEL, COUNT>(t, id, tx0, ty0, buf);
+            raster_tri::<IDS, PEEL, COUNT, AVX2>(t, id, tx0, ty0, buf);
             since += 1;
             if !COUNT && since >= ZMAX_REFRESH {
                 since = 0;
@@ -225,7 +240,7 @@ unsafe fn raster_tile_avx2<const IDS: bool, const PEEL: bool, const COUNT: bool>
     ty0: u32,
     buf: &mut TileBuf,
 ) {
-    raster_tile_impl::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf)
+    raster_tile_impl::<IDS, PEEL, COUNT, true>(binned, handles, tile, tx0, ty0, buf)
 }
 
 fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
@@ -236,7 +251,7 @@ fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     ty0: u32,
     buf: &mut TileBuf,
 ) {
-    raster_tile_impl::<IDS, PEEL, COUNT>(binned, handles, tile, tx0, ty0, buf)
+    raster_tile_impl::<IDS, PEEL, COUNT, false>(binned, handles, tile, tx0, ty0, buf)
 }
 
 /// Run-time switch for the AVX2 builds (on by default where the CPU has AVX2). Both builds
