@@ -71,7 +71,12 @@ fn traffic_per_pixel(prep: &PreparedLayer, params: &WarpParams) -> (f64, f64) {
     let (w, h) = prep.size();
     let fetches = Cell::new(0u64);
     let src = Counting(LayerSampler::new(prep.samples(), w, h, params.sampling, 0), &fetches);
-    let sp = SearchParams { iterations: params.iterations, threshold: params.threshold, choice: params.choice };
+    let sp = SearchParams {
+        iterations: params.iterations,
+        threshold: params.threshold,
+        choice: params.choice,
+        accelerate: params.accelerate,
+    };
     let mut lookups = 0u64;
     let mut seeds_total = 0u64;
     let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];

@@ -302,7 +302,12 @@ impl Kernel<'_> {
         let params = self.params;
         let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let expand = params.sampling.footprint();
-        let search = SearchParams { iterations: params.iterations, threshold: params.threshold, choice: params.choice };
+        let search = SearchParams {
+            iterations: params.iterations,
+            threshold: params.threshold,
+            choice: params.choice,
+            accelerate: params.accelerate,
+        };
         let max_q = Vec2::new(self.w as f32, self.h as f32) * (1.0 - f32::EPSILON) - Vec2::splat(1e-3);
         let mut best: Option<crate::Candidate> = None;
         let mut prev_q: Option<Vec2> = None;

@@ -112,6 +112,9 @@ pub struct WarpParams {
     pub cross_layer: bool,
     /// Record the converged source position per pixel in [`WarpOutput::source`].
     pub record_source: bool,
+    /// Newton-accelerated fixed-point iteration (see [`search::fixed_point_search`]): converges
+    /// under strong magnification where plain iteration needs many more than T iterations.
+    pub accelerate: bool,
 }
 
 impl Default for WarpParams {
@@ -135,6 +138,7 @@ impl Default for WarpParams {
             choice: CandidateChoice::MinDepth,
             cross_layer: true,
             record_source: false,
+            accelerate: true,
         }
     }
 }
