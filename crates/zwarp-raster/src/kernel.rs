@@ -94,16 +94,21 @@ fn raster_tri<const IDS: bool, const PEEL: bool, const COUNT: bool, const AVX2: 
                     let th8: &[f32; 8] = if PEEL { (&thr[i..i + 8]).try_into().unwrap() } else { &[0.0; 8] };
                     let xbf = xb as f32;
                     // Branch-free lanes (bitwise `&` on bools) so LLVM emits compares + blends.
+                    // Lane masks first, then bitwise selects: this shape vectorizes in every
+                    // mode (a combined conditional update with the peeling threshold did not).
                     let mut m = [0u32; 8];
+                    let mut zz = [0f32; 8];
                     for k in 0..8 {
                         let z = clamp_depth(zrow + zx * (xbf + LANE[k]));
-                        let d = d8[k];
-                        let mut pass = (ee[k] >= 0) & (z < d);
+                        let mut pass = (ee[k] >= 0) & (z < d8[k]);
                         if PEEL {
                             pass &= z > th8[k];
                         }
                         m[k] = (pass as u32).wrapping_neg();
-                        d8[k] = if pass { z } else { d };
+                        zz[k] = z;
+                    }
+                    for k in 0..8 {
+                        d8[k] = f32::from_bits((zz[k].to_bits() & m[k]) | (d8[k].to_bits() & !m[k]));
                     }
                     if IDS {
                         // Separate bitwise select (mixing the f32 and u32 selects in one loop made
