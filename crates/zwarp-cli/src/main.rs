@@ -23,6 +23,8 @@ enum Command {
     Render(commands::render::RenderArgs),
     /// Warp frame k to frame k+1 and compare with a direct render (paper 000, Sec. 4).
     Eval(commands::eval::EvalArgs),
+    /// Occlusion culling by depth warping (WOC/AWOC) vs its baselines along a camera path.
+    Cull(commands::cull::CullArgs),
     /// List the compute devices (GPU adapters) zwarp can use.
     Info(commands::info::InfoArgs),
 }
@@ -34,6 +36,7 @@ fn main() {
         Command::Render(a) => commands::render::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Info(a) => commands::info::run(a),
+        Command::Cull(a) => commands::cull::run(a),
     };
     if let Err(e) = result {
         // One line: the error and its causes, joined.

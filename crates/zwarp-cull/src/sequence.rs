@@ -12,7 +12,7 @@ use zwarp_raster::{render_frame, Frame, FrameOptions};
 
 use crate::woc::{
     accuracy, ideal_screen_space, lastframe, nocull, twophase, vfc_cull, visible_from_items, woc, CullAccuracy,
-    CullStats, CullTimings, PrevFrame, WocParams,
+    CullResult, CullStats, CullTimings, PrevFrame, WocParams,
 };
 
 /// The culling methods compared in seed 000 Table 5 / Table 7 and thesis Table 3.
@@ -33,12 +33,23 @@ pub enum Method {
     TwoPhase,
     /// Screen-space AABB test against the true depth of the frame (ideal screen-space bound).
     Ideal,
+    /// REF: the exact visible set read from the item buffer of the full render (an oracle; its
+    /// culling cost is not counted).
+    Ref,
 }
 
 impl Method {
     /// Every method, in the order of the tables.
-    pub const ALL: [Method; 7] =
-        [Method::NoCull, Method::Vfc, Method::Woc, Method::Awoc, Method::LastFrame, Method::TwoPhase, Method::Ideal];
+    pub const ALL: [Method; 8] = [
+        Method::NoCull,
+        Method::Vfc,
+        Method::Woc,
+        Method::Awoc,
+        Method::LastFrame,
+        Method::TwoPhase,
+        Method::Ideal,
+        Method::Ref,
+    ];
 
     /// Short lower-case name (`nocull`, `vfc`, `woc`, `awoc`, `lastframe`, `twophase`, `ideal`).
     pub fn name(self) -> &'static str {
@@ -50,6 +61,7 @@ impl Method {
             Method::LastFrame => "lastframe",
             Method::TwoPhase => "twophase",
             Method::Ideal => "ideal",
+            Method::Ref => "ref",
         }
     }
 
@@ -73,6 +85,9 @@ pub struct FrameReport {
     pub t: f32,
     /// Objects drawn.
     pub visible: usize,
+    /// Their ids (increasing), e.g. to shade the frame afterwards for image-quality metrics.
+    #[serde(skip)]
+    pub visible_ids: Vec<u32>,
     /// Against REF (the item buffer of the full render of this frame).
     pub accuracy: CullAccuracy,
     /// Pixels whose depth differs from the full render (thesis Table 1 "pixel error").
@@ -169,6 +184,13 @@ pub fn run_sequence(
                         Method::NoCull => nocull(scene),
                         Method::Vfc => vfc_cull(scene, cam, t)?,
                         Method::Ideal => ideal_screen_space(scene, &full.depth, cam, t)?,
+                        Method::Ref => CullResult {
+                            visible: reference.clone(),
+                            timings: CullTimings::default(),
+                            stats: CullStats { objects: n, ..CullStats::default() },
+                            predrawn: Vec::new(),
+                            occlusion_map: None,
+                        },
                         Method::LastFrame => {
                             let (pf, _) = prev.as_ref().expect("not bootstrap");
                             lastframe(scene, &pf.depth, cam, t, params.max_depth)?
@@ -191,6 +213,7 @@ pub fn run_sequence(
             frame: k,
             t,
             visible: visible.len(),
+            visible_ids: visible.clone(),
             accuracy: accuracy(&visible, &reference, n),
             pixel_error,
             cull,

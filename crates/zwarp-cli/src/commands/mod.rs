@@ -1,5 +1,6 @@
 //! One file per `zwarp` command.
 
+pub mod cull;
 pub mod demo;
 pub mod eval;
 pub mod info;

@@ -1,0 +1,251 @@
+//! `zwarp cull`: warping-based occlusion culling (paper 000 Sec. 5, thesis 002) against its
+//! baselines along a camera path, every method measured in the same run.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+use serde::Serialize;
+use zwarp_cull::{run_sequence, Method, WocParams};
+use zwarp_raster::{render_frame, FrameOptions};
+
+use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::report::{self, fmt, ser_f64, Table, Timing};
+
+/// Arguments of `zwarp cull`.
+#[derive(Args, Clone, Debug)]
+pub struct CullArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub size: SizeArgs,
+    /// Consecutive frames to run from the start of the path (0 = the whole path).
+    #[arg(long, default_value_t = 30)]
+    pub frames: usize,
+    /// Motion-speed factors (comma list): frame k is taken at time k * speed / fps.
+    #[arg(long, default_value = "1")]
+    pub speed: String,
+    /// Methods (comma list of nocull, vfc, lastframe, twophase, woc, awoc, ideal, ref).
+    #[arg(long, default_value = "nocull,vfc,lastframe,twophase,woc,awoc,ideal,ref")]
+    pub method: String,
+    /// Search seeds N of WOC's single-layer warp.
+    #[arg(long, default_value_t = 8)]
+    pub n: u32,
+    /// Culling resolution divisor for WOC/AWOC (1 = full resolution; k = warp and test at
+    /// 1/k of the size with conservative max reduction).
+    #[arg(long, default_value_t = 1)]
+    pub downsample: u32,
+    /// Skip the colour renders used for `psnr_mean` / `psnr_worst` (faster).
+    #[arg(long)]
+    pub no_psnr: bool,
+    /// Write the results as JSON (`rows`, one per method and speed).
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// One method at one speed (JSON `rows`).
+#[derive(Clone, Debug, Serialize)]
+pub struct CullRow {
+    /// `nocull`, `vfc`, `lastframe`, `twophase`, `woc`, `awoc`, `ideal` or `ref`.
+    pub method: String,
+    /// Scene spec.
+    pub scene: String,
+    /// Motion-speed factor.
+    pub speed: f32,
+    /// Frames measured (frame 0 of history-based methods bootstraps with VFC and is left out
+    /// of the statistics; the other methods count every frame).
+    pub frames: usize,
+    /// Objects in the scene.
+    pub objects: usize,
+    /// Mean fraction of the scene's objects culled.
+    pub culling_ratio: f64,
+    /// Mean culling ratio relative to what REF culls (thesis CR: NOCULL 0, REF 1).
+    pub culling_ratio_vs_ref: f64,
+    /// Mean over frames of (objects REF shows but the method culled) / (objects REF shows).
+    pub object_error: f64,
+    /// Worst frame of `object_error`.
+    pub object_error_max: f64,
+    /// Visible objects culled, summed over the frames.
+    pub culled_visible: usize,
+    /// Mean count of pixels whose depth differs from the full render.
+    pub pixel_error: f64,
+    /// Mean PSNR (dB) of the colour image against the full render (`inf` when identical).
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr_mean: f64,
+    /// Worst-frame PSNR.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr_worst: f64,
+    /// Median culling cost (ms).
+    pub cull_ms: f64,
+    /// 99th percentile of the culling cost (ms).
+    pub cull_ms_p99: f64,
+    /// Median culling + rendering (depth and item ids of the kept objects) (ms).
+    pub frame_ms: f64,
+    /// Median time to render everything in the same run (ms).
+    pub full_ms: f64,
+    /// Mean fraction of the scene's triangles drawn.
+    pub triangle_fraction: f64,
+    /// `frame_ms` of VFC divided by this method's `frame_ms` (same run).
+    pub speedup_vs_vfc: f64,
+}
+
+/// `zwarp cull`.
+pub fn run(args: CullArgs) -> Result<()> {
+    args.size.check()?;
+    let speeds: Vec<f32> = parse_list(&args.speed, "--speed")?;
+    if speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        bail!("--speed values must be positive");
+    }
+    let methods = parse_list::<String>(&args.method, "--method")?
+        .iter()
+        .map(|m| Method::parse(m).map_err(anyhow::Error::from))
+        .collect::<Result<Vec<_>>>()?;
+    if args.downsample == 0 {
+        bail!("--downsample must be at least 1");
+    }
+    let mut params = WocParams { downsample: args.downsample, ..WocParams::default() };
+    params.warp.n_seeds = args.n;
+    params.validate()?;
+    let loaded = args.scene.load()?;
+    let (scene, path) = (&loaded.scene, &loaded.path);
+    println!(
+        "zwarp cull: {} ({} objects, {} triangles), {}x{}, CPU with {} threads",
+        args.scene.scene,
+        scene.instances.len(),
+        scene.triangle_count(),
+        args.size.width,
+        args.size.height,
+        rayon::current_num_threads()
+    );
+    let mut rows: Vec<CullRow> = Vec::new();
+    for &speed in &speeds {
+        let mut frames = path.frames(args.size.width, args.size.height, speed)?;
+        if args.frames > 0 {
+            frames.truncate(args.frames);
+        }
+        if frames.len() < 2 {
+            bail!("the camera path gives {} frame(s) at speed {speed}x; culling needs at least 2", frames.len());
+        }
+        // Full colour renders, the reference of the image-quality metrics (untimed).
+        let full_color: Vec<Option<zwarp_core::Image<[f32; 3]>>> = if args.no_psnr {
+            vec![None; frames.len()]
+        } else {
+            frames
+                .iter()
+                .map(|(t, cam)| Ok(render_frame(scene, cam, *t, &FrameOptions { color: true, objects: None })?.color))
+                .collect::<Result<_>>()?
+        };
+        let bar = indicatif::ProgressBar::new(methods.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")?.progress_chars("=> "),
+        );
+        bar.set_message(format!("cull {} {speed}x", args.scene.scene));
+        let mut speed_rows = Vec::new();
+        for &method in &methods {
+            let reports = run_sequence(scene, &frames, method, &params)?;
+            let steady: Vec<_> = reports.iter().filter(|r| !r.bootstrap).collect();
+            let rs = if steady.is_empty() { reports.iter().collect() } else { steady };
+            let nf = rs.len().max(1) as f64;
+            let obj_err: Vec<f64> =
+                rs.iter().map(|r| r.accuracy.false_negatives as f64 / r.accuracy.reference.max(1) as f64).collect();
+            let mut psnrs = Vec::new();
+            for r in &rs {
+                if let Some(full) = &full_color[r.frame] {
+                    let (t, cam) = &frames[r.frame];
+                    let img =
+                        render_frame(scene, cam, *t, &FrameOptions { color: true, objects: Some(&r.visible_ids) })?;
+                    psnrs.push(zwarp_metrics::psnr_rgb(img.color.as_ref().expect("colour requested"), full, 1.0)?);
+                }
+            }
+            let cull_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms).collect::<Vec<_>>());
+            let frame_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms + r.draw_ms).collect::<Vec<_>>());
+            speed_rows.push(CullRow {
+                method: method.name().to_string(),
+                scene: args.scene.scene.clone(),
+                speed,
+                frames: rs.len(),
+                objects: scene.instances.len(),
+                culling_ratio: rs
+                    .iter()
+                    .map(|r| 1.0 - r.visible as f64 / scene.instances.len().max(1) as f64)
+                    .sum::<f64>()
+                    / nf,
+                culling_ratio_vs_ref: rs.iter().map(|r| r.accuracy.culling_ratio).sum::<f64>() / nf,
+                object_error: obj_err.iter().sum::<f64>() / nf,
+                object_error_max: obj_err.iter().copied().fold(0.0, f64::max),
+                culled_visible: rs.iter().map(|r| r.accuracy.false_negatives).sum(),
+                pixel_error: rs.iter().map(|r| r.pixel_error as f64).sum::<f64>() / nf,
+                psnr_mean: if psnrs.is_empty() {
+                    f64::NAN
+                } else {
+                    psnrs.iter().map(|p| p.min(1e3)).sum::<f64>() / psnrs.len() as f64
+                },
+                psnr_worst: psnrs.iter().copied().fold(f64::INFINITY, f64::min),
+                cull_ms: cull_t.median,
+                cull_ms_p99: cull_t.p99,
+                frame_ms: frame_t.median,
+                full_ms: Timing::of(&rs.iter().map(|r| r.full_draw_ms).collect::<Vec<_>>()).median,
+                triangle_fraction: rs.iter().map(|r| r.triangles as f64 / r.full_triangles.max(1) as f64).sum::<f64>()
+                    / nf,
+                speedup_vs_vfc: f64::NAN,
+            });
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        // A mean PSNR of identical frames is reported as inf (capped only inside the mean).
+        for r in &mut speed_rows {
+            if r.psnr_worst.is_infinite() && !r.psnr_mean.is_nan() {
+                r.psnr_mean = f64::INFINITY;
+            }
+        }
+        if let Some(vfc) = speed_rows.iter().find(|r| r.method == "vfc").map(|r| r.frame_ms) {
+            for r in &mut speed_rows {
+                r.speedup_vs_vfc = vfc / r.frame_ms.max(1e-9);
+            }
+        }
+        rows.extend(speed_rows);
+    }
+    let mut t = Table::new(&[
+        "method",
+        "speed",
+        "culled",
+        "CR vs ref",
+        "obj err %",
+        "max %",
+        "culled vis",
+        "px err",
+        "PSNR mean",
+        "PSNR worst",
+        "cull ms",
+        "p99",
+        "frame ms",
+        "x VFC",
+    ]);
+    for r in &rows {
+        t.row(vec![
+            r.method.clone(),
+            format!("{}x", r.speed),
+            fmt(r.culling_ratio * 100.0, 2),
+            fmt(r.culling_ratio_vs_ref, 3),
+            fmt(r.object_error * 100.0, 4),
+            fmt(r.object_error_max * 100.0, 3),
+            r.culled_visible.to_string(),
+            fmt(r.pixel_error, 1),
+            fmt(r.psnr_mean, 1),
+            fmt(r.psnr_worst, 1),
+            fmt(r.cull_ms, 2),
+            fmt(r.cull_ms_p99, 2),
+            fmt(r.frame_ms, 2),
+            fmt(r.speedup_vs_vfc, 2),
+        ]);
+    }
+    println!("{}", t.render());
+    report::write_json(
+        &args.json,
+        "cull",
+        &rows,
+        serde_json::json!({ "backend": "cpu", "threads": rayon::current_num_threads(), "width": args.size.width, "height": args.size.height, "downsample": args.downsample }),
+    )?;
+    println!("wrote {}", args.json.display());
+    Ok(())
+}

@@ -1,0 +1,233 @@
+//! `zwarp shadows`: soft shadows from warped shadow maps against the reference and PCSS
+//! (paper 000, Sec. 6: Table 8, Fig. 15).
+//!
+//! One frame of the camera path is shaded with an area light (`--light` JSON, else a disc light
+//! placed from the scene bounds). For every shadow-map size and number of light samples S the
+//! reference (S maps rasterized), zwarp (the peeled centre map warped to the S sample views) and
+//! PCSS (one map, filtered) are timed side by side (warm, repeated, median) and their shaded
+//! images compared with the reference of the same S (PSNR, SSIM on linear RGB).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde::Serialize;
+use zwarp_core::Image;
+use zwarp_shadows::{default_light, evaluate, light_to_json, load_light, EvalConfig, Method, ShadowParams};
+
+use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::report::{self, fmt, ser_f64, Table, Timing};
+
+/// Arguments of `zwarp shadows`.
+#[derive(Args, Clone, Debug)]
+pub struct ShadowsArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub size: SizeArgs,
+    /// Frame index along the camera path.
+    #[arg(long, default_value_t = 0)]
+    pub frame: usize,
+    /// Area-light JSON (`{"center","target","up","shape":{"kind":"disc","radius"}|{"kind":"rect",
+    /// "width","height"},"directional"}`); default: a disc light placed from the scene bounds.
+    #[arg(long)]
+    pub light: Option<PathBuf>,
+    /// Numbers of light samples S (comma list).
+    #[arg(long, default_value = "4,16,64,256")]
+    pub samples: String,
+    /// Shadow-map sizes (comma list).
+    #[arg(long, default_value = "512,1024,2048")]
+    pub sm: String,
+    /// Methods besides the reference (comma list of zwarp, pcss).
+    #[arg(long, default_value = "zwarp,pcss")]
+    pub methods: String,
+    /// Depth layers L of zwarp (the ground is the last one when the scene has one).
+    #[arg(long, default_value_t = 3)]
+    pub layers: usize,
+    /// Search seeds N of zwarp.
+    #[arg(long, default_value_t = 4)]
+    pub n: u32,
+    /// Timed repetitions per measurement (after one warm-up run).
+    #[arg(long, default_value_t = 3)]
+    pub reps: usize,
+    /// Write shaded images, visibility maps and visibility difference heat-maps here.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+    /// Write the results as JSON (`rows`, one per method / S / map size).
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// One measured configuration (JSON `rows`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ShadowRow {
+    /// `reference`, `zwarp` or `pcss`.
+    pub method: String,
+    /// Scene spec.
+    pub scene: String,
+    /// Light samples S.
+    pub samples: u32,
+    /// Shadow-map size.
+    pub sm: u32,
+    /// Median frame time over the warm repetitions (ms).
+    pub ms: f64,
+    /// Spread of the frame time.
+    pub timing: Timing,
+    /// PSNR (dB) of the shaded image vs the reference with the same S.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr: f64,
+    /// SSIM of the shaded image vs the reference with the same S.
+    pub ssim: f64,
+    /// Reference ms / this method's ms (same S, same map size, same run).
+    pub speedup: f64,
+    /// Stage times of the median repetition (ms): camera frame + receivers.
+    pub camera_ms: f64,
+    /// Shadow-map rasterization (S maps, the peeled centre layers, or the PCSS map).
+    pub render_ms: f64,
+    /// Motion buffers (zwarp).
+    pub motion_ms: f64,
+    /// Motion mipmaps and warps (zwarp).
+    pub warp_ms: f64,
+    /// Visibility tests / PCSS filtering.
+    pub visibility_ms: f64,
+    /// Shading.
+    pub shade_ms: f64,
+}
+
+fn gray(v: &Image<f32>) -> Image<u8> {
+    v.map(|x| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+}
+
+/// Runs `zwarp shadows`.
+pub fn run(a: ShadowsArgs) -> Result<()> {
+    a.size.check()?;
+    let samples: Vec<u32> = parse_list(&a.samples, "--samples")?;
+    let sms: Vec<u32> = parse_list(&a.sm, "--sm")?;
+    let names: Vec<String> = parse_list(&a.methods, "--methods")?;
+    let mut methods = Vec::new();
+    for n in &names {
+        let m: Method = n.parse().map_err(|e| anyhow::anyhow!("--methods: {e}"))?;
+        if !methods.contains(&m) {
+            methods.push(m);
+        }
+    }
+    if a.reps == 0 {
+        bail!("--reps must be at least 1");
+    }
+    let loaded = a.scene.load()?;
+    let scene = &loaded.scene;
+    let n_frames = loaded.path.frame_count();
+    if a.frame >= n_frames.max(1) {
+        bail!("--frame {} is beyond the camera path ({} frames)", a.frame, n_frames);
+    }
+    let t = loaded.path.time_of_frame(a.frame, 1.0).min(loaded.path.end());
+    let cam = loaded.path.camera_at(t, a.size.width, a.size.height)?;
+    let light = match &a.light {
+        Some(p) => load_light(p)?,
+        None => default_light(scene)?,
+    };
+    let base = ShadowParams { layers: a.layers, n_seeds: a.n, seed: a.scene.seed, ..ShadowParams::default() };
+    base.validate()?;
+    let cfg = EvalConfig { samples, sm_sizes: sms, methods, reps: a.reps, base };
+    if let Some(dir) = &a.images {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    }
+    let tag = std::path::Path::new(&a.scene.scene)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| a.scene.scene.clone());
+    eprintln!(
+        "shadows: {} ({} objects, {} triangles), frame {} (t = {t:.3} s), {}x{}",
+        a.scene.scene,
+        scene.instances.len(),
+        scene.triangle_count(),
+        a.frame,
+        a.size.width,
+        a.size.height
+    );
+    let rows = evaluate(scene, &cam, t, &light, &cfg, |row, res, reference| {
+        eprintln!(
+            "  {:<9} S={:<4} sm={:<5} {:>9.1} ms  ssim {:.4}",
+            row.method.name(),
+            row.samples,
+            row.sm,
+            row.ms,
+            row.ssim
+        );
+        if let Some(dir) = &a.images {
+            let stem = dir.join(format!("{tag}_{}_s{}_sm{}", row.method.name(), row.samples, row.sm));
+            let path = |suffix: &str| PathBuf::from(format!("{}{suffix}.png", stem.display()));
+            zwarp_viz::write_png(path(""), &zwarp_viz::color_to_rgb8(&res.image))?;
+            zwarp_viz::write_png_gray(path("_vis"), &gray(&res.visibility))?;
+            if row.method != Method::Reference {
+                // Red = less visible than the reference (too dark), blue = more (light leak);
+                // saturates at a visibility difference of 0.5.
+                let heat = zwarp_viz::diff_heatmap(&res.visibility, &reference.visibility, 0.5)?;
+                zwarp_viz::write_png(path("_diff"), &heat)?;
+            }
+        }
+        Ok(())
+    })?;
+
+    let out: Vec<ShadowRow> = rows
+        .iter()
+        .map(|r| ShadowRow {
+            method: r.method.name().to_string(),
+            scene: a.scene.scene.clone(),
+            samples: r.samples,
+            sm: r.sm,
+            ms: r.ms,
+            timing: Timing::of(&r.times),
+            psnr: r.psnr,
+            ssim: r.ssim,
+            speedup: r.speedup,
+            camera_ms: r.timings.camera,
+            render_ms: r.timings.render,
+            motion_ms: r.timings.motion,
+            warp_ms: r.timings.warp,
+            visibility_ms: r.timings.visibility,
+            shade_ms: r.timings.shade,
+        })
+        .collect();
+    let mut table =
+        Table::new(&["method", "S", "sm", "ms", "min", "max", "psnr", "ssim", "speedup", "render", "motion", "warp", "vis"]);
+    for r in &out {
+        table.row(vec![
+            r.method.clone(),
+            r.samples.to_string(),
+            r.sm.to_string(),
+            fmt(r.ms, 1),
+            fmt(r.timing.min, 1),
+            fmt(r.timing.max, 1),
+            fmt(r.psnr, 2),
+            fmt(r.ssim, 4),
+            fmt(r.speedup, 2),
+            fmt(r.render_ms, 1),
+            fmt(r.motion_ms, 1),
+            fmt(r.warp_ms, 1),
+            fmt(r.visibility_ms, 1),
+        ]);
+    }
+    println!("{}", table.render());
+    let light_json: serde_json::Value = serde_json::from_str(&light_to_json(&light))?;
+    report::write_json(
+        &a.json,
+        "shadows",
+        &out,
+        serde_json::json!({
+            "scene": a.scene.scene,
+            "seed": a.scene.seed,
+            "scale": a.scene.scale,
+            "frame": a.frame,
+            "t": t,
+            "width": a.size.width,
+            "height": a.size.height,
+            "light": light_json,
+            "layers": a.layers,
+            "n": a.n,
+            "reps": a.reps,
+            "threads": rayon::current_num_threads(),
+        }),
+    )?;
+    Ok(())
+}
