@@ -35,7 +35,10 @@ fn main() -> zwarp_core::Result<()> {
         sm_sizes: sms,
         methods: vec![Method::Zwarp, Method::Pcss],
         reps,
-        base: ShadowParams::default(),
+        base: ShadowParams {
+            parallax_motion: std::env::var("ZW_PARALLAX").map_or(true, |v| v != "0"),
+            ..ShadowParams::default()
+        },
     };
     let rows = evaluate(&loaded.scene, &cam, t, &light, &cfg, |row, res, _| {
         if let Some(dir) = &out {

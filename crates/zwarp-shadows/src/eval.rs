@@ -37,6 +37,8 @@ pub struct EvalRow {
     pub ms_min: f64,
     /// Slowest repetition (ms).
     pub ms_max: f64,
+    /// Every timed repetition (ms).
+    pub times: Vec<f64>,
     /// PSNR (dB) of the shaded image vs the reference with the same S (`inf` if identical).
     pub psnr: f64,
     /// SSIM of the shaded image vs the reference with the same S.
@@ -49,10 +51,21 @@ pub struct EvalRow {
     pub warp_holes: usize,
 }
 
-fn median(v: &mut [(f64, StageTimings)]) -> (f64, f64, f64, StageTimings) {
+/// Timings of the repetitions of one configuration.
+#[derive(Clone)]
+struct Timed {
+    ms: f64,
+    lo: f64,
+    hi: f64,
+    times: Vec<f64>,
+    stages: StageTimings,
+}
+
+fn summarize(mut v: Vec<(f64, StageTimings)>) -> Timed {
+    let times = v.iter().map(|x| x.0).collect();
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
     let m = v[v.len() / 2];
-    (m.0, v[0].0, v[v.len() - 1].0, m.1)
+    Timed { ms: m.0, lo: v[0].0, hi: v[v.len() - 1].0, times, stages: m.1 }
 }
 
 /// Runs `method` `reps + 1` times (first one is warm-up), returns the last result and timings.
@@ -64,15 +77,14 @@ fn timed(
     method: Method,
     p: &ShadowParams,
     reps: usize,
-) -> Result<(ShadowResult, f64, f64, f64, StageTimings)> {
+) -> Result<(ShadowResult, Timed)> {
     let mut out = run_shadows(scene, cam, t, light, method, p)?;
     let mut times = Vec::with_capacity(reps);
     for _ in 0..reps {
         out = run_shadows(scene, cam, t, light, method, p)?;
         times.push((out.ms, out.timings));
     }
-    let (ms, lo, hi, tm) = median(&mut times);
-    Ok((out, ms, lo, hi, tm))
+    Ok((out, summarize(times)))
 }
 
 /// Measures every (map size, S, method) of `cfg` on one frame. `on_result` sees each row with
@@ -94,48 +106,51 @@ pub fn evaluate(
     let mut rows = Vec::new();
     for &sm in &cfg.sm_sizes {
         // PCSS does not depend on S: measure it once per map size.
-        let mut pcss: Option<(ShadowResult, f64, f64, f64, StageTimings)> = None;
+        let mut pcss: Option<(ShadowResult, Timed)> = None;
         for &s in &cfg.samples {
             let p = ShadowParams { samples: s, sm_size: sm, ..cfg.base };
-            let (reference, rms, rlo, rhi, rtm) = timed(scene, cam, t, light, Method::Reference, &p, cfg.reps)?;
+            let (reference, rt) = timed(scene, cam, t, light, Method::Reference, &p, cfg.reps)?;
+            let rms = rt.ms;
             let ref_row = EvalRow {
                 method: Method::Reference,
                 samples: s,
                 sm,
-                ms: rms,
-                ms_min: rlo,
-                ms_max: rhi,
+                ms: rt.ms,
+                ms_min: rt.lo,
+                ms_max: rt.hi,
+                times: rt.times,
                 psnr: f64::INFINITY,
                 ssim: 1.0,
                 speedup: 1.0,
-                timings: rtm,
+                timings: rt.stages,
                 warp_holes: 0,
             };
             on_result(&ref_row, &reference, &reference)?;
             rows.push(ref_row);
             for &m in &cfg.methods {
-                let (res, ms, lo, hi, tm) = match m {
+                let (res, tm) = match m {
                     Method::Reference => continue,
                     Method::Pcss => {
                         if pcss.is_none() {
                             pcss = Some(timed(scene, cam, t, light, m, &p, cfg.reps)?);
                         }
-                        let c = pcss.as_ref().map(|c| (c.0.clone(), c.1, c.2, c.3, c.4));
-                        c.ok_or_else(|| Error::invalid("PCSS result missing"))?
+                        pcss.clone().ok_or_else(|| Error::invalid("PCSS result missing"))?
                     }
                     Method::Zwarp => timed(scene, cam, t, light, m, &p, cfg.reps)?,
                 };
+                let ms = tm.ms;
                 let row = EvalRow {
                     method: m,
                     samples: s,
                     sm,
                     ms,
-                    ms_min: lo,
-                    ms_max: hi,
+                    ms_min: tm.lo,
+                    ms_max: tm.hi,
+                    times: tm.times,
                     psnr: zwarp_metrics::psnr_rgb(&res.image, &reference.image, 1.0)?,
                     ssim: zwarp_metrics::ssim_rgb(&res.image, &reference.image, 1.0)?,
                     speedup: rms / ms.max(1e-9),
-                    timings: tm,
+                    timings: tm.stages,
                     warp_holes: res.warp_holes,
                 };
                 on_result(&row, &res, &reference)?;
