@@ -61,26 +61,31 @@ fn main() -> Result<()> {
     let gs = GpuScene::upload(&ctx, &scene)?;
     let r = Renderer::new(&ctx)?;
     let target = DepthTarget::new(&ctx, cam.width, cam.height)?;
-    let mut rows = Vec::new();
-    for timer in [GpuTimer::new(&ctx), GpuTimer::wall_clock(&ctx)] {
-        // Warm-up: pipeline compilation, first-touch of buffers.
-        for _ in 0..3 {
+    // Interleaved runs (GPU timestamps, GPU fenced wall clock, CPU) so that load from other
+    // processes on a shared machine hits all three alike.
+    let timers = [GpuTimer::new(&ctx), GpuTimer::wall_clock(&ctx)];
+    let cpu_run = || -> Result<Duration> {
+        let t0 = Instant::now();
+        zwarp_raster::render_depth(&scene, &cam, 0.0).map(|_| t0.elapsed())
+    };
+    for _ in 0..3 {
+        for timer in &timers {
             timer.measure(|enc| r.encode_depth(enc, &gs, &cam, 0.0, &target))?;
         }
-        let samples: Vec<Duration> = (0..runs)
-            .map(|_| timer.measure(|enc| r.encode_depth(enc, &gs, &cam, 0.0, &target)))
-            .collect::<Result<_>>()?;
-        rows.push((timer.method(), TimingStats::from_samples(&samples)?));
+        cpu_run()?;
     }
-    // The CPU rasterizer, same scene, same camera, same number of warm runs.
-    for _ in 0..2 {
-        zwarp_raster::render_depth(&scene, &cam, 0.0)?;
+    let mut gpu_samples = [Vec::new(), Vec::new()];
+    let mut cpu_samples = Vec::new();
+    for _ in 0..runs {
+        for (k, timer) in timers.iter().enumerate() {
+            gpu_samples[k].push(timer.measure(|enc| r.encode_depth(enc, &gs, &cam, 0.0, &target))?);
+        }
+        cpu_samples.push(cpu_run()?);
     }
-    let cpu_samples: Vec<Duration> = (0..runs)
-        .map(|_| {
-            let t0 = Instant::now();
-            zwarp_raster::render_depth(&scene, &cam, 0.0).map(|_| t0.elapsed())
-        })
+    let rows: Vec<_> = timers
+        .iter()
+        .zip(&gpu_samples)
+        .map(|(t, s)| Ok((t.method(), TimingStats::from_samples(s)?)))
         .collect::<Result<_>>()?;
     let cpu = TimingStats::from_samples(&cpu_samples)?;
     let depth = r.render_depth(&gs, &cam, 0.0)?;
@@ -129,18 +134,16 @@ fn main() -> Result<()> {
         let opts = PeelOptions { layers: l, ..Default::default() };
         let targets = LayerTargets::new(&r, cam.width, cam.height, l as usize, false)?;
         let timer = GpuTimer::new(&ctx);
-        timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets))?;
-        let g: Vec<Duration> = (0..peel_runs)
-            .map(|_| timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets)))
-            .collect::<Result<_>>()?;
         let cpu_opts = zwarp_raster::PeelOptions { layers: l as usize, ground_separate: false, umbra: None };
+        timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets))?;
         zwarp_raster::render_layers(&scene, &cam, 0.0, &cpu_opts)?;
-        let c: Vec<Duration> = (0..peel_runs)
-            .map(|_| {
-                let t0 = Instant::now();
-                zwarp_raster::render_layers(&scene, &cam, 0.0, &cpu_opts).map(|_| t0.elapsed())
-            })
-            .collect::<Result<_>>()?;
+        let (mut g, mut c) = (Vec::new(), Vec::new());
+        for _ in 0..peel_runs {
+            g.push(timer.measure(|enc| r.encode_layers(enc, &gs, &cam, 0.0, &opts, &targets))?);
+            let t0 = Instant::now();
+            zwarp_raster::render_layers(&scene, &cam, 0.0, &cpu_opts)?;
+            c.push(t0.elapsed());
+        }
         let (g, c) = (TimingStats::from_samples(&g)?, TimingStats::from_samples(&c)?);
         println!(
             "| {l} | {:.2} | {:.2} | {:.2} |",

@@ -11,6 +11,13 @@
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
 //!
 //! Every WGSL file sits next to its host code and is loaded with `include_str!`.
+//!
+//! Backends: Vulkan/Metal/DX12 first (lavapipe through Vulkan on a GPU-less Linux box), GLES as
+//! a last resort. Everything also runs on GLES (llvmpipe through EGL): depth is read back
+//! with a compute copy (GLES cannot copy depth textures to buffers) and colour falls back to
+//! half floats where 32-bit float targets are not renderable. Device errors while building
+//! pipelines come back as `Error::Unavailable` instead of wgpu's default panic.
+#![warn(missing_docs)]
 
 pub mod compute;
 pub mod context;
