@@ -1,6 +1,6 @@
 //! Prints warp quality on the synthetic city (seed 000 Sec. 4.2 style): non-converged fraction
 //! and linear-depth error against the directly rendered target, for several N, L, hole policies
-//! and the VFW/AFW baselines. `cargo run --release -p zwarp-warp --example city [w h speed T plain|aitken]`.
+//! and the VFW/AFW baselines. `cargo run --release -p zwarp-warp --example city [w h speed T plain|newton bound_iterations]`.
 
 use glam::Vec3;
 use std::time::Instant;
@@ -39,6 +39,7 @@ fn main() {
     let speed: f32 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(1.0);
     let t_iter: u32 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(3);
     let accelerate = args.get(5).map(|s| s != "plain").unwrap_or(true);
+    let bound_iterations: u32 = args.get(6).and_then(|s| s.parse().ok()).unwrap_or(6);
     let scene = SynthScene::city(6);
     let a = Camera::perspective(Vec3::new(0.0, 9.0, 22.0), Vec3::new(0.0, 0.0, 0.0), Vec3::Y, 1.0, 0.5, 200.0, w, h)
         .unwrap();
@@ -66,7 +67,14 @@ fn main() {
     for l in [1usize, 2, 3] {
         for n in [1u32, 4, 8, 16] {
             for bound in [BoundKind::Global, BoundKind::Oriented] {
-                let params = WarpParams { n_seeds: n, bound, iterations: t_iter, accelerate, ..Default::default() };
+                let params = WarpParams {
+                    n_seeds: n,
+                    bound,
+                    iterations: t_iter,
+                    accelerate,
+                    bound_iterations,
+                    ..Default::default()
+                };
                 let t0 = Instant::now();
                 let out = warp_depth(&layers[..l], &params).unwrap();
                 let dt = t0.elapsed().as_secs_f64() * 1e3;
