@@ -189,8 +189,9 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             shade_ms: r.timings.shade,
         })
         .collect();
-    let mut table =
-        Table::new(&["method", "S", "sm", "ms", "min", "max", "psnr", "ssim", "speedup", "render", "motion", "warp", "vis"]);
+    let mut table = Table::new(&[
+        "method", "S", "sm", "ms", "min", "max", "psnr", "ssim", "speedup", "render", "motion", "warp", "vis",
+    ]);
     for r in &out {
         table.row(vec![
             r.method.clone(),
