@@ -33,6 +33,7 @@ pub(crate) struct Batch {
 ///
 /// Object ids are the indices of [`Scene::instances`], as on the CPU: the item buffer of a GPU
 /// render stores the same ids.
+#[derive(Debug)]
 pub struct GpuScene {
     pub(crate) vertices: wgpu::Buffer,
     pub(crate) indices: wgpu::Buffer,
@@ -47,7 +48,7 @@ impl GpuScene {
     /// Uploads `scene`'s meshes and instance list. Errors on an empty scene or one that
     /// exceeds the device's buffer limits.
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<Self> {
-        scene.check_nonempty()?;
+        // Mesh indices first: `Scene::check_nonempty` indexes meshes by them.
         for (i, inst) in scene.instances.iter().enumerate() {
             if inst.mesh as usize >= scene.meshes.len() {
                 return Err(Error::invalid(format!(
@@ -57,6 +58,7 @@ impl GpuScene {
                 )));
             }
         }
+        scene.check_nonempty()?;
         // Concatenate meshes; remember where each one starts.
         let mut positions: Vec<[f32; 3]> = Vec::new();
         let mut indices: Vec<u32> = Vec::new();
@@ -185,16 +187,20 @@ impl GpuScene {
         let data: Vec<ObjectGpu> = self
             .instances
             .iter()
-            .map(|inst| {
+            .enumerate()
+            .map(|(id, inst)| {
                 let model: Mat4 = inst.transform_at(t);
+                if !model.is_finite() {
+                    return Err(Error::invalid(format!("instance {id} has a non-finite transform at t={t}")));
+                }
                 let a: Vec3 = inst.albedo;
-                ObjectGpu {
+                Ok(ObjectGpu {
                     mvp: (vp * model).to_cols_array_2d(),
                     model: model.to_cols_array_2d(),
                     albedo: [a.x, a.y, a.z, 1.0],
-                }
+                })
             })
-            .collect();
+            .collect::<Result<_>>()?;
         ctx.queue.write_buffer(&self.objects, 0, bytemuck::cast_slice(&data));
         Ok(())
     }
