@@ -14,7 +14,10 @@ use std::time::{Duration, Instant};
 
 use glam::{Mat4, Vec3};
 use zwarp_core::{Animation, Camera, Error, Mesh, Result, Scene};
-use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, PeelOptions, Renderer, TimingStats};
+use zwarp_gpu::{
+    DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, MotionInput, MotionKernel, PeelOptions, PyramidKernel,
+    Renderer, TimingStats,
+};
 
 /// Tiny reader of the raw Sponza format (see `shared/scenes/README.md`).
 fn load_sponza(dir: &Path) -> Result<Scene> {
@@ -61,9 +64,12 @@ fn main() -> Result<()> {
     let gs = GpuScene::upload(&ctx, &scene)?;
     let r = Renderer::new(&ctx)?;
     let target = DepthTarget::new(&ctx, cam.width, cam.height)?;
-    // Interleaved runs (GPU timestamps, GPU fenced wall clock, CPU) so that load from other
+    // Interleaved runs (GPU with each timer, then CPU) so that load from other
     // processes on a shared machine hits all three alike.
-    let timers = [GpuTimer::new(&ctx), GpuTimer::wall_clock(&ctx)];
+    // GpuTimer::new picks the fenced wall clock on software adapters (their timestamps miss
+    // compute work); timestamps are shown beside it where the adapter has them.
+    let timers: Vec<GpuTimer> =
+        [Some(GpuTimer::new(&ctx)), GpuTimer::with_timestamps(&ctx)].into_iter().flatten().collect();
     let cpu_run = || -> Result<Duration> {
         let t0 = Instant::now();
         zwarp_raster::render_depth(&scene, &cam, 0.0).map(|_| t0.elapsed())
@@ -74,7 +80,7 @@ fn main() -> Result<()> {
         }
         cpu_run()?;
     }
-    let mut gpu_samples = [Vec::new(), Vec::new()];
+    let mut gpu_samples = vec![Vec::new(); timers.len()];
     let mut cpu_samples = Vec::new();
     for _ in 0..runs {
         for (k, timer) in timers.iter().enumerate() {
@@ -148,6 +154,79 @@ fn main() -> Result<()> {
         println!(
             "| {l} | {:.2} | {:.2} | {:.2} |",
             ms(g.median),
+            ms(c.median),
+            c.median.as_secs_f64() / g.median.as_secs_f64()
+        );
+    }
+
+    // Motion field (Sec. 3.1) and min-max motion mipmap (Sec. 3.3, "MMC" of Table 3) at
+    // 1920x1080 towards a view 10 cm to the right, GPU kernels vs their CPU twins.
+    let cam_b = Camera::perspective(
+        Vec3::new(0.1, -11.0, 2.0),
+        Vec3::new(0.1, 11.0, 3.0),
+        Vec3::Z,
+        60f32.to_radians(),
+        0.1,
+        100.0,
+        1920,
+        1080,
+    )?;
+    let mk = MotionKernel::new(&ctx)?;
+    let pk = PyramidKernel::new(&ctx)?;
+    let n = depth.len();
+    let dev = &ctx.device;
+    let dbuf = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("depth"),
+        size: n as u64 * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    ctx.queue.write_buffer(&dbuf, 0, bytemuck::cast_slice(depth.data()));
+    let mbuf = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("motion"),
+        size: n as u64 * 12,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let input = MotionInput { depth: &dbuf, items: None, row_stride: cam.width };
+    let timer = GpuTimer::new(&ctx);
+    let alt = GpuTimer::with_timestamps(&ctx).unwrap_or_else(|| GpuTimer::wall_clock(&ctx));
+    let (mut gm, mut gp, mut cm, mut cp) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut wm, mut wp) = (Vec::new(), Vec::new());
+    for run in 0..runs + 2 {
+        let a = timer.measure(|enc| mk.encode(enc, &input, &cam, &cam_b, &[], &mbuf))?;
+        let b = timer.measure(|enc| pk.encode(enc, &mbuf, cam.width, cam.height, glam::Vec2::X).map(|_| ()))?;
+        let xa = alt.measure(|enc| mk.encode(enc, &input, &cam, &cam_b, &[], &mbuf))?;
+        let xb = alt.measure(|enc| pk.encode(enc, &mbuf, cam.width, cam.height, glam::Vec2::X).map(|_| ()))?;
+        let t0 = Instant::now();
+        let motion = zwarp_core::motion_field(&depth, None, &cam, &cam_b, &[])?;
+        let c = t0.elapsed();
+        let t0 = Instant::now();
+        let pyr = zwarp_warp::MotionPyramid::build(&motion)?;
+        let d = t0.elapsed();
+        std::hint::black_box(pyr.top_level());
+        if run >= 2 {
+            wm.push(xa);
+            wp.push(xb);
+            gm.push(a);
+            gp.push(b);
+            cm.push(c);
+            cp.push(d);
+        }
+    }
+    println!();
+    println!(
+        "| kernel (1920x1080) | GPU median ms ({}) | GPU median ms ({}) | CPU median ms | CPU / GPU |",
+        timer.method(),
+        alt.method()
+    );
+    println!("|---|---|---|---|---|");
+    for (name, g, w, c) in [("motion field", &gm, &wm, &cm), ("min-max motion mipmap", &gp, &wp, &cp)] {
+        let (g, w, c) = (TimingStats::from_samples(g)?, TimingStats::from_samples(w)?, TimingStats::from_samples(c)?);
+        println!(
+            "| {name} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            ms(g.median),
+            ms(w.median),
             ms(c.median),
             c.median.as_secs_f64() / g.median.as_secs_f64()
         );

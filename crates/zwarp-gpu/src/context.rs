@@ -140,12 +140,9 @@ impl GpuContext {
         GpuContext { device, queue, adapter }
     }
 
-    /// `true` if timestamp queries can be written inside command encoders (used by
-    /// [`crate::GpuTimer`]).
+    /// `true` if pass timestamp queries are enabled (used by [`crate::GpuTimer`]).
     pub fn has_timestamps(&self) -> bool {
-        self.device
-            .features()
-            .contains(wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS)
+        self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 
     /// Blocks until all submitted work is done.

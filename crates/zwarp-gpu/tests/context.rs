@@ -27,13 +27,16 @@ fn timer_measures_a_depth_pass() {
     let r = Renderer::new(&ctx).unwrap();
     let cam = camera_a();
     let target = DepthTarget::new(&ctx, cam.width, cam.height).unwrap();
-    for timer in [GpuTimer::new(&ctx), GpuTimer::wall_clock(&ctx)] {
-        let expect = if ctx.has_timestamps() && timer.method() == TimingMethod::Timestamps {
-            TimingMethod::Timestamps
-        } else {
-            TimingMethod::FencedWallClock
-        };
-        assert_eq!(timer.method(), expect);
+    let auto = GpuTimer::new(&ctx);
+    let expect = if ctx.has_timestamps() && ctx.adapter.device_type != "Cpu" {
+        TimingMethod::Timestamps
+    } else {
+        TimingMethod::FencedWallClock
+    };
+    assert_eq!(auto.method(), expect);
+    let stamped = GpuTimer::with_timestamps(&ctx);
+    assert_eq!(stamped.is_some(), ctx.has_timestamps());
+    for timer in [Some(auto), stamped, Some(GpuTimer::wall_clock(&ctx))].into_iter().flatten() {
         let t = timer.measure(|enc| r.encode_depth(enc, &gs, &cam, 0.0, &target)).unwrap();
         assert!(t.as_secs_f64() < 10.0, "{t:?}");
         // Errors inside the recorded closure propagate.
