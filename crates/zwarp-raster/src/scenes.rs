@@ -1,52 +1,10 @@
-//! Benchmark scenes: a tiny raw reader for the Crytek Sponza buffers of `shared/scenes/sponza`
-//! and procedural stand-ins with many triangles. Used by the benchmark and the timing example;
-//! the full loaders and the paper's scene generators live in `zwarp-scene`.
-
-use std::path::Path;
+//! Small procedural test scenes (sphere field, box city) and the meshes they are built from,
+//! used by this crate's tests and by other crates' tests (zwarp-gpu, zwarp-shadows): tiny, fast
+//! to build and with a fixed camera. The benchmark and the timing examples render the real
+//! scenes through `zwarp-scene` (the file loaders and the paper's generators).
 
 use glam::{Mat4, Vec3};
-use zwarp_core::{Animation, Camera, Error, Mesh, Result, Scene};
-
-/// Reads `VertexBuffer.bin` (little-endian f32 x4 per vertex, w unused) and `IndexBuffer.bin`
-/// (little-endian u32, 3 per triangle) from `dir` into a one-instance scene (Z up).
-pub fn load_raw_sponza(dir: &Path) -> Result<Scene> {
-    let read = |name: &str| {
-        let p = dir.join(name);
-        std::fs::read(&p).map_err(|e| Error::io(p, e))
-    };
-    let vb = read("VertexBuffer.bin")?;
-    let ib = read("IndexBuffer.bin")?;
-    if vb.len() % 16 != 0 {
-        return Err(Error::parse(dir.join("VertexBuffer.bin"), "length is not a multiple of 16 bytes (f32 x4)"));
-    }
-    if ib.len() % 12 != 0 {
-        return Err(Error::parse(dir.join("IndexBuffer.bin"), "length is not a multiple of 12 bytes (3 x u32)"));
-    }
-    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    let u = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    let positions: Vec<Vec3> = vb.chunks_exact(16).map(|c| Vec3::new(f(&c[0..4]), f(&c[4..8]), f(&c[8..12]))).collect();
-    let indices: Vec<[u32; 3]> = ib.chunks_exact(12).map(|c| [u(&c[0..4]), u(&c[4..8]), u(&c[8..12])]).collect();
-    let mesh = Mesh::new(positions, indices).map_err(|e| Error::parse(dir, e.to_string()))?;
-    let mut s = Scene { name: "sponza".into(), up: Vec3::Z, ..Default::default() };
-    let m = s.add_mesh(mesh);
-    s.add_instance(m, Mat4::IDENTITY, Vec3::splat(0.8), Animation::Static, false);
-    Ok(s)
-}
-
-/// The Sponza view of `shared/scenes/README.md`: eye (0, -11, 2) looking at (0, 11, 3), up +z,
-/// 60 degree vertical field of view, near 0.1, far 100.
-pub fn sponza_camera(width: u32, height: u32) -> Result<Camera> {
-    Camera::perspective(
-        Vec3::new(0.0, -11.0, 2.0),
-        Vec3::new(0.0, 11.0, 3.0),
-        Vec3::Z,
-        60f32.to_radians(),
-        0.1,
-        100.0,
-        width,
-        height,
-    )
-}
+use zwarp_core::{Animation, Camera, Mesh, Result, Scene};
 
 /// UV sphere mesh with `seg` segments around and `seg / 2` rings.
 pub fn uv_sphere(radius: f32, seg: u32) -> Mesh {
