@@ -47,6 +47,10 @@ pub struct EvalArgs {
     /// Methods (comma list of ours, vfw, afw).
     #[arg(long, default_value = "ours,vfw,afw")]
     pub methods: String,
+    /// Hole policy of our warp: `far` (far depth, the paper's protocol for Tables 1-3: "keeps
+    /// holes", dilation disabled), `dilate` (Fig. 8) or `awoc` (Sec. 5.3).
+    #[arg(long, default_value = "far")]
+    pub holes: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
     #[arg(long, default_value = "umbra")]
     pub peel: String,
@@ -76,6 +80,8 @@ pub struct EvalRow {
     pub t: u32,
     /// `global`, `tight`, `oriented` (`-` for the forward warps).
     pub bound: String,
+    /// Hole policy of our warp: `far`, `dilate`, `awoc` (`-` for the forward warps).
+    pub holes: String,
     /// Motion-speed factor.
     pub speed: f32,
     /// Frame pairs evaluated.
@@ -126,6 +132,7 @@ pub struct EvalPlan {
     pub ts: Vec<u32>,
     pub bounds: Vec<BoundKind>,
     pub methods: Vec<String>,
+    pub holes: HolePolicy,
     pub umbra: bool,
     pub reps: usize,
     pub width: u32,
@@ -138,6 +145,14 @@ fn bound_name(b: BoundKind) -> &'static str {
         BoundKind::Global => "global",
         BoundKind::Tight => "tight",
         BoundKind::Oriented => "oriented",
+    }
+}
+
+fn hole_name(h: HolePolicy) -> &'static str {
+    match h {
+        HolePolicy::FarDepth => "far",
+        HolePolicy::Dilate { .. } => "dilate",
+        HolePolicy::Awoc => "awoc",
     }
 }
 
@@ -173,6 +188,12 @@ impl EvalArgs {
                 bail!("--methods: unknown method '{m}' (ours, vfw, afw)");
             }
         }
+        let holes = match self.holes.as_str() {
+            "far" => HolePolicy::FarDepth,
+            "dilate" => HolePolicy::Dilate { radius: 4 },
+            "awoc" => HolePolicy::Awoc,
+            o => bail!("--holes: unknown hole policy '{o}' (far, dilate, awoc)"),
+        };
         let umbra = match self.peel.as_str() {
             "umbra" => true,
             "standard" => false,
@@ -192,6 +213,7 @@ impl EvalArgs {
             ts,
             bounds,
             methods,
+            holes,
             umbra,
             reps: self.reps.max(1),
             width: self.size.width,
@@ -441,6 +463,7 @@ pub fn evaluate(
                 l: key.1,
                 t: key.3,
                 bound: key.4.map_or("-", bound_name).to_string(),
+                holes: if key.4.is_some() { hole_name(plan.holes).to_string() } else { "-".to_string() },
                 speed,
                 frames: pairs.len(),
                 width: plan.width,
