@@ -8,6 +8,8 @@
 //!   rasterizer: depth in `[0, 1]` (1 = empty), pixel centres, row 0 at the top.
 //! - [`MotionKernel`]: the WGSL twin of [`zwarp_core::motion_field`] (seed 000 Sec. 3.1).
 //! - [`PyramidKernel`]: the min-max motion mipmap (seed 000 Sec. 3.3) on the GPU.
+//! - [`WarpKernel`]: the backward depth warp (seed 000 Sec. 3, Fig. 3, 5, 6), the twin of
+//!   `zwarp_warp::warp_depth` with axis-aligned bounds.
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
 //!
 //! Every WGSL file sits next to its host code and is loaded with `include_str!`.
@@ -25,7 +27,9 @@ mod readback;
 pub mod render;
 pub mod timer;
 
-pub use compute::{GpuMotionPyramid, MotionInput, MotionKernel, PyramidKernel};
+pub use compute::{
+    GpuMotionPyramid, GpuWarpLayer, GpuWarpOutput, MotionInput, MotionKernel, PyramidKernel, WarpKernel, MAX_GPU_LAYERS,
+};
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{DepthTarget, FrameOptions, GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer, Shading, Umbra};
 pub use timer::{GpuTimer, TimingMethod, TimingStats};

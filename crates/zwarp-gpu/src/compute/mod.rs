@@ -3,6 +3,8 @@
 
 mod motion;
 mod pyramid;
+mod warp;
 
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
+pub use warp::{GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};

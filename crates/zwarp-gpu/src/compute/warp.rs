@@ -1,0 +1,422 @@
+//! GPU backward depth warp (seed 000 Sec. 3.2-3.4, Fig. 3, 5, 6), the WGSL twin of
+//! [`zwarp_warp::warp_depth`]. Shader: `warp.wgsl`.
+//!
+//! **Which CPU function.** The GPU computes `zwarp_warp::warp_depth(layers, params)` for every
+//! [`WarpParams`] with `bound: BoundKind::Tight` or `BoundKind::Global` (axis-aligned bounds)
+//! and `holes: FarDepth` or `Dilate`, `record_source: false`; everything else is reproduced as
+//! on the CPU: N stratified seeds (corners + R2 sequence with the same PCG `seed_key` jitter),
+//! T iterations, the convergence threshold, Newton steps (`accelerate`) and the polishing
+//! sample, adaptive or nearest sampling, minimal-depth (or first-converged) candidates,
+//! cross-layer seeding and borrowing (Fig. 6), the 4x4-tile then per-pixel bound tightening
+//! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
+//! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication
+//! of `PreparedLayer::prepare_stack`. `BoundKind::Oriented` (the CPU default: a PCA frame chosen
+//! per frame on the CPU) and `HolePolicy::Awoc` return [`Error::Invalid`]; use
+//! [`WarpKernel::gpu_params`] to turn any CPU configuration into the one the GPU reproduces.
+//!
+//! Differences are floating-point only (the GPU compiler may fuse multiply-adds), which moves a
+//! few converged positions by ulps; the tests require warped-depth SSIM >= 0.999 and equal
+//! converged masks on >= 99.5 % of the pixels.
+//!
+//! Pipeline (all on the GPU, no CPU round trip in [`WarpKernel::encode`]): per layer `prepare`
+//! (validated samples), `mip_base` + `mip_up` (min-max motion mipmap with a min-depth channel,
+//! same level layout as [`crate::PyramidKernel`] and the CPU `MotionPyramid`), then one `warp`
+//! dispatch over the target pixels, then `dilate` for `HolePolicy::Dilate`.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+use zwarp_core::{Error, Image, Motion, Result};
+use zwarp_warp::{
+    BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput, WarpParams,
+};
+
+use crate::compute::pyramid_level_sizes;
+use crate::readback::read_buffer;
+use crate::GpuContext;
+
+/// Largest number of layers L the GPU warp takes in one call.
+pub const MAX_GPU_LAYERS: usize = 8;
+/// Largest number of mip levels (images up to 65536 pixels per side).
+const MAX_LEVELS: usize = 16;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    size: [u32; 2],
+    layers: u32,
+    top: u32,
+    layer: u32,
+    level: u32,
+    n_seeds: u32,
+    iterations: u32,
+    threshold: f32,
+    bound_iterations: u32,
+    flags: u32,
+    radius: u32,
+    seed_offset: [f32; 2],
+    expand: f32,
+    level_total: u32,
+    inf: [f32; 2],
+    pad: [f32; 2],
+    levels: [[u32; 4]; MAX_LEVELS],
+}
+
+const FLAG_CROSS: u32 = 1;
+const FLAG_ACCEL: u32 = 2;
+const FLAG_ADAPTIVE: u32 = 4;
+const FLAG_FIRST: u32 = 8;
+const FLAG_SEED_PIXEL: u32 = 16;
+const FLAG_SEED_OFFSET: u32 = 32;
+
+/// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
+/// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
+/// [`crate::MotionKernel::encode`]. Both buffers need `STORAGE` usage.
+#[derive(Clone, Copy, Debug)]
+pub struct GpuWarpLayer<'a> {
+    /// Source depth buffer.
+    pub depth: &'a wgpu::Buffer,
+    /// Motion buffer (source -> target, plus target depth).
+    pub motion: &'a wgpu::Buffer,
+}
+
+/// Result of [`WarpKernel::encode`], resident on the GPU.
+#[derive(Debug)]
+pub struct GpuWarpOutput {
+    /// Warped depth, `width * height` `f32` (1 = hole under `FarDepth`); `STORAGE | COPY_SRC`.
+    pub depth: wgpu::Buffer,
+    /// Per-pixel [`PixelState`] as `u32` (0 converged, 1 filled, 2 hole); `STORAGE | COPY_SRC`.
+    pub state: wgpu::Buffer,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+}
+
+impl GpuWarpOutput {
+    /// Reads depth and state back (submits a copy and waits).
+    pub fn read(&self, ctx: &GpuContext) -> Result<WarpOutput> {
+        let n = self.width as usize * self.height as usize;
+        let depth = read_buffer::<f32>(ctx, &self.depth, n)?;
+        let state = read_buffer::<u32>(ctx, &self.state, n)?
+            .into_iter()
+            .map(|s| match s {
+                0 => PixelState::Converged,
+                1 => PixelState::Filled,
+                _ => PixelState::Hole,
+            })
+            .collect();
+        Ok(WarpOutput {
+            depth: Image::from_vec(self.width, self.height, depth)?,
+            state: Image::from_vec(self.width, self.height, state)?,
+            source: None,
+        })
+    }
+}
+
+/// The GPU depth warp (seed 000 Sec. 3): compiled pipelines, reusable across calls and sizes.
+pub struct WarpKernel {
+    ctx: GpuContext,
+    prepare: wgpu::ComputePipeline,
+    mip_base: wgpu::ComputePipeline,
+    mip_up: wgpu::ComputePipeline,
+    warp: wgpu::ComputePipeline,
+    dilate: wgpu::ComputePipeline,
+}
+
+impl WarpKernel {
+    /// Compiles `warp.wgsl` on `ctx`'s device (an engine's own via [`GpuContext::from_device`]).
+    pub fn new(ctx: &GpuContext) -> Result<Self> {
+        let dev = &ctx.device;
+        let module = ctx.catch("compiling warp.wgsl", || {
+            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("warp.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("warp.wgsl").into()),
+            })
+        })?;
+        // Automatic layouts: each entry point binds only the buffers it uses, which keeps every
+        // pipeline within the default limit of 8 storage buffers per stage.
+        let pipe = |entry: &str| {
+            ctx.catch("building the warp pipeline", || {
+                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+        };
+        Ok(WarpKernel {
+            ctx: ctx.clone(),
+            prepare: pipe("prepare")?,
+            mip_base: pipe("mip_base")?,
+            mip_up: pipe("mip_up")?,
+            warp: pipe("warp")?,
+            dilate: pipe("dilate")?,
+        })
+    }
+
+    /// The configuration of `params` the GPU reproduces: `Oriented` bounds become `Tight`
+    /// (axis-aligned), `Awoc` holes become `FarDepth`, `record_source` is cleared. Run the CPU
+    /// `warp_depth` with the result to get the GPU's function exactly.
+    pub fn gpu_params(params: &WarpParams) -> WarpParams {
+        WarpParams {
+            bound: if params.bound == BoundKind::Global { BoundKind::Global } else { BoundKind::Tight },
+            holes: if params.holes == HolePolicy::Awoc { HolePolicy::FarDepth } else { params.holes },
+            record_source: false,
+            ..*params
+        }
+    }
+
+    /// Checks that `params` is valid and within what the GPU computes (see the module docs).
+    pub fn check_params(params: &WarpParams) -> Result<()> {
+        params.validate()?;
+        if params.bound == BoundKind::Oriented {
+            return Err(Error::invalid(
+                "GPU warp supports BoundKind::Tight and Global (Oriented is CPU-only; see WarpKernel::gpu_params)",
+            ));
+        }
+        if params.holes == HolePolicy::Awoc {
+            return Err(Error::invalid("GPU warp supports HolePolicy::FarDepth and Dilate (AWOC is CPU-only)"));
+        }
+        if params.record_source {
+            return Err(Error::invalid("GPU warp does not record source positions (record_source must be false)"));
+        }
+        Ok(())
+    }
+
+    fn uniform(&self, p: &Params) -> wgpu::Buffer {
+        self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("zwarp warp params"),
+            contents: bytemuck::bytes_of(p),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+    }
+
+    fn dispatch(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipe: &wgpu::ComputePipeline,
+        bindings: &[(u32, &wgpu::Buffer)],
+        groups: (u32, u32),
+    ) {
+        let entries: Vec<wgpu::BindGroupEntry<'_>> = bindings
+            .iter()
+            .map(|&(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() })
+            .collect();
+        let bind = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp warp"),
+            layout: &pipe.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut pass =
+            enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("zwarp warp"), timestamp_writes: None });
+        pass.set_pipeline(pipe);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups.0.max(1), groups.1.max(1), 1);
+    }
+
+    fn storage(&self, bytes: u64, what: &str) -> Result<wgpu::Buffer> {
+        self.ctx.check_storage_size(bytes, what)?;
+        Ok(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(what),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        }))
+    }
+
+    /// Records the warp of GPU-resident `layers` (nearest first, ground last if separate) of
+    /// `width x height` into `encoder`; the output stays on the GPU. Errors ([`Error::Invalid`])
+    /// on an empty or too long layer list, zero size, buffers too small, unsupported params.
+    /// NaN inputs are not checked here (the CPU-input [`Self::warp`] rejects them).
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        layers: &[GpuWarpLayer<'_>],
+        width: u32,
+        height: u32,
+        params: &WarpParams,
+    ) -> Result<GpuWarpOutput> {
+        Self::check_params(params)?;
+        if layers.is_empty() {
+            return Err(Error::invalid("warp_depth needs at least one layer"));
+        }
+        if layers.len() > MAX_GPU_LAYERS {
+            return Err(Error::invalid(format!(
+                "GPU warp takes at most {MAX_GPU_LAYERS} layers, got {}",
+                layers.len()
+            )));
+        }
+        if width == 0 || height == 0 {
+            return Err(Error::invalid(format!("warp target is a zero-size image ({width}x{height})")));
+        }
+        let wh = width as u64 * height as u64;
+        for (k, l) in layers.iter().enumerate() {
+            if l.depth.size() < wh * 4 || l.motion.size() < wh * 12 {
+                return Err(Error::invalid(format!("layer {k}: GPU buffers are too small for {width}x{height}")));
+            }
+        }
+        let sizes = pyramid_level_sizes(width, height);
+        if sizes.len() > MAX_LEVELS {
+            return Err(Error::invalid(format!("{width}x{height} is too large for the GPU warp")));
+        }
+        let mut levels = [[0u32; 4]; MAX_LEVELS];
+        let mut total = 0u32;
+        for (l, &(lw, lh)) in sizes.iter().enumerate() {
+            levels[l] = [total, lw, lh, 0];
+            total += lw * lh;
+        }
+        let nl = layers.len() as u32;
+        let (mut flags, mut seed_offset) = (0u32, [0.0f32; 2]);
+        if params.cross_layer {
+            flags |= FLAG_CROSS;
+        }
+        if params.accelerate {
+            flags |= FLAG_ACCEL;
+        }
+        if params.sampling == Sampling::Adaptive {
+            flags |= FLAG_ADAPTIVE;
+        }
+        if params.choice == CandidateChoice::FirstConverged {
+            flags |= FLAG_FIRST;
+        }
+        match params.seeding {
+            SeedStrategy::Stratified => {}
+            SeedStrategy::Pixel => flags |= FLAG_SEED_PIXEL,
+            SeedStrategy::Offset(d) => {
+                flags |= FLAG_SEED_OFFSET;
+                seed_offset = d.to_array();
+            }
+        }
+        let base = Params {
+            size: [width, height],
+            layers: nl,
+            top: sizes.len() as u32,
+            layer: 0,
+            level: 0,
+            n_seeds: params.n_seeds,
+            iterations: params.iterations,
+            threshold: params.threshold,
+            bound_iterations: if params.bound == BoundKind::Global { 0 } else { params.bound_iterations },
+            flags,
+            radius: if let HolePolicy::Dilate { radius } = params.holes { radius } else { 0 },
+            seed_offset,
+            expand: params.sampling.footprint(),
+            level_total: total,
+            inf: [f32::INFINITY, f32::NEG_INFINITY],
+            pad: [0.0; 2],
+            levels,
+        };
+        let samples = self.storage(nl as u64 * wh * 16, "zwarp warp samples")?;
+        let mip = self.storage(nl as u64 * total as u64 * 16, "zwarp warp mipmap")?;
+        let zmin = self.storage(nl as u64 * total as u64 * 4, "zwarp warp min-depth mipmap")?;
+        let out_depth = self.storage(wh * 4, "zwarp warp depth")?;
+        let out_state = self.storage(wh * 4, "zwarp warp state")?;
+        let groups = (width.div_ceil(8), height.div_ceil(8));
+        // Samples of every layer first: the mipmap of layer k reads layers < k (de-duplication).
+        for (k, l) in layers.iter().enumerate() {
+            let u = self.uniform(&Params { layer: k as u32, ..base });
+            self.dispatch(encoder, &self.prepare, &[(0, &u), (1, l.depth), (2, l.motion), (3, &samples)], groups);
+        }
+        for k in 0..nl {
+            let u = self.uniform(&Params { layer: k, ..base });
+            let (lw, lh) = sizes[0];
+            self.dispatch(
+                encoder,
+                &self.mip_base,
+                &[(0, &u), (3, &samples), (4, &mip), (5, &zmin)],
+                (lw.div_ceil(8), lh.div_ceil(8)),
+            );
+            for (l, &(lw, lh)) in sizes.iter().enumerate().skip(1) {
+                let u = self.uniform(&Params { layer: k, level: l as u32 + 1, ..base });
+                self.dispatch(
+                    encoder,
+                    &self.mip_up,
+                    &[(0, &u), (4, &mip), (5, &zmin)],
+                    (lw.div_ceil(8), lh.div_ceil(8)),
+                );
+            }
+        }
+        let u = self.uniform(&base);
+        self.dispatch(
+            encoder,
+            &self.warp,
+            &[(0, &u), (3, &samples), (4, &mip), (5, &zmin), (6, &out_depth), (7, &out_state)],
+            groups,
+        );
+        if let HolePolicy::Dilate { .. } = params.holes {
+            let fill_depth = self.storage(wh * 4, "zwarp warp dilated depth")?;
+            let fill_state = self.storage(wh * 4, "zwarp warp dilated state")?;
+            self.dispatch(
+                encoder,
+                &self.dilate,
+                &[(0, &u), (6, &out_depth), (7, &out_state), (8, &fill_depth), (9, &fill_state)],
+                groups,
+            );
+            return Ok(GpuWarpOutput { depth: fill_depth, state: fill_state, width, height });
+        }
+        Ok(GpuWarpOutput { depth: out_depth, state: out_state, width, height })
+    }
+
+    /// Uploads CPU `layers` (validated exactly like `zwarp_warp::warp_depth`: at least one
+    /// layer, equal non-zero sizes, no NaN/infinite depth, no NaN motion), records the warp,
+    /// waits and reads the result back. `WarpOutput::source` is `None`.
+    pub fn warp(&self, layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpOutput> {
+        let gpu = self.upload(layers, params)?;
+        let views: Vec<GpuWarpLayer<'_>> = gpu.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m }).collect();
+        let (w, h) = layers[0].depth.size();
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let out = self.encode(&mut enc, &views, w, h, params)?;
+        self.ctx.queue.submit([enc.finish()]);
+        out.read(&self.ctx)
+    }
+
+    /// Validates and uploads CPU layers into GPU buffers `(depth, motion)` usable as
+    /// [`GpuWarpLayer`]s (e.g. to time [`Self::encode`] without the upload).
+    pub fn upload(&self, layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<Vec<(wgpu::Buffer, wgpu::Buffer)>> {
+        Self::check_params(params)?;
+        let first = layers.first().ok_or_else(|| Error::invalid("warp_depth needs at least one layer"))?;
+        let (w, h) = first.depth.size();
+        for (k, l) in layers.iter().enumerate() {
+            l.depth.check_nonempty("layer depth")?;
+            l.depth.check_same_size(l.motion, "layer depth vs motion")?;
+            if l.depth.size() != (w, h) {
+                let (lw, lh) = l.depth.size();
+                return Err(Error::invalid(format!("layer {k} is {lw}x{lh} but layer 0 is {w}x{h}")));
+            }
+            if l.depth.data().iter().any(|d| !d.is_finite()) {
+                return Err(Error::invalid("layer depth holds NaN or infinite values"));
+            }
+            if l.motion.data().iter().any(|m| m.v.is_nan() || m.depth.is_nan()) {
+                return Err(Error::invalid("motion buffer holds NaN values"));
+            }
+        }
+        if layers.len() > MAX_GPU_LAYERS {
+            return Err(Error::invalid(format!(
+                "GPU warp takes at most {MAX_GPU_LAYERS} layers, got {}",
+                layers.len()
+            )));
+        }
+        let dev = &self.ctx.device;
+        let up = |bytes: &[u8], what: &str| -> Result<wgpu::Buffer> {
+            self.ctx.check_storage_size(bytes.len() as u64, what)?;
+            Ok(dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(what),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            }))
+        };
+        layers
+            .iter()
+            .map(|l| {
+                let m: &[Motion] = l.motion.data();
+                Ok((
+                    up(bytemuck::cast_slice(l.depth.data()), "zwarp warp source depth")?,
+                    up(bytemuck::cast_slice(m), "zwarp warp motion")?,
+                ))
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,650 @@
+// Backward depth warp (seed 000 Sec. 3, Fig. 3, 5, 6): the WGSL twin of
+// zwarp_warp::warp_depth for axis-aligned bounds (BoundKind::Tight / Global). Every function
+// below mirrors a CPU function of crates/zwarp-warp (named in its comment) operation by
+// operation, so that both backends compute the same function. Host code: warp.rs.
+//
+// Buffers (L layers of w x h pixels, wh = w * h):
+// - samples: L * wh texels (v.x, v.y, target depth or 2.0 if invalid, raw source depth),
+//   the CPU's `validated_samples` (invalid samples have target depth outside [0, 1)).
+// - mip / zmin: per layer `level_total` texels, levels 1..=top packed at params.levels[l-1].x;
+//   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin = min target depth.
+// - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole).
+
+struct Params {
+    size: vec2<u32>,
+    layers: u32,
+    top: u32,
+    // Layer of a prepare / mip dispatch.
+    layer: u32,
+    // Level (2..=top) written by a mip_up dispatch.
+    level: u32,
+    n_seeds: u32,
+    iterations: u32,
+    threshold: f32,
+    bound_iterations: u32,
+    flags: u32,
+    radius: u32,
+    seed_offset: vec2<f32>,
+    expand: f32,
+    level_total: u32,
+    // (+inf, -inf): WGSL has no infinity literal.
+    inf: vec2<f32>,
+    pad: vec2<f32>,
+    // Per level l - 1: (offset within a layer's block, width, height, 0).
+    levels: array<vec4<u32>, 16>,
+};
+
+const FLAG_CROSS: u32 = 1u;
+const FLAG_ACCEL: u32 = 2u;
+const FLAG_ADAPTIVE: u32 = 4u;
+const FLAG_FIRST: u32 = 8u;
+const FLAG_SEED_PIXEL: u32 = 16u;
+const FLAG_SEED_OFFSET: u32 = 32u;
+const EMPTY_Z: f32 = 2.0;
+// zwarp_warp::search::POLISH_MIN_RESIDUAL and CONTINUITY_PX.
+const POLISH: f32 = 0.05;
+const CONTINUITY: f32 = 1.0;
+const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
+// f32::EPSILON.
+const EPS: f32 = 1.1920929e-7;
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> depth_in: array<f32>;
+@group(0) @binding(2) var<storage, read> motion_in: array<f32>;
+@group(0) @binding(3) var<storage, read_write> samples: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> mip: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> zmin: array<f32>;
+@group(0) @binding(6) var<storage, read_write> out_depth: array<f32>;
+@group(0) @binding(7) var<storage, read_write> out_state: array<u32>;
+@group(0) @binding(8) var<storage, read_write> fill_depth: array<f32>;
+@group(0) @binding(9) var<storage, read_write> fill_state: array<u32>;
+
+fn finite2(v: vec2<f32>) -> bool {
+    let big = 3.4028235e38;
+    return abs(v.x) <= big && abs(v.y) <= big;
+}
+
+fn valid_z(z: f32) -> bool {
+    return z >= 0.0 && z < 1.0;
+}
+
+// depth_warp::validated_samples for layer params.layer: valid iff source depth < 1, target
+// depth in [0, 1) and finite motion.
+@compute @workgroup_size(8, 8, 1)
+fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.size.x || gid.y >= params.size.y) {
+        return;
+    }
+    let wh = params.size.x * params.size.y;
+    let i = gid.y * params.size.x + gid.x;
+    let d = depth_in[i];
+    let v = vec2<f32>(motion_in[3u * i], motion_in[3u * i + 1u]);
+    let z = motion_in[3u * i + 2u];
+    var s = vec4<f32>(0.0, 0.0, EMPTY_Z, d);
+    if (d < 1.0 && valid_z(z) && finite2(v)) {
+        s = vec4<f32>(v, z, d);
+    }
+    samples[params.layer * wh + i] = s;
+}
+
+// MotionPyramid::from_samples level 1 for layer params.layer, over the samples of
+// PreparedLayer::prepare_stack: a sample of layer k > 0 whose source depth equals an earlier
+// layer's at the same pixel is left out of the mipmap.
+@compute @workgroup_size(8, 8, 1)
+fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let lv = params.levels[0];
+    if (gid.x >= lv.y || gid.y >= lv.z) {
+        return;
+    }
+    let w = params.size.x;
+    let h = params.size.y;
+    let wh = w * h;
+    let k = params.layer;
+    var lo = vec2<f32>(params.inf.x);
+    var hi = vec2<f32>(params.inf.y);
+    var z = params.inf.x;
+    for (var dy = 0u; dy < 2u; dy++) {
+        let y = gid.y * 2u + dy;
+        for (var dx = 0u; dx < 2u; dx++) {
+            let x = gid.x * 2u + dx;
+            if (x < w && y < h) {
+                let i = y * w + x;
+                let s = samples[k * wh + i];
+                var keep = valid_z(s.z);
+                for (var j = 0u; j < k; j++) {
+                    if (samples[j * wh + i].w == s.w) {
+                        keep = false;
+                    }
+                }
+                if (keep) {
+                    lo = min(lo, s.xy);
+                    hi = max(hi, s.xy);
+                    z = min(z, s.z);
+                }
+            }
+        }
+    }
+    let o = k * params.level_total + lv.x + gid.y * lv.y + gid.x;
+    mip[o] = vec4<f32>(lo, hi);
+    zmin[o] = z;
+}
+
+// MotionPyramid::from_samples, level params.level from the level below.
+@compute @workgroup_size(8, 8, 1)
+fn mip_up(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let lv = params.levels[params.level - 1u];
+    let pv = params.levels[params.level - 2u];
+    if (gid.x >= lv.y || gid.y >= lv.z) {
+        return;
+    }
+    let base = params.layer * params.level_total;
+    var lo = vec2<f32>(params.inf.x);
+    var hi = vec2<f32>(params.inf.y);
+    var z = params.inf.x;
+    for (var dy = 0u; dy < 2u; dy++) {
+        let y = gid.y * 2u + dy;
+        for (var dx = 0u; dx < 2u; dx++) {
+            let x = gid.x * 2u + dx;
+            if (x < pv.y && y < pv.z) {
+                let o = base + pv.x + y * pv.y + x;
+                let t = mip[o];
+                lo = min(lo, t.xy);
+                hi = max(hi, t.zw);
+                z = min(z, zmin[o]);
+            }
+        }
+    }
+    let o = base + lv.x + gid.y * lv.y + gid.x;
+    mip[o] = vec4<f32>(lo, hi);
+    zmin[o] = z;
+}
+
+// ---------------------------------------------------------------------------------------
+// Bounds (zwarp_warp::bounds, identity frame).
+
+fn ceil_log2(n: u32) -> u32 {
+    if (n <= 1u) {
+        return 0u;
+    }
+    return 32u - countLeadingZeros(n - 1u);
+}
+
+struct Range {
+    ok: bool,
+    r: vec4<u32>,
+};
+
+// MotionPyramid::pixel_range.
+fn pixel_range(rlo: vec2<f32>, rhi: vec2<f32>, expand: f32) -> Range {
+    let lo = rlo - vec2<f32>(expand);
+    let hi = rhi + vec2<f32>(expand);
+    let w = f32(params.size.x);
+    let h = f32(params.size.y);
+    if (!(hi.x >= 0.0 && hi.y >= 0.0 && lo.x < w && lo.y < h)) {
+        return Range(false, vec4<u32>(0u));
+    }
+    let ix0 = u32(max(lo.x, 0.0));
+    let iy0 = u32(max(lo.y, 0.0));
+    let ix1 = min(u32(min(hi.x, w - 1.0)), params.size.x - 1u);
+    let iy1 = min(u32(min(hi.y, h - 1.0)), params.size.y - 1u);
+    return Range(true, vec4<u32>(ix0, iy0, ix1, iy1));
+}
+
+// MotionPyramid::level_for_range.
+fn level_for_range(r: vec4<u32>) -> u32 {
+    let e = max(r.z - r.x, r.w - r.y);
+    return clamp(ceil_log2(e), 1u, params.top);
+}
+
+// MotionPyramid::lookup_range: union of the texels the range touches at its level.
+fn lookup_range(k: u32, r: vec4<u32>) -> vec4<f32> {
+    let l = level_for_range(r);
+    let lv = params.levels[l - 1u];
+    let base = k * params.level_total + lv.x;
+    let tx0 = r.x >> l;
+    let tx1 = min(r.z >> l, lv.y - 1u);
+    let ty0 = r.y >> l;
+    let ty1 = min(r.w >> l, lv.z - 1u);
+    var b = vec4<f32>(params.inf.x, params.inf.x, params.inf.y, params.inf.y);
+    for (var ty = ty0; ty <= ty1; ty++) {
+        for (var tx = tx0; tx <= tx1; tx++) {
+            let t = mip[base + ty * lv.y + tx];
+            b = vec4<f32>(min(b.xy, t.xy), max(b.zw, t.zw));
+        }
+    }
+    return b;
+}
+
+// MotionPyramid::lookup_min_depth.
+fn lookup_min_depth(k: u32, r: vec4<u32>) -> f32 {
+    let l = level_for_range(r);
+    let lv = params.levels[l - 1u];
+    let base = k * params.level_total + lv.x;
+    let tx0 = r.x >> l;
+    let tx1 = min(r.z >> l, lv.y - 1u);
+    let ty0 = r.y >> l;
+    let ty1 = min(r.w >> l, lv.z - 1u);
+    var z = params.inf.x;
+    for (var ty = ty0; ty <= ty1; ty++) {
+        for (var tx = tx0; tx <= tx1; tx++) {
+            z = min(z, zmin[base + ty * lv.y + tx]);
+        }
+    }
+    return z;
+}
+
+fn is_empty(b: vec4<f32>) -> bool {
+    return !(b.x <= b.z && b.y <= b.w);
+}
+
+struct Tight {
+    ok: bool,
+    // Motion bound (lo.xy, hi.xy) and search region (lo.xy, hi.xy).
+    motion: vec4<f32>,
+    region: vec4<f32>,
+};
+
+fn region_of(c_lo: vec2<f32>, c_hi: vec2<f32>, b: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(c_lo - b.zw, c_hi - b.xy);
+}
+
+// MotionPyramid::tight_bound_box (Fig. 5): tightening from `start` for the box of target
+// positions [c_lo, c_hi], stopping at the fixed point.
+fn tight_bound_box(k: u32, c_lo: vec2<f32>, c_hi: vec2<f32>, start: vec4<f32>, iterations: u32, expand: f32) -> Tight {
+    var b = start;
+    let none = Tight(false, vec4<f32>(0.0), vec4<f32>(0.0));
+    if (is_empty(b)) {
+        return none;
+    }
+    var region = region_of(c_lo, c_hi, b);
+    var range = pixel_range(region.xy, region.zw, expand);
+    if (!range.ok) {
+        return none;
+    }
+    for (var i = 0u; i < iterations; i++) {
+        let m = lookup_range(k, range.r);
+        let nb = vec4<f32>(max(b.xy, m.xy), min(b.zw, m.zw));
+        if (is_empty(nb)) {
+            return none;
+        }
+        if (all(nb == b)) {
+            break;
+        }
+        b = nb;
+        region = region_of(c_lo, c_hi, b);
+        range = pixel_range(region.xy, region.zw, expand);
+        if (!range.ok) {
+            return none;
+        }
+    }
+    return Tight(true, b, region);
+}
+
+// ---------------------------------------------------------------------------------------
+// Sampling (zwarp_warp::search::LayerSampler::fetch and depth_warp::StackSampler).
+
+struct Smp {
+    ok: bool,
+    v: vec2<f32>,
+    depth: f32,
+    tag: u32,
+    dvdx: vec2<f32>,
+    dvdy: vec2<f32>,
+};
+
+fn at(k: u32, x: u32, y: u32) -> vec4<f32> {
+    return samples[k * params.size.x * params.size.y + y * params.size.x + x];
+}
+
+// glam's Vec2::lerp: a * (1 - s) + b * s.
+fn lerp2(a: vec2<f32>, b: vec2<f32>, s: f32) -> vec2<f32> {
+    return a * (1.0 - s) + b * s;
+}
+
+fn fetch(k: u32, q: vec2<f32>) -> Smp {
+    let wm = params.size.x - 1u;
+    let hm = params.size.y - 1u;
+    let xn = min(u32(q.x), wm);
+    let yn = min(u32(q.y), hm);
+    let zero = vec2<f32>(0.0);
+    if ((params.flags & FLAG_ADAPTIVE) != 0u) {
+        let tx = q.x + 0.5;
+        let ty = q.y + 0.5;
+        let ix = u32(tx);
+        let iy = u32(ty);
+        let ax = tx - f32(ix);
+        let ay = ty - f32(iy);
+        let x0 = min(select(ix - 1u, 0u, ix == 0u), wm);
+        let y0 = min(select(iy - 1u, 0u, iy == 0u), hm);
+        let x1 = min(ix, wm);
+        let y1 = min(iy, hm);
+        let s00 = at(k, x0, y0);
+        let s10 = at(k, x1, y0);
+        let s01 = at(k, x0, y1);
+        let s11 = at(k, x1, y1);
+        if (valid_z(s00.z) && valid_z(s10.z) && valid_z(s01.z) && valid_z(s11.z)) {
+            let lo = min(min(s00.xy, s10.xy), min(s01.xy, s11.xy));
+            let hi = max(max(s00.xy, s10.xy), max(s01.xy, s11.xy));
+            let d = hi - lo;
+            if (max(d.x, d.y) < CONTINUITY) {
+                let top_v = lerp2(s00.xy, s10.xy, ax);
+                let bot_v = lerp2(s01.xy, s11.xy, ax);
+                let top_d = s00.z + (s10.z - s00.z) * ax;
+                let bot_d = s01.z + (s11.z - s01.z) * ax;
+                let dvdx = lerp2(s10.xy - s00.xy, s11.xy - s01.xy, ay);
+                let dvdy = bot_v - top_v;
+                return Smp(true, lerp2(top_v, bot_v, ay), top_d + (bot_d - top_d) * ay, k, dvdx, dvdy);
+            }
+        }
+    }
+    let m = at(k, xn, yn);
+    return Smp(valid_z(m.z), m.xy, m.z, k, zero, zero);
+}
+
+fn inside(q: vec2<f32>) -> bool {
+    return q.x >= 0.0 && q.y >= 0.0 && q.x < f32(params.size.x) && q.y < f32(params.size.y);
+}
+
+// StackSampler::sample (Fig. 6): an empty landing in layer k > 0 borrows the nearest
+// non-empty layer above once; the second empty landing fails the seed.
+fn stack_sample(k: u32, q: vec2<f32>, empties: ptr<function, u32>) -> Smp {
+    let none = Smp(false, vec2<f32>(0.0), 0.0, 0u, vec2<f32>(0.0), vec2<f32>(0.0));
+    if (!inside(q)) {
+        return none;
+    }
+    let own = fetch(k, q);
+    if (own.ok) {
+        return own;
+    }
+    if ((params.flags & FLAG_CROSS) == 0u || k == 0u) {
+        return none;
+    }
+    *empties += 1u;
+    if (*empties >= 2u) {
+        return none;
+    }
+    for (var j = i32(k) - 1; j >= 0; j--) {
+        let s = fetch(u32(j), q);
+        if (s.ok) {
+            return s;
+        }
+    }
+    return none;
+}
+
+// ---------------------------------------------------------------------------------------
+// Seeds (search::hash_u32, seed_key, effective_seeds, stratified_seeds).
+
+fn hash_u32(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+fn seed_key(x: u32, y: u32, layer: u32) -> u32 {
+    return hash_u32(x ^ hash_u32(y ^ hash_u32(layer)));
+}
+
+fn effective_seeds(n: u32, e: vec2<f32>) -> u32 {
+    if (e.x <= 1.0 && e.y <= 1.0) {
+        return 1u;
+    }
+    let area = ceil((e.x + 1.0) * (e.y + 1.0));
+    if (area < f32(n)) {
+        return u32(area);
+    }
+    return n;
+}
+
+// Seed i of stratified_seeds(identity frame, region, n, key).
+fn stratified_seed(i: u32, n: u32, region: vec4<f32>, key: u32) -> vec2<f32> {
+    let lo = region.xy;
+    let hi = region.zw;
+    let e = hi - lo;
+    if (n == 1u) {
+        return lo + 0.5 * e;
+    }
+    var distinct = 2u;
+    if (e.x > 0.0 && e.y > 0.0) {
+        distinct = 4u;
+    } else if (!(e.x > 0.0) && !(e.y > 0.0)) {
+        distinct = 1u;
+    }
+    let nc = min(n / 2u, distinct);
+    if (i < nc) {
+        switch i {
+            case 0u: { return lo; }
+            case 1u: { return hi; }
+            case 2u: { return vec2<f32>(lo.x, hi.y); }
+            default: { return vec2<f32>(hi.x, lo.y); }
+        }
+    }
+    let r = vec2<f32>(f32(key & 0xffffu) / 65536.0, f32(key >> 16u) / 65536.0);
+    let s = fract(r + R2 * f32(i - nc));
+    return lo + s * e;
+}
+
+// ---------------------------------------------------------------------------------------
+// The warp (depth_warp::Kernel::pixel + search::fixed_point_search).
+
+struct Cand {
+    ok: bool,
+    q: vec2<f32>,
+    depth: f32,
+    tag: u32,
+};
+
+@compute @workgroup_size(8, 8, 1)
+fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let w = params.size.x;
+    let h = params.size.y;
+    let x = gid.x;
+    let y = gid.y;
+    if (x >= w || y >= h) {
+        return;
+    }
+    let p = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
+    let expand = params.expand;
+    let iters = params.bound_iterations;
+    // The CPU's 4x4 tile stage, recomputed per pixel (same tile, same start bound).
+    let tx0 = x & ~3u;
+    let ty0 = y & ~3u;
+    let tx1 = min(tx0 + 4u, w) - 1u;
+    let ty1 = min(ty0 + 4u, h) - 1u;
+    let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5);
+    let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5);
+    let max_q = vec2<f32>(f32(w), f32(h)) * (1.0 - EPS) - vec2<f32>(1e-3);
+    let thr2 = params.threshold * params.threshold;
+
+    var best = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+    var has_prev = false;
+    var prev_q = vec2<f32>(0.0);
+    for (var k = 0u; k < params.layers; k++) {
+        let top = params.levels[params.top - 1u];
+        let gb = mip[k * params.level_total + top.x];
+        let tile = tight_bound_box(k, p_lo, p_hi, gb, iters, expand);
+        if (!tile.ok) {
+            continue;
+        }
+        let start = tile.motion;
+        let e = start.zw - start.xy;
+        var tb: Tight;
+        if (e.x <= 1.0 && e.y <= 1.0 && !best.ok) {
+            tb = Tight(true, start, region_of(p, p, start));
+        } else if (k > 0u && best.ok) {
+            tb = tight_bound_box(k, p, p, start, iters, expand);
+            if (!tb.ok) {
+                continue;
+            }
+            let r = pixel_range(tb.region.xy, tb.region.zw, expand);
+            if (!r.ok) {
+                continue;
+            }
+            if (lookup_min_depth(k, r.r) >= best.depth) {
+                continue;
+            }
+        } else {
+            tb = tight_bound_box(k, p, p, start, iters, expand);
+            if (!tb.ok) {
+                continue;
+            }
+        }
+        // Seeds.
+        var ns = 1u;
+        if ((params.flags & (FLAG_SEED_PIXEL | FLAG_SEED_OFFSET)) == 0u) {
+            ns = effective_seeds(params.n_seeds, tb.region.zw - tb.region.xy);
+        }
+        var n = ns;
+        var cross_seed = false;
+        if ((params.flags & FLAG_CROSS) != 0u && has_prev) {
+            let u = prev_q;
+            if (u.x >= tb.region.x && u.x <= tb.region.z && u.y >= tb.region.y && u.y <= tb.region.w) {
+                if (n < params.n_seeds) {
+                    n += 1u;
+                }
+                cross_seed = true;
+            }
+        }
+        let key = seed_key(x, y, k);
+        var found = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+        for (var i = 0u; i < n; i++) {
+            var seed: vec2<f32>;
+            if (cross_seed && i == n - 1u) {
+                seed = prev_q;
+            } else if ((params.flags & FLAG_SEED_PIXEL) != 0u) {
+                seed = p;
+            } else if ((params.flags & FLAG_SEED_OFFSET) != 0u) {
+                seed = p + params.seed_offset;
+            } else {
+                seed = stratified_seed(i, ns, tb.region, key);
+            }
+            var q = clamp(seed, vec2<f32>(0.0), max_q);
+            var empties = 0u;
+            var done = false;
+            for (var it = 0u; it < params.iterations; it++) {
+                let s = stack_sample(k, q, &empties);
+                if (!s.ok) {
+                    break;
+                }
+                let wv = p - s.v;
+                let step = wv - q;
+                let r2 = dot(step, step);
+                var next = wv;
+                if ((params.flags & FLAG_ACCEL) != 0u) {
+                    let m00 = 1.0 + s.dvdx.x;
+                    let m01 = s.dvdy.x;
+                    let m10 = s.dvdx.y;
+                    let m11 = 1.0 + s.dvdy.y;
+                    let det = m00 * m11 - m01 * m10;
+                    if (abs(det) > 0.05) {
+                        next = q + vec2<f32>(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
+                    }
+                }
+                if (r2 < thr2) {
+                    var c = Cand(true, q, s.depth, s.tag);
+                    if (r2 > POLISH * POLISH) {
+                        let s2 = stack_sample(k, next, &empties);
+                        if (s2.ok) {
+                            let st2 = p - s2.v - next;
+                            if (dot(st2, st2) < r2) {
+                                c = Cand(true, next, s2.depth, s2.tag);
+                            }
+                        }
+                    }
+                    if (!found.ok || c.depth < found.depth) {
+                        found = c;
+                    }
+                    done = true;
+                    break;
+                }
+                q = next;
+            }
+            if (done && (params.flags & FLAG_FIRST) != 0u) {
+                break;
+            }
+        }
+        if (found.ok) {
+            has_prev = true;
+            prev_q = found.q;
+            if (!best.ok || found.depth < best.depth) {
+                best = found;
+            }
+        }
+    }
+    let i = y * w + x;
+    if (best.ok) {
+        out_depth[i] = best.depth;
+        out_state[i] = 0u;
+    } else {
+        out_depth[i] = 1.0;
+        out_state[i] = 2u;
+    }
+}
+
+// holes::dilate_holes (Fig. 8): a hole with a converged pixel within the radius on both sides
+// along all four directions takes the depth of the nearest one (ties: the farther depth).
+@compute @workgroup_size(8, 8, 1)
+fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let w = params.size.x;
+    let h = params.size.y;
+    if (gid.x >= w || gid.y >= h) {
+        return;
+    }
+    let i = gid.y * w + gid.x;
+    fill_depth[i] = out_depth[i];
+    fill_state[i] = out_state[i];
+    if (out_state[i] != 2u) {
+        return;
+    }
+    let r = i32(params.radius);
+    var best_ok = false;
+    var best_d = 0.0;
+    var best_z = 0.0;
+    for (var dir = 0; dir < 4; dir++) {
+        var dx = 1;
+        var dy = 0;
+        if (dir == 1) {
+            dx = 0;
+            dy = 1;
+        } else if (dir == 2) {
+            dy = 1;
+        } else if (dir == 3) {
+            dy = -1;
+        }
+        var step = 1.0;
+        if (dx != 0 && dy != 0) {
+            step = 1.4142135;
+        }
+        for (var side = 0; side < 2; side++) {
+            let sx = select(-dx, dx, side == 0);
+            let sy = select(-dy, dy, side == 0);
+            var hit = false;
+            for (var kk = 1; kk <= r; kk++) {
+                let xx = i32(gid.x) + sx * kk;
+                let yy = i32(gid.y) + sy * kk;
+                if (xx < 0 || yy < 0 || xx >= i32(w) || yy >= i32(h)) {
+                    break;
+                }
+                let j = u32(yy) * w + u32(xx);
+                if (out_state[j] == 0u) {
+                    let d = f32(kk) * step;
+                    let z = out_depth[j];
+                    if (!(best_ok && (best_d < d || (best_d == d && best_z >= z)))) {
+                        best_ok = true;
+                        best_d = d;
+                        best_z = z;
+                    }
+                    hit = true;
+                    break;
+                }
+            }
+            if (!hit) {
+                return;
+            }
+        }
+    }
+    if (best_ok) {
+        fill_depth[i] = best_z;
+        fill_state[i] = 1u;
+    }
+}

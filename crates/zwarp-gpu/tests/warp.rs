@@ -1,0 +1,198 @@
+//! GPU backward depth warp vs `zwarp_warp::warp_depth` (the same function; seed 000 Sec. 3,
+//! Fig. 3, 5, 6) on rendered frame pairs, plus exact cases and error paths.
+
+mod common;
+
+use common::*;
+use glam::{Vec2, Vec3};
+use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Motion};
+use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer, WarpKernel};
+use zwarp_warp::synth::{SynthBox, SynthScene};
+use zwarp_warp::{
+    warp_depth, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput,
+    WarpParams,
+};
+
+/// The bar between backends: warped-depth SSIM >= 0.999 and converged masks equal on >= 99.5 %
+/// of the pixels. Returns (ssim, mask agreement, exactly equal depth fraction).
+fn assert_same(gpu: &WarpOutput, cpu: &WarpOutput, what: &str) -> (f64, f64, f64) {
+    assert_eq!(gpu.depth.size(), cpu.depth.size());
+    let ssim = zwarp_metrics::ssim(&gpu.depth, &cpu.depth, 1.0).unwrap();
+    let n = gpu.depth.len() as f64;
+    let mask = gpu.state.data().iter().zip(cpu.state.data()).filter(|(a, b)| a == b).count() as f64 / n;
+    let exact = gpu.depth.data().iter().zip(cpu.depth.data()).filter(|(a, b)| a == b).count() as f64 / n;
+    assert!(ssim >= 0.999, "{what}: SSIM {ssim}");
+    assert!(mask >= 0.995, "{what}: state agreement {mask}");
+    // Most pixels must be bit-identical: only floating-point contraction may differ.
+    assert!(exact >= 0.98, "{what}: exactly equal depth on {exact}");
+    (ssim, mask, exact)
+}
+
+fn city_pair(w: u32, h: u32, layers: u32) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
+    let mut scene = SynthScene::city(3);
+    scene.boxes.push(SynthBox {
+        aabb: Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
+        velocity: Vec3::new(4.0, 0.0, 0.0),
+    });
+    let a = Camera::perspective(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0), Vec3::Y, 1.0, 0.5, 100.0, w, h)
+        .unwrap();
+    let b = Camera::perspective(Vec3::new(0.9, 8.3, 9.0), Vec3::new(0.6, 0.0, -4.5), Vec3::Y, 1.0, 0.5, 100.0, w, h)
+        .unwrap();
+    let (ta, tb) = (0.0, 0.25);
+    let src = scene.render(&a, ta, layers, layers > 1);
+    let deltas = scene.object_deltas(ta, tb);
+    let motions =
+        src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &deltas).unwrap()).collect();
+    (src.depth, motions)
+}
+
+fn layers_of<'a>(d: &'a [Image<f32>], m: &'a [Image<Motion>]) -> Vec<WarpLayer<'a>> {
+    d.iter().zip(m).map(|(depth, motion)| WarpLayer { depth, motion }).collect()
+}
+
+fn base() -> WarpParams {
+    WarpKernel::gpu_params(&WarpParams::default())
+}
+
+#[test]
+fn gpu_params_is_the_supported_cpu_configuration() {
+    let p = base();
+    assert_eq!(p.bound, BoundKind::Tight);
+    assert_eq!((p.n_seeds, p.iterations, p.threshold, p.bound_iterations), (8, 3, 0.5, 6));
+    assert!(p.accelerate && p.cross_layer && !p.record_source);
+    assert_eq!(WarpKernel::gpu_params(&WarpParams { holes: HolePolicy::Awoc, ..p }).holes, HolePolicy::FarDepth);
+    assert_eq!(WarpKernel::gpu_params(&WarpParams { bound: BoundKind::Global, ..p }).bound, BoundKind::Global);
+    assert!(WarpKernel::check_params(&p).is_ok());
+}
+
+#[test]
+fn city_single_and_multi_layer_match_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (d, m) = city_pair(128, 96, 3);
+    let variants = [
+        ("default", base()),
+        ("N=16 T=4", WarpParams { n_seeds: 16, iterations: 4, ..base() }),
+        ("plain steps", WarpParams { accelerate: false, ..base() }),
+        ("global bound", WarpParams { bound: BoundKind::Global, n_seeds: 4, ..base() }),
+        ("nearest", WarpParams { sampling: Sampling::Nearest, ..base() }),
+        ("no cross-layer", WarpParams { cross_layer: false, ..base() }),
+        ("first converged", WarpParams { choice: CandidateChoice::FirstConverged, ..base() }),
+        ("pixel seed", WarpParams { seeding: SeedStrategy::Pixel, iterations: 6, ..base() }),
+        ("offset seed", WarpParams { seeding: SeedStrategy::Offset(Vec2::new(-3.0, 1.0)), ..base() }),
+        ("dilate", WarpParams { holes: HolePolicy::Dilate { radius: 4 }, ..base() }),
+    ];
+    for nl in [1usize, 3] {
+        let layers = layers_of(&d[..nl], &m[..nl]);
+        for (name, p) in &variants {
+            let cpu = warp_depth(&layers, p).unwrap();
+            let gpu = k.warp(&layers, p).unwrap();
+            let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("L={nl} {name}"));
+            eprintln!("L={nl} {name}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?}", cpu.counts());
+            // The warp did real work: most pixels converged.
+            assert!(cpu.counts().0 > cpu.depth.len() / 2, "{name}");
+        }
+    }
+}
+
+#[test]
+fn rendered_frame_pair_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let scene = test_scene();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let (a, b) = (camera_a(), camera_b());
+    let (ta, tb) = (0.0, 0.5);
+    let peel = PeelOptions { layers: 2, ground_separate: false, umbra: None, frame: FrameOptions::default() };
+    let frames = r.render_layers(&gs, &a, ta, &peel).unwrap();
+    let deltas = scene.object_deltas(ta, tb);
+    let d: Vec<Image<f32>> = frames.iter().map(|f| f.depth.clone()).collect();
+    let m: Vec<Image<Motion>> =
+        frames.iter().map(|f| motion_field(&f.depth, Some(&f.items), &a, &b, &deltas).unwrap()).collect();
+    let k = WarpKernel::new(&ctx).unwrap();
+    for nl in [1usize, 2] {
+        let layers = layers_of(&d[..nl], &m[..nl]);
+        let p = base();
+        let cpu = warp_depth(&layers, &p).unwrap();
+        let gpu = k.warp(&layers, &p).unwrap();
+        let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("rendered L={nl}"));
+        eprintln!("rendered L={nl}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?}", cpu.counts());
+    }
+}
+
+#[test]
+fn zero_motion_gives_the_source_exactly() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let d =
+        Image::from_fn(
+            37,
+            23,
+            |x, y| if (x * 3 + y * 5) % 11 == 0 { 1.0 } else { 0.3 + 0.01 * x as f32 + 0.005 * y as f32 },
+        );
+    let m = d.map(|&z| Motion { v: Vec2::ZERO, depth: z });
+    for bound in [BoundKind::Tight, BoundKind::Global] {
+        for sampling in [Sampling::Nearest, Sampling::Adaptive] {
+            let p = WarpParams { bound, sampling, ..base() };
+            let out = k.warp(&[WarpLayer { depth: &d, motion: &m }], &p).unwrap();
+            assert_eq!(out.depth, d, "{bound:?} {sampling:?}");
+            for (z, s) in d.data().iter().zip(out.state.data()) {
+                assert_eq!(*s, if *z < 1.0 { PixelState::Converged } else { PixelState::Hole });
+            }
+        }
+    }
+    // Dilation fills the isolated empty pixels from their converged neighbours, like the CPU.
+    let p = WarpParams { holes: HolePolicy::Dilate { radius: 2 }, ..base() };
+    let layer = [WarpLayer { depth: &d, motion: &m }];
+    let (gpu, cpu) = (k.warp(&layer, &p).unwrap(), warp_depth(&layer, &p).unwrap());
+    assert_eq!(gpu, cpu);
+    assert!(gpu.counts().1 > 0);
+}
+
+#[test]
+fn uniform_shift_moves_the_image() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let d = Image::from_fn(40, 30, |x, y| 0.2 + 0.01 * x as f32 + 0.003 * y as f32);
+    let m = d.map(|&z| Motion { v: Vec2::new(3.0, -2.0), depth: z });
+    let out = k.warp(&[WarpLayer { depth: &d, motion: &m }], &base()).unwrap();
+    for y in 0..30 {
+        for x in 0..40 {
+            let inside = x >= 3 && y + 2 < 30;
+            assert_eq!(*out.state.get(x, y) == PixelState::Converged, inside, "({x}, {y})");
+            if inside {
+                assert_eq!(*out.depth.get(x, y), *d.get(x - 3, y + 2));
+            } else {
+                assert_eq!(*out.depth.get(x, y), 1.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_an_error() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let d = Image::new(8, 8, 0.5f32);
+    let m = d.map(|&z| Motion { v: Vec2::ZERO, depth: z });
+    let layer = [WarpLayer { depth: &d, motion: &m }];
+    let inval = |r: zwarp_core::Result<WarpOutput>| matches!(r, Err(Error::Invalid(_)));
+    assert!(inval(k.warp(&[], &base())));
+    assert!(inval(k.warp(&layer, &WarpParams::default())), "Oriented is CPU-only");
+    assert!(inval(k.warp(&layer, &WarpParams { holes: HolePolicy::Awoc, ..base() })));
+    assert!(inval(k.warp(&layer, &WarpParams { record_source: true, ..base() })));
+    assert!(inval(k.warp(&layer, &WarpParams { n_seeds: 0, ..base() })));
+    let small = Image::new(4, 8, Motion::default());
+    assert!(inval(k.warp(&[WarpLayer { depth: &d, motion: &small }], &base())));
+    let d2 = Image::new(4, 8, 0.5f32);
+    let m2 = Image::new(4, 8, Motion::default());
+    assert!(inval(k.warp(&[layer[0], WarpLayer { depth: &d2, motion: &m2 }], &base())));
+    let mut dn = d.clone();
+    dn.data_mut()[3] = f32::NAN;
+    assert!(inval(k.warp(&[WarpLayer { depth: &dn, motion: &m }], &base())));
+    let mut mn = m.clone();
+    mn.data_mut()[5].v.x = f32::NAN;
+    assert!(inval(k.warp(&[WarpLayer { depth: &d, motion: &mn }], &base())));
+    let many: Vec<WarpLayer> = (0..9).map(|_| layer[0]).collect();
+    assert!(inval(k.warp(&many, &base())));
+}
