@@ -6,6 +6,17 @@ use zwarp_core::{motion_field, Camera};
 use zwarp_warp::synth::SynthScene;
 use zwarp_warp::*;
 
+/// CPU time of the whole process in ms (utime + stime from /proc/self/stat, 10 ms ticks):
+/// far less sensitive to other processes on a loaded machine than wall time.
+fn cpu_ms() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let rest = s.rsplit(')').next().unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    // Fields after the command: state is index 0, utime 11, stime 12 (man 5 proc).
+    (tick(11) + tick(12)) * 10.0
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
@@ -27,6 +38,7 @@ fn main() {
     let layers: Vec<WarpLayer> =
         src.depth.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
     for bound in [BoundKind::Tight, BoundKind::Oriented] {
+        let c0 = cpu_ms();
         let t = median(
             (0..3)
                 .map(|_| {
@@ -36,9 +48,10 @@ fn main() {
                 })
                 .collect(),
         );
-        println!("prepare 1 layer {bound:?}: {t:.1} ms");
+        println!("prepare 1 layer {bound:?}: {t:.1} ms, CPU {:.0} ms", (cpu_ms() - c0) / 3.0);
     }
-    for bi in [3u32, 6] {
+    // Seed statistics are slow (serial): only with ZWARP_SEED_STATS set.
+    for bi in [3u32, 6].into_iter().filter(|_| std::env::var_os("ZWARP_SEED_STATS").is_some()) {
         // Seed statistics of layer 0: how many pixels need more than one seed.
         let p0 = PreparedLayer::new(&layers[0], BoundKind::Oriented).unwrap();
         let mut hist = [0usize; 5];
@@ -69,6 +82,7 @@ fn main() {
         let prepared = PreparedLayer::prepare_stack(&layers[..l], BoundKind::Oriented).unwrap();
         for n in [1u32, 4, 16] {
             let params = WarpParams { n_seeds: n, ..Default::default() };
+            let c0 = cpu_ms();
             let t = median(
                 (0..3)
                     .map(|_| {
@@ -78,7 +92,11 @@ fn main() {
                     })
                     .collect(),
             );
-            println!("warp L={l} N={n:2}: {t:.1} ms = {:.1} Mpx/s on {threads} thread(s)", (w * h) as f64 / t / 1e3);
+            let cpu = (cpu_ms() - c0) / 3.0;
+            println!(
+                "warp L={l} N={n:2}: {t:.1} ms = {:.1} Mpx/s on {threads} thread(s), CPU {cpu:.0} ms per warp",
+                (w * h) as f64 / t / 1e3
+            );
         }
         let t0 = Instant::now();
         let _ = afw_layers(&layers[..l]).unwrap();

@@ -212,71 +212,59 @@ impl MotionPyramid {
         let mut levels: Vec<Level> = Vec::with_capacity(top as usize);
         // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
-        let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
         let identity = frame.is_identity();
-        data.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
-            let y0 = ty * 2;
-            let y1 = (y0 + 2).min(h as usize);
-            for (tx, out) in row.iter_mut().enumerate() {
-                let x0 = tx * 2;
-                let x1 = (x0 + 2).min(w as usize);
-                let mut b = Bound::EMPTY;
-                for y in y0..y1 {
-                    for m in &samples[y * w as usize + x0..y * w as usize + x1] {
-                        if is_valid_sample(m) {
-                            b.include(if identity { m.v } else { frame.to_frame(m.v) });
-                        }
-                    }
-                }
-                *out = b.to_texel();
-            }
-        });
+        // Motion min-max and min depth in one pass over the samples (one read of the buffer).
+        let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
         let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
-        zmin.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
-            let (y0, y1) = (ty * 2, (ty * 2 + 2).min(h as usize));
-            for (tx, out) in row.iter_mut().enumerate() {
-                let (x0, x1) = (tx * 2, (tx * 2 + 2).min(w as usize));
-                for y in y0..y1 {
-                    for m in &samples[y * w as usize + x0..y * w as usize + x1] {
-                        if is_valid_sample(m) {
-                            *out = out.min(m.depth);
+        data.par_chunks_mut(lw as usize).zip(zmin.par_chunks_mut(lw as usize)).enumerate().for_each(
+            |(ty, (row, zrow))| {
+                let y0 = ty * 2;
+                let y1 = (y0 + 2).min(h as usize);
+                for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate() {
+                    let x0 = tx * 2;
+                    let x1 = (x0 + 2).min(w as usize);
+                    let mut b = Bound::EMPTY;
+                    let mut z = f32::INFINITY;
+                    for y in y0..y1 {
+                        for m in &samples[y * w as usize + x0..y * w as usize + x1] {
+                            if is_valid_sample(m) {
+                                b.include(if identity { m.v } else { frame.to_frame(m.v) });
+                                z = z.min(m.depth);
+                            }
                         }
                     }
+                    *out = b.to_texel();
+                    *zout = z;
                 }
-            }
-        });
+            },
+        );
         levels.push(Level { w: lw, h: lh, data, zmin });
         for _ in 1..top {
             let prev = levels.last().expect("level 1 exists");
             let (lw, lh) = (prev.w.div_ceil(2), prev.h.div_ceil(2));
             let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
-            data.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
-                let y0 = ty * 2;
-                let y1 = (y0 + 2).min(prev.h as usize);
-                for (tx, out) in row.iter_mut().enumerate() {
-                    let x0 = tx * 2;
-                    let x1 = (x0 + 2).min(prev.w as usize);
-                    let mut b = Bound::EMPTY;
-                    for y in y0..y1 {
-                        for t in &prev.data[y * prev.w as usize + x0..y * prev.w as usize + x1] {
-                            b = b.union(&Bound::from_texel(t));
-                        }
-                    }
-                    *out = b.to_texel();
-                }
-            });
             let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
-            zmin.par_chunks_mut(lw as usize).enumerate().for_each(|(ty, row)| {
-                let (y0, y1) = (ty * 2, (ty * 2 + 2).min(prev.h as usize));
-                for (tx, out) in row.iter_mut().enumerate() {
-                    let (x0, x1) = (tx * 2, (tx * 2 + 2).min(prev.w as usize));
-                    for y in y0..y1 {
-                        for z in &prev.zmin[y * prev.w as usize + x0..y * prev.w as usize + x1] {
-                            *out = out.min(*z);
+            data.par_chunks_mut(lw as usize).zip(zmin.par_chunks_mut(lw as usize)).enumerate().for_each(
+                |(ty, (row, zrow))| {
+                    let y0 = ty * 2;
+                    let y1 = (y0 + 2).min(prev.h as usize);
+                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate() {
+                        let x0 = tx * 2;
+                        let x1 = (x0 + 2).min(prev.w as usize);
+                        let mut b = Bound::EMPTY;
+                        let mut z = f32::INFINITY;
+                        for y in y0..y1 {
+                            let r = y * prev.w as usize + x0..y * prev.w as usize + x1;
+                            for (t, pz) in prev.data[r.clone()].iter().zip(&prev.zmin[r]) {
+                                b = b.union(&Bound::from_texel(t));
+                                z = z.min(*pz);
+                            }
                         }
+                        *out = b.to_texel();
+                        *zout = z;
                     }
-                }
-            });
+                },
+            );
             levels.push(Level { w: lw, h: lh, data, zmin });
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
@@ -324,7 +312,20 @@ impl MotionPyramid {
     /// look-ups at [`Self::level_for_range`] (conservative: covers every pixel of the range).
     #[inline]
     pub fn lookup_range(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> Bound {
-        self.lookup_range_at(self.level_for_range(ix0, iy0, ix1, iy1), ix0, iy0, ix1, iy1)
+        let level = self.level_for_range(ix0, iy0, ix1, iy1);
+        let l = &self.levels[(level - 1) as usize];
+        // At this level the range spans at most 2x2 texels (see `level_for_range`; the top
+        // level has one texel), so four direct reads cover it (duplicates are harmless for a
+        // union): the hot path of every tightening step, without the generic loop.
+        let (tx0, tx1) = ((ix0 >> level) as usize, (ix1 >> level).min(l.w - 1) as usize);
+        let (ty0, ty1) = ((iy0 >> level) as usize, (iy1 >> level).min(l.h - 1) as usize);
+        debug_assert!(tx1 - tx0 <= 1 && ty1 - ty0 <= 1);
+        let lw = l.w as usize;
+        let (r0, r1) = (&l.data[ty0 * lw..ty0 * lw + lw], &l.data[ty1 * lw..ty1 * lw + lw]);
+        let (a, b, c, d) = (r0[tx0], r0[tx1], r1[tx0], r1[tx1]);
+        let lo = Vec2::new(a[0].min(b[0]).min(c[0].min(d[0])), a[1].min(b[1]).min(c[1].min(d[1])));
+        let hi = Vec2::new(a[2].max(b[2]).max(c[2].max(d[2])), a[3].max(b[3]).max(c[3].max(d[3])));
+        Bound { lo, hi }
     }
 
     /// Like [`Self::lookup_range`] at an explicit level (clamped to `1..=top_level`); at levels
@@ -377,16 +378,18 @@ impl MotionPyramid {
     pub fn pixel_range(&self, region: &Bound, expand: f32) -> Option<(u32, u32, u32, u32)> {
         let (mut lo, mut hi) = (region.lo, region.hi);
         if !self.frame.is_identity() {
-            // Image-space AABB of the rotated box.
-            let f = &self.frame;
-            let c = [
-                f.from_frame(lo),
-                f.from_frame(hi),
-                f.from_frame(Vec2::new(lo.x, hi.y)),
-                f.from_frame(Vec2::new(hi.x, lo.y)),
-            ];
-            lo = c[0].min(c[1]).min(c[2]).min(c[3]);
-            hi = c[0].max(c[1]).max(c[2]).max(c[3]);
+            // Image-space AABB of the rotated box, `from_frame` of the extreme corner per output
+            // component: x = c u.x - s u.y is smallest at (c >= 0 ? lo.x : hi.x, s >= 0 ? hi.y :
+            // lo.y), y = s u.x + c u.y at (s >= 0 ? lo.x : hi.x, c >= 0 ? lo.y : hi.y). Rounding
+            // is monotone, so this picks bit for bit the min / max of the four rotated corners
+            // (same products and sums as `from_frame`) for a fraction of the work.
+            let (c, s) = (self.frame.axis.x, self.frame.axis.y);
+            let (xa, xb) = if c >= 0.0 { (lo.x, hi.x) } else { (hi.x, lo.x) };
+            let (ya, yb) = if s >= 0.0 { (hi.y, lo.y) } else { (lo.y, hi.y) };
+            let (sa, sb) = if s >= 0.0 { (lo.x, hi.x) } else { (hi.x, lo.x) };
+            let (ca, cb) = if c >= 0.0 { (lo.y, hi.y) } else { (hi.y, lo.y) };
+            lo = Vec2::new(c * xa - s * ya, s * sa + c * ca);
+            hi = Vec2::new(c * xb - s * yb, s * sb + c * cb);
         }
         lo -= Vec2::splat(expand);
         hi += Vec2::splat(expand);
@@ -466,7 +469,13 @@ impl MotionPyramid {
             }
             b = nb;
             region = region_of(&b);
-            range = self.pixel_range(&region, expand)?;
+            let next = self.pixel_range(&region, expand)?;
+            if next == range {
+                // Same texels again: the next look-up returns `m` and `b ∩ m == b` (b already
+                // lies in m), i.e. the fixed point; skip that look-up.
+                break;
+            }
+            range = next;
         }
         Some(TightBound { motion: b, region, min_depth: f32::NEG_INFINITY })
     }
