@@ -69,7 +69,8 @@ pub struct CullRow {
     pub culled_visible: usize,
     /// Mean count of pixels whose depth differs from the full render.
     pub pixel_error: f64,
-    /// Mean PSNR (dB) of the colour image against the full render (`inf` when identical).
+    /// PSNR (dB) of the colour images against the full render over all frames, from the mean
+    /// squared error (`inf` when identical).
     #[serde(serialize_with = "ser_f64")]
     pub psnr_mean: f64,
     /// Worst-frame PSNR.
@@ -149,12 +150,15 @@ pub fn run(args: CullArgs) -> Result<()> {
             let obj_err: Vec<f64> =
                 rs.iter().map(|r| r.accuracy.false_negatives as f64 / r.accuracy.reference.max(1) as f64).collect();
             let mut psnrs = Vec::new();
+            let mut mses = Vec::new();
             for r in &rs {
                 if let Some(full) = &full_color[r.frame] {
                     let (t, cam) = &frames[r.frame];
                     let img =
                         render_frame(scene, cam, *t, &FrameOptions { color: true, objects: Some(&r.visible_ids) })?;
-                    psnrs.push(zwarp_metrics::psnr_rgb(img.color.as_ref().expect("colour requested"), full, 1.0)?);
+                    let mse = zwarp_metrics::mse_rgb(img.color.as_ref().expect("colour requested"), full)?;
+                    mses.push(mse);
+                    psnrs.push(zwarp_metrics::psnr_from_mse(mse, 1.0)?);
                 }
             }
             let cull_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms).collect::<Vec<_>>());
@@ -175,10 +179,13 @@ pub fn run(args: CullArgs) -> Result<()> {
                 object_error_max: obj_err.iter().copied().fold(0.0, f64::max),
                 culled_visible: rs.iter().map(|r| r.accuracy.false_negatives).sum(),
                 pixel_error: rs.iter().map(|r| r.pixel_error as f64).sum::<f64>() / nf,
-                psnr_mean: if psnrs.is_empty() {
+                // PSNR of the mean squared error over the frames (`inf` when every frame is
+                // identical to the full render; a mean of per-frame PSNRs would be infinite as
+                // soon as one frame is).
+                psnr_mean: if mses.is_empty() {
                     f64::NAN
                 } else {
-                    psnrs.iter().map(|p| p.min(1e3)).sum::<f64>() / psnrs.len() as f64
+                    zwarp_metrics::psnr_from_mse(mses.iter().sum::<f64>() / mses.len() as f64, 1.0)?
                 },
                 psnr_worst: psnrs.iter().copied().fold(f64::INFINITY, f64::min),
                 cull_ms: cull_t.median,
@@ -192,12 +199,6 @@ pub fn run(args: CullArgs) -> Result<()> {
             bar.inc(1);
         }
         bar.finish_and_clear();
-        // A mean PSNR of identical frames is reported as inf (capped only inside the mean).
-        for r in &mut speed_rows {
-            if r.psnr_worst.is_infinite() && !r.psnr_mean.is_nan() {
-                r.psnr_mean = f64::INFINITY;
-            }
-        }
         if let Some(vfc) = speed_rows.iter().find(|r| r.method == "vfc").map(|r| r.frame_ms) {
             for r in &mut speed_rows {
                 r.speedup_vs_vfc = vfc / r.frame_ms.max(1e-9);
