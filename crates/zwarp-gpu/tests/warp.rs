@@ -196,3 +196,55 @@ fn bad_input_is_an_error() {
     let many: Vec<WarpLayer> = (0..9).map(|_| layer[0]).collect();
     assert!(inval(k.warp(&many, &base())));
 }
+
+/// The engine path: render, copy depth, motion kernel and warp recorded into one encoder and
+/// submitted once (no CPU round trip), against the CPU warp of the CPU motion field. The GPU
+/// motion differs from the CPU one by < 1e-3 px, so only the backend bar is asserted.
+#[test]
+fn all_gpu_chain_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let scene = test_scene();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let mk = zwarp_gpu::MotionKernel::new(&ctx).unwrap();
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (a, b) = (camera_a(), camera_b());
+    let (w, h) = (a.width, a.height);
+    let target = zwarp_gpu::DepthTarget::new(&ctx, w, h).unwrap();
+    let storage = |bytes: u64| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
+    let (dbuf, mbuf) = (storage(w as u64 * h as u64 * 4), storage(w as u64 * h as u64 * 12));
+    let p = base();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    r.encode_depth(&mut enc, &gs, &a, 0.0, &target).unwrap();
+    r.encode_depth_copy(&mut enc, &target, &dbuf, w).unwrap();
+    let input = zwarp_gpu::MotionInput { depth: &dbuf, items: None, row_stride: w };
+    mk.encode(&mut enc, &input, &a, &b, &[], &mbuf).unwrap();
+    let out = k.encode(&mut enc, &[zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf }], w, h, &p).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    let gpu = out.read(&ctx).unwrap();
+    // The static part of the test scene (object motion is not passed here, as an engine with a
+    // static scene would do).
+    let depth = r.render_depth(&gs, &a, 0.0).unwrap();
+    let motion = motion_field(&depth, None, &a, &b, &[]).unwrap();
+    let cpu = warp_depth(&[WarpLayer { depth: &depth, motion: &motion }], &p).unwrap();
+    let ssim = zwarp_metrics::ssim(&gpu.depth, &cpu.depth, 1.0).unwrap();
+    let n = gpu.depth.len() as f64;
+    let mask = gpu.state.data().iter().zip(cpu.state.data()).filter(|(x, y)| x == y).count() as f64 / n;
+    eprintln!("all-GPU chain: ssim {ssim:.6} mask {mask:.5} cpu {:?}", cpu.counts());
+    assert!(ssim >= 0.999 && mask >= 0.995, "ssim {ssim} mask {mask}");
+    assert!(cpu.counts().0 > cpu.depth.len() / 3);
+    // Bad GPU inputs: a motion buffer too small for the size, zero size, too many layers.
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &dbuf };
+    assert!(matches!(k.encode(&mut enc, &[l], w, h, &p), Err(Error::Invalid(_))));
+    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf };
+    assert!(matches!(k.encode(&mut enc, &[l], 0, h, &p), Err(Error::Invalid(_))));
+    assert!(matches!(k.encode(&mut enc, &[l; 9], w, h, &p), Err(Error::Invalid(_))));
+}
