@@ -107,7 +107,10 @@ fn main() -> Result<()> {
         let layers: Vec<WarpLayer> =
             depths.iter().zip(&motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let bufs = k.upload(&layers, &params)?;
-        let views: Vec<GpuWarpLayer> = bufs.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m }).collect();
+        // The oriented bound frame per layer (a CPU pass over the motion, done once here).
+        let frames = WarpKernel::frames(&layers, params.bound);
+        let views: Vec<GpuWarpLayer> =
+            bufs.iter().zip(&frames).map(|((d, m), &axis)| GpuWarpLayer { depth: d, motion: m, axis }).collect();
         let (mut gw, mut gr, mut cw, mut cr) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for run in 0..runs + 1 {
             let a = timer.measure(|enc| k.encode(enc, &views, w, h, &params).map(|_| ()))?;

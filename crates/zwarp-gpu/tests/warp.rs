@@ -57,11 +57,10 @@ fn base() -> WarpParams {
 #[test]
 fn gpu_params_is_the_supported_cpu_configuration() {
     let p = base();
-    assert_eq!(p.bound, BoundKind::Tight);
+    assert_eq!(p.bound, BoundKind::Oriented);
     assert_eq!((p.n_seeds, p.iterations, p.threshold, p.bound_iterations), (8, 3, 0.5, 6));
     assert!(p.accelerate && p.cross_layer && !p.record_source);
     assert_eq!(WarpKernel::gpu_params(&WarpParams { holes: HolePolicy::Awoc, ..p }).holes, HolePolicy::FarDepth);
-    assert_eq!(WarpKernel::gpu_params(&WarpParams { bound: BoundKind::Global, ..p }).bound, BoundKind::Global);
     assert!(WarpKernel::check_params(&p).is_ok());
 }
 
@@ -71,7 +70,8 @@ fn city_single_and_multi_layer_match_cpu() {
     let k = WarpKernel::new(&ctx).unwrap();
     let (d, m) = city_pair(128, 96, 3);
     let variants = [
-        ("default", base()),
+        ("default (oriented)", base()),
+        ("tight", WarpParams { bound: BoundKind::Tight, ..base() }),
         ("N=16 T=4", WarpParams { n_seeds: 16, iterations: 4, ..base() }),
         ("plain steps", WarpParams { accelerate: false, ..base() }),
         ("global bound", WarpParams { bound: BoundKind::Global, n_seeds: 4, ..base() }),
@@ -88,7 +88,11 @@ fn city_single_and_multi_layer_match_cpu() {
             let cpu = warp_depth(&layers, p).unwrap();
             let gpu = k.warp(&layers, p).unwrap();
             let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("L={nl} {name}"));
-            eprintln!("L={nl} {name}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?}", cpu.counts());
+            eprintln!(
+                "L={nl} {name}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?} frames {:?}",
+                cpu.counts(),
+                WarpKernel::frames(&layers, p.bound)
+            );
             // The warp did real work: most pixels converged.
             assert!(cpu.counts().0 > cpu.depth.len() / 2, "{name}");
         }
@@ -110,13 +114,24 @@ fn rendered_frame_pair_matches_cpu() {
     let m: Vec<Image<Motion>> =
         frames.iter().map(|f| motion_field(&f.depth, Some(&f.items), &a, &b, &deltas).unwrap()).collect();
     let k = WarpKernel::new(&ctx).unwrap();
-    for nl in [1usize, 2] {
+    for (nl, p) in [(1usize, base()), (2, base()), (2, WarpParams { bound: BoundKind::Tight, ..base() })] {
         let layers = layers_of(&d[..nl], &m[..nl]);
-        let p = base();
+        // The host-side frame choice is the CPU's (PreparedLayer::prepare_stack).
+        let prepared = zwarp_warp::PreparedLayer::prepare_stack(&layers, p.bound).unwrap();
+        let cpu_axes: Vec<Vec2> = prepared.iter().map(|l| l.pyramid().frame().axis).collect();
+        assert_eq!(WarpKernel::frames(&layers, p.bound), cpu_axes);
+        if p.bound == BoundKind::Oriented {
+            assert!(cpu_axes.iter().all(|a| *a != Vec2::X), "this pair exercises oriented bounds");
+        }
         let cpu = warp_depth(&layers, &p).unwrap();
         let gpu = k.warp(&layers, &p).unwrap();
         let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("rendered L={nl}"));
-        eprintln!("rendered L={nl}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?}", cpu.counts());
+        eprintln!(
+            "rendered L={nl} {:?}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?} frames {:?}",
+            p.bound,
+            cpu.counts(),
+            WarpKernel::frames(&layers, p.bound)
+        );
     }
 }
 
@@ -131,7 +146,7 @@ fn zero_motion_gives_the_source_exactly() {
             |x, y| if (x * 3 + y * 5) % 11 == 0 { 1.0 } else { 0.3 + 0.01 * x as f32 + 0.005 * y as f32 },
         );
     let m = d.map(|&z| Motion { v: Vec2::ZERO, depth: z });
-    for bound in [BoundKind::Tight, BoundKind::Global] {
+    for bound in [BoundKind::Oriented, BoundKind::Tight, BoundKind::Global] {
         for sampling in [Sampling::Nearest, Sampling::Adaptive] {
             let p = WarpParams { bound, sampling, ..base() };
             let out = k.warp(&[WarpLayer { depth: &d, motion: &m }], &p).unwrap();
@@ -178,7 +193,6 @@ fn bad_input_is_an_error() {
     let layer = [WarpLayer { depth: &d, motion: &m }];
     let inval = |r: zwarp_core::Result<WarpOutput>| matches!(r, Err(Error::Invalid(_)));
     assert!(inval(k.warp(&[], &base())));
-    assert!(inval(k.warp(&layer, &WarpParams::default())), "Oriented is CPU-only");
     assert!(inval(k.warp(&layer, &WarpParams { holes: HolePolicy::Awoc, ..base() })));
     assert!(inval(k.warp(&layer, &WarpParams { record_source: true, ..base() })));
     assert!(inval(k.warp(&layer, &WarpParams { n_seeds: 0, ..base() })));
@@ -226,7 +240,10 @@ fn all_gpu_chain_matches_cpu() {
     r.encode_depth_copy(&mut enc, &target, &dbuf, w).unwrap();
     let input = zwarp_gpu::MotionInput { depth: &dbuf, items: None, row_stride: w };
     mk.encode(&mut enc, &input, &a, &b, &[], &mbuf).unwrap();
-    let out = k.encode(&mut enc, &[zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf }], w, h, &p).unwrap();
+    // Axis-aligned bounds: the oriented frame would need the motion on the CPU.
+    let p = WarpParams { bound: BoundKind::Tight, ..p };
+    let layer = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
+    let out = k.encode(&mut enc, &[layer], w, h, &p).unwrap();
     ctx.queue.submit([enc.finish()]);
     let gpu = out.read(&ctx).unwrap();
     // The static part of the test scene (object motion is not passed here, as an engine with a
@@ -242,9 +259,11 @@ fn all_gpu_chain_matches_cpu() {
     assert!(cpu.counts().0 > cpu.depth.len() / 3);
     // Bad GPU inputs: a motion buffer too small for the size, zero size, too many layers.
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &dbuf };
+    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &dbuf, axis: Vec2::X };
     assert!(matches!(k.encode(&mut enc, &[l], w, h, &p), Err(Error::Invalid(_))));
-    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf };
+    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
+    let bad_axis = zwarp_gpu::GpuWarpLayer { axis: Vec2::new(2.0, 0.0), ..l };
+    assert!(matches!(k.encode(&mut enc, &[bad_axis], w, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l], 0, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l; 9], w, h, &p), Err(Error::Invalid(_))));
 }

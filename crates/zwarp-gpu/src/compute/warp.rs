@@ -2,17 +2,18 @@
 //! [`zwarp_warp::warp_depth`]. Shader: `warp.wgsl`.
 //!
 //! **Which CPU function.** The GPU computes `zwarp_warp::warp_depth(layers, params)` for every
-//! [`WarpParams`] with `bound: BoundKind::Tight` or `BoundKind::Global` (axis-aligned bounds)
-//! and `holes: FarDepth` or `Dilate`, `record_source: false`; everything else is reproduced as
-//! on the CPU: N stratified seeds (corners + R2 sequence with the same PCG `seed_key` jitter),
+//! [`WarpParams`] with `holes: FarDepth` or `Dilate` and `record_source: false`, every
+//! [`BoundKind`] (Oriented: the per-layer PCA frame is chosen on the CPU by
+//! [`WarpKernel::frames`], exactly as `PreparedLayer::prepare_stack` does, and passed in
+//! [`GpuWarpLayer::axis`]); everything else is reproduced as on the CPU: N stratified seeds (corners + R2 sequence with the same PCG `seed_key` jitter),
 //! T iterations, the convergence threshold, Newton steps (`accelerate`) and the polishing
 //! sample, adaptive or nearest sampling, minimal-depth (or first-converged) candidates,
 //! cross-layer seeding and borrowing (Fig. 6), the 4x4-tile then per-pixel bound tightening
 //! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
 //! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication
-//! of `PreparedLayer::prepare_stack`. `BoundKind::Oriented` (the CPU default: a PCA frame chosen
-//! per frame on the CPU) and `HolePolicy::Awoc` return [`Error::Invalid`]; use
-//! [`WarpKernel::gpu_params`] to turn any CPU configuration into the one the GPU reproduces.
+//! of `PreparedLayer::prepare_stack`. `HolePolicy::Awoc` and `record_source` return
+//! [`Error::Invalid`]; [`WarpKernel::gpu_params`] turns any CPU configuration into the one the
+//! GPU reproduces.
 //!
 //! Differences are floating-point only (the GPU compiler may fuse multiply-adds), which moves a
 //! few converged positions by ulps; the tests require warped-depth SSIM >= 0.999 and equal
@@ -24,10 +25,14 @@
 //! dispatch over the target pixels, then `dilate` for `HolePolicy::Dilate`.
 
 use bytemuck::{Pod, Zeroable};
+use glam::Vec2;
+use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Error, Image, Motion, Result};
+use zwarp_warp::bounds::{is_valid_sample, pca_frame};
 use zwarp_warp::{
-    BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput, WarpParams,
+    Bound, BoundFrame, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer,
+    WarpOutput, WarpParams,
 };
 
 use crate::compute::pyramid_level_sizes;
@@ -59,6 +64,7 @@ struct Params {
     inf: [f32; 2],
     pad: [f32; 2],
     levels: [[u32; 4]; MAX_LEVELS],
+    axes: [[f32; 4]; MAX_GPU_LAYERS],
 }
 
 const FLAG_CROSS: u32 = 1;
@@ -77,6 +83,10 @@ pub struct GpuWarpLayer<'a> {
     pub depth: &'a wgpu::Buffer,
     /// Motion buffer (source -> target, plus target depth).
     pub motion: &'a wgpu::Buffer,
+    /// Unit axis of the layer's bound frame (`BoundFrame::axis`): `Vec2::X` for axis-aligned
+    /// bounds (always used under `BoundKind::Tight` / `Global`); under `BoundKind::Oriented`
+    /// the axis [`WarpKernel::frames`] returns reproduces the CPU exactly.
+    pub axis: Vec2,
 }
 
 /// Result of [`WarpKernel::encode`], resident on the GPU.
@@ -157,12 +167,11 @@ impl WarpKernel {
         })
     }
 
-    /// The configuration of `params` the GPU reproduces: `Oriented` bounds become `Tight`
-    /// (axis-aligned), `Awoc` holes become `FarDepth`, `record_source` is cleared. Run the CPU
-    /// `warp_depth` with the result to get the GPU's function exactly.
+    /// The configuration of `params` the GPU reproduces: `Awoc` holes become `FarDepth`,
+    /// `record_source` is cleared. Run the CPU `warp_depth` with the result to get the GPU's
+    /// function exactly.
     pub fn gpu_params(params: &WarpParams) -> WarpParams {
         WarpParams {
-            bound: if params.bound == BoundKind::Global { BoundKind::Global } else { BoundKind::Tight },
             holes: if params.holes == HolePolicy::Awoc { HolePolicy::FarDepth } else { params.holes },
             record_source: false,
             ..*params
@@ -172,11 +181,6 @@ impl WarpKernel {
     /// Checks that `params` is valid and within what the GPU computes (see the module docs).
     pub fn check_params(params: &WarpParams) -> Result<()> {
         params.validate()?;
-        if params.bound == BoundKind::Oriented {
-            return Err(Error::invalid(
-                "GPU warp supports BoundKind::Tight and Global (Oriented is CPU-only; see WarpKernel::gpu_params)",
-            ));
-        }
         if params.holes == HolePolicy::Awoc {
             return Err(Error::invalid("GPU warp supports HolePolicy::FarDepth and Dilate (AWOC is CPU-only)"));
         }
@@ -253,9 +257,20 @@ impl WarpKernel {
             return Err(Error::invalid(format!("warp target is a zero-size image ({width}x{height})")));
         }
         let wh = width as u64 * height as u64;
+        let mut axes = [[1.0f32, 0.0, 0.0, 0.0]; MAX_GPU_LAYERS];
         for (k, l) in layers.iter().enumerate() {
             if l.depth.size() < wh * 4 || l.motion.size() < wh * 12 {
                 return Err(Error::invalid(format!("layer {k}: GPU buffers are too small for {width}x{height}")));
+            }
+            if !l.axis.is_finite() || (l.axis.length() - 1.0).abs() > 1e-3 {
+                return Err(Error::invalid(format!(
+                    "layer {k}: bound frame axis must be a unit vector, got {:?}",
+                    l.axis
+                )));
+            }
+            // Global / Tight bounds are axis-aligned on the CPU whatever the caller passes.
+            if params.bound == BoundKind::Oriented {
+                axes[k] = [l.axis.x, l.axis.y, 0.0, 0.0];
             }
         }
         let sizes = pyramid_level_sizes(width, height);
@@ -308,6 +323,7 @@ impl WarpKernel {
             inf: [f32::INFINITY, f32::NEG_INFINITY],
             pad: [0.0; 2],
             levels,
+            axes,
         };
         let samples = self.storage(nl as u64 * wh * 16, "zwarp warp samples")?;
         let mip = self.storage(nl as u64 * total as u64 * 16, "zwarp warp mipmap")?;
@@ -365,12 +381,63 @@ impl WarpKernel {
     /// waits and reads the result back. `WarpOutput::source` is `None`.
     pub fn warp(&self, layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpOutput> {
         let gpu = self.upload(layers, params)?;
-        let views: Vec<GpuWarpLayer<'_>> = gpu.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m }).collect();
+        let frames = Self::frames(layers, params.bound);
+        let views: Vec<GpuWarpLayer<'_>> =
+            gpu.iter().zip(frames).map(|((d, m), axis)| GpuWarpLayer { depth: d, motion: m, axis }).collect();
         let (w, h) = layers[0].depth.size();
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let out = self.encode(&mut enc, &views, w, h, params)?;
         self.ctx.queue.submit([enc.finish()]);
         out.read(&self.ctx)
+    }
+
+    /// The bound frame axis per layer that `zwarp_warp::warp_depth` uses (Sec. 3.3): `Vec2::X`
+    /// unless `bound` is `Oriented`; then, like `PreparedLayer::prepare_stack`, the PCA frame of
+    /// the layer's valid samples (for layers `k > 0` only the samples that do not repeat an
+    /// earlier layer) when its global bound has a smaller `(ex + 1)(ey + 1)` than the
+    /// axis-aligned one. Layers must be valid and of equal size (see [`Self::warp`]). A CPU pass
+    /// over the buffers; an engine can reuse the axes of the previous frame.
+    pub fn frames(layers: &[WarpLayer<'_>], bound: BoundKind) -> Vec<Vec2> {
+        if bound != BoundKind::Oriented {
+            return vec![Vec2::X; layers.len()];
+        }
+        (0..layers.len())
+            .map(|k| {
+                let l = &layers[k];
+                let (w, h) = l.depth.size();
+                let earlier: Vec<&[f32]> = layers[..k].iter().map(|e| e.depth.data()).collect();
+                let depth = l.depth.data();
+                let samples: Vec<Motion> = depth
+                    .par_iter()
+                    .zip(l.motion.data().par_iter())
+                    .enumerate()
+                    .map(|(i, (&d, m))| {
+                        let valid = d < 1.0 && m.depth >= 0.0 && m.depth < 1.0 && m.v.is_finite();
+                        if valid && !earlier.iter().any(|e| e[i] == d) {
+                            *m
+                        } else {
+                            Motion { v: Vec2::ZERO, depth: f32::INFINITY }
+                        }
+                    })
+                    .collect();
+                let ob = pca_frame(&samples, w, h, 64);
+                if ob.is_identity() {
+                    return Vec2::X;
+                }
+                let area = |f: BoundFrame| {
+                    let mut b = Bound::EMPTY;
+                    for m in samples.iter().filter(|m| is_valid_sample(m)) {
+                        b.include(f.to_frame(m.v));
+                    }
+                    b.pixel_area()
+                };
+                if area(ob) < area(BoundFrame::IDENTITY) {
+                    ob.axis
+                } else {
+                    Vec2::X
+                }
+            })
+            .collect()
     }
 
     /// Validates and uploads CPU layers into GPU buffers `(depth, motion)` usable as

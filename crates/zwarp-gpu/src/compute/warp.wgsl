@@ -1,5 +1,5 @@
 // Backward depth warp (seed 000 Sec. 3, Fig. 3, 5, 6): the WGSL twin of
-// zwarp_warp::warp_depth for axis-aligned bounds (BoundKind::Tight / Global). Every function
+// zwarp_warp::warp_depth (every BoundKind; the oriented frame per layer comes from the host). Every function
 // below mirrors a CPU function of crates/zwarp-warp (named in its comment) operation by
 // operation, so that both backends compute the same function. Host code: warp.rs.
 //
@@ -32,6 +32,8 @@ struct Params {
     pad: vec2<f32>,
     // Per level l - 1: (offset within a layer's block, width, height, 0).
     levels: array<vec4<u32>, 16>,
+    // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
+    axes: array<vec4<f32>, 8>,
 };
 
 const FLAG_CROSS: u32 = 1u;
@@ -66,6 +68,24 @@ fn finite2(v: vec2<f32>) -> bool {
 
 fn valid_z(z: f32) -> bool {
     return z >= 0.0 && z < 1.0;
+}
+
+// BoundFrame of layer k: u = R v with R = [[c, s], [-s, c]].
+fn is_identity(k: u32) -> bool {
+    let a = params.axes[k].xy;
+    return a.x == 1.0 && a.y == 0.0;
+}
+
+fn to_frame(k: u32, v: vec2<f32>) -> vec2<f32> {
+    let c = params.axes[k].x;
+    let s = params.axes[k].y;
+    return vec2<f32>(c * v.x + s * v.y, -s * v.x + c * v.y);
+}
+
+fn from_frame(k: u32, u: vec2<f32>) -> vec2<f32> {
+    let c = params.axes[k].x;
+    let s = params.axes[k].y;
+    return vec2<f32>(c * u.x - s * u.y, s * u.x + c * u.y);
 }
 
 // depth_warp::validated_samples for layer params.layer: valid iff source depth < 1, target
@@ -117,8 +137,12 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
                     }
                 }
                 if (keep) {
-                    lo = min(lo, s.xy);
-                    hi = max(hi, s.xy);
+                    var u = s.xy;
+                    if (!is_identity(k)) {
+                        u = to_frame(k, s.xy);
+                    }
+                    lo = min(lo, u);
+                    hi = max(hi, u);
                     z = min(z, s.z);
                 }
             }
@@ -160,7 +184,7 @@ fn mip_up(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Bounds (zwarp_warp::bounds, identity frame).
+// Bounds (zwarp_warp::bounds) in each layer's BoundFrame.
 
 fn ceil_log2(n: u32) -> u32 {
     if (n <= 1u) {
@@ -175,9 +199,20 @@ struct Range {
 };
 
 // MotionPyramid::pixel_range.
-fn pixel_range(rlo: vec2<f32>, rhi: vec2<f32>, expand: f32) -> Range {
-    let lo = rlo - vec2<f32>(expand);
-    let hi = rhi + vec2<f32>(expand);
+fn pixel_range(k: u32, rlo: vec2<f32>, rhi: vec2<f32>, expand: f32) -> Range {
+    var lo = rlo;
+    var hi = rhi;
+    if (!is_identity(k)) {
+        // Image-space AABB of the rotated box.
+        let c0 = from_frame(k, rlo);
+        let c1 = from_frame(k, rhi);
+        let c2 = from_frame(k, vec2<f32>(rlo.x, rhi.y));
+        let c3 = from_frame(k, vec2<f32>(rhi.x, rlo.y));
+        lo = min(min(min(c0, c1), c2), c3);
+        hi = max(max(max(c0, c1), c2), c3);
+    }
+    lo -= vec2<f32>(expand);
+    hi += vec2<f32>(expand);
     let w = f32(params.size.x);
     let h = f32(params.size.y);
     if (!(hi.x >= 0.0 && hi.y >= 0.0 && lo.x < w && lo.y < h)) {
@@ -250,14 +285,29 @@ fn region_of(c_lo: vec2<f32>, c_hi: vec2<f32>, b: vec4<f32>) -> vec4<f32> {
 
 // MotionPyramid::tight_bound_box (Fig. 5): tightening from `start` for the box of target
 // positions [c_lo, c_hi], stopping at the fixed point.
-fn tight_bound_box(k: u32, c_lo: vec2<f32>, c_hi: vec2<f32>, start: vec4<f32>, iterations: u32, expand: f32) -> Tight {
+fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, iterations: u32, expand: f32) -> Tight {
     var b = start;
     let none = Tight(false, vec4<f32>(0.0), vec4<f32>(0.0));
     if (is_empty(b)) {
         return none;
     }
+    var c_lo = p_lo;
+    var c_hi = p_hi;
+    if (!is_identity(k)) {
+        if (all(p_lo == p_hi)) {
+            c_lo = to_frame(k, p_lo);
+            c_hi = c_lo;
+        } else {
+            let c0 = to_frame(k, p_lo);
+            let c1 = to_frame(k, p_hi);
+            let c2 = to_frame(k, vec2<f32>(p_lo.x, p_hi.y));
+            let c3 = to_frame(k, vec2<f32>(p_hi.x, p_lo.y));
+            c_lo = min(min(min(c0, c1), c2), c3);
+            c_hi = max(max(max(c0, c1), c2), c3);
+        }
+    }
     var region = region_of(c_lo, c_hi, b);
-    var range = pixel_range(region.xy, region.zw, expand);
+    var range = pixel_range(k, region.xy, region.zw, expand);
     if (!range.ok) {
         return none;
     }
@@ -272,7 +322,7 @@ fn tight_bound_box(k: u32, c_lo: vec2<f32>, c_hi: vec2<f32>, start: vec4<f32>, i
         }
         b = nb;
         region = region_of(c_lo, c_hi, b);
-        range = pixel_range(region.xy, region.zw, expand);
+        range = pixel_range(k, region.xy, region.zw, expand);
         if (!range.ok) {
             return none;
         }
@@ -396,8 +446,17 @@ fn effective_seeds(n: u32, e: vec2<f32>) -> u32 {
     return n;
 }
 
-// Seed i of stratified_seeds(identity frame, region, n, key).
-fn stratified_seed(i: u32, n: u32, region: vec4<f32>, key: u32) -> vec2<f32> {
+// Seed i of stratified_seeds(frame of layer k, region, n, key), in image coordinates.
+fn stratified_seed(k: u32, i: u32, n: u32, region: vec4<f32>, key: u32) -> vec2<f32> {
+    let u = stratified_seed_frame(i, n, region, key);
+    if (n == 1u || !is_identity(k)) {
+        return from_frame(k, u);
+    }
+    return u;
+}
+
+// The seed in frame coordinates.
+fn stratified_seed_frame(i: u32, n: u32, region: vec4<f32>, key: u32) -> vec2<f32> {
     let lo = region.xy;
     let hi = region.zw;
     let e = hi - lo;
@@ -470,13 +529,17 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
         let e = start.zw - start.xy;
         var tb: Tight;
         if (e.x <= 1.0 && e.y <= 1.0 && !best.ok) {
-            tb = Tight(true, start, region_of(p, p, start));
+            var c = p;
+            if (!is_identity(k)) {
+                c = to_frame(k, p);
+            }
+            tb = Tight(true, start, region_of(c, c, start));
         } else if (k > 0u && best.ok) {
             tb = tight_bound_box(k, p, p, start, iters, expand);
             if (!tb.ok) {
                 continue;
             }
-            let r = pixel_range(tb.region.xy, tb.region.zw, expand);
+            let r = pixel_range(k, tb.region.xy, tb.region.zw, expand);
             if (!r.ok) {
                 continue;
             }
@@ -497,7 +560,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
         var n = ns;
         var cross_seed = false;
         if ((params.flags & FLAG_CROSS) != 0u && has_prev) {
-            let u = prev_q;
+            let u = to_frame(k, prev_q);
             if (u.x >= tb.region.x && u.x <= tb.region.z && u.y >= tb.region.y && u.y <= tb.region.w) {
                 if (n < params.n_seeds) {
                     n += 1u;
@@ -516,7 +579,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
             } else if ((params.flags & FLAG_SEED_OFFSET) != 0u) {
                 seed = p + params.seed_offset;
             } else {
-                seed = stratified_seed(i, ns, tb.region, key);
+                seed = stratified_seed(k, i, ns, tb.region, key);
             }
             var q = clamp(seed, vec2<f32>(0.0), max_q);
             var empties = 0u;
