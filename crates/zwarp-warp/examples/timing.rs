@@ -78,6 +78,33 @@ fn main() {
             sum as f64 / (w * h) as f64
         );
     }
+    {
+        // Fast-path fraction of layer 0: pixels whose 4x4 tile bound (after tightening) is
+        // within 1 px in both axes take one seed with no per-pixel tightening.
+        let p0 = PreparedLayer::new(&layers[0], BoundKind::Oriented).unwrap();
+        let pyr = p0.pyramid();
+        let (mut fast, mut searched) = (0u64, 0u64);
+        for ty in (0..h).step_by(4) {
+            for tx in (0..w).step_by(4) {
+                let lo = glam::Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5);
+                let hi = glam::Vec2::new((tx + 3).min(w - 1) as f32 + 0.5, (ty + 3).min(h - 1) as f32 + 0.5);
+                let px = (((tx + 4).min(w) - tx) * ((ty + 4).min(h) - ty)) as u64;
+                if let Some(tb) = pyr.tight_bound_box(lo, hi, pyr.global(), 6, 0.5) {
+                    searched += px;
+                    let e = tb.motion.extent();
+                    if e.x <= 1.0 && e.y <= 1.0 {
+                        fast += px;
+                    }
+                }
+            }
+        }
+        println!(
+            "layer 0 tile fast path (bound <= 1 px): {:.1} % of searched pixels, {:.1} % of all ({} searched)",
+            100.0 * fast as f64 / searched.max(1) as f64,
+            100.0 * fast as f64 / (w * h) as f64,
+            searched
+        );
+    }
     for l in [1usize, 3] {
         let prepared = PreparedLayer::prepare_stack(&layers[..l], BoundKind::Oriented).unwrap();
         for n in [1u32, 4, 16] {
