@@ -3,8 +3,9 @@
 //! (`zwarp_warp::warp_depth`, same parameters) and the CPU rasterizer (`zwarp_raster::render_depth`)
 //! timed in the same run, interleaved (DESIGN.md: a ratio measured side by side is the figure).
 //!
-//! Frame pair: Crytek Sponza, source view eye (0,-11,2) -> (0,11,3), target view eye
-//! (0.3,-10.8,2.05) -> (0.2,11,3) (up +z, fov 60, near 0.1, far 100). Source layers are peeled on
+//! Frame pair: Crytek Sponza, source view eye (0,-11,2) -> (0,11,3), target view 10 cm to the
+//! right, eye (0.1,-11,2) -> (0.1,11,3) (up +z, fov 60, near 0.1, far 100; the pair of the
+//! motion/mipmap rows of `gpu_raster_table`). Source layers are peeled on
 //! the GPU, motion comes from `zwarp_core::motion_field`. GPU warp time = `WarpKernel::encode`
 //! on GPU-resident layers (sample validation, min-max + min-depth mipmaps, warp), fenced wall
 //! clock (`GpuTimer::new`; lavapipe's timestamps miss compute work); CPU warp time =
@@ -65,8 +66,8 @@ fn main() -> Result<()> {
         1080,
     )?;
     let cam_b = Camera::perspective(
-        Vec3::new(0.3, -10.8, 2.05),
-        Vec3::new(0.2, 11.0, 3.0),
+        Vec3::new(0.1, -11.0, 2.0),
+        Vec3::new(0.1, 11.0, 3.0),
         Vec3::Z,
         60f32.to_radians(),
         0.1,
