@@ -53,9 +53,14 @@ const EPS: f32 = 1.1920929e-7;
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> depth_in: array<f32>;
 @group(0) @binding(2) var<storage, read> motion_in: array<f32>;
-@group(0) @binding(3) var<storage, read_write> samples: array<vec4<f32>>;
+// Writers and readers of the same buffers are declared apart: an entry point that only reads
+// a buffer gets a read-only binding (the compiler may then reorder and cache its loads).
+@group(0) @binding(3) var<storage, read_write> samples_out: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> samples: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> mip: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> zmin: array<f32>;
+@group(0) @binding(4) var<storage, read> mip_ro: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> zmin_ro: array<f32>;
 @group(0) @binding(6) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(7) var<storage, read_write> out_state: array<u32>;
 @group(0) @binding(8) var<storage, read_write> fill_depth: array<f32>;
@@ -104,7 +109,7 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (d < 1.0 && valid_z(z) && finite2(v)) {
         s = vec4<f32>(v, z, d);
     }
-    samples[params.layer * wh + i] = s;
+    samples_out[params.layer * wh + i] = s;
 }
 
 // MotionPyramid::from_samples level 1 for layer params.layer, over the samples of
@@ -243,7 +248,7 @@ fn lookup_range(k: u32, r: vec4<u32>) -> vec4<f32> {
     var b = vec4<f32>(params.inf.x, params.inf.x, params.inf.y, params.inf.y);
     for (var ty = ty0; ty <= ty1; ty++) {
         for (var tx = tx0; tx <= tx1; tx++) {
-            let t = mip[base + ty * lv.y + tx];
+            let t = mip_ro[base + ty * lv.y + tx];
             b = vec4<f32>(min(b.xy, t.xy), max(b.zw, t.zw));
         }
     }
@@ -262,7 +267,7 @@ fn lookup_min_depth(k: u32, r: vec4<u32>) -> f32 {
     var z = params.inf.x;
     for (var ty = ty0; ty <= ty1; ty++) {
         for (var tx = tx0; tx <= tx1; tx++) {
-            z = min(z, zmin[base + ty * lv.y + tx]);
+            z = min(z, zmin_ro[base + ty * lv.y + tx]);
         }
     }
     return z;
@@ -520,7 +525,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
     var prev_q = vec2<f32>(0.0);
     for (var k = 0u; k < params.layers; k++) {
         let top = params.levels[params.top - 1u];
-        let gb = mip[k * params.level_total + top.x];
+        let gb = mip_ro[k * params.level_total + top.x];
         let tile = tight_bound_box(k, p_lo, p_hi, gb, iters, expand);
         if (!tile.ok) {
             continue;
