@@ -300,19 +300,14 @@ impl<'a> ZwarpMaps<'a> {
                 .collect();
         }
         let ratio = self.rig.shifts[i] / self.k_ref;
-        Ok(self
-            .reference
+        self.reference
             .iter()
             .map(|m| {
-                let mut out = m.clone();
-                out.data_mut().par_chunks_mut(4096).for_each(|c| {
-                    for s in c {
-                        s.v *= ratio;
-                    }
-                });
-                out
+                let data: Vec<Motion> =
+                    m.data().par_iter().map(|s| Motion { v: s.v * ratio, depth: s.depth }).collect();
+                Image::from_vec(m.width(), m.height(), data)
             })
-            .collect())
+            .collect()
     }
 
     /// Warps the layers to sample view `i` (`zwarp_warp::warp_prepared`).
