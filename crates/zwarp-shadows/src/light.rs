@@ -136,7 +136,7 @@ fn unit_f32(h: u64) -> f32 {
 /// (a perfect square gives a square grid; a prime gives `1 x s` strips, still stratified).
 fn grid_dims(s: u32) -> (u32, u32) {
     let mut a = (s as f64).sqrt() as u32;
-    while a > 1 && s % a != 0 {
+    while a > 1 && !s.is_multiple_of(a) {
         a -= 1;
     }
     let a = a.max(1);
