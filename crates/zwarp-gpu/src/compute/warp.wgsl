@@ -498,25 +498,47 @@ struct Cand {
     tag: u32,
 };
 
+// The CPU's 4x4 tile stage (depth_warp::Kernel::band): the 8x8 workgroup holds 4 tiles; one
+// invocation per (tile, layer) tightens the tile's bound, the pixels then start from it.
+var<workgroup> tile_motion: array<vec4<f32>, 32>;
+var<workgroup> tile_ok: array<u32, 32>;
+
 @compute @workgroup_size(8, 8, 1)
-fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let w = params.size.x;
     let h = params.size.y;
+    let expand = params.expand;
+    let iters = params.bound_iterations;
+    let task = lid.y * 8u + lid.x;
+    if (task < 4u * params.layers) {
+        let t = task % 4u;
+        let kt = task / 4u;
+        let tx0 = wid.x * 8u + 4u * (t % 2u);
+        let ty0 = wid.y * 8u + 4u * (t / 2u);
+        var ok = 0u;
+        var motion = vec4<f32>(0.0);
+        if (tx0 < w && ty0 < h) {
+            let tx1 = min(tx0 + 4u, w) - 1u;
+            let ty1 = min(ty0 + 4u, h) - 1u;
+            let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5);
+            let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5);
+            let top = params.levels[params.top - 1u];
+            let gb = mip_ro[kt * params.level_total + top.x];
+            let tile = tight_bound_box(kt, p_lo, p_hi, gb, iters, expand);
+            ok = select(0u, 1u, tile.ok);
+            motion = tile.motion;
+        }
+        tile_ok[task] = ok;
+        tile_motion[task] = motion;
+    }
+    workgroupBarrier();
     let x = gid.x;
     let y = gid.y;
     if (x >= w || y >= h) {
         return;
     }
+    let tile_index = (lid.x / 4u) + 2u * (lid.y / 4u);
     let p = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
-    let expand = params.expand;
-    let iters = params.bound_iterations;
-    // The CPU's 4x4 tile stage, recomputed per pixel (same tile, same start bound).
-    let tx0 = x & ~3u;
-    let ty0 = y & ~3u;
-    let tx1 = min(tx0 + 4u, w) - 1u;
-    let ty1 = min(ty0 + 4u, h) - 1u;
-    let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5);
-    let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5);
     let max_q = vec2<f32>(f32(w), f32(h)) * (1.0 - EPS) - vec2<f32>(1e-3);
     let thr2 = params.threshold * params.threshold;
 
@@ -524,13 +546,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>) {
     var has_prev = false;
     var prev_q = vec2<f32>(0.0);
     for (var k = 0u; k < params.layers; k++) {
-        let top = params.levels[params.top - 1u];
-        let gb = mip_ro[k * params.level_total + top.x];
-        let tile = tight_bound_box(k, p_lo, p_hi, gb, iters, expand);
-        if (!tile.ok) {
+        if (tile_ok[k * 4u + tile_index] == 0u) {
             continue;
         }
-        let start = tile.motion;
+        let start = tile_motion[k * 4u + tile_index];
         let e = start.zw - start.xy;
         var tb: Tight;
         if (e.x <= 1.0 && e.y <= 1.0 && !best.ok) {
