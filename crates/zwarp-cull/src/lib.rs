@@ -16,12 +16,14 @@
 
 #![warn(missing_docs)]
 
+pub mod diagnose;
 pub mod frustum;
 pub mod maxdepth;
 pub mod screen;
 pub mod sequence;
 pub mod woc;
 
+pub use diagnose::{culled_visible, CulledVisible};
 pub use frustum::{vfc, Frustum};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,

@@ -10,6 +10,7 @@ use serde::Serialize;
 use zwarp_core::{Camera, Error, Result, Scene};
 use zwarp_raster::{render_frame, Frame, FrameOptions};
 
+use crate::diagnose::{culled_visible, CulledVisible};
 use crate::woc::{
     accuracy, ideal_screen_space, lastframe, nocull, twophase, vfc_cull, visible_from_items, woc, CullAccuracy,
     CullResult, CullStats, CullTimings, PrevFrame, WocParams,
@@ -104,6 +105,9 @@ pub struct FrameReport {
     pub triangles: usize,
     /// Triangles of the whole scene.
     pub full_triangles: usize,
+    /// Every object REF shows that the method culled, with why (size in pixels, speed, stage,
+    /// predicted vs true depth; see [`CulledVisible`]).
+    pub culled_visible: Vec<CulledVisible>,
     /// `true` for frame 0 of the history-based methods, which has no previous frame and falls
     /// back to VFC.
     pub bootstrap: bool,
@@ -158,10 +162,10 @@ pub fn run_sequence(
         let mut next_first: Option<Vec<u32>> = None;
         let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
         let bootstrap = history && prev.is_none();
-        let (visible, cull, stats, drawn, draw_ms) = if bootstrap && method != Method::TwoPhase {
+        let (visible, cull, stats, drawn, draw_ms, occ) = if bootstrap && method != Method::TwoPhase {
             let r = vfc_cull(scene, cam, t)?;
             let (f, d) = draw(scene, cam, t, &r.visible)?;
-            (r.visible, r.timings, r.stats, f, d)
+            (r.visible, r.timings, r.stats, f, d, None)
         } else {
             match method {
                 Method::TwoPhase => {
@@ -177,7 +181,7 @@ pub fn run_sequence(
                     cull.total_ms -= draw_ms;
                     let stats = CullStats { objects: n, ..CullStats::default() };
                     next_first = Some(r.next_visible);
-                    (r.visible, cull, stats, drawn, draw_ms)
+                    (r.visible, cull, stats, drawn, draw_ms, None)
                 }
                 _ => {
                     let r = match method {
@@ -204,11 +208,18 @@ pub fn run_sequence(
                         Method::TwoPhase => unreachable!("handled above"),
                     };
                     let (f, d) = draw(scene, cam, t, &r.visible)?;
-                    (r.visible, r.timings, r.stats, f, d)
+                    (r.visible, r.timings, r.stats, f, d, r.occlusion_map)
                 }
             }
         };
         let pixel_error = drawn.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
+        let pf = prev.as_ref().map(|(pf, _)| PrevFrame {
+            depth: &pf.depth,
+            items: &pf.items,
+            cam: &frames[k - 1].1,
+            t: frames[k - 1].0,
+        });
+        let culled = culled_visible(scene, &visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
         out.push(FrameReport {
             frame: k,
             t,
@@ -222,6 +233,7 @@ pub fn run_sequence(
             full_draw_ms,
             triangles: tri_of(&visible),
             full_triangles,
+            culled_visible: culled,
             bootstrap,
         });
         prev = Some((drawn, next_first.unwrap_or(visible)));

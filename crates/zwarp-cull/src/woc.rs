@@ -62,6 +62,11 @@ pub struct WocParams {
     pub awoc: bool,
     /// 1-pixel max erosion of the predicted depth (thesis Sec. IV.1). Default on.
     pub erosion: bool,
+    /// Erosion radius in pixels (each step is one 3x3 max, [`erode_max`]); only with
+    /// `erosion`. Default 1 (the thesis). Measured on BL (scale 0.25, 960x540, 23 frames):
+    /// radius 2 removes only 2 of 24 culling errors and lowers the culling ratio from 83.0%
+    /// to 82.5%, so the errors there are not silhouette misplacements.
+    pub erosion_radius: u32,
     /// Rapid-motion threshold in pixels per frame (thesis Sec. IV.1): objects whose AABB
     /// corners move more than this on screen are drawn directly into the predicted depth and
     /// kept visible. `None` disables the path. Default 19.2 px, the thesis' 0.02 of the
@@ -104,6 +109,7 @@ impl Default for WocParams {
             },
             awoc: false,
             erosion: true,
+            erosion_radius: 1,
             rapid_motion_px: Some(19.2),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
@@ -537,7 +543,8 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     //    boundaries, thesis Fig. 4).
     let t0 = Instant::now();
     let erode_late = f > 1;
-    let mut predicted = if params.erosion && !erode_late { erode_max(&warped.depth) } else { warped.depth };
+    let mut predicted =
+        if params.erosion && !erode_late { erode_n(warped.depth, params.erosion_radius) } else { warped.depth };
     tm.erosion_ms = ms(t0);
 
     // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
@@ -565,7 +572,7 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     tm.draw_ms = ms(t0);
     if params.erosion && erode_late {
         let t0 = Instant::now();
-        predicted = erode_max(&predicted);
+        predicted = erode_n(predicted, params.erosion_radius);
         tm.erosion_ms += ms(t0);
     }
 
@@ -595,6 +602,14 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     stats.hybrid_tested = tested;
     tm.total_ms = ms(start);
     Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
+}
+
+/// `radius` steps of the 3x3 max erosion ([`erode_max`]): a `(2 radius + 1)^2` max filter.
+fn erode_n(mut depth: Image<f32>, radius: u32) -> Image<f32> {
+    for _ in 0..radius {
+        depth = erode_max(&depth);
+    }
+    depth
 }
 
 /// Baseline NOCULL: every object is drawn.

@@ -4,9 +4,9 @@
 use glam::{Mat4, Vec3};
 use zwarp_core::{Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
-    aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
-    lastframe, nocull, reference, run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull,
-    visible_from_items, woc, MaxDepthKind, Method, PrevFrame, ScreenRect, WocParams,
+    aabb_triangles, accuracy, coarse_camera, cull_against_depth, culled_visible, downsample_max, hybrid_cull,
+    ideal_screen_space, lastframe, nocull, reference, run_sequence, screen_rect, screen_speed, summarize, twophase,
+    vfc_cull, visible_from_items, woc, MaxDepthKind, Method, PrevFrame, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 
@@ -222,6 +222,22 @@ fn last_frame_depth_without_warping_culls_revealed_objects() {
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &prev_cam, t: 0.0 };
     let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
     assert_eq!(woc(&s, &pf, &cam, DT, &params).unwrap().visible, vec![0, 1], "WOC keeps it");
+
+    // The diagnostic names the error: object 1, with exactly its REF pixels, not visible
+    // before, revealed where the (static) wall was, culled by the screen-space test, its
+    // pixels predicted nearer than the truth (the unwarped wall).
+    let full = render_frame(&s, &cam, DT, &FrameOptions::default()).unwrap();
+    let px = full.items.data().iter().filter(|&&i| i == 1).count();
+    let cv = culled_visible(&s, &lf.visible, &full.items, &full.depth, Some(&prev.depth), &cam, DT, Some(&pf));
+    assert_eq!(cv.len(), 1);
+    let c = &cv[0];
+    assert_eq!((c.id, c.pixels, c.prev_pixels, c.stage), (1, px, Some(0), "screen"));
+    assert!(px > 0);
+    assert_eq!(c.own_speed_px, 0.0, "static object");
+    assert_eq!(c.prev_moving_occluder_pixels, 0, "the wall does not move");
+    assert_eq!(c.wrong_pixels + c.prev_empty_pixels, px);
+    assert!(c.map_max_over_rect < c.aabb_nearest && c.predicted_depth.1 <= c.map_max_over_rect);
+    assert!(culled_visible(&s, &[0, 1], &full.items, &full.depth, None, &cam, DT, None).is_empty());
 }
 
 #[test]

@@ -1,0 +1,37 @@
+//! Prints every culling error of WOC (an object REF shows that WOC culled) with the
+//! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
+//! (the frames `zwarp cull` uses).
+//!
+//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method]`
+
+use zwarp_cull::{run_sequence, summarize, Method, WocParams};
+use zwarp_scene::{load_scene, SceneOptions};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
+    let scene_name = arg(0, "bl");
+    let scale: f32 = arg(1, "0.25").parse()?;
+    let (w, h): (u32, u32) = (arg(2, "960").parse()?, arg(3, "540").parse()?);
+    let n_frames: usize = arg(4, "24").parse()?;
+    let method = Method::parse(&arg(5, "woc"))?;
+    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
+    frames.truncate(n_frames);
+    let reps = run_sequence(&loaded.scene, &frames, method, &WocParams::default())?;
+    for r in &reps {
+        for c in &r.culled_visible {
+            println!("frame {:2} {}", r.frame, serde_json::to_string(c)?);
+        }
+    }
+    let s = summarize(&reps);
+    println!(
+        "{} objects, {} frames: CR {:.4}, FN {}, object error {:.5}",
+        loaded.scene.instances.len(),
+        s.frames,
+        s.culling_ratio,
+        s.false_negatives,
+        s.object_error
+    );
+    Ok(())
+}
