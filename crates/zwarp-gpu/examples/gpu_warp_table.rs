@@ -14,9 +14,11 @@
 //! Usage: `cargo run --release -p zwarp-gpu --example gpu_warp_table -- /work/shared/scenes/sponza [runs]`
 //!
 //! Measured on the shared 2-core box (lavapipe, default `WarpParams`: N=8, T=3, oriented bounds;
-//! the GPU result is bit-identical to the CPU one): L=1 GPU warp 1231 ms vs GPU render 101 ms
-//! (12x), CPU warp 335 ms vs CPU render 49 ms (7x); L=2 GPU 2346 / 119 ms (20x), CPU 838 / 56 ms
-//! (15x). lavapipe runs the warp's divergent per-pixel loops ~3.7x slower than the CPU code.
+//! the GPU result is bit-identical to the CPU one), median of 7: L=1 GPU warp 1242 ms vs GPU
+//! render 134 ms (9.3x), CPU warp 345 ms vs CPU render 54 ms (6.4x); L=2 GPU 1468 / 104 ms
+//! (14x), CPU 603 / 47 ms (13x). lavapipe runs the warp's divergent per-pixel loops 2.5-3.5x
+//! slower than the CPU code. The GPU time excludes `WarpKernel::frames` (the CPU's PCA frame
+//! choice, done once per frame pair on the CPU), which the CPU warp time includes.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
