@@ -25,6 +25,8 @@ enum Command {
     Eval(commands::eval::EvalArgs),
     /// Occlusion culling by depth warping (WOC/AWOC) vs its baselines along a camera path.
     Cull(commands::cull::CullArgs),
+    /// Soft shadows from warped shadow maps vs the reference and PCSS (paper 000, Sec. 6).
+    Shadows(commands::shadows::ShadowsArgs),
     /// List the compute devices (GPU adapters) zwarp can use.
     Info(commands::info::InfoArgs),
 }
@@ -37,6 +39,7 @@ fn main() {
         Command::Eval(a) => commands::eval::run(a),
         Command::Info(a) => commands::info::run(a),
         Command::Cull(a) => commands::cull::run(a),
+        Command::Shadows(a) => commands::shadows::run(a),
     };
     if let Err(e) = result {
         // One line: the error and its causes, joined.

@@ -218,3 +218,41 @@ fn cull_reference_and_nocull_are_exact() {
     let cr = |r: &serde_json::Value| r["culling_ratio"].as_f64().unwrap();
     assert!(cr(&reference) >= cr(&woc) - 1e-12 && cr(&woc) >= cr(&vfc) - 1e-12, "{rows:?}");
 }
+
+#[test]
+fn shadows_writes_the_documented_fields() {
+    let d = tmp("shadows");
+    let j = d.join("s.json");
+    let (ok, _, err) = zwarp(&[
+        "shadows",
+        "--scene",
+        "mo",
+        "--scale",
+        "0.02",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--samples",
+        "1,4",
+        "--sm",
+        "64",
+        "--reps",
+        "1",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    // reference, zwarp and pcss at S = 1 and 4.
+    assert_eq!(rows.len(), 6, "{rows:?}");
+    for r in rows {
+        for k in ["method", "scene", "samples", "sm", "ms", "psnr", "ssim", "speedup"] {
+            assert!(!r[k].is_null(), "field {k} missing in {r}");
+        }
+    }
+    // The reference against itself is exact.
+    let reference = rows.iter().find(|r| r["method"] == "reference").unwrap();
+    assert_eq!(reference["ssim"].as_f64().unwrap(), 1.0);
+}

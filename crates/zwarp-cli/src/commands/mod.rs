@@ -5,3 +5,4 @@ pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod render;
+pub mod shadows;
