@@ -256,3 +256,55 @@ fn shadows_writes_the_documented_fields() {
     let reference = rows.iter().find(|r| r["method"] == "reference").unwrap();
     assert_eq!(reference["ssim"].as_f64().unwrap(), 1.0);
 }
+
+/// `--backend gpu` runs the WGSL twin of the warp: same quality as the CPU on the same frames.
+/// Runs where an adapter exists (lavapipe in CI, which sets `ZWARP_REQUIRE_GPU=1` so that a
+/// missing adapter fails here instead of skipping).
+#[test]
+fn eval_gpu_backend_matches_cpu() {
+    let require = std::env::var("ZWARP_REQUIRE_GPU").map(|v| v != "0" && !v.is_empty()).unwrap_or(false);
+    let (ok, out, _) = zwarp(&["info"]);
+    assert!(ok);
+    if !out.contains("GPU adapter:") {
+        assert!(!require, "ZWARP_REQUIRE_GPU is set but no GPU adapter was found:\n{out}");
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    let d = tmp("evalgpu");
+    let mut ssim = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let j = d.join(format!("{backend}.json"));
+        let (ok, _, err) = zwarp(&[
+            "eval",
+            "--scene",
+            "mo",
+            "--scale",
+            "0.02",
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--frames",
+            "1",
+            "--n",
+            "4",
+            "--l",
+            "1,2",
+            "--methods",
+            "ours",
+            "--reps",
+            "1",
+            "--backend",
+            backend,
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(ok, "{backend}: {err}");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
+        ssim.push(v["rows"].as_array().unwrap().iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
+    }
+    assert_eq!(ssim[0].len(), 2);
+    for (c, g) in ssim[0].iter().zip(&ssim[1]) {
+        assert!((c - g).abs() < 2e-3, "cpu {c} vs gpu {g}");
+    }
+}

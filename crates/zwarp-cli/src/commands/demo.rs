@@ -53,6 +53,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         holes: zwarp_warp::HolePolicy::FarDepth,
         umbra: true,
         reps: 3,
+        backend: crate::args::Backend::Cpu,
         width: args.width,
         height: args.height,
         images: Some(images.clone()),

@@ -16,7 +16,7 @@ use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Peel
 use zwarp_scene::CameraPath;
 use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
-use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::report::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp eval`.
@@ -54,6 +54,10 @@ pub struct EvalArgs {
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
     #[arg(long, default_value = "umbra")]
     pub peel: String,
+    /// Where our warp and the reference render run: `cpu` (zwarp-raster + zwarp-warp) or `gpu`
+    /// (wgpu: GPU depth-only render and the WGSL twin of the warp; VFW/AFW stay on the CPU).
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
     /// Timed repetitions per measurement (after one warm-up run).
     #[arg(long, default_value_t = 3)]
     pub reps: usize,
@@ -135,6 +139,7 @@ pub struct EvalPlan {
     pub holes: HolePolicy,
     pub umbra: bool,
     pub reps: usize,
+    pub backend: Backend,
     pub width: u32,
     pub height: u32,
     pub images: Option<PathBuf>,
@@ -216,6 +221,7 @@ impl EvalArgs {
             holes,
             umbra,
             reps: self.reps.max(1),
+            backend: self.backend,
             width: self.size.width,
             height: self.size.height,
             images: self.images.clone(),
@@ -355,6 +361,17 @@ pub fn evaluate(
     progress: bool,
 ) -> Result<Vec<EvalRow>> {
     let max_l = *plan.ls.iter().max().unwrap_or(&1);
+    // GPU: the reference render and our warp run on one device, so their ratio is the figure.
+    let gpu = match plan.backend {
+        Backend::Cpu => None,
+        Backend::Gpu => {
+            let ctx = zwarp_gpu::GpuContext::new()?;
+            let renderer = zwarp_gpu::Renderer::new(&ctx)?;
+            let kernel = zwarp_gpu::WarpKernel::new(&ctx)?;
+            let uploaded = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
+            Some((ctx, renderer, kernel, uploaded))
+        }
+    };
     let cores = rayon::current_num_threads() as f64;
     let mut rows = Vec::new();
     let configs_per_pair = plan
@@ -387,7 +404,10 @@ pub fn evaluate(
         let mut ref_samples = Vec::new();
         let mut motion_samples = Vec::new();
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
-            let (reference, samples) = report::time_repeated(plan.reps, || Ok(render_depth(scene, cb, *tb)?))?;
+            let (reference, samples) = report::time_repeated(plan.reps, || match &gpu {
+                Some((_, renderer, _, uploaded)) => Ok(renderer.render_depth(uploaded, cb, *tb)?),
+                None => Ok(render_depth(scene, cb, *tb)?),
+            })?;
             ref_samples.extend(samples);
             let (bufs, motion_ms) = source_buffers(scene, ca, *ta, cb, *tb, max_l, plan.umbra)?;
             motion_samples.push(motion_ms);
@@ -436,7 +456,10 @@ pub fn evaluate(
                                             ..WarpParams::default()
                                         };
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
-                                            let o = zwarp_warp::warp_depth(&layers, &params)?;
+                                            let o = match &gpu {
+                                                Some((_, _, kernel, _)) => kernel.warp(&layers, &params)?,
+                                                None => zwarp_warp::warp_depth(&layers, &params)?,
+                                            };
                                             Ok((o.depth, Some(o.state)))
                                         })?;
                                     }
@@ -565,13 +588,14 @@ pub fn run(args: EvalArgs) -> Result<()> {
     let loaded = args.scene.load()?;
     let rows = evaluate(&args.scene.scene, &loaded.scene, &loaded.path, &plan, true)?;
     println!(
-        "zwarp eval: {} ({} objects, {} triangles), {}x{}, {} frame pair(s), CPU with {} threads",
+        "zwarp eval: {} ({} objects, {} triangles), {}x{}, {} frame pair(s), backend {:?}, {} CPU threads",
         args.scene.scene,
         loaded.scene.instances.len(),
         loaded.scene.triangle_count(),
         plan.width,
         plan.height,
         plan.frames,
+        plan.backend,
         rayon::current_num_threads()
     );
     println!("{}", table(&rows));
