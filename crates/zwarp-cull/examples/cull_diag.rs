@@ -2,7 +2,7 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method]`
+//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [rims|norims]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
@@ -18,7 +18,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
     let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
     frames.truncate(n_frames);
-    let reps = run_sequence(&loaded.scene, &frames, method, &WocParams::default())?;
+    // Optional 7th argument `norims`: WOC without the opening-rim holes (the old behaviour).
+    let params = WocParams { open_rims: arg(6, "rims") != "norims", ..WocParams::default() };
+    let reps = run_sequence(&loaded.scene, &frames, method, &params)?;
     for r in &reps {
         for c in &r.culled_visible {
             println!("frame {:2} {}", r.frame, serde_json::to_string(c)?);

@@ -23,7 +23,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
-use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, NO_ITEM};
+use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, HolePolicy, Sampling, WarpLayer, WarpParams};
 
@@ -67,6 +67,10 @@ pub struct WocParams {
     /// radius 2 removes only 2 of 24 culling errors and lowers the culling ratio from 83.0%
     /// to 82.5%, so the errors there are not silhouette misplacements.
     pub erosion_radius: u32,
+    /// Drop the *opening rims* of the previous frame before warping (see [`opening_rims`]):
+    /// texels on the near side of a boundary between two objects whose screen motions pull
+    /// them apart become holes, so a disocclusion narrower than a pixel stays far. Default on.
+    pub open_rims: bool,
     /// Rapid-motion threshold in pixels per frame (thesis Sec. IV.1): objects whose AABB
     /// corners move more than this on screen are drawn directly into the predicted depth and
     /// kept visible. `None` disables the path. Default 19.2 px, the thesis' 0.02 of the
@@ -110,6 +114,7 @@ impl Default for WocParams {
             awoc: false,
             erosion: true,
             erosion_radius: 1,
+            open_rims: true,
             rapid_motion_px: Some(19.2),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
@@ -536,7 +541,14 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let mut wp = params.warp;
     wp.holes = if params.awoc { HolePolicy::Awoc } else { params.warp.holes };
     wp.record_source = false;
-    let warped = warp_depth(&[WarpLayer { depth: prev_depth, motion: &motion }], &wp)?;
+    let rimmed;
+    let src_depth = if params.open_rims {
+        rimmed = opening_rims(prev_depth, prev_items, &motion)?;
+        &rimmed
+    } else {
+        prev_depth
+    };
+    let warped = warp_depth(&[WarpLayer { depth: src_depth, motion: &motion }], &wp)?;
     tm.warp_ms = ms(t0);
 
     // 3. Erosion: occluder silhouettes pulled back by a pixel (warping is off by 1-2 px at
@@ -602,6 +614,61 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     stats.hybrid_tested = tested;
     tm.total_ms = ms(start);
     Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
+}
+
+/// Source-side conservative hole opening for WOC (seed 000 Sec. 5: "depth holes are
+/// conservatively kept at the far-clipping depth"). Returns `depth` with every *opening rim*
+/// texel set to [`EMPTY_DEPTH`]: a texel `c` with an 8-neighbour `c'` that shows a different,
+/// farther object (both non-empty) such that their motions separate them,
+/// `(v(c) - v(c')) . (c - c') > 0`.
+///
+/// Why: the backward warp accepts a source texel whose forward position is within half a
+/// pixel of a target pixel centre, i.e. every texel carries a 1x1 footprint. Where a near
+/// object `A` slides away from a farther object `B` by less than a pixel per frame, the strip
+/// between them is a disocclusion (what is behind is unknown: `B`'s hidden part or anything
+/// farther), but the footprints of `A`'s rim and `B`'s rim still cover it, so the warp fills
+/// it with `A`'s depth and no hole appears; the 1-pixel erosion cannot reopen it because both
+/// sides are near. Dropping `A`'s rim texels (the ones whose true edge position is unknown
+/// within a pixel) turns that strip into a far hole, which the erosion then widens.
+/// Boundaries against empty pixels need nothing (the empty side is already a far hole), and
+/// closing boundaries (`A` moving over `B`) cannot reveal anything.
+///
+/// Errors: sizes differ.
+pub fn opening_rims(depth: &Image<f32>, items: &Image<u32>, motion: &Image<zwarp_core::Motion>) -> Result<Image<f32>> {
+    depth.check_same_size(items, "depth vs item buffer")?;
+    depth.check_same_size(motion, "depth vs motion buffer")?;
+    let (w, h) = depth.size();
+    let (wi, hi) = (w as i64, h as i64);
+    let out: Vec<f32> = (0..depth.data().len())
+        .into_par_iter()
+        .map(|i| {
+            let d = depth.data()[i];
+            let id = items.data()[i];
+            if d >= EMPTY_DEPTH || id == NO_ITEM {
+                return d;
+            }
+            let (x, y) = ((i as i64) % wi, (i as i64) / wi);
+            let v = motion.data()[i].v;
+            for (dx, dy) in [(-1i64, -1i64), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
+                let (xx, yy) = (x + dx, y + dy);
+                if !(0..wi).contains(&xx) || !(0..hi).contains(&yy) {
+                    continue;
+                }
+                let j = (yy * wi + xx) as usize;
+                let (dn, idn) = (depth.data()[j], items.data()[j]);
+                if idn == NO_ITEM || idn == id || dn >= EMPTY_DEPTH || dn <= d {
+                    continue;
+                }
+                // c - c' = (-dx, -dy): positive when c moves away from c' relative to it.
+                let rel = v - motion.data()[j].v;
+                if -(rel.x * dx as f32 + rel.y * dy as f32) > std::env::var("RIMTHR").ok().and_then(|s| s.parse().ok()).unwrap_or(0.0f32) {
+                    return EMPTY_DEPTH;
+                }
+            }
+            d
+        })
+        .collect();
+    Image::from_vec(w, h, out)
 }
 
 /// `radius` steps of the 3x3 max erosion ([`erode_max`]): a `(2 radius + 1)^2` max filter.
