@@ -2,7 +2,7 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [rims|norims]`
+//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
@@ -18,8 +18,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
     let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
     frames.truncate(n_frames);
-    // Optional 7th argument `norims`: WOC without the opening-rim holes (the old behaviour).
-    let params = WocParams { open_rims: arg(6, "rims") != "norims", ..WocParams::default() };
+    // Optional 7th argument: `norims` (WOC without the opening-rim holes, the old behaviour) or
+    // the rim separation threshold in pixels.
+    let mut params = WocParams::default();
+    match arg(6, "default").as_str() {
+        "default" => {}
+        "norims" => params.open_rims = None,
+        px => params.open_rims = Some(px.parse()?),
+    }
     let reps = run_sequence(&loaded.scene, &frames, method, &params)?;
     for r in &reps {
         for c in &r.culled_visible {
