@@ -23,7 +23,7 @@ pub use camera::{Camera, Projection};
 pub use error::{Error, Result};
 pub use geom::Aabb;
 pub use image::Image;
-pub use motion::{motion_field, Motion};
+pub use motion::{check_motion_inputs, motion_field, Motion};
 pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
 
 /// Depth value that means "no surface here" (the far plane).

@@ -37,18 +37,9 @@ pub fn reproject_pixel(inv_a: &Mat4, m: &Mat4, a: (u32, u32), b: (u32, u32), x: 
     }
 }
 
-/// Computes the motion buffer from a source depth buffer, its item buffer and the two cameras.
-///
-/// `object_deltas[id]` is the world-space motion `M(t_b) * M(t_a)^-1` of object `id` (see
-/// [`crate::Scene::object_deltas`]); pass an empty slice for a static scene. Pixels with
-/// [`NO_ITEM`] or ids beyond the slice move with the camera only.
-pub fn motion_field(
-    depth: &Image<f32>,
-    items: Option<&Image<u32>>,
-    cam_a: &Camera,
-    cam_b: &Camera,
-    object_deltas: &[Mat4],
-) -> Result<Image<Motion>> {
+/// Validates the inputs of a motion-field computation (shared by the CPU function and its GPU
+/// twin): a non-empty, finite depth buffer of the source camera's size and a matching item buffer.
+pub fn check_motion_inputs(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a: &Camera) -> Result<()> {
     depth.check_nonempty("depth buffer")?;
     if let Some(it) = items {
         depth.check_same_size(it, "depth vs item buffer")?;
@@ -65,6 +56,22 @@ pub fn motion_field(
     if depth.data().iter().any(|d| !d.is_finite()) {
         return Err(crate::Error::invalid("depth buffer holds NaN or infinite values"));
     }
+    Ok(())
+}
+
+/// Computes the motion buffer from a source depth buffer, its item buffer and the two cameras.
+///
+/// `object_deltas[id]` is the world-space motion `M(t_b) * M(t_a)^-1` of object `id` (see
+/// [`crate::Scene::object_deltas`]); pass an empty slice for a static scene. Pixels with
+/// [`NO_ITEM`] or ids beyond the slice move with the camera only.
+pub fn motion_field(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    object_deltas: &[Mat4],
+) -> Result<Image<Motion>> {
+    check_motion_inputs(depth, items, cam_a)?;
     let inv_a = cam_a.view_proj().inverse();
     let vp_b = cam_b.view_proj();
     let deltas: Vec<Mat4> = object_deltas.iter().map(|d| vp_b * *d).collect();

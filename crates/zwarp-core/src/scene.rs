@@ -125,6 +125,14 @@ impl Instance {
     pub fn transform_at(&self, t: f32) -> Mat4 {
         self.animation.matrix_at(t) * self.transform
     }
+    /// World-space motion from `t_a` to `t_b`: `M(t_b) * M(t_a)^-1` (identity when static).
+    pub fn delta(&self, t_a: f32, t_b: f32) -> Mat4 {
+        if self.animation.is_animated() {
+            self.transform_at(t_b) * self.transform_at(t_a).inverse()
+        } else {
+            Mat4::IDENTITY
+        }
+    }
 }
 
 /// Shape of an area light.
@@ -228,16 +236,7 @@ impl Scene {
     /// Per-object motion from time `t_a` to `t_b`: `M(t_b) * M(t_a)^-1` for each instance
     /// (identity for static ones). Feed it to [`crate::motion_field`].
     pub fn object_deltas(&self, t_a: f32, t_b: f32) -> Vec<Mat4> {
-        self.instances
-            .iter()
-            .map(|i| {
-                if i.animation.is_animated() {
-                    i.transform_at(t_b) * i.transform_at(t_a).inverse()
-                } else {
-                    Mat4::IDENTITY
-                }
-            })
-            .collect()
+        self.instances.iter().map(|i| i.delta(t_a, t_b)).collect()
     }
     /// Errors if the scene has nothing to draw.
     pub fn check_nonempty(&self) -> Result<()> {

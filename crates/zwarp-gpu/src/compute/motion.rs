@@ -180,22 +180,7 @@ impl MotionKernel {
         cam_b: &Camera,
         object_deltas: &[Mat4],
     ) -> Result<Image<Motion>> {
-        depth.check_nonempty("depth buffer")?;
-        if let Some(it) = items {
-            depth.check_same_size(it, "depth vs item buffer")?;
-        }
-        if depth.size() != (cam_a.width, cam_a.height) {
-            return Err(Error::invalid(format!(
-                "depth buffer is {}x{} but the source camera renders {}x{}",
-                depth.width(),
-                depth.height(),
-                cam_a.width,
-                cam_a.height
-            )));
-        }
-        if depth.data().iter().any(|d| !d.is_finite()) {
-            return Err(Error::invalid("depth buffer holds NaN or infinite values"));
-        }
+        zwarp_core::motion::check_motion_inputs(depth, items, cam_a)?;
         let dev = &self.ctx.device;
         let n = depth.len();
         self.ctx.check_storage_size((n * std::mem::size_of::<Motion>()) as u64, "motion buffer")?;

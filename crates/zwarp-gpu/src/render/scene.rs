@@ -158,16 +158,7 @@ impl GpuScene {
     /// Per-object motion `M(t_b) M(t_a)^-1` (identity for static objects), as
     /// [`Scene::object_deltas`]: the `object_deltas` input of the motion kernels.
     pub fn object_deltas(&self, t_a: f32, t_b: f32) -> Vec<Mat4> {
-        self.instances
-            .iter()
-            .map(|i| {
-                if i.animation.is_animated() {
-                    i.transform_at(t_b) * i.transform_at(t_a).inverse()
-                } else {
-                    Mat4::IDENTITY
-                }
-            })
-            .collect()
+        self.instances.iter().map(|i| i.delta(t_a, t_b)).collect()
     }
 
     /// `true` if some object is ground geometry (then a peeled stack can end in a ground-only
