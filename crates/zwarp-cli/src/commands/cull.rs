@@ -67,6 +67,9 @@ pub struct CullRow {
     pub object_error_max: f64,
     /// Visible objects culled, summed over the frames.
     pub culled_visible: usize,
+    /// Every visible object the method culled: `{frame, id, pixels}` (its size in the full
+    /// render), so a user can see whether errors are slivers or real objects.
+    pub culled_visible_objects: Vec<serde_json::Value>,
     /// Mean count of pixels whose depth differs from the full render.
     pub pixel_error: f64,
     /// PSNR (dB) of the colour images against the full render over all frames, from the mean
@@ -178,6 +181,14 @@ pub fn run(args: CullArgs) -> Result<()> {
                 object_error: obj_err.iter().sum::<f64>() / nf,
                 object_error_max: obj_err.iter().copied().fold(0.0, f64::max),
                 culled_visible: rs.iter().map(|r| r.accuracy.false_negatives).sum(),
+                culled_visible_objects: rs
+                    .iter()
+                    .flat_map(|r| {
+                        r.culled_visible
+                            .iter()
+                            .map(move |c| serde_json::json!({ "frame": r.frame, "id": c.id, "pixels": c.pixels }))
+                    })
+                    .collect(),
                 pixel_error: rs.iter().map(|r| r.pixel_error as f64).sum::<f64>() / nf,
                 // PSNR of the mean squared error over the frames (`inf` when every frame is
                 // identical to the full render; a mean of per-frame PSNRs would be infinite as
