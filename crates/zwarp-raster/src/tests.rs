@@ -12,23 +12,7 @@ fn quad(p0: Vec3, u: Vec3, v: Vec3) -> Mesh {
 
 /// Closed axis-aligned box.
 fn cube(min: Vec3, max: Vec3) -> Mesh {
-    let b = zwarp_core::Aabb::new(min, max);
-    let c = b.corners();
-    let idx = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    Mesh::new(c.to_vec(), idx).unwrap()
+    crate::scenes::box_mesh(min, max)
 }
 
 fn scene_of(meshes: Vec<(Mesh, Animation, bool)>) -> Scene {
