@@ -53,28 +53,12 @@ impl MotionKernel {
                 source: wgpu::ShaderSource::Wgsl(include_str!("motion.wgsl").into()),
             })
         })?;
-        let buf = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("zwarp motion"),
-            entries: &[
-                buf(0, wgpu::BufferBindingType::Uniform),
-                buf(1, ro),
-                buf(2, ro),
-                buf(3, ro),
-                buf(4, wgpu::BufferBindingType::Storage { read_only: false }),
-            ],
-        });
-        let pl = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("zwarp motion"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let (layout, pl) = super::buffer_layouts(
+            dev,
+            "zwarp motion",
+            &[wgpu::BufferBindingType::Uniform, ro, ro, ro, wgpu::BufferBindingType::Storage { read_only: false }],
+        );
         let pipeline = ctx.catch("building the motion pipeline", || {
             dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("zwarp motion"),

@@ -84,27 +84,12 @@ impl PyramidKernel {
                 source: wgpu::ShaderSource::Wgsl(include_str!("pyramid.wgsl").into()),
             })
         })?;
-        let buf = |binding, ty| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("zwarp pyramid"),
-            entries: &[
-                buf(0, wgpu::BufferBindingType::Uniform),
-                buf(1, ro),
-                buf(2, ro),
-                buf(3, wgpu::BufferBindingType::Storage { read_only: false }),
-            ],
-        });
-        let pl = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("zwarp pyramid"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
+        let (layout, pl) = super::buffer_layouts(
+            dev,
+            "zwarp pyramid",
+            &[wgpu::BufferBindingType::Uniform, ro, ro, wgpu::BufferBindingType::Storage { read_only: false }],
+        );
         let pipe = |entry| {
             dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
