@@ -241,6 +241,59 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     Ok(WarpOutput { depth, state, source })
 }
 
+/// The warp of exactly the listed target pixels (row-major indices `y * w + x`): for each one
+/// the `(depth, state)` that [`warp_prepared`] writes there, bit for bit (seed 000 Sec. 3 per
+/// pixel, with the same 4x4 tile-bound stage of Sec. 3.3 / Fig. 5: the tile bound of each
+/// pixel's tile is computed, and reused while consecutive listed pixels share a tile). For
+/// sparse consumers (soft shadows warp only the receivers' pixels). Parallel over chunks of
+/// the list; output order = input order. Pixels may repeat.
+///
+/// Errors ([`Error::Invalid`]): everything [`warp_prepared`] rejects, a pixel index `>= w * h`,
+/// and [`HolePolicy::Dilate`] (it fills a hole from its converged neighbours, which a sparse
+/// warp does not compute).
+pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]) -> Result<Vec<(f32, PixelState)>> {
+    params.validate()?;
+    if let HolePolicy::Dilate { .. } = params.holes {
+        return Err(Error::invalid(
+            "warp_pixels does not support HolePolicy::Dilate (it needs the neighbouring pixels)",
+        ));
+    }
+    let first = layers.first().ok_or_else(|| Error::invalid("warp_pixels needs at least one layer"))?;
+    let (w, h) = first.size();
+    if let Some((i, l)) = layers.iter().enumerate().find(|(_, l)| l.size() != (w, h)) {
+        return Err(Error::invalid(format!("layer {i} is {}x{} but layer 0 is {w}x{h}", l.size().0, l.size().1)));
+    }
+    let n = w as u64 * h as u64;
+    if let Some(&bad) = pixels.iter().find(|&&i| i as u64 >= n) {
+        return Err(Error::invalid(format!("pixel index {bad} is outside the {w}x{h} image")));
+    }
+    let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
+    let kernel = Kernel { layers, samplers: &samplers, params, w, h };
+    // Chunks of a few tiles' worth of pixels: large enough to amortise the tile stage when the
+    // list is sorted, small enough to balance sparse, unevenly costly lists.
+    const CHUNK: usize = 256;
+    Ok(pixels
+        .par_chunks(CHUNK)
+        .flat_map_iter(|chunk| {
+            let mut tile: Option<(u32, u32)> = None;
+            let mut tile_bounds: Vec<Option<Bound>> = vec![None; layers.len()];
+            chunk
+                .iter()
+                .map(|&i| {
+                    let (x, y) = (i % w, i / w);
+                    let t = (x / TILE, y / TILE);
+                    if tile != Some(t) {
+                        kernel.tile_bounds(t.0 * TILE, t.1 * TILE, &mut tile_bounds);
+                        tile = Some(t);
+                    }
+                    let (z, st, _) = kernel.pixel(x, y, &tile_bounds);
+                    (z, st)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect())
+}
+
 struct Kernel<'a> {
     layers: &'a [PreparedLayer],
     samplers: &'a [LayerSampler<'a>],
@@ -262,6 +315,21 @@ impl Kernel<'_> {
         }
     }
 
+    /// The first tightening stage (Fig. 5 on the union of the tile's search regions) of every
+    /// layer for the tile whose top-left pixel is `(x0, y0)`, clipped to the image.
+    fn tile_bounds(&self, x0: u32, y0: u32, out: &mut [Option<Bound>]) {
+        let x1 = (x0 + TILE).min(self.w) - 1;
+        let y1 = (y0 + TILE).min(self.h) - 1;
+        let p_lo = Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5);
+        let p_hi = Vec2::new(x1 as f32 + 0.5, y1 as f32 + 0.5);
+        let iters = self.bound_iterations();
+        let expand = self.params.sampling.footprint();
+        for (tb, layer) in out.iter_mut().zip(self.layers) {
+            let pyr = &layer.pyramid;
+            *tb = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), iters, expand).map(|t| t.motion);
+        }
+    }
+
     /// Warps the band of rows `ty * TILE ..`: per TILE x TILE tile, tighten the bound of every
     /// layer once for the whole tile (Fig. 5 on the union of the tile's search regions), then
     /// warp each pixel starting its own tightening from the tile's bound. Same per-pixel bounds
@@ -271,18 +339,11 @@ impl Kernel<'_> {
         let w = self.w as usize;
         let rows = (depth.len() / w) as u32;
         let y0 = ty * TILE;
-        let iters = self.bound_iterations();
-        let expand = self.params.sampling.footprint();
         let mut tile_bounds: Vec<Option<Bound>> = vec![None; self.layers.len()];
         for x0 in (0..self.w).step_by(TILE as usize) {
             let x1 = (x0 + TILE).min(self.w) - 1;
             let y1 = y0 + rows - 1;
-            let p_lo = Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5);
-            let p_hi = Vec2::new(x1 as f32 + 0.5, y1 as f32 + 0.5);
-            for (tb, layer) in tile_bounds.iter_mut().zip(self.layers) {
-                let pyr = &layer.pyramid;
-                *tb = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), iters, expand).map(|t| t.motion);
-            }
+            self.tile_bounds(x0, y0, &mut tile_bounds);
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let (z, st, src) = self.pixel(x, y, &tile_bounds);

@@ -31,7 +31,7 @@ pub mod synth;
 
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
-pub use depth_warp::{warp_depth, warp_prepared, PreparedLayer, WarpLayer};
+pub use depth_warp::{warp_depth, warp_pixels, warp_prepared, PreparedLayer, WarpLayer};
 pub use holes::HolePolicy;
 pub use search::{
     fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, Sampling, SearchParams,

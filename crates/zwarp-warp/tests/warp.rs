@@ -484,3 +484,56 @@ proptest! {
         }
     }
 }
+
+/// `warp_pixels` is `warp_prepared` restricted to the listed pixels, bit for bit: random
+/// subsets (unsorted, with repeats), single and multi layer, several N, bounds and hole
+/// policies, image sizes that are not multiples of the 4x4 tile.
+#[test]
+fn warp_pixels_equals_warp_prepared_at_random_subsets() {
+    use rand::{RngExt, SeedableRng};
+    let (w, h) = (46u32, 31u32);
+    let (depths, motions, _, _) = city_case(w, h, 3, true);
+    let layers: Vec<WarpLayer> = depths.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+    let mut rng = rand_pcg::Pcg32::seed_from_u64(11);
+    for (l, bound, n, holes) in [
+        (1, BoundKind::Oriented, 4, HolePolicy::FarDepth),
+        (3, BoundKind::Oriented, 16, HolePolicy::FarDepth),
+        (3, BoundKind::Tight, 8, HolePolicy::Awoc),
+        (2, BoundKind::Global, 4, HolePolicy::FarDepth),
+    ] {
+        let prepared = PreparedLayer::prepare_stack(&layers[..l], bound).unwrap();
+        let params = WarpParams { n_seeds: n, bound, holes, ..Default::default() };
+        let full = warp_prepared(&prepared, &params).unwrap();
+        for count in [1usize, 37, 600, (w * h) as usize] {
+            let pixels: Vec<u32> = (0..count).map(|_| rng.random_range(0..w * h)).collect();
+            let got = warp_pixels(&prepared, &params, &pixels).unwrap();
+            assert_eq!(got.len(), pixels.len());
+            for (&i, &(z, st)) in pixels.iter().zip(&got) {
+                let (x, y) = (i % w, i / w);
+                assert_eq!(z.to_bits(), full.depth.get(x, y).to_bits(), "({x},{y}) L={l} {bound:?}");
+                assert_eq!(st, *full.state.get(x, y), "({x},{y})");
+            }
+        }
+        // The whole image in order.
+        let all: Vec<u32> = (0..w * h).collect();
+        let got = warp_pixels(&prepared, &params, &all).unwrap();
+        assert!(got.iter().zip(full.depth.data()).all(|(g, z)| g.0.to_bits() == z.to_bits()));
+        assert!(got.iter().zip(full.state.data()).all(|(g, s)| g.1 == *s));
+    }
+}
+
+#[test]
+fn warp_pixels_rejects_bad_indices_dilation_and_no_layers() {
+    let d = textured(9, 7);
+    let m = uniform(&d, Vec2::new(1.0, 0.0));
+    let prepared = PreparedLayer::prepare_stack(&[WarpLayer { depth: &d, motion: &m }], BoundKind::Oriented).unwrap();
+    let p = WarpParams::default();
+    let inval = |r: zwarp_core::Result<Vec<(f32, PixelState)>>| matches!(r, Err(Error::Invalid(_)));
+    assert!(inval(warp_pixels(&prepared, &p, &[0, 63])));
+    assert!(inval(warp_pixels(&prepared, &p, &[u32::MAX])));
+    assert!(inval(warp_pixels(&prepared, &WarpParams { holes: HolePolicy::Dilate { radius: 2 }, ..p }, &[0])));
+    assert!(inval(warp_pixels(&[], &p, &[0])));
+    assert!(inval(warp_pixels(&prepared, &WarpParams { n_seeds: 0, ..p }, &[0])));
+    assert_eq!(warp_pixels(&prepared, &p, &[62]).unwrap().len(), 1);
+    assert!(warp_pixels(&prepared, &p, &[]).unwrap().is_empty());
+}
