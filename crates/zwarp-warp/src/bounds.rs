@@ -130,6 +130,19 @@ impl Bound {
         let e = self.extent();
         (e.x + 1.0) * (e.y + 1.0)
     }
+    /// The bound of `{s * u : u in self}` (component-wise product): `[s lo, s hi]` per axis,
+    /// with lo and hi swapped where `s < 0`. Because rounding is monotone, scaling a min-max
+    /// bound gives bit for bit the min-max of the scaled vectors (the mipmap of a scaled motion
+    /// buffer, in the identity frame). Empty stays empty (no `0 * inf` NaN).
+    #[inline]
+    pub fn scaled(&self, s: Vec2) -> Bound {
+        if self.is_empty() {
+            return Bound::EMPTY;
+        }
+        let (a, b) = (s * self.lo, s * self.hi);
+        let neg = s.cmplt(Vec2::ZERO);
+        Bound { lo: Vec2::select(neg, b, a), hi: Vec2::select(neg, a, b) }
+    }
     #[inline]
     fn from_texel(t: &[f32; 4]) -> Bound {
         Bound { lo: Vec2::new(t[0], t[1]), hi: Vec2::new(t[2], t[3]) }
@@ -435,6 +448,26 @@ impl MotionPyramid {
         iterations: u32,
         expand: f32,
     ) -> Option<TightBound> {
+        self.tight_bound_box_scaled(p_lo, p_hi, start, iterations, expand, Vec2::ONE)
+    }
+
+    /// [`Self::tight_bound_box`] for the motion field `scale * v` (component-wise, see
+    /// [`crate::WarpParams::motion_scale`]): every mipmap look-up is scaled with
+    /// [`Bound::scaled`] before the intersection; `start` must already be a bound of the scaled
+    /// motion (e.g. `global().scaled(scale)`). In the identity frame this is bit for bit the
+    /// tightening in the mipmap of the scaled buffer; in a rotated frame only a uniform scale is
+    /// meaningful (`R (s v) = s R v`).
+    #[inline]
+    pub fn tight_bound_box_scaled(
+        &self,
+        p_lo: Vec2,
+        p_hi: Vec2,
+        start: Bound,
+        iterations: u32,
+        expand: f32,
+        scale: Vec2,
+    ) -> Option<TightBound> {
+        let unit = scale == Vec2::ONE;
         let mut b = start;
         if b.is_empty() {
             return None;
@@ -458,7 +491,10 @@ impl MotionPyramid {
         let mut region = region_of(&b);
         let mut range = self.pixel_range(&region, expand)?;
         for _ in 0..iterations {
-            let m = self.lookup_range(range.0, range.1, range.2, range.3);
+            let mut m = self.lookup_range(range.0, range.1, range.2, range.3);
+            if !unit {
+                m = m.scaled(scale);
+            }
             let nb = b.intersect(&m);
             if nb.is_empty() {
                 return None;
@@ -491,7 +527,22 @@ impl MotionPyramid {
         iterations: u32,
         expand: f32,
     ) -> Option<TightBound> {
-        let mut tb = self.tight_bound_box(p_lo, p_hi, start, iterations, expand)?;
+        self.tight_bound_box_with_depth_scaled(p_lo, p_hi, start, iterations, expand, Vec2::ONE)
+    }
+
+    /// [`Self::tight_bound_box_with_depth`] for the scaled motion field (see
+    /// [`Self::tight_bound_box_scaled`]); the min-depth look-up is unaffected by the scale.
+    #[inline]
+    pub fn tight_bound_box_with_depth_scaled(
+        &self,
+        p_lo: Vec2,
+        p_hi: Vec2,
+        start: Bound,
+        iterations: u32,
+        expand: f32,
+        scale: Vec2,
+    ) -> Option<TightBound> {
+        let mut tb = self.tight_bound_box_scaled(p_lo, p_hi, start, iterations, expand, scale)?;
         let r = self.pixel_range(&tb.region, expand)?;
         tb.min_depth = self.lookup_min_depth(r.0, r.1, r.2, r.3);
         Some(tb)
@@ -670,6 +721,31 @@ mod tests {
             // Conservative: the look-up contains the exact range bound.
             assert_eq!(got.union(&want), got);
         }
+    }
+
+    /// Scaling a mipmap bound equals the mipmap of the scaled motion, bit for bit (rounding is
+    /// monotone), for positive, negative and zero factors; empty stays empty.
+    #[test]
+    fn scaled_bound_is_the_bound_of_the_scaled_motion() {
+        let m = random_motion(37, 23, 5, 0.2);
+        let pyr = MotionPyramid::build(&m).unwrap();
+        for s in [Vec2::new(0.5, 1.7), Vec2::new(-1.0, 0.3), Vec2::new(-0.7, -2.5), Vec2::new(0.0, 1.0)] {
+            let ms = m.map(|mm| Motion { v: s * mm.v, depth: mm.depth });
+            let ps = MotionPyramid::build(&ms).unwrap();
+            for level in 1..=pyr.top_level() {
+                let (lw, lh) = pyr.level_size(level);
+                for ty in 0..lh {
+                    for tx in 0..lw {
+                        let (a, b) = (pyr.texel(level, tx, ty).scaled(s), ps.texel(level, tx, ty));
+                        // == (not bits): 0 * negative motion is -0.0, equal to +0.0.
+                        assert_eq!(a, b, "s={s} level {level} ({tx},{ty})");
+                    }
+                }
+            }
+        }
+        assert!(Bound::EMPTY.scaled(Vec2::ZERO).is_empty());
+        let b = Bound { lo: Vec2::new(-1.0, 2.0), hi: Vec2::new(3.0, 5.0) };
+        assert_eq!(b.scaled(Vec2::new(-2.0, 0.5)), Bound { lo: Vec2::new(-6.0, 1.0), hi: Vec2::new(2.0, 2.5) });
     }
 
     #[test]

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{choose_frame, Bound, BoundFrame, MotionPyramid, TightBound};
-use crate::holes::{awoc_depth, dilate_holes, HolePolicy};
+use crate::holes::{awoc_depth, fill_holes, FillRule, HolePolicy};
 use crate::search::{
     effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SearchParams,
     SeedStrategy,
@@ -120,7 +120,7 @@ impl PreparedLayer {
         &self.samples
     }
     fn sampler(&self, params: &WarpParams, tag: u32) -> LayerSampler<'_> {
-        LayerSampler::new(&self.samples, self.w, self.h, params.sampling, tag)
+        LayerSampler::new(&self.samples, self.w, self.h, params.sampling, tag).with_scale(params.motion_scale)
     }
 }
 
@@ -209,6 +209,7 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     if layers.len() > u32::MAX as usize - 1 {
         return Err(Error::invalid("too many layers"));
     }
+    check_motion_scale(layers, params)?;
     let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
     let kernel = Kernel { layers, samplers: &samplers, params, w, h };
 
@@ -234,8 +235,10 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     }
     let mut depth = Image::from_vec(w, h, depth)?;
     let mut state = Image::from_vec(w, h, state)?;
-    if let HolePolicy::Dilate { radius } = params.holes {
-        dilate_holes(&mut depth, &mut state, radius);
+    match params.holes {
+        HolePolicy::Dilate { radius } => fill_holes(&mut depth, &mut state, radius, FillRule::Nearest),
+        HolePolicy::Background { radius } => fill_holes(&mut depth, &mut state, radius, FillRule::Background),
+        HolePolicy::FarDepth | HolePolicy::Awoc => {}
     }
     let source = if params.record_source { Some(Image::from_vec(w, h, source)?) } else { None };
     Ok(WarpOutput { depth, state, source })
@@ -249,13 +252,13 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
 /// the list; output order = input order. Pixels may repeat.
 ///
 /// Errors ([`Error::Invalid`]): everything [`warp_prepared`] rejects, a pixel index `>= w * h`,
-/// and [`HolePolicy::Dilate`] (it fills a hole from its converged neighbours, which a sparse
-/// warp does not compute).
+/// and [`HolePolicy::Dilate`] / [`HolePolicy::Background`] (they fill a hole from its converged
+/// neighbours, which a sparse warp does not compute).
 pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]) -> Result<Vec<(f32, PixelState)>> {
     params.validate()?;
-    if let HolePolicy::Dilate { .. } = params.holes {
+    if let HolePolicy::Dilate { .. } | HolePolicy::Background { .. } = params.holes {
         return Err(Error::invalid(
-            "warp_pixels does not support HolePolicy::Dilate (it needs the neighbouring pixels)",
+            "warp_pixels does not support HolePolicy::Dilate/Background (they need the neighbouring pixels)",
         ));
     }
     let first = layers.first().ok_or_else(|| Error::invalid("warp_pixels needs at least one layer"))?;
@@ -263,6 +266,7 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
     if let Some((i, l)) = layers.iter().enumerate().find(|(_, l)| l.size() != (w, h)) {
         return Err(Error::invalid(format!("layer {i} is {}x{} but layer 0 is {w}x{h}", l.size().0, l.size().1)));
     }
+    check_motion_scale(layers, params)?;
     let n = w as u64 * h as u64;
     if let Some(&bad) = pixels.iter().find(|&&i| i as u64 >= n) {
         return Err(Error::invalid(format!("pixel index {bad} is outside the {w}x{h} image")));
@@ -292,6 +296,20 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
                 .collect::<Vec<_>>()
         })
         .collect())
+}
+
+/// A non-uniform [`WarpParams::motion_scale`] does not commute with the rotation of an
+/// oriented bound frame, so the prepared mipmap would not bound the scaled motion.
+fn check_motion_scale(layers: &[PreparedLayer], params: &WarpParams) -> Result<()> {
+    let s = params.motion_scale;
+    if s.x != s.y {
+        if let Some(k) = layers.iter().position(|l| !l.pyramid.frame().is_identity()) {
+            return Err(Error::invalid(format!(
+                "non-uniform motion_scale {s} needs axis-aligned bounds, but layer {k} has an oriented frame (use BoundKind::Tight)"
+            )));
+        }
+    }
+    Ok(())
 }
 
 struct Kernel<'a> {
@@ -326,7 +344,10 @@ impl Kernel<'_> {
         let expand = self.params.sampling.footprint();
         for (tb, layer) in out.iter_mut().zip(self.layers) {
             let pyr = &layer.pyramid;
-            *tb = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), iters, expand).map(|t| t.motion);
+            let scale = self.params.motion_scale;
+            *tb = pyr
+                .tight_bound_box_scaled(p_lo, p_hi, pyr.global().scaled(scale), iters, expand, scale)
+                .map(|t| t.motion);
         }
     }
 
@@ -364,6 +385,7 @@ impl Kernel<'_> {
         let params = self.params;
         let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let expand = params.sampling.footprint();
+        let scale = params.motion_scale;
         let search = SearchParams {
             iterations: params.iterations,
             threshold: params.threshold,
@@ -387,7 +409,9 @@ impl Kernel<'_> {
             } else if k > 0 && best.is_some() {
                 // A later layer only matters if it can beat the best candidate so far: skip it
                 // when no sample of its search region is nearer (min-depth mipmap look-up).
-                let Some(tb) = pyr.tight_bound_box_with_depth(p, p, start, self.bound_iterations(), expand) else {
+                let Some(tb) =
+                    pyr.tight_bound_box_with_depth_scaled(p, p, start, self.bound_iterations(), expand, scale)
+                else {
                     continue;
                 };
                 if best.is_some_and(|b| tb.min_depth >= b.depth) {
@@ -395,7 +419,9 @@ impl Kernel<'_> {
                 }
                 tb
             } else {
-                let Some(tb) = pyr.tight_bound_box(p, p, start, self.bound_iterations(), expand) else { continue };
+                let Some(tb) = pyr.tight_bound_box_scaled(p, p, start, self.bound_iterations(), expand, scale) else {
+                    continue;
+                };
                 tb
             };
             if params.holes == HolePolicy::Awoc && awoc.is_none() {

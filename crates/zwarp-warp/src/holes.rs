@@ -28,12 +28,39 @@ pub enum HolePolicy {
     /// samples did not converge; it is an approximation that keeps culling effective under
     /// rapid motion ([`PixelState::Filled`]).
     Awoc,
+    /// Sec. 4 protocol for single-layer quality ("the single-layer solution keeps holes (filled
+    /// with the background depth)"): a hole bracketed by converged pixels within `radius` on both
+    /// sides of at least one of the four directions takes the *farthest* of the nearest converged
+    /// pixels found along the eight probes ([`PixelState::Filled`]). A disocclusion sliver lies
+    /// between the occluder and the surface it uncovers; the uncovered surface is the farther
+    /// side. Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
+    /// for culling.
+    Background {
+        /// Search radius in pixels (1..=64).
+        radius: u32,
+    },
+}
+
+/// Which converged neighbour fills a hole in [`fill_holes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FillRule {
+    /// [`HolePolicy::Dilate`]: surrounded in all four directions, nearest neighbour wins.
+    Nearest,
+    /// [`HolePolicy::Background`]: bracketed in one direction, farthest neighbour wins.
+    Background,
 }
 
 /// Dilation of Fig. 8 over a warped buffer: fills [`PixelState::Hole`] pixels surrounded by
 /// [`PixelState::Converged`] ones (see [`HolePolicy::Dilate`]). Only converged pixels are read,
 /// so the result does not depend on the processing order.
 pub fn dilate_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius: u32) {
+    fill_holes(depth, state, radius, FillRule::Nearest)
+}
+
+/// Fills [`PixelState::Hole`] pixels from the nearest [`PixelState::Converged`] pixel along each
+/// of the eight directions within `radius` ([`FillRule`] says which holes and which neighbour).
+/// Only converged pixels are read, so the result does not depend on the processing order.
+pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius: u32, rule: FillRule) {
     let (w, h) = depth.size();
     if w == 0 || h == 0 {
         return;
@@ -62,27 +89,44 @@ pub fn dilate_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radiu
                     }
                     None
                 };
-                let mut best: Option<(f32, f32)> = None; // (distance, depth)
-                let mut surrounded = true;
-                for (dx, dy) in DIRS {
-                    let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
-                    match (probe(dx, dy), probe(-dx, -dy)) {
-                        (Some(a), Some(b)) => {
-                            for (k, z) in [a, b] {
-                                let d = k as f32 * step;
-                                best = match best {
-                                    Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
-                                    _ => Some((d, z)),
-                                };
+                let fill = match rule {
+                    FillRule::Nearest => {
+                        let mut best: Option<(f32, f32)> = None; // (distance, depth)
+                        let mut surrounded = true;
+                        for (dx, dy) in DIRS {
+                            let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
+                            match (probe(dx, dy), probe(-dx, -dy)) {
+                                (Some(a), Some(b)) => {
+                                    for (k, z) in [a, b] {
+                                        let d = k as f32 * step;
+                                        best = match best {
+                                            Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
+                                            _ => Some((d, z)),
+                                        };
+                                    }
+                                }
+                                _ => {
+                                    surrounded = false;
+                                    break;
+                                }
                             }
                         }
-                        _ => {
-                            surrounded = false;
-                            break;
-                        }
+                        best.filter(|_| surrounded).map(|(_, z)| z)
                     }
-                }
-                if let (true, Some((_, z))) = (surrounded, best) {
+                    FillRule::Background => {
+                        let mut farthest: Option<f32> = None;
+                        let mut bracketed = false;
+                        for (dx, dy) in DIRS {
+                            let (a, b) = (probe(dx, dy), probe(-dx, -dy));
+                            bracketed |= a.is_some() && b.is_some();
+                            for (_, z) in a.into_iter().chain(b) {
+                                farthest = Some(farthest.map_or(z, |f: f32| f.max(z)));
+                            }
+                        }
+                        farthest.filter(|_| bracketed)
+                    }
+                };
+                if let Some(z) = fill {
                     drow[x] = z;
                     srow[x] = PixelState::Filled;
                 }
@@ -155,6 +199,29 @@ mod tests {
         assert_eq!(*s1.get(2, 2), PixelState::Hole);
         dilate_holes(&mut d, &mut s, 2);
         assert_eq!((*s.get(2, 2), *d.get(2, 2)), (PixelState::Filled, 0.6));
+    }
+
+    #[test]
+    fn background_fill_takes_the_farther_side_of_a_sliver_and_leaves_open_holes() {
+        // A 2-px disocclusion sliver between a near occluder (0.2) and the uncovered far surface
+        // (0.8): bracketed horizontally, filled with 0.8 even though 0.2 is as near.
+        let (mut d, mut s) = grid(&["22..88", "22..88", "22..88"]);
+        fill_holes(&mut d, &mut s, 2, FillRule::Background);
+        for y in 0..3 {
+            assert_eq!((*s.get(2, y), *d.get(2, y), *d.get(3, y)), (PixelState::Filled, 0.8, 0.8));
+        }
+        // Radius 1 does not bracket a 2-px sliver; the Fig. 8 rule (all four directions) would
+        // not fill it either.
+        let (mut d1, mut s1) = grid(&["22..88", "22..88", "22..88"]);
+        fill_holes(&mut d1, &mut s1, 1, FillRule::Background);
+        assert_eq!((*s1.get(2, 1), *d1.get(2, 1)), (PixelState::Hole, 1.0));
+        let (mut d2, mut s2) = grid(&["22..88", "22..88", "22..88"]);
+        dilate_holes(&mut d2, &mut s2, 2);
+        assert_eq!(*s2.get(2, 1), PixelState::Hole);
+        // A hole open to the border (sky beside a surface) is never bracketed: stays far.
+        let (mut d3, mut s3) = grid(&["55...", "55...", "55..."]);
+        fill_holes(&mut d3, &mut s3, 4, FillRule::Background);
+        assert!(s3.data().iter().filter(|&&st| st == PixelState::Filled).count() == 0);
     }
 
     #[test]

@@ -32,7 +32,7 @@ pub mod synth;
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
 pub use depth_warp::{warp_depth, warp_pixels, warp_prepared, PreparedLayer, WarpLayer};
-pub use holes::HolePolicy;
+pub use holes::{dilate_holes, fill_holes, FillRule, HolePolicy};
 pub use search::{
     fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, Sampling, SearchParams,
     SeedStrategy,
@@ -115,6 +115,16 @@ pub struct WarpParams {
     /// Newton-accelerated fixed-point iteration (see [`search::fixed_point_search`]): converges
     /// under strong magnification where plain iteration needs many more than T iterations.
     pub accelerate: bool,
+    /// Per-axis factor applied to every motion fetch: the warp follows `motion_scale * v(q)`
+    /// (component-wise) instead of `v(q)`, and every motion bound of Sec. 3.3 is scaled alike
+    /// (min and max swap for a negative factor); the samples' target depths are unchanged.
+    /// With an axis-aligned bound frame the result is exactly the warp of the explicitly scaled
+    /// motion buffer, so one [`PreparedLayer`] (one mipmap) serves every multiple of a reference
+    /// field: soft-shadow sample maps whose parallax is a per-axis multiple of one field, or
+    /// frame interpolation by a fraction of the motion. A non-uniform scale (`x != y`) needs
+    /// the identity (AAB) frame — use [`BoundKind::Tight`] — and is rejected otherwise; a
+    /// uniform one works in any frame. Default `Vec2::ONE`.
+    pub motion_scale: glam::Vec2,
 }
 
 impl Default for WarpParams {
@@ -139,6 +149,7 @@ impl Default for WarpParams {
             cross_layer: true,
             record_source: false,
             accelerate: true,
+            motion_scale: glam::Vec2::ONE,
         }
     }
 }
@@ -155,12 +166,15 @@ impl WarpParams {
         if !(self.threshold.is_finite() && self.threshold > 0.0) {
             return Err(Error::invalid(format!("convergence threshold must be > 0, got {}", self.threshold)));
         }
+        if !self.motion_scale.is_finite() {
+            return Err(Error::invalid(format!("motion_scale must be finite, got {}", self.motion_scale)));
+        }
         if let SeedStrategy::Offset(d) = self.seeding {
             if !d.is_finite() {
                 return Err(Error::invalid("seed offset must be finite"));
             }
         }
-        if let HolePolicy::Dilate { radius } = self.holes {
+        if let HolePolicy::Dilate { radius } | HolePolicy::Background { radius } = self.holes {
             if radius == 0 || radius > 64 {
                 return Err(Error::invalid(format!("dilation radius must be in 1..=64, got {radius}")));
             }

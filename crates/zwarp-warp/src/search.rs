@@ -87,6 +87,8 @@ pub struct LayerSampler<'a> {
     h: u32,
     sampling: Sampling,
     tag: u32,
+    /// Component-wise factor on every fetched motion (`WarpParams::motion_scale`).
+    scale: Vec2,
 }
 
 impl<'a> LayerSampler<'a> {
@@ -94,7 +96,15 @@ impl<'a> LayerSampler<'a> {
     /// callers validate sizes first).
     pub fn new(samples: &'a [Motion], w: u32, h: u32, sampling: Sampling, tag: u32) -> Self {
         assert_eq!(samples.len(), w as usize * h as usize, "motion buffer size");
-        LayerSampler { samples, w, h, sampling, tag }
+        LayerSampler { samples, w, h, sampling, tag, scale: Vec2::ONE }
+    }
+
+    /// The same sampler for the motion field `scale * v` (component-wise; see
+    /// `WarpParams::motion_scale`): every texel's motion is scaled before it is interpolated,
+    /// tested for continuity or differentiated, so a fetch equals the fetch from the
+    /// explicitly scaled buffer bit for bit. Depths are unchanged.
+    pub fn with_scale(self, scale: Vec2) -> Self {
+        LayerSampler { scale, ..self }
     }
 
     /// `true` if `q` lies inside the image `[0, w) x [0, h)`.
@@ -124,7 +134,10 @@ impl<'a> LayerSampler<'a> {
             let x0 = ix.saturating_sub(1).min(wm);
             let y0 = iy.saturating_sub(1).min(hm);
             let (x1, y1) = (ix.min(wm), iy.min(hm));
-            let (s00, s10, s01, s11) = (self.at(x0, y0), self.at(x1, y0), self.at(x0, y1), self.at(x1, y1));
+            let sc = |m: &Motion| Motion { v: self.scale * m.v, depth: m.depth };
+            let (s00, s10, s01, s11) =
+                (sc(self.at(x0, y0)), sc(self.at(x1, y0)), sc(self.at(x0, y1)), sc(self.at(x1, y1)));
+            let (s00, s10, s01, s11) = (&s00, &s10, &s01, &s11);
             // Invalid samples carry depth >= 1 (or < 0): one compare per texel.
             let valid = |m: &Motion| m.depth >= 0.0 && m.depth < 1.0;
             if valid(s00) && valid(s10) && valid(s01) && valid(s11) {
@@ -149,7 +162,7 @@ impl<'a> LayerSampler<'a> {
         }
         let m = self.at(xn, yn);
         if m.depth >= 0.0 && m.depth < 1.0 {
-            Some(Sample { v: m.v, depth: m.depth, tag: self.tag, dv: [Vec2::ZERO; 2] })
+            Some(Sample { v: self.scale * m.v, depth: m.depth, tag: self.tag, dv: [Vec2::ZERO; 2] })
         } else {
             None
         }
