@@ -136,7 +136,7 @@ pub fn evaluate(
                         }
                         pcss.clone().ok_or_else(|| Error::invalid("PCSS result missing"))?
                     }
-                    Method::Zwarp => timed(scene, cam, t, light, m, &p, cfg.reps)?,
+                    Method::Zwarp | Method::ZwarpFull => timed(scene, cam, t, light, m, &p, cfg.reps)?,
                 };
                 let ms = tm.ms;
                 let row = EvalRow {

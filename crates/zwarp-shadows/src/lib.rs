@@ -21,6 +21,7 @@
 
 pub mod eval;
 pub mod light;
+pub mod lookups;
 pub mod pcss;
 pub mod shade;
 
@@ -30,22 +31,28 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Result, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
-use zwarp_warp::{warp_prepared, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
+use zwarp_warp::{warp_pixels, warp_prepared, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
 
 pub use eval::{evaluate, EvalConfig, EvalRow};
 pub use light::{
     default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
 };
+pub use lookups::{SparseMap, TexelSet};
 pub use pcss::{pcss_visibility, PcssParams};
-pub use shade::{reconstruct_normals, DepthBias, Receiver, Receivers};
+pub use shade::{reconstruct_normals, texel_of, DepthBias, Receiver, Receivers};
 
 /// How the sample shadow maps (and so the visibility) are obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
     /// S shadow maps rasterized directly (the reference of seed 000, Table 8).
     Reference,
-    /// S shadow maps synthesized by multi-layer depth warping of the peeled centre map (Sec. 6).
+    /// S shadow maps synthesized by multi-layer depth warping of the peeled centre map (Sec. 6),
+    /// each warped only at the texels the receivers look up ([`lookups`]).
     Zwarp,
+    /// As [`Method::Zwarp`], but every sample map is warped in full (all texels of all L
+    /// layers): the path before the lazy synthesis, kept for comparison and for looking at the
+    /// synthesized maps.
+    ZwarpFull,
     /// Percentage-closer soft shadows from the centre map (Fernando 2005).
     Pcss,
 }
@@ -56,6 +63,7 @@ impl Method {
         match self {
             Method::Reference => "reference",
             Method::Zwarp => "zwarp",
+            Method::ZwarpFull => "zwarp-full",
             Method::Pcss => "pcss",
         }
     }
@@ -67,8 +75,11 @@ impl std::str::FromStr for Method {
         match s.to_ascii_lowercase().as_str() {
             "reference" | "ref" => Ok(Method::Reference),
             "zwarp" | "warp" => Ok(Method::Zwarp),
+            "zwarp-full" | "zwarp_full" | "full" => Ok(Method::ZwarpFull),
             "pcss" => Ok(Method::Pcss),
-            other => Err(Error::invalid(format!("unknown shadow method '{other}' (reference, zwarp, pcss)"))),
+            other => {
+                Err(Error::invalid(format!("unknown shadow method '{other}' (reference, zwarp, zwarp-full, pcss)")))
+            }
         }
     }
 }
@@ -310,8 +321,9 @@ impl<'a> ZwarpMaps<'a> {
             .collect()
     }
 
-    /// Warps the layers to sample view `i` (`zwarp_warp::warp_prepared`).
-    pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+    /// The layers of sample view `i` ready to warp: its motion buffers ([`ZwarpMaps::motions`])
+    /// and their mipmaps (`PreparedLayer::new` with the warp's bound kind).
+    pub fn prepared(&mut self, i: usize) -> Result<Vec<PreparedLayer>> {
         let t0 = Instant::now();
         let motions = self.motions(i)?;
         self.motion_ms += ms_since(t0);
@@ -322,10 +334,50 @@ impl<'a> ZwarpMaps<'a> {
             .zip(&motions)
             .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, self.params.bound))
             .collect::<Result<Vec<_>>>()?;
+        self.warp_ms += ms_since(t1);
+        Ok(prepared)
+    }
+
+    /// Warps the layers to sample view `i` (`zwarp_warp::warp_prepared`): the full map.
+    pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+        let prepared = self.prepared(i)?;
+        let t1 = Instant::now();
         let out = warp_prepared(&prepared, &self.params)?;
         self.warp_ms += ms_since(t1);
         Ok(out)
     }
+
+    /// Warps the layers to sample view `i` at the texels `sparse` collected
+    /// ([`SparseMap::collect`]) with `zwarp_warp::warp_pixels`, then applies the hole policy
+    /// there ([`SparseMap::dilate`] for the dilation). The depth at those texels equals
+    /// [`ZwarpMaps::map`]`(i)` bit for bit.
+    pub fn warp_sparse(&mut self, i: usize, sparse: &mut SparseMap) -> Result<()> {
+        let prepared = self.prepared(i)?;
+        let t1 = Instant::now();
+        let r = sparse_warp(&prepared, &self.params, sparse);
+        self.warp_ms += ms_since(t1);
+        r
+    }
+}
+
+/// `warp_pixels` at the texels of `sparse` plus the hole policy (the dilation needs the
+/// neighbours of holes, warped on demand; the other policies are per pixel).
+fn sparse_warp(layers: &[PreparedLayer], params: &WarpParams, sparse: &mut SparseMap) -> Result<()> {
+    if sparse.texels().is_empty() {
+        return Ok(());
+    }
+    let radius = match params.holes {
+        HolePolicy::Dilate { radius } => Some(radius),
+        _ => None,
+    };
+    let per_pixel = WarpParams { holes: if radius.is_some() { HolePolicy::FarDepth } else { params.holes }, ..*params };
+    let texels = sparse.texels().to_vec();
+    let values = warp_pixels(layers, &per_pixel, &texels)?;
+    sparse.scatter(&texels, &values);
+    if let Some(r) = radius {
+        sparse.dilate(r, |extra| warp_pixels(layers, &per_pixel, extra))?;
+    }
+    Ok(())
 }
 
 /// Soft shadows of `scene` at time `t` seen by `cam`, lit by `light` (seed 000, Sec. 6).
@@ -370,6 +422,25 @@ pub fn run_shadows(
             recv.visibility_image(&lit, rig.samples() as u32)
         }
         Method::Zwarp => {
+            let t1 = Instant::now();
+            let mut maps = ZwarpMaps::new(scene, &rig, t, params)?;
+            tm.render = ms_since(t1);
+            let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
+            for i in 0..rig.samples() {
+                let t2 = Instant::now();
+                sparse.collect(&recv, rig.shifts[i]);
+                tm.visibility += ms_since(t2);
+                maps.warp_sparse(i, &mut sparse)?;
+                warp_holes += sparse.holes();
+                let t2 = Instant::now();
+                recv.accumulate(&sparse.depth, rig.shifts[i], &mut lit);
+                tm.visibility += ms_since(t2);
+            }
+            tm.motion = maps.motion_ms;
+            tm.warp = maps.warp_ms;
+            recv.visibility_image(&lit, rig.samples() as u32)
+        }
+        Method::ZwarpFull => {
             let t1 = Instant::now();
             let mut maps = ZwarpMaps::new(scene, &rig, t, params)?;
             tm.render = ms_since(t1);

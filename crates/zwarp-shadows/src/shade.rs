@@ -149,6 +149,21 @@ pub fn reconstruct_normals(frame: &Frame, cam: &Camera) -> Image<Vec3> {
     out
 }
 
+/// The texel (row-major index) receiver `r` reads in the `mw x mh` map of the sample with pixel
+/// shift `shift`: `floor(p_c + shift g)`, or `None` outside the map (the receiver is then lit).
+/// The one definition shared by [`Receivers::accumulate`] and the lazy synthesis
+/// ([`crate::lookups::SparseMap::collect`]), so both touch exactly the same texels.
+#[inline]
+pub fn texel_of(r: &Receiver, shift: Vec2, mw: u32, mh: u32) -> Option<u32> {
+    let p = r.p_c + shift * r.g;
+    let (fx, fy) = (p.x.floor(), p.y.floor());
+    if fx < 0.0 || fy < 0.0 || fx >= mw as f32 || fy >= mh as f32 {
+        None
+    } else {
+        Some(fy as u32 * mw + fx as u32)
+    }
+}
+
 impl Receivers {
     /// Builds the receivers of a camera frame (depth + items of `cam`) for a light rig.
     ///
@@ -223,12 +238,9 @@ impl Receivers {
         let data = map.data();
         lit.par_chunks_mut(4096).zip(self.list.par_chunks(4096)).for_each(|(acc, recv)| {
             for (a, r) in acc.iter_mut().zip(recv) {
-                let p = r.p_c + shift * r.g;
-                let (fx, fy) = (p.x.floor(), p.y.floor());
-                let lit_here = if fx < 0.0 || fy < 0.0 || fx >= mw as f32 || fy >= mh as f32 {
-                    true
-                } else {
-                    data[fy as usize * mw as usize + fx as usize] >= r.threshold
+                let lit_here = match texel_of(r, shift, mw, mh) {
+                    None => true,
+                    Some(t) => data[t as usize] >= r.threshold,
                 };
                 *a += lit_here as u32;
             }

@@ -1,0 +1,370 @@
+//! Lazy synthesis of the sample shadow maps: warp only the texels the receivers look up
+//! (seed 000, Sec. 6; the per-pixel independence of backward warping, Sec. 3.2).
+//!
+//! A backward warp computes every target pixel independently (Fig. 3: one fixed-point search
+//! per pixel), so a sample map is only needed where some receiver reads it: texel
+//! `floor(p_c + K_i g)` of every receiver ([`crate::Receivers::accumulate`]). At 2048^2 maps and
+//! a 640x360 camera that is at most 230K of 4.2M texels. [`SparseMap`] collects those texels per
+//! sample ([`TexelSet`], in 4x4-tile order so that consecutive texels share the warp's tile
+//! bound stage), and holds the warped depth at exactly those texels in a full-size buffer whose
+//! other texels are never read.
+//!
+//! **Holes.** The dilation of Fig. 8 ([`zwarp_warp::HolePolicy::Dilate`]) fills a hole from its
+//! nearest converged neighbours along four directions, which a sparse warp does not compute.
+//! [`SparseMap::dilate`] warps the missing neighbours of the holes (a second, much smaller
+//! sparse warp) and applies the same rule as `zwarp_warp::holes::dilate_holes`, so the sparse
+//! maps equal the full maps at every looked-up texel, bit for bit (tested).
+
+use glam::Vec2;
+use zwarp_core::{Image, EMPTY_DEPTH};
+use zwarp_warp::PixelState;
+
+use crate::shade::{texel_of, Receivers};
+
+/// Side of the tiles a [`TexelSet`] orders its texels by (the warp's tile-bound stage works on
+/// 4x4 tiles and reuses a tile's bound while consecutive listed pixels share it).
+pub const TEXEL_TILE: u32 = 4;
+
+/// A set of texels of a `w x h` map: one 16-bit mask per 4x4 tile, listed in tile-major order
+/// (tiles row by row, the texels of a tile row by row). Insertion is a bit set; listing scans
+/// the masks (1/16 of the texel count), so collecting the look-ups of 230K receivers costs well
+/// under a millisecond even for 2048^2 maps.
+#[derive(Clone, Debug)]
+pub struct TexelSet {
+    w: u32,
+    h: u32,
+    tiles_x: u32,
+    masks: Vec<u16>,
+    len: usize,
+}
+
+impl TexelSet {
+    /// An empty set over a `w x h` map.
+    pub fn new(w: u32, h: u32) -> Self {
+        let tiles_x = w.div_ceil(TEXEL_TILE);
+        let tiles_y = h.div_ceil(TEXEL_TILE);
+        TexelSet { w, h, tiles_x, masks: vec![0; tiles_x as usize * tiles_y as usize], len: 0 }
+    }
+
+    /// Map size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.w, self.h)
+    }
+
+    /// Number of texels in the set.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the set is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    #[inline]
+    fn slot(&self, x: u32, y: u32) -> (usize, u16) {
+        let tile = (y / TEXEL_TILE) * self.tiles_x + x / TEXEL_TILE;
+        (tile as usize, 1u16 << ((y % TEXEL_TILE) * TEXEL_TILE + x % TEXEL_TILE))
+    }
+
+    /// Adds texel `(x, y)` (must be inside the map); returns whether it was new.
+    #[inline]
+    pub fn insert(&mut self, x: u32, y: u32) -> bool {
+        debug_assert!(x < self.w && y < self.h);
+        let (t, bit) = self.slot(x, y);
+        let new = self.masks[t] & bit == 0;
+        self.masks[t] |= bit;
+        self.len += new as usize;
+        new
+    }
+
+    /// Whether texel `(x, y)` is in the set (false outside the map).
+    #[inline]
+    pub fn contains(&self, x: u32, y: u32) -> bool {
+        if x >= self.w || y >= self.h {
+            return false;
+        }
+        let (t, bit) = self.slot(x, y);
+        self.masks[t] & bit != 0
+    }
+
+    /// Appends the row-major indices `y * w + x` of the set's texels to `out`, in tile-major
+    /// order (see the type docs).
+    pub fn list_into(&self, out: &mut Vec<u32>) {
+        out.reserve(self.len);
+        for (t, &m) in self.masks.iter().enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let (tx, ty) = (t as u32 % self.tiles_x, t as u32 / self.tiles_x);
+            let mut m = m;
+            while m != 0 {
+                let b = m.trailing_zeros();
+                m &= m - 1;
+                let (x, y) = (tx * TEXEL_TILE + b % TEXEL_TILE, ty * TEXEL_TILE + b / TEXEL_TILE);
+                out.push(y * self.w + x);
+            }
+        }
+    }
+
+    /// Removes every texel.
+    pub fn clear(&mut self) {
+        if self.len > 0 {
+            self.masks.fill(0);
+            self.len = 0;
+        }
+    }
+}
+
+/// One sample map known only at the texels the receivers look up (see the module docs).
+///
+/// Reused across samples: [`SparseMap::collect`] resets it for the next sample.
+#[derive(Clone, Debug)]
+pub struct SparseMap {
+    /// Depth at the looked-up texels (and at the hole neighbours warped for the dilation);
+    /// every other texel holds a stale value that [`Receivers::accumulate`] never reads.
+    pub depth: Image<f32>,
+    state: Vec<PixelState>,
+    wanted: TexelSet,
+    extra: TexelSet,
+    list: Vec<u32>,
+    extra_list: Vec<u32>,
+}
+
+impl SparseMap {
+    /// An empty sparse map of a `w x h` shadow map.
+    pub fn new(w: u32, h: u32) -> Self {
+        SparseMap {
+            depth: Image::new(w, h, EMPTY_DEPTH),
+            state: vec![PixelState::Hole; w as usize * h as usize],
+            wanted: TexelSet::new(w, h),
+            extra: TexelSet::new(w, h),
+            list: Vec::new(),
+            extra_list: Vec::new(),
+        }
+    }
+
+    /// Collects the texels the receivers read in the map of the sample with pixel shift `shift`
+    /// (exactly the texels [`Receivers::accumulate`] reads; receivers outside the map read
+    /// nothing). Returns how many distinct texels that is.
+    pub fn collect(&mut self, recv: &Receivers, shift: Vec2) -> usize {
+        self.wanted.clear();
+        self.extra.clear();
+        self.list.clear();
+        self.extra_list.clear();
+        let (w, h) = self.depth.size();
+        for r in &recv.list {
+            if let Some(t) = texel_of(r, shift, w, h) {
+                self.wanted.insert(t % w, t / w);
+            }
+        }
+        self.wanted.list_into(&mut self.list);
+        self.list.len()
+    }
+
+    /// The looked-up texels of the current sample (row-major indices, tile-major order).
+    pub fn texels(&self) -> &[u32] {
+        &self.list
+    }
+
+    /// Writes warp results for `texels` (same order) into the map.
+    pub fn scatter(&mut self, texels: &[u32], values: &[(f32, PixelState)]) {
+        let depth = self.depth.data_mut();
+        for (&t, &(z, s)) in texels.iter().zip(values) {
+            depth[t as usize] = z;
+            self.state[t as usize] = s;
+        }
+    }
+
+    /// The state at texel `t` (only meaningful at warped texels).
+    pub fn state(&self, t: u32) -> PixelState {
+        self.state[t as usize]
+    }
+
+    /// Number of looked-up texels that are [`PixelState::Hole`].
+    pub fn holes(&self) -> usize {
+        self.list.iter().filter(|&&t| self.state[t as usize] == PixelState::Hole).count()
+    }
+
+    /// Fig. 8 dilation of radius `radius` at the looked-up holes. `warp` computes the
+    /// undilated warp (far-depth holes) at a list of texels; it is called once, for the texels
+    /// within `radius` of a hole along the four dilation directions that were not looked up
+    /// (nothing is called when there are no holes). Same rule and tie-breaking as
+    /// `zwarp_warp::holes::dilate_holes`: only converged neighbours are read, so filling holes
+    /// in place does not change the result.
+    pub fn dilate(
+        &mut self,
+        radius: u32,
+        mut warp: impl FnMut(&[u32]) -> zwarp_core::Result<Vec<(f32, PixelState)>>,
+    ) -> zwarp_core::Result<()> {
+        let (w, h) = self.depth.size();
+        let r = radius as i64;
+        const DIRS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
+        let holes: Vec<u32> =
+            self.list.iter().copied().filter(|&t| self.state[t as usize] == PixelState::Hole).collect();
+        if holes.is_empty() {
+            return Ok(());
+        }
+        for &t in &holes {
+            let (x, y) = ((t % w) as i64, (t / w) as i64);
+            for (dx, dy) in DIRS {
+                for s in [-1i64, 1] {
+                    for k in 1..=r {
+                        let (xx, yy) = (x + s * dx * k, y + s * dy * k);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            break;
+                        }
+                        if !self.wanted.contains(xx as u32, yy as u32) {
+                            self.extra.insert(xx as u32, yy as u32);
+                        }
+                    }
+                }
+            }
+        }
+        let mut extra = std::mem::take(&mut self.extra_list);
+        extra.clear();
+        self.extra.list_into(&mut extra);
+        if !extra.is_empty() {
+            let values = warp(&extra)?;
+            self.scatter(&extra, &values);
+        }
+        self.extra_list = extra;
+        let depth = self.depth.data_mut();
+        for &t in &holes {
+            let (x, y) = ((t % w) as i64, (t / w) as i64);
+            let probe = |dx: i64, dy: i64| -> Option<(i64, f32)> {
+                for k in 1..=r {
+                    let (xx, yy) = (x + dx * k, y + dy * k);
+                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                        return None;
+                    }
+                    let i = yy as usize * w as usize + xx as usize;
+                    if self.state[i] == PixelState::Converged {
+                        return Some((k, depth[i]));
+                    }
+                }
+                None
+            };
+            let mut best: Option<(f32, f32)> = None; // (distance, depth)
+            let mut surrounded = true;
+            for (dx, dy) in DIRS {
+                let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
+                match (probe(dx, dy), probe(-dx, -dy)) {
+                    (Some(a), Some(b)) => {
+                        for (k, z) in [a, b] {
+                            let d = k as f32 * step;
+                            best = match best {
+                                Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
+                                _ => Some((d, z)),
+                            };
+                        }
+                    }
+                    _ => {
+                        surrounded = false;
+                        break;
+                    }
+                }
+            }
+            if let (true, Some((_, z))) = (surrounded, best) {
+                depth[t as usize] = z;
+                self.state[t as usize] = PixelState::Filled;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The set holds exactly the inserted texels, lists each once in tile-major order, and
+        /// `clear` empties it (odd sizes: partial tiles on the right and bottom).
+        #[test]
+        fn texel_set_lists_each_inserted_texel_once(
+            w in 1u32..23, h in 1u32..19, pts in proptest::collection::vec((0u32..64, 0u32..64), 0..80),
+        ) {
+            let mut set = TexelSet::new(w, h);
+            let mut want = std::collections::BTreeSet::new();
+            for (x, y) in pts {
+                let (x, y) = (x % w, y % h);
+                prop_assert_eq!(set.insert(x, y), want.insert((x, y)));
+            }
+            prop_assert_eq!(set.len(), want.len());
+            let mut list = Vec::new();
+            set.list_into(&mut list);
+            prop_assert_eq!(list.len(), want.len());
+            let key = |t: u32| {
+                let (x, y) = (t % w, t / w);
+                (y / TEXEL_TILE, x / TEXEL_TILE, y % TEXEL_TILE, x % TEXEL_TILE)
+            };
+            prop_assert!(list.windows(2).all(|p| key(p[0]) < key(p[1])), "not tile-major: {:?}", list);
+            for &t in &list {
+                prop_assert!(want.contains(&(t % w, t / w)));
+                prop_assert!(set.contains(t % w, t / w));
+            }
+            prop_assert!(!set.contains(w, 0) && !set.contains(0, h));
+            set.clear();
+            prop_assert!(set.is_empty());
+            list.clear();
+            set.list_into(&mut list);
+            prop_assert!(list.is_empty());
+        }
+    }
+
+    /// The sparse dilation equals `zwarp_warp::holes::dilate_holes` at the looked-up texels of
+    /// a random map of converged pixels and holes.
+    #[test]
+    fn sparse_dilation_equals_full_dilation() {
+        let (w, h) = (37u32, 29u32);
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            rng
+        };
+        let mut full_depth = Image::new(w, h, EMPTY_DEPTH);
+        let mut full_state = Image::new(w, h, PixelState::Hole);
+        for i in 0..(w * h) as usize {
+            if next() % 4 != 0 {
+                full_depth.data_mut()[i] = (next() % 1000) as f32 / 1000.0;
+                full_state.data_mut()[i] = PixelState::Converged;
+            }
+        }
+        let undilated: Vec<(f32, PixelState)> =
+            full_depth.data().iter().copied().zip(full_state.data().iter().copied()).collect();
+        let (mut dd, mut ds) = (full_depth.clone(), full_state.clone());
+        zwarp_warp::holes::dilate_holes(&mut dd, &mut ds, 2);
+        assert!(ds.data().contains(&PixelState::Filled) && ds.data().contains(&PixelState::Hole));
+        // Look up a random third of the texels.
+        let mut sparse = SparseMap::new(w, h);
+        for t in 0..w * h {
+            if next() % 3 == 0 {
+                sparse.wanted.insert(t % w, t / w);
+            }
+        }
+        sparse.wanted.list_into(&mut sparse.list);
+        let list = sparse.list.clone();
+        let vals: Vec<_> = list.iter().map(|&t| undilated[t as usize]).collect();
+        sparse.scatter(&list, &vals);
+        let mut calls = 0;
+        sparse
+            .dilate(2, |ts| {
+                calls += 1;
+                // Only texels that were not looked up are requested.
+                assert!(ts.iter().all(|t| !list.contains(t)));
+                Ok(ts.iter().map(|&t| undilated[t as usize]).collect())
+            })
+            .unwrap();
+        assert_eq!(calls, 1);
+        for &t in &list {
+            assert_eq!(sparse.state(t), ds.data()[t as usize], "texel {t}");
+            assert_eq!(sparse.depth.data()[t as usize].to_bits(), dd.data()[t as usize].to_bits(), "texel {t}");
+        }
+        assert_eq!(sparse.holes(), list.iter().filter(|&&t| ds.data()[t as usize] == PixelState::Hole).count());
+    }
+}
