@@ -31,7 +31,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Result, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
-use zwarp_warp::{warp_pixels, warp_prepared, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
+use zwarp_warp::{warp_pixels, warp_prepared, BoundKind, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
 
 pub use eval::{evaluate, EvalConfig, EvalRow};
 pub use light::{
@@ -107,8 +107,15 @@ pub struct ShadowParams {
     /// Generalized umbra culling while peeling (Sec. 3.4).
     pub umbra: bool,
     /// Motion of each sample view as the scaled parallax field (one `motion_field` per layer,
-    /// see [`ZwarpMaps`]) instead of one `motion_field` per layer and sample.
+    /// see [`ZwarpMaps`]) instead of one `motion_field` per layer and sample (per-sample
+    /// mipmaps only; the shared mipmap always uses the reference field).
     pub parallax_motion: bool,
+    /// One motion mipmap for all samples ([`ZwarpMaps`]): each layer is prepared once from the
+    /// reference parallax field with axis-aligned tight bounds, and sample `i` is warped with
+    /// `WarpParams::motion_scale = K_i / K_ref`. Otherwise every sample gets its own scaled
+    /// motion buffers and mipmaps (oriented bounds). [`Method::ZwarpFull`] always uses the
+    /// latter (the path before the lazy synthesis).
+    pub shared_mipmap: bool,
     /// Depth bias of the shadow test.
     pub bias: DepthBias,
     /// Seed of the sample jitter.
@@ -137,6 +144,7 @@ impl Default for ShadowParams {
             holes: HolePolicy::Dilate { radius: 2 },
             umbra: true,
             parallax_motion: true,
+            shared_mipmap: true,
             bias: DepthBias::default(),
             seed: 1,
             jitter: true,
@@ -244,11 +252,23 @@ pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> Pee
 /// towards a reference offset `o_ref` and each sample's field is that field scaled per axis by
 /// `K_i / K_ref` (a multiply per pixel instead of an unproject + project); without it,
 /// `motion_field` runs per layer and sample. A test checks both agree to 1e-3 px.
+///
+/// **One mipmap for all samples** ([`ShadowParams::shared_mipmap`], default). Scaling a field
+/// per axis scales its per-axis min-max bounds alike, so the min-max motion mipmap of the
+/// reference field, built once per layer, bounds every sample's field once its look-ups are
+/// scaled by `K_i / K_ref` (`WarpParams::motion_scale`; exact only in the axis-aligned frame,
+/// hence [`BoundKind::Tight`] there). The per-sample cost is then only the fixed-point searches
+/// — at the looked-up texels ([`ZwarpMaps::warp_sparse`]). `K_ref` has no zero component: the
+/// reference offset is `(e, e)`, `e` = the emitter's half diagonal (1 for a point emitter).
+/// A test checks it equals warping the explicitly scaled buffers with their own AAB mipmaps,
+/// bit for bit.
 pub struct ZwarpMaps<'a> {
     rig: &'a LightRig,
     layers: Vec<Layer>,
-    /// Per layer: motion to the reference offset camera (parallax mode).
+    /// Per layer: motion to the reference offset camera (parallax mode, shared mipmap).
     reference: Vec<Image<Motion>>,
+    /// Per layer: the reference field prepared once (shared mipmap), else empty.
+    shared: Vec<PreparedLayer>,
     k_ref: Vec2,
     params: WarpParams,
     /// Accumulated time of the motion buffers (ms).
@@ -275,12 +295,13 @@ impl<'a> ZwarpMaps<'a> {
             rig,
             layers,
             reference: Vec::new(),
+            shared: Vec::new(),
             k_ref: Vec2::ZERO,
             params: params.warp_params(),
             motion_ms: 0.0,
             warp_ms: 0.0,
         };
-        if params.parallax_motion {
+        if params.parallax_motion || params.shared_mipmap {
             let t0 = Instant::now();
             let m = rig.max_offset();
             let (cam_ref, k_ref) = rig.offset_camera(Vec2::splat(if m > 0.0 { m } else { 1.0 }));
@@ -291,6 +312,16 @@ impl<'a> ZwarpMaps<'a> {
                 .collect::<Result<Vec<_>>>()?;
             maps.k_ref = k_ref;
             maps.motion_ms += ms_since(t0);
+        }
+        if params.shared_mipmap {
+            let t0 = Instant::now();
+            maps.shared = maps
+                .layers
+                .iter()
+                .zip(&maps.reference)
+                .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, BoundKind::Tight))
+                .collect::<Result<Vec<_>>>()?;
+            maps.warp_ms += ms_since(t0);
         }
         Ok(maps)
     }
@@ -338,11 +369,33 @@ impl<'a> ZwarpMaps<'a> {
         Ok(prepared)
     }
 
+    /// Whether the layers are prepared once for all samples ([`ShadowParams::shared_mipmap`]).
+    pub fn shares_mipmap(&self) -> bool {
+        !self.shared.is_empty()
+    }
+
+    /// The warp parameters of sample view `i`: with the shared mipmap, axis-aligned tight
+    /// bounds and `motion_scale = K_i / K_ref`; otherwise the maps' own parameters.
+    pub fn sample_params(&self, i: usize) -> Result<WarpParams> {
+        let shift = *self.rig.shifts.get(i).ok_or_else(|| Error::invalid(format!("no light sample {i}")))?;
+        if self.shared.is_empty() {
+            return Ok(self.params);
+        }
+        Ok(WarpParams { bound: BoundKind::Tight, motion_scale: shift / self.k_ref, ..self.params })
+    }
+
     /// Warps the layers to sample view `i` (`zwarp_warp::warp_prepared`): the full map.
     pub fn map(&mut self, i: usize) -> Result<WarpOutput> {
+        let params = self.sample_params(i)?;
+        if self.shares_mipmap() {
+            let t1 = Instant::now();
+            let out = warp_prepared(&self.shared, &params)?;
+            self.warp_ms += ms_since(t1);
+            return Ok(out);
+        }
         let prepared = self.prepared(i)?;
         let t1 = Instant::now();
-        let out = warp_prepared(&prepared, &self.params)?;
+        let out = warp_prepared(&prepared, &params)?;
         self.warp_ms += ms_since(t1);
         Ok(out)
     }
@@ -352,9 +405,16 @@ impl<'a> ZwarpMaps<'a> {
     /// there ([`SparseMap::dilate`] for the dilation). The depth at those texels equals
     /// [`ZwarpMaps::map`]`(i)` bit for bit.
     pub fn warp_sparse(&mut self, i: usize, sparse: &mut SparseMap) -> Result<()> {
+        let params = self.sample_params(i)?;
+        if self.shares_mipmap() {
+            let t1 = Instant::now();
+            let r = sparse_warp(&self.shared, &params, sparse);
+            self.warp_ms += ms_since(t1);
+            return r;
+        }
         let prepared = self.prepared(i)?;
         let t1 = Instant::now();
-        let r = sparse_warp(&prepared, &self.params, sparse);
+        let r = sparse_warp(&prepared, &params, sparse);
         self.warp_ms += ms_since(t1);
         r
     }
@@ -442,7 +502,7 @@ pub fn run_shadows(
         }
         Method::ZwarpFull => {
             let t1 = Instant::now();
-            let mut maps = ZwarpMaps::new(scene, &rig, t, params)?;
+            let mut maps = ZwarpMaps::new(scene, &rig, t, &ShadowParams { shared_mipmap: false, ..*params })?;
             tm.render = ms_since(t1);
             for i in 0..rig.samples() {
                 let out = maps.map(i)?;

@@ -359,10 +359,11 @@ fn layer_valid(layers: &[zwarp_raster::Layer], layer: usize, k: usize) -> bool {
 #[test]
 fn lazy_visibility_equals_full_map_visibility_exactly() {
     let mut filled_seen = 0usize;
-    for (directional, starved) in [(false, false), (true, false), (false, true)] {
+    let cases = [(false, false, true), (true, false, true), (false, true, true), (false, true, false)];
+    for (directional, starved, shared_mipmap) in cases {
         let (scene, cam, mut light) = boxes_scene();
         light.directional = directional;
-        let p = ShadowParams { samples: 16, sm_size: 192, ..ShadowParams::default() };
+        let p = ShadowParams { samples: 16, sm_size: 192, shared_mipmap, ..ShadowParams::default() };
         let p = if starved { ShadowParams { n_seeds: 1, iterations: 1, ..p } } else { p };
         let rig = LightRig::new(&scene, 0.0, &light, p.samples, p.sm_size, p.seed, p.jitter).unwrap();
         let frame = zwarp_raster::render_frame(&scene, &cam, 0.0, &Default::default()).unwrap();
@@ -388,11 +389,59 @@ fn lazy_visibility_equals_full_map_visibility_exactly() {
         assert_eq!(lit_full, lit_lazy);
         assert!(lit_full.iter().any(|&l| l > 0 && l < 16), "no penumbra: the test would be vacuous");
         eprintln!("directional {directional}: {looked_up} texels looked up over 16 samples");
-        // run_shadows gives the same visibility through both methods.
-        let a = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
-        let b = run_shadows(&scene, &cam, 0.0, &light, Method::ZwarpFull, &p).unwrap();
-        assert_eq!(a.visibility, b.visibility);
-        assert_eq!(a.image, b.image);
+        if !shared_mipmap {
+            // run_shadows gives the same visibility through both methods (ZwarpFull always
+            // uses per-sample mipmaps).
+            let a = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
+            let b = run_shadows(&scene, &cam, 0.0, &light, Method::ZwarpFull, &p).unwrap();
+            assert_eq!(a.visibility, b.visibility);
+            assert_eq!(a.image, b.image);
+        }
     }
     assert!(filled_seen > 0, "no dilated hole among the looked-up texels: the dilation path is untested");
+}
+
+/// One motion mipmap for all samples: warping the reference field's prepared layers with
+/// `motion_scale = K_i / K_ref` equals warping each sample's explicitly scaled motion buffers
+/// with their own axis-aligned mipmaps, bit for bit at every looked-up texel (local and
+/// directional lights, samples with negative and mixed-sign scales).
+#[test]
+fn shared_mipmap_equals_per_sample_scaled_mipmaps() {
+    for directional in [false, true] {
+        let (scene, cam, mut light) = boxes_scene();
+        light.directional = directional;
+        let p = ShadowParams { samples: 16, sm_size: 160, ..ShadowParams::default() };
+        let rig = LightRig::new(&scene, 0.0, &light, p.samples, p.sm_size, p.seed, p.jitter).unwrap();
+        let frame = zwarp_raster::render_frame(&scene, &cam, 0.0, &Default::default()).unwrap();
+        let recv = Receivers::build(&frame, &cam, &scene, &rig, &p.bias).unwrap();
+        let mut maps = ZwarpMaps::new(&scene, &rig, 0.0, &p).unwrap();
+        assert!(maps.shares_mipmap());
+        let mut sparse = SparseMap::new(p.sm_size, p.sm_size);
+        let mut signs = std::collections::HashSet::new();
+        for i in 0..rig.samples() {
+            let sp = maps.sample_params(i).unwrap();
+            signs.insert((sp.motion_scale.x < 0.0, sp.motion_scale.y < 0.0));
+            sparse.collect(&recv, rig.shifts[i]);
+            maps.warp_sparse(i, &mut sparse).unwrap();
+            // The per-sample path: scaled buffers, own AAB mipmaps, unit scale.
+            let motions = maps.motions(i).unwrap();
+            let own: Vec<PreparedLayer> = maps
+                .layers()
+                .iter()
+                .zip(&motions)
+                .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, BoundKind::Tight).unwrap())
+                .collect();
+            let wp = WarpParams { bound: BoundKind::Tight, ..p.warp_params() };
+            let full = warp_prepared(&own, &wp).unwrap();
+            for &t in sparse.texels() {
+                assert_eq!(
+                    sparse.depth.data()[t as usize].to_bits(),
+                    full.depth.data()[t as usize].to_bits(),
+                    "directional {directional} sample {i} texel {t}"
+                );
+                assert_eq!(sparse.state(t), full.state.data()[t as usize]);
+            }
+        }
+        assert!(signs.len() >= 3, "the samples do not exercise mixed-sign scales: {signs:?}");
+    }
 }
