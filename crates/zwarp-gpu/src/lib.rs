@@ -28,8 +28,12 @@ pub mod render;
 pub mod timer;
 
 pub use compute::{
-    GpuMotionPyramid, GpuWarpLayer, GpuWarpOutput, MotionInput, MotionKernel, PyramidKernel, WarpKernel, MAX_GPU_LAYERS,
+    CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass, GpuMaxDepth, GpuMotionPyramid, GpuWarpLayer,
+    GpuWarpOutput, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel,
+    MAX_GPU_LAYERS,
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
-pub use render::{DepthTarget, FrameOptions, GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer, Shading, Umbra};
+pub use render::{
+    DepthTarget, FrameOptions, GpuFrame, GpuScene, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
+};
 pub use timer::{GpuTimer, TimingMethod, TimingStats};

@@ -1,10 +1,14 @@
 //! GPU compute kernels, each the WGSL twin of a CPU function (DESIGN.md "One kernel, many
 //! callers": tests compare them on the same inputs).
 
+mod cull;
+mod maxdepth;
 mod motion;
 mod pyramid;
 mod warp;
 
+pub use cull::{CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass};
+pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
 pub use warp::{GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};

@@ -171,6 +171,17 @@ fn color_target(ctx: &GpuContext, w: u32, h: u32, format: wgpu::TextureFormat, l
     })
 }
 
+/// How culled objects are drawn from indirect arguments (see [`Renderer::indirect_mode`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IndirectMode {
+    /// `multi_draw_indexed_indirect_count` over the compacted arguments (needs
+    /// `MULTI_DRAW_INDIRECT_COUNT`).
+    Count,
+    /// `multi_draw_indexed_indirect` over one argument slot per object, zero instances for
+    /// culled ones.
+    Slots,
+}
+
 /// The GPU rasterizer: pipelines for depth-only, frame (depth + item + colour) and peel passes.
 pub struct Renderer {
     ctx: GpuContext,
@@ -499,6 +510,104 @@ impl Renderer {
         pass.set_bind_group(0, &bind, &[]);
         Self::draw(&mut pass, scene, None);
         Ok(())
+    }
+
+    /// How [`Renderer::encode_depth_indirect`] draws on this device: with
+    /// `multi_draw_indexed_indirect_count` over the compacted arguments when the device has
+    /// `MULTI_DRAW_INDIRECT_COUNT`, else one `multi_draw_indexed_indirect` over every draw slot
+    /// (culled slots hold zero instances).
+    pub fn indirect_mode(&self) -> IndirectMode {
+        if self.ctx.device.features().contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
+            IndirectMode::Count
+        } else {
+            IndirectMode::Slots
+        }
+    }
+
+    /// Records a depth-only pass (as [`Renderer::encode_depth`]) that draws only the objects a
+    /// [`crate::CullKernel`] kept, straight from its indirect arguments in `culled` (thesis seed
+    /// 002 Sec. IV.3: the visible list becomes indirect draw commands, no CPU round trip).
+    /// `culled` must come from [`crate::CullObjects::for_scene`] of this scene. Needs the
+    /// `INDIRECT_FIRST_INSTANCE` feature (each draw names its object through its first
+    /// instance); `mode` [`IndirectMode::Count`] also needs `MULTI_DRAW_INDIRECT_COUNT`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_depth_indirect(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        target: &DepthTarget,
+        culled: &crate::CullOutput,
+        mode: IndirectMode,
+    ) -> Result<()> {
+        let features = self.ctx.device.features();
+        if !features.contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
+            return Err(Error::Unavailable(format!(
+                "{} lacks INDIRECT_FIRST_INSTANCE, needed for culled indirect draws",
+                self.ctx.adapter.name
+            )));
+        }
+        if mode == IndirectMode::Count && !features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
+            return Err(Error::Unavailable(format!("{} lacks MULTI_DRAW_INDIRECT_COUNT", self.ctx.adapter.name)));
+        }
+        if culled.len() != scene.object_count() {
+            return Err(Error::invalid(format!(
+                "cull output holds {} objects but the scene has {}",
+                culled.len(),
+                scene.object_count()
+            )));
+        }
+        self.check_camera(camera)?;
+        if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
+            return Err(Error::invalid(format!(
+                "depth target is {}x{} but the camera renders {}x{}",
+                target.texture.width(),
+                target.texture.height(),
+                camera.width,
+                camera.height
+            )));
+        }
+        scene.write_objects(&self.ctx, camera, t)?;
+        let bind = self.scene_bind_group(scene);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("zwarp depth-only indirect"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        });
+        pass.set_pipeline(&self.depth_pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        let n = culled.len() as u32;
+        match mode {
+            IndirectMode::Count => pass.multi_draw_indexed_indirect_count(&culled.draw_args, 0, &culled.counter, 0, n),
+            IndirectMode::Slots => pass.multi_draw_indexed_indirect(&culled.slot_args, 0, n),
+        }
+        Ok(())
+    }
+
+    /// Depth-only render of the objects `culled` kept (see [`Renderer::encode_depth_indirect`]),
+    /// read back. The cull must have been submitted before (or recorded into the same queue).
+    pub fn render_depth_indirect(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        culled: &crate::CullOutput,
+        mode: IndirectMode,
+    ) -> Result<Image<f32>> {
+        let target = DepthTarget::new(&self.ctx, camera.width, camera.height)?;
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        self.encode_depth_indirect(&mut enc, scene, camera, t, &target, culled, mode)?;
+        let buf = self.depth_to_buffer(&mut enc, &target)?;
+        self.ctx.queue.submit([enc.finish()]);
+        self.read_depth(&buf, camera.width, camera.height)
     }
 
     /// Records a copy of `depth` into `dst` as f32 with `stride` elements per row (bit-exact;

@@ -5,7 +5,7 @@ mod depth;
 mod scene;
 
 pub use depth::{
-    DepthTarget, FrameOptions, GpuFrame, LayerTargets, PeelOptions, Renderer, Shading, Umbra, COLOR_FORMAT,
-    DEPTH_FORMAT, ITEM_FORMAT,
+    DepthTarget, FrameOptions, GpuFrame, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
+    COLOR_FORMAT, DEPTH_FORMAT, ITEM_FORMAT,
 };
 pub use scene::GpuScene;

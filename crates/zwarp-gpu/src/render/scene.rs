@@ -40,6 +40,10 @@ pub struct GpuScene {
     pub(crate) draw_ids: wgpu::Buffer,
     pub(crate) objects: wgpu::Buffer,
     pub(crate) batches: Vec<Batch>,
+    /// Per object id: `(first_index, index_count, base_vertex as u32, draw slot)`, the draw
+    /// the batches issue for it (slot = its position in `draw_ids`); the cull kernel's
+    /// indirect arguments are built from these.
+    pub(crate) draws: Vec<[u32; 4]>,
     instances: Vec<Instance>,
     triangles: usize,
 }
@@ -81,9 +85,11 @@ impl GpuScene {
             (inst.is_ground, inst.mesh, i)
         });
         let mut batches: Vec<Batch> = Vec::new();
+        let mut draws = vec![[0u32; 4]; order.len()];
         for (slot, &id) in order.iter().enumerate() {
             let inst = &scene.instances[id as usize];
             let (first_index, index_count, base_vertex) = mesh_ranges[inst.mesh as usize];
+            draws[id as usize] = [first_index, index_count, base_vertex as u32, slot as u32];
             if index_count == 0 {
                 continue;
             }
@@ -140,6 +146,7 @@ impl GpuScene {
             draw_ids,
             objects,
             batches,
+            draws,
             instances: scene.instances.clone(),
             triangles: scene.triangle_count(),
         })
