@@ -50,7 +50,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         ts: vec![3],
         bounds: vec![BoundKind::Oriented],
         methods: vec!["ours".into(), "vfw".into(), "afw".into()],
-        holes: zwarp_warp::HolePolicy::FarDepth,
+        holes: None, // the paper's protocol: background fill at L = 1, holes kept at L > 1
         umbra: true,
         reps: 3,
         backend: crate::args::Backend::Cpu,

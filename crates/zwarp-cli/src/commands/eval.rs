@@ -47,9 +47,12 @@ pub struct EvalArgs {
     /// Methods (comma list of ours, vfw, afw).
     #[arg(long, default_value = "ours,vfw,afw")]
     pub methods: String,
-    /// Hole policy of our warp: `far` (far depth, the paper's protocol for Tables 1-3: "keeps
-    /// holes", dilation disabled), `dilate` (Fig. 8) or `awoc` (Sec. 5.3).
-    #[arg(long, default_value = "far")]
+    /// Hole policy of our warp: `paper` (Sec. 4's protocol for Tables 1-3: "the single-layer
+    /// solution keeps holes (filled with the background depth), the multi-layer solutions use
+    /// deep depth buffers", dilation disabled: `background` for L = 1, `far` for L > 1), `far`
+    /// (far depth everywhere), `dilate` (Fig. 8), `awoc` (Sec. 5.3) or `background` (holes
+    /// bracketed within 4 px take the farther neighbour's depth).
+    #[arg(long, default_value = "paper")]
     pub holes: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
     #[arg(long, default_value = "umbra")]
@@ -136,13 +139,22 @@ pub struct EvalPlan {
     pub ts: Vec<u32>,
     pub bounds: Vec<BoundKind>,
     pub methods: Vec<String>,
-    pub holes: HolePolicy,
+    /// `None` = the paper's protocol per L (see [`EvalPlan::holes_for`]).
+    pub holes: Option<HolePolicy>,
     pub umbra: bool,
     pub reps: usize,
     pub backend: Backend,
     pub width: u32,
     pub height: u32,
     pub images: Option<PathBuf>,
+}
+
+impl EvalPlan {
+    /// The hole policy of our warp with `l` layers: the explicit `--holes`, or the paper's Sec. 4
+    /// protocol (background fill for L = 1, holes kept at the far depth for L > 1).
+    pub fn holes_for(&self, l: usize) -> HolePolicy {
+        self.holes.unwrap_or(if l <= 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth })
+    }
 }
 
 fn bound_name(b: BoundKind) -> &'static str {
@@ -158,6 +170,7 @@ fn hole_name(h: HolePolicy) -> &'static str {
         HolePolicy::FarDepth => "far",
         HolePolicy::Dilate { .. } => "dilate",
         HolePolicy::Awoc => "awoc",
+        HolePolicy::Background { .. } => "background",
     }
 }
 
@@ -194,10 +207,12 @@ impl EvalArgs {
             }
         }
         let holes = match self.holes.as_str() {
-            "far" => HolePolicy::FarDepth,
-            "dilate" => HolePolicy::Dilate { radius: 4 },
-            "awoc" => HolePolicy::Awoc,
-            o => bail!("--holes: unknown hole policy '{o}' (far, dilate, awoc)"),
+            "paper" => None,
+            "far" => Some(HolePolicy::FarDepth),
+            "dilate" => Some(HolePolicy::Dilate { radius: 4 }),
+            "awoc" => Some(HolePolicy::Awoc),
+            "background" => Some(HolePolicy::Background { radius: 4 }),
+            o => bail!("--holes: unknown hole policy '{o}' (paper, far, dilate, awoc, background)"),
         };
         let umbra = match self.peel.as_str() {
             "umbra" => true,
@@ -452,7 +467,7 @@ pub fn evaluate(
                                             n_seeds: n,
                                             iterations: t,
                                             bound,
-                                            holes: HolePolicy::FarDepth,
+                                            holes: plan.holes_for(l),
                                             ..WarpParams::default()
                                         };
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
@@ -486,7 +501,7 @@ pub fn evaluate(
                 l: key.1,
                 t: key.3,
                 bound: key.4.map_or("-", bound_name).to_string(),
-                holes: if key.4.is_some() { hole_name(plan.holes).to_string() } else { "-".to_string() },
+                holes: if key.4.is_some() { hole_name(plan.holes_for(key.1)).to_string() } else { "-".to_string() },
                 speed,
                 frames: pairs.len(),
                 width: plan.width,
