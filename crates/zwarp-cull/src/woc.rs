@@ -20,12 +20,12 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
-use zwarp_warp::{warp_depth, HolePolicy, Sampling, WarpLayer, WarpParams};
+use zwarp_warp::{warp_depth, HolePolicy, PixelState, Sampling, SourcePos, WarpLayer, WarpParams};
 
 use crate::frustum::Frustum;
 use crate::maxdepth::{erode_max, MaxDepthKind, MaxDepthMap, MaxDepthQuery};
@@ -77,6 +77,8 @@ pub struct WocParams {
     /// strictly conservative choice (any opening can expose a pixel centre); the default keeps
     /// a 2x margin below the smallest threshold that failed.
     pub open_rims: Option<f32>,
+    /// Where the opening rims become far (see [`RimMode`]). Default [`RimMode::Target`].
+    pub rim_mode: RimMode,
     /// Rapid-motion threshold in pixels per frame (thesis Sec. IV.1): objects whose AABB
     /// corners move more than this on screen are drawn directly into the predicted depth and
     /// kept visible. `None` disables the path. Default 19.2 px, the thesis' 0.02 of the
@@ -108,6 +110,23 @@ pub struct WocParams {
 /// Largest accepted [`WocParams::downsample`].
 pub const MAX_DOWNSAMPLE: u32 = 8;
 
+/// Where WOC turns *opening rims* (near-side texels of boundaries between two objects that
+/// separate, [`opening_rim_dirs`]) into far depth. Both keep sub-pixel disocclusions open
+/// (seed 000 Sec. 5: holes stay at the far depth); they differ in how much else they open.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RimMode {
+    /// Drop the whole rim texel from the source before the warp ([`opening_rims`]): its 1x1
+    /// footprint becomes a hole in the target, which the erosion then widens by a pixel on each
+    /// side. Simple and safe, but on a scene where everything moves (BL) it opens ~10 points of
+    /// culling ratio more than needed.
+    Source,
+    /// Warp the unchanged source, then, after the erosion, set to far only the target pixels
+    /// whose exact preimage lies in the *outer* part of a rim texel, towards the separating
+    /// neighbour ([`open_rims_in_target`]): exactly where the disocclusion can show through.
+    #[default]
+    Target,
+}
+
 impl Default for WocParams {
     fn default() -> Self {
         WocParams {
@@ -121,6 +140,7 @@ impl Default for WocParams {
             erosion: true,
             erosion_radius: 1,
             open_rims: Some(0.1),
+            rim_mode: RimMode::Target,
             rapid_motion_px: Some(19.2),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
@@ -551,13 +571,20 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let t0 = Instant::now();
     let mut wp = params.warp;
     wp.holes = if params.awoc { HolePolicy::Awoc } else { params.warp.holes };
-    wp.record_source = false;
+    let rim_dirs = match params.open_rims {
+        Some(sep) => Some(opening_rim_dirs(prev_depth, prev_items, &motion, sep)?),
+        None => None,
+    };
+    let target_rims = rim_dirs.as_ref().filter(|_| params.rim_mode == RimMode::Target);
+    // The target rule needs each pixel's source texel.
+    wp.record_source = target_rims.is_some();
     let rimmed;
-    let src_depth = if let Some(sep) = params.open_rims {
-        rimmed = opening_rims(prev_depth, prev_items, &motion, sep)?;
-        &rimmed
-    } else {
-        prev_depth
+    let src_depth = match &rim_dirs {
+        Some(dirs) if params.rim_mode == RimMode::Source => {
+            rimmed = blank_rims(prev_depth, dirs);
+            &rimmed
+        }
+        _ => prev_depth,
     };
     let warped = warp_depth(&[WarpLayer { depth: src_depth, motion: &motion }], &wp)?;
     tm.warp_ms = ms(t0);
@@ -566,8 +593,9 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     //    boundaries, thesis Fig. 4).
     let t0 = Instant::now();
     let erode_late = f > 1;
+    let (warped_depth, warped_state, warped_source) = (warped.depth, warped.state, warped.source);
     let mut predicted =
-        if params.erosion && !erode_late { erode_n(warped.depth, params.erosion_radius) } else { warped.depth };
+        if params.erosion && !erode_late { erode_n(warped_depth, params.erosion_radius) } else { warped_depth };
     tm.erosion_ms = ms(t0);
 
     // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
@@ -599,6 +627,14 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         tm.erosion_ms += ms(t0);
     }
 
+    // 4b. Opening rims in the target, after the erosion: these pixels are exactly where a
+    //     disocclusion can show through, so they need no further margin.
+    if let (Some(dirs), Some(src)) = (target_rims, warped_source.as_ref()) {
+        let t0 = Instant::now();
+        open_rims_in_target(&mut predicted, src, &warped_state, &motion, dirs)?;
+        tm.warp_ms += ms(t0);
+    }
+
     // 5. Max-depth structure.
     let t0 = Instant::now();
     let map = MaxDepthMap::build(params.max_depth, &predicted)?;
@@ -627,30 +663,42 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
 }
 
-/// Source-side conservative hole opening for WOC (seed 000 Sec. 5: "depth holes are
-/// conservatively kept at the far-clipping depth"). Returns `depth` with every *opening rim*
-/// texel set to [`EMPTY_DEPTH`]: a texel `c` with an 8-neighbour `c'` that shows a different,
-/// farther object (both non-empty) such that their motions separate them,
-/// `(v(c) - v(c')) . (c - c') > 0`.
+/// The 8 neighbour offsets `(dx, dy)` of [`opening_rim_dirs`]; bit `k` of a direction mask
+/// stands for `NEIGHBOURS[k]`.
+pub const NEIGHBOURS: [(i32, i32); 8] = [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)];
+
+/// How far (pixels, along the unit neighbour direction) behind a rim texel's centre a preimage
+/// still counts as "outer" in [`open_rims_in_target`]. A rim texel's centre is covered by its
+/// object; for a locally straight edge with outward normal `n`, the uncovered part of the
+/// texel lies in `(q - c) . n > 0`. The nearest of the 8 neighbour directions `d` is within
+/// 22.5 degrees of `n` (and that neighbour is not covered), so over the texel
+/// (`|q - c| <= 0.71`) the uncovered part satisfies `(q - c) . d >= -0.71 sin 22.5 = -0.27`.
+pub const RIM_MARGIN: f32 = 0.3;
+
+/// Opening-rim directions of the previous frame (seed 000 Sec. 5, "depth holes are
+/// conservatively kept at the far-clipping depth", applied to sub-pixel holes): for every
+/// texel `c`, bit `k` is set when its neighbour `c' = c + NEIGHBOURS[k]` shows a different,
+/// farther object (both non-empty) and their motions separate them by more than
+/// `min_separation` pixels per frame, `(v(c) - v(c')) . (c - c') > min_separation`.
 ///
 /// Why: the backward warp accepts a source texel whose forward position is within half a
 /// pixel of a target pixel centre, i.e. every texel carries a 1x1 footprint. Where a near
 /// object `A` slides away from a farther object `B` by less than a pixel per frame, the strip
 /// between them is a disocclusion (what is behind is unknown: `B`'s hidden part or anything
-/// farther), but the footprints of `A`'s rim and `B`'s rim still cover it, so the warp fills
-/// it with `A`'s depth and no hole appears; the 1-pixel erosion cannot reopen it because both
-/// sides are near. Dropping `A`'s rim texels (the ones whose true edge position is unknown
-/// within a pixel) turns that strip into a far hole, which the erosion then widens.
-/// Boundaries against empty pixels need nothing (the empty side is already a far hole), and
-/// closing boundaries (`A` moving over `B`) cannot reveal anything.
+/// farther), but the footprint of `A`'s rim texel still covers it, so the warp fills it with
+/// `A`'s depth and no hole appears; the 1-pixel erosion cannot reopen it because both sides are
+/// near. (`B`'s rim texel's footprint starts where `B`'s visible part starts, so only the near
+/// side needs care.) Boundaries against empty pixels need nothing (the empty side is already a
+/// far hole that the erosion widens), and closing boundaries (`A` moving over `B`) reveal
+/// nothing.
 ///
-/// Errors: sizes differ.
-pub fn opening_rims(
+/// Errors: sizes differ, negative or non-finite threshold.
+pub fn opening_rim_dirs(
     depth: &Image<f32>,
     items: &Image<u32>,
     motion: &Image<zwarp_core::Motion>,
     min_separation: f32,
-) -> Result<Image<f32>> {
+) -> Result<Image<u8>> {
     if !(min_separation.is_finite() && min_separation >= 0.0) {
         return Err(Error::invalid(format!("rim separation threshold must be >= 0 pixels, got {min_separation}")));
     }
@@ -658,36 +706,123 @@ pub fn opening_rims(
     depth.check_same_size(motion, "depth vs motion buffer")?;
     let (w, h) = depth.size();
     let (wi, hi) = (w as i64, h as i64);
-    let out: Vec<f32> = (0..depth.data().len())
-        .into_par_iter()
-        .map(|i| {
-            let d = depth.data()[i];
-            let id = items.data()[i];
+    let (dd, it, mv) = (depth.data(), items.data(), motion.data());
+    let mut out = vec![0u8; dd.len()];
+    out.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+        let y = y as i64;
+        for (x, o) in row.iter_mut().enumerate() {
+            let x = x as i64;
+            let i = (y * wi + x) as usize;
+            let (d, id) = (dd[i], it[i]);
             if d >= EMPTY_DEPTH || id == NO_ITEM {
-                return d;
+                continue;
             }
-            let (x, y) = ((i as i64) % wi, (i as i64) / wi);
-            let v = motion.data()[i].v;
-            for (dx, dy) in [(-1i64, -1i64), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
-                let (xx, yy) = (x + dx, y + dy);
+            let v = mv[i].v;
+            let mut mask = 0u8;
+            for (k, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
+                let (xx, yy) = (x + dx as i64, y + dy as i64);
                 if !(0..wi).contains(&xx) || !(0..hi).contains(&yy) {
                     continue;
                 }
                 let j = (yy * wi + xx) as usize;
-                let (dn, idn) = (depth.data()[j], items.data()[j]);
+                let (dn, idn) = (dd[j], it[j]);
                 if idn == NO_ITEM || idn == id || dn >= EMPTY_DEPTH || dn <= d {
                     continue;
                 }
                 // c - c' = (-dx, -dy): positive when c moves away from c' relative to it.
-                let rel = v - motion.data()[j].v;
+                let rel = v - mv[j].v;
                 if -(rel.x * dx as f32 + rel.y * dy as f32) > min_separation {
-                    return EMPTY_DEPTH;
+                    mask |= 1 << k;
                 }
             }
-            d
-        })
-        .collect();
+            *o = mask;
+        }
+    });
     Image::from_vec(w, h, out)
+}
+
+/// `depth` with every texel that has an opening-rim direction set to [`EMPTY_DEPTH`].
+fn blank_rims(depth: &Image<f32>, dirs: &Image<u8>) -> Image<f32> {
+    let data = depth.data().par_iter().zip(dirs.data().par_iter()).map(|(&d, &m)| if m != 0 { EMPTY_DEPTH } else { d });
+    Image::from_vec(depth.width(), depth.height(), data.collect()).expect("same size as depth")
+}
+
+/// Source-side opening rims ([`RimMode::Source`]): `depth` with every texel that has an
+/// opening-rim direction ([`opening_rim_dirs`]) set to [`EMPTY_DEPTH`], so the warp leaves a
+/// hole over its whole footprint.
+///
+/// Errors: sizes differ, negative or non-finite threshold.
+pub fn opening_rims(
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    motion: &Image<zwarp_core::Motion>,
+    min_separation: f32,
+) -> Result<Image<f32>> {
+    let dirs = opening_rim_dirs(depth, items, motion, min_separation)?;
+    Ok(blank_rims(depth, &dirs))
+}
+
+/// Target-side opening rims ([`RimMode::Target`]): sets to [`EMPTY_DEPTH`] every pixel `p` of
+/// `predicted` (the warped, possibly eroded depth) that converged on a source texel `c` with
+/// opening-rim directions `dirs` (from [`opening_rim_dirs`]) and whose exact preimage
+/// `q* = p - v(c)` lies on the outer side of `c`, `(q* - c) . d >= -RIM_MARGIN` for one of the
+/// texel's unit opening directions `d`. Returns how many pixels were opened.
+///
+/// Why this is enough: with nearest motion sampling the texel moves rigidly by `v(c)`, so `p`
+/// shows the point `q*` of texel `c`. If `q*` is covered by `c`'s object (the inner side of
+/// its centre, which the object covers), `p` truly shows that object's surface moved by its
+/// own motion; only preimages beyond the texel centre towards the separating neighbour can be
+/// uncovered, i.e. be the disocclusion strip ([`RIM_MARGIN`] covers oblique edges). The
+/// pixels opened are the strip itself, so unlike [`RimMode::Source`] they are set after the
+/// erosion and are not widened.
+///
+/// Errors: sizes differ.
+pub fn open_rims_in_target(
+    predicted: &mut Image<f32>,
+    source: &Image<SourcePos>,
+    state: &Image<PixelState>,
+    motion: &Image<zwarp_core::Motion>,
+    dirs: &Image<u8>,
+) -> Result<usize> {
+    predicted.check_same_size(source, "predicted depth vs warp sources")?;
+    predicted.check_same_size(state, "predicted depth vs warp states")?;
+    motion.check_same_size(dirs, "motion vs rim directions")?;
+    let w = predicted.width();
+    let (sw, sh) = motion.size();
+    let unit: [Vec2; 8] = NEIGHBOURS.map(|(dx, dy)| Vec2::new(dx as f32, dy as f32).normalize());
+    let (src, st, mv, dm) = (source.data(), state.data(), motion.data(), dirs.data());
+    let opened: usize = predicted
+        .data_mut()
+        .par_chunks_mut(w as usize)
+        .enumerate()
+        .map(|(y, row)| {
+            let mut n = 0;
+            for (x, d) in row.iter_mut().enumerate() {
+                let i = y * w as usize + x;
+                if st[i] != PixelState::Converged || *d >= EMPTY_DEPTH {
+                    continue;
+                }
+                let q = src[i].q;
+                let (cx, cy) = (q.x.floor(), q.y.floor());
+                if !(cx >= 0.0 && cy >= 0.0 && cx < sw as f32 && cy < sh as f32) {
+                    continue;
+                }
+                let c = cy as usize * sw as usize + cx as usize;
+                let mask = dm[c];
+                if mask == 0 {
+                    continue;
+                }
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let local = p - mv[c].v - Vec2::new(cx + 0.5, cy + 0.5);
+                if (0..8).any(|k| mask & (1 << k) != 0 && local.dot(unit[k]) >= -RIM_MARGIN) {
+                    *d = EMPTY_DEPTH;
+                    n += 1;
+                }
+            }
+            n
+        })
+        .sum();
+    Ok(opened)
 }
 
 /// `radius` steps of the 3x3 max erosion ([`erode_max`]): a `(2 radius + 1)^2` max filter.

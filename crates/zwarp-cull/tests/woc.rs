@@ -2,13 +2,15 @@
 //! rendered with zwarp-raster at non-power-of-two sizes.
 
 use glam::{Mat4, Vec3};
-use zwarp_core::{Aabb, Animation, Camera, Image, Mesh, Scene};
+use zwarp_core::{motion_field, Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, culled_visible, downsample_max, hybrid_cull,
-    ideal_screen_space, lastframe, nocull, opening_rims, reference, run_sequence, screen_rect, screen_speed, summarize,
-    twophase, vfc_cull, visible_from_items, woc, MaxDepthKind, Method, PrevFrame, ScreenRect, WocParams,
+    ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
+    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind,
+    Method, PrevFrame, RimMode, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
+use zwarp_warp::{warp_depth, WarpLayer, WarpParams};
 
 const W: u32 = 96;
 const H: u32 = 61;
@@ -506,4 +508,85 @@ fn opening_rims_drop_the_near_side_of_separating_boundaries_only() {
     assert!(opening_rims(&depth, &small, &mot(0.0, 0.0), 0.0).is_err());
     let bad = WocParams { open_rims: Some(-1.0), ..WocParams::default() };
     assert!(bad.validate().is_err());
+}
+
+/// Orthographic camera looking down -z with exactly 0.1 world units per pixel: pixel column
+/// `i` spans world x `[0.1 i - 4.8, 0.1 (i + 1) - 4.8)`.
+fn ortho_cam() -> Camera {
+    Camera::orthographic(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 0.05 * H as f32, 0.1, 100.0, W, H).unwrap()
+}
+
+/// Analytic sub-pixel opening: a near box A (id 0) and a farther box B (id 1) abut on screen at
+/// pixel x = 48.7; a narrow box C (id 2) far behind the seam is hidden. A slides left 0.4 px in
+/// one frame, opening the strip [48.3, 48.7) that holds the centre of pixel column 48: REF sees
+/// C there. The warp fills the strip from A's rim texel (column 48, preimage 48.9 within half a
+/// pixel) and the erosion only raises it to B's depth, so without rims C is culled; both rim
+/// modes keep it, and the target mode opens exactly column 48.
+#[test]
+fn separating_objects_keep_what_the_opening_shows() {
+    let v = Vec3::new(-0.04 / DT, 0.0, 0.0);
+    let x = |px: f32| 0.1 * px - 4.8;
+    let s = scene_of(&[
+        (Aabb::new(Vec3::new(x(10.0), -2.0, 1.0), Vec3::new(x(48.7), 2.0, 1.5)), Animation::Linear { velocity: v }),
+        bx([x(48.7), -2.0, -1.0], [x(85.0), 2.0, -0.5]),
+        bx([x(48.0), -1.0, -5.0], [x(49.2), 1.0, -4.0]),
+    ]);
+    let cam = ortho_cam();
+    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    assert_eq!(visible_from_items(&prev.items, 3), vec![0, 1], "C is hidden in the previous frame");
+    let cur = render_frame(&s, &cam, DT, &FrameOptions::default()).unwrap();
+    assert_eq!(*cur.items.get(48, 30), 2, "C shows through the strip");
+    assert_eq!(visible_from_items(&cur.items, 3), vec![0, 1, 2]);
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
+    let norims = woc(&s, &pf, &cam, DT, &WocParams { open_rims: None, ..WocParams::default() }).unwrap();
+    assert_eq!(norims.visible, vec![0, 1], "without rims the strip is closed and C is culled");
+    for mode in [RimMode::Target, RimMode::Source] {
+        let r = woc(&s, &pf, &cam, DT, &WocParams { rim_mode: mode, ..WocParams::default() }).unwrap();
+        assert_eq!(r.visible, vec![0, 1, 2], "{mode:?}");
+    }
+    // The target rule opens column 48 (the strip) on the rows A and B share, nothing else.
+    let deltas = s.object_deltas(0.0, DT);
+    let motion = motion_field(&prev.depth, Some(&prev.items), &cam, &cam, &deltas).unwrap();
+    let dirs = opening_rim_dirs(&prev.depth, &prev.items, &motion, 0.1).unwrap();
+    let rim_texels: Vec<(u32, u32)> =
+        (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| *dirs.get(x, y) != 0).collect();
+    assert!(!rim_texels.is_empty() && rim_texels.iter().all(|&(x, _)| x == 48), "{rim_texels:?}");
+    // Column 48's opening neighbours are to the right (bits of (1,-1), (1,0), (1,1)).
+    assert!(rim_texels.iter().all(|&(x, y)| *dirs.get(x, y) & !0b1001_0100 == 0));
+    let wp = WarpParams { record_source: true, ..WocParams::default().warp };
+    let warped = warp_depth(&[WarpLayer { depth: &prev.depth, motion: &motion }], &wp).unwrap();
+    let mut predicted = warped.depth.clone();
+    let src = warped.source.as_ref().unwrap();
+    let n = open_rims_in_target(&mut predicted, src, &warped.state, &motion, &dirs).unwrap();
+    let opened: Vec<(u32, u32)> = (0..H)
+        .flat_map(|y| (0..W).map(move |x| (x, y)))
+        .filter(|&(x, y)| *predicted.get(x, y) != *warped.depth.get(x, y))
+        .collect();
+    assert_eq!(n, opened.len());
+    assert!(opened.iter().all(|&(x, _)| x == 48) && opened.len() == rim_texels.len(), "{opened:?}");
+    // Errors: mismatched sizes.
+    let small = Image::new(3, 3, 0u8);
+    assert!(open_rims_in_target(&mut predicted, src, &warped.state, &motion, &small).is_err());
+    assert!(opening_rim_dirs(&prev.depth, &prev.items, &motion, -0.5).is_err());
+}
+
+/// Where the warp is exact (no camera or object motion), WOC without erosion culls exactly what
+/// the ideal screen-space test culls, opens no rim, and with the default erosion keeps a
+/// superset.
+#[test]
+fn static_view_culls_what_the_ideal_test_culls() {
+    let s = random_scene(5);
+    let cam = cam_at(Vec3::new(1.0, 3.0, 17.0), Vec3::new(0.0, 1.0, 0.0));
+    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
+    let ideal = ideal_screen_space(&s, &prev.depth, &cam, 0.0).unwrap();
+    assert!(ideal.stats.occlusion_culled > 3, "the scene must have occluded objects");
+    let exact = WocParams { erosion: false, max_depth: MaxDepthKind::NBuffer, ..WocParams::default() };
+    let r = woc(&s, &pf, &cam, 0.0, &exact).unwrap();
+    assert_eq!(r.visible, ideal.visible);
+    let map = r.occlusion_map.as_ref().unwrap();
+    let err = map.data().iter().zip(prev.depth.data()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(err < 1e-6, "the warp reproduces the frame (max error {err})");
+    let d = woc(&s, &pf, &cam, 0.0, &WocParams::default()).unwrap();
+    assert!(ideal.visible.iter().all(|id| d.visible.contains(id)));
 }
