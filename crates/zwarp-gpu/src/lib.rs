@@ -29,8 +29,8 @@ pub mod timer;
 
 pub use compute::{
     CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass, GpuMaxDepth, GpuMotionPyramid, GpuWarpLayer,
-    GpuWarpOutput, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel,
-    MAX_GPU_LAYERS,
+    GpuWarpOutput, HoleFillKernel, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel,
+    WarpKernel, MAX_GPU_LAYERS,
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{

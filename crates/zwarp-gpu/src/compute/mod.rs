@@ -2,12 +2,14 @@
 //! callers": tests compare them on the same inputs).
 
 mod cull;
+mod holes;
 mod maxdepth;
 mod motion;
 mod pyramid;
 mod warp;
 
 pub use cull::{CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass};
+pub use holes::HoleFillKernel;
 pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};

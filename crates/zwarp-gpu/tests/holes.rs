@@ -1,0 +1,105 @@
+//! GPU hole-fill post-pass (seed 000 Sec. 3.5 Fig. 8, Sec. 4 background fill) vs
+//! `zwarp_warp::fill_holes` on random depth/state images of odd sizes, for both rules and
+//! several radii; the post-pass over a far-hole GPU warp equals the warp's own dilation; errors.
+
+use glam::Vec2;
+use proptest::prelude::*;
+use zwarp_core::{Image, Motion, EMPTY_DEPTH};
+use zwarp_gpu::{test_context, HoleFillKernel, WarpKernel};
+use zwarp_warp::{fill_holes, FillRule, HolePolicy, PixelState, WarpLayer, WarpParams};
+
+/// Random states in blobs (so holes have converged neighbours at various distances).
+fn random_buffers(w: u32, h: u32, seed: u64) -> (Image<f32>, Image<PixelState>) {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let cells: Vec<(f32, f32)> = (0..(w.div_ceil(3) * h.div_ceil(2))).map(|_| (next(), next())).collect();
+    let mut depth = Image::new(w, h, EMPTY_DEPTH);
+    let mut state = Image::new(w, h, PixelState::Hole);
+    for y in 0..h {
+        for x in 0..w {
+            let (u, v) = cells[((y / 2) * w.div_ceil(3) + x / 3) as usize];
+            let jitter = next();
+            if u < 0.55 && jitter > 0.1 {
+                *depth.get_mut(x, y) = 0.1 + 0.8 * v;
+                *state.get_mut(x, y) = PixelState::Converged;
+            } else if u < 0.62 {
+                *depth.get_mut(x, y) = 0.5;
+                *state.get_mut(x, y) = PixelState::Filled;
+            }
+        }
+    }
+    (depth, state)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(10))]
+
+    #[test]
+    fn fill_equals_the_cpu(w in 1u32..70, h in 1u32..50, seed in 0u64..10_000, radius in 1u32..6) {
+        let Some(ctx) = test_context() else { return Ok(()) };
+        let k = HoleFillKernel::new(&ctx).unwrap();
+        let (d, s) = random_buffers(w, h, seed);
+        for (policy, rule) in [(HolePolicy::Dilate { radius }, FillRule::Nearest), (HolePolicy::Background { radius }, FillRule::Background)] {
+            let (gd, gs) = k.fill(&d, &s, policy).unwrap();
+            let (mut cd, mut cs) = (d.clone(), s.clone());
+            fill_holes(&mut cd, &mut cs, radius, rule);
+            prop_assert_eq!(&gs, &cs, "{:?} {}x{}", policy, w, h);
+            prop_assert_eq!(&gd, &cd, "{:?} {}x{}", policy, w, h);
+        }
+    }
+}
+
+/// Ties: a hole whose four distance-1 neighbours hold 0.3 (left), 0.7 (right) and 0.5
+/// (above, below) takes the farthest of the tied nearest depths, 0.7, as on the CPU.
+#[test]
+fn analytic_ties_take_the_farther_depth() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let d = Image::from_fn(3, 3, |x, y| if (x, y) == (1, 1) { EMPTY_DEPTH } else { [0.3, 0.5, 0.7][x as usize] });
+    let s = Image::from_fn(3, 3, |x, y| if (x, y) == (1, 1) { PixelState::Hole } else { PixelState::Converged });
+    let (gd, gs) = k.fill(&d, &s, HolePolicy::Dilate { radius: 1 }).unwrap();
+    assert_eq!((*gd.get(1, 1), *gs.get(1, 1)), (0.7, PixelState::Filled));
+    let (mut cd, mut cs) = (d.clone(), s.clone());
+    fill_holes(&mut cd, &mut cs, 1, FillRule::Nearest);
+    assert_eq!((gd, gs), (cd, cs));
+}
+
+/// The post-pass over the GPU warp's far-depth output equals the GPU warp run with the
+/// dilation policy (and the CPU's): one function, two call sites.
+#[test]
+fn post_pass_equals_the_warp_dilation() {
+    let Some(ctx) = test_context() else { return };
+    let wk = WarpKernel::new(&ctx).unwrap();
+    let hk = HoleFillKernel::new(&ctx).unwrap();
+    // A near square moving right over a far background: a disocclusion strip opens behind it.
+    let d = Image::from_fn(45, 33, |x, y| if (10..25).contains(&x) && (8..24).contains(&y) { 0.3 } else { 0.8 });
+    let m = d.map(|&z| Motion { v: if z < 0.5 { Vec2::new(3.0, 0.0) } else { Vec2::ZERO }, depth: z });
+    let layer = [WarpLayer { depth: &d, motion: &m }];
+    let far = wk.warp(&layer, &WarpParams::default()).unwrap();
+    assert!(far.counts().2 > 0, "the strip is a hole");
+    let policy = HolePolicy::Dilate { radius: 4 };
+    let dil = wk.warp(&layer, &WarpParams { holes: policy, ..WarpParams::default() }).unwrap();
+    let (pd, ps) = hk.fill(&far.depth, &far.state, policy).unwrap();
+    assert_eq!(pd, dil.depth);
+    assert_eq!(ps, dil.state);
+}
+
+#[test]
+fn bad_input_is_an_error() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let (d, s) = random_buffers(8, 6, 1);
+    let e = k.fill(&d, &s, HolePolicy::Awoc).unwrap_err().to_string();
+    assert!(e.contains("AWOC"), "{e}");
+    let e = k.fill(&d, &s, HolePolicy::Dilate { radius: 0 }).unwrap_err().to_string();
+    assert!(e.contains("radius must be in 1..=64"), "{e}");
+    let e = k.fill(&d, &Image::new(7, 6, PixelState::Hole), HolePolicy::Dilate { radius: 1 }).unwrap_err().to_string();
+    assert!(e.contains("8x6") && e.contains("7x6"), "{e}");
+    // FarDepth leaves the buffers as they are.
+    assert_eq!(k.fill(&d, &s, HolePolicy::FarDepth).unwrap(), (d, s));
+}
