@@ -248,10 +248,12 @@ pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> Pee
 /// **Motion.** The motion of a layer to sample view `i` is `zwarp_core::motion_field` from the
 /// centre camera to sample camera `i`. Because every sample view is a pure parallax of the centre
 /// view ([`light`]), that field is exactly linear in the emitter offset: `v_i(q) = K_i g(q)`.
-/// With [`ShadowParams::parallax_motion`] (default) `motion_field` is evaluated **once per layer**
-/// towards a reference offset `o_ref` and each sample's field is that field scaled per axis by
-/// `K_i / K_ref` (a multiply per pixel instead of an unproject + project); without it,
-/// `motion_field` runs per layer and sample. A test checks both agree to 1e-3 px.
+/// With [`ShadowParams::parallax_motion`] (default) the field towards a reference offset `o_ref`
+/// is computed **once per layer** — in closed form with the shared mipmap
+/// ([`LightRig::parallax_field`]: `K_ref g(z)` from the stored depth, no unproject + project),
+/// else with `motion_field` — and each sample's field is that field scaled per axis by
+/// `K_i / K_ref`; without it, `motion_field` runs per layer and sample. A test checks they
+/// agree to 1e-3 px.
 ///
 /// **One mipmap for all samples** ([`ShadowParams::shared_mipmap`], default). Scaling a field
 /// per axis scales its per-axis min-max bounds alike, so the min-max motion mipmap of the
@@ -305,11 +307,15 @@ impl<'a> ZwarpMaps<'a> {
             let t0 = Instant::now();
             let m = rig.max_offset();
             let (cam_ref, k_ref) = rig.offset_camera(Vec2::splat(if m > 0.0 { m } else { 1.0 }));
-            maps.reference = maps
-                .layers
-                .iter()
-                .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &rig.center, &cam_ref, &[]))
-                .collect::<Result<Vec<_>>>()?;
+            maps.reference = if params.shared_mipmap {
+                maps.layers.iter().map(|l| rig.parallax_field(&l.depth, k_ref)).collect::<Result<Vec<_>>>()?
+            } else {
+                // The path before the shared mipmap, kept as it was measured: motion_field.
+                maps.layers
+                    .iter()
+                    .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &rig.center, &cam_ref, &[]))
+                    .collect::<Result<Vec<_>>>()?
+            };
             maps.k_ref = k_ref;
             maps.motion_ms += ms_since(t0);
         }

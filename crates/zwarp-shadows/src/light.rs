@@ -19,7 +19,8 @@
 use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
-use zwarp_core::{Aabb, AreaLight, Camera, Error, LightShape, Projection, Result, Scene};
+use rayon::prelude::*;
+use zwarp_core::{Aabb, AreaLight, Camera, Error, Image, LightShape, Motion, Projection, Result, Scene, EMPTY_DEPTH};
 use zwarp_raster::{UmbraPeeling, ViewRegion};
 
 /// Largest number of light samples S accepted (memory and time guard).
@@ -374,6 +375,44 @@ impl LightRig {
         } else {
             1.0 / z
         }
+    }
+
+    /// The motion field of a centre-map layer towards the emitter point whose pixel shift is
+    /// `k` (seed 000, Sec. 3.1 motion, specialised to the rig's pure parallax): `v = k g(z)`
+    /// with `z` the linear depth of the stored depth `d` ([`LightRig::depth_param`]), and the
+    /// target depth `d` itself — every sample map measures the same view depth. Empty texels
+    /// (`d >= 1`) get zero motion and the empty depth. What `zwarp_core::motion_field` computes
+    /// between the two cameras up to rounding, at a multiply-add per texel.
+    ///
+    /// Errors: a map of another size than the rig's, or NaN depths.
+    pub fn parallax_field(&self, depth: &Image<f32>, k: Vec2) -> Result<Image<Motion>> {
+        if depth.size() != (self.center.width, self.center.height) {
+            return Err(Error::invalid(format!(
+                "layer is {}x{} but the light maps are {}x{}",
+                depth.width(),
+                depth.height(),
+                self.center.width,
+                self.center.height
+            )));
+        }
+        if !k.is_finite() {
+            return Err(Error::invalid(format!("parallax shift must be finite, got {k}")));
+        }
+        if depth.data().iter().any(|d| d.is_nan()) {
+            return Err(Error::invalid("layer depth holds NaN values"));
+        }
+        let data = depth
+            .data()
+            .par_iter()
+            .map(|&d| {
+                if d < EMPTY_DEPTH {
+                    Motion { v: k * self.depth_param(self.center.linear_depth(d)), depth: d }
+                } else {
+                    Motion { v: Vec2::ZERO, depth: EMPTY_DEPTH }
+                }
+            })
+            .collect();
+        Image::from_vec(depth.width(), depth.height(), data)
     }
 
     /// World size of one shadow-map texel at linear depth `z` (the bias and PCSS unit).

@@ -291,6 +291,9 @@ fn bad_inputs_are_errors_not_panics() {
     let recv = Receivers::build(&frame, &cam, &scene, &rig, &DepthBias::default()).unwrap();
     assert!(recv.shade(&Image::new(3, 3, 1.0), 0.25).is_err());
     assert!(pcss_visibility(&recv, &rig, &Image::new(3, 3, 1.0), &PcssParams::default()).is_err());
+    assert!(rig.parallax_field(&Image::new(3, 3, 0.5), Vec2::ONE).is_err());
+    assert!(rig.parallax_field(&Image::new(64, 64, f32::NAN), Vec2::ONE).is_err());
+    assert!(rig.parallax_field(&Image::new(64, 64, 0.5), Vec2::splat(f32::NAN)).is_err());
 }
 
 proptest! {
