@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("norims", WocParams { open_rims: None, ..d }),
         ("norims-noerode", WocParams { open_rims: None, erosion: false, ..d }),
         ("norims-noerode-nbuf", WocParams { open_rims: None, erosion: false, max_depth: MaxDepthKind::NBuffer, ..d }),
-        ("norims-norapid", WocParams { open_rims: None, rapid_motion_px: None, ..d }),
+        ("norims-norapid", WocParams { open_rims: None, rapid_motion: None, ..d }),
         ("rims-noerode", WocParams { erosion: false, ..d }),
         ("down4", WocParams { downsample: 4, ..d }),
     ];

@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "bilinear" => params.warp.sampling = zwarp_warp::Sampling::Adaptive,
             "n4" => params.warp.n_seeds = 4,
             "noerode" => params.erosion = false,
-            "norapid" => params.rapid_motion_px = None,
+            "norapid" => params.rapid_motion = None,
             "verbose" => verbose = true,
             "down2" => params.downsample = 2,
             "down4" => params.downsample = 4,

@@ -79,11 +79,15 @@ pub struct WocParams {
     pub open_rims: Option<f32>,
     /// Where the opening rims become far (see [`RimMode`]). Default [`RimMode::Target`].
     pub rim_mode: RimMode,
-    /// Rapid-motion threshold in pixels per frame (thesis Sec. IV.1): objects whose AABB
-    /// corners move more than this on screen are drawn directly into the predicted depth and
-    /// kept visible. `None` disables the path. Default 19.2 px, the thesis' 0.02 of the
-    /// canonical view volume ("1152 pixel/second on a full-HD image" at 60 Hz).
-    pub rapid_motion_px: Option<f32>,
+    /// Rapid-motion threshold per frame in units of the canonical view volume (thesis
+    /// Sec. IV.1: "a 3D movement of > 0.02 in the canonical view volume, means a horizontal
+    /// movement of 1152 pixel/second on a full-HD image"): objects whose AABB corners move
+    /// farther than this on screen are drawn directly into the predicted depth and kept
+    /// visible. `None` disables the path. Default 0.02. A fraction of the view, not a pixel
+    /// count, so the decision does not depend on the resolution (or on
+    /// [`WocParams::downsample`]): in pixels it is [`WocParams::rapid_threshold_px`],
+    /// `0.02 * width / 2` = 19.2 px at 1920 wide (1152 px/s at 60 Hz), 9.6 px at 960.
+    pub rapid_motion: Option<f32>,
     /// Whether the rapid-motion speed includes the camera's motion. Default `false`: only the
     /// object's own motion, seen from the current camera, counts. The warp handles camera
     /// motion (the motion field is exact per pixel); counting it makes every object rapid
@@ -141,7 +145,7 @@ impl Default for WocParams {
             erosion_radius: 1,
             open_rims: Some(0.1),
             rim_mode: RimMode::Target,
-            rapid_motion_px: Some(19.2),
+            rapid_motion: Some(0.02),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
             hybrid_objects: 300,
@@ -152,6 +156,14 @@ impl Default for WocParams {
 }
 
 impl WocParams {
+    /// The rapid-motion threshold in pixels per frame for an image `width` pixels wide:
+    /// [`WocParams::rapid_motion`] is measured across the canonical view volume, whose
+    /// horizontal extent `[-1, 1]` spans `width` pixels (the thesis' own conversion). `None`
+    /// when the path is disabled.
+    pub fn rapid_threshold_px(&self, width: u32) -> Option<f32> {
+        self.rapid_motion.map(|v| v * 0.5 * width as f32)
+    }
+
     /// Checks the parameters (warp parameters included).
     pub fn validate(&self) -> Result<()> {
         self.warp.validate()?;
@@ -166,9 +178,11 @@ impl WocParams {
                 return Err(Error::invalid(format!("rim separation threshold must be >= 0 pixels, got {px}")));
             }
         }
-        if let Some(px) = self.rapid_motion_px {
-            if !(px.is_finite() && px >= 0.0) {
-                return Err(Error::invalid(format!("rapid-motion threshold must be >= 0 pixels, got {px}")));
+        if let Some(v) = self.rapid_motion {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::invalid(format!(
+                    "rapid-motion threshold must be >= 0 (view-volume units), got {v}"
+                )));
             }
         }
         Ok(())
@@ -606,7 +620,9 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let n = scene.instances.len();
     let mut forced = vec![false; n];
     let mut predrawn = Vec::new();
-    if let Some(thr) = params.rapid_motion_px {
+    // Threshold from the full-resolution width: the same fraction of the view at any
+    // resolution and downsampling factor.
+    if let Some(thr) = params.rapid_threshold_px(full_cam.width) {
         let cam_a = if params.rapid_includes_camera { full_prev_cam } else { full_cam };
         let flags: Vec<bool> = (0..n as u32)
             .into_par_iter()

@@ -100,7 +100,7 @@ fn object_crossing_the_near_plane_is_kept() {
     // the near-plane rule alone must keep it.
     let s = scene_of(&[bx([-6.0, -4.0, -0.2], [6.0, 4.0, 0.2]), bx([0.5, -0.3, 8.0], [1.0, 0.3, 10.5])]);
     let prev = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
-    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    let params = WocParams { rapid_motion: None, ..WocParams::default() };
     let pf_frame = render_frame(&s, &prev, 0.0, &FrameOptions::default()).unwrap();
     let pf = PrevFrame { depth: &pf_frame.depth, items: &pf_frame.items, cam: &prev, t: 0.0 };
     let r = woc(&s, &pf, &prev, DT, &params).unwrap();
@@ -121,7 +121,7 @@ fn dynamic_object_moving_out_from_behind_an_occluder_is_kept() {
     assert_eq!(visible_from_items(&prev.items, 2), vec![0], "hidden in the previous frame");
     assert!(screen_speed(&s, 1, &cam, 0.0, &cam, DT) > 19.2);
     for rapid in [Some(19.2), None] {
-        let params = WocParams { rapid_motion_px: rapid, ..WocParams::default() };
+        let params = WocParams { rapid_motion: rapid, ..WocParams::default() };
         let (vis, r) = run(&s, &cam, 0.0, &cam, DT, &params);
         assert_eq!(r, vec![0, 1]);
         assert_eq!(vis, vec![0, 1], "rapid path {rapid:?}");
@@ -141,7 +141,7 @@ fn visible_moving_occluder_uncovers_a_static_object() {
     let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
     let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
     assert_eq!(visible_from_items(&prev.items, 3), vec![0, 2]);
-    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    let params = WocParams { rapid_motion: None, ..WocParams::default() };
     let (vis, r) = run(&s, &cam, 0.0, &cam, DT, &params);
     assert_eq!(r, vec![0, 1, 2]);
     assert_eq!(vis, vec![0, 1, 2]);
@@ -222,7 +222,7 @@ fn last_frame_depth_without_warping_culls_revealed_objects() {
     let lf = lastframe(&s, &prev.depth, &cam, DT, MaxDepthKind::NBuffer).unwrap();
     assert_eq!(lf.visible, vec![0], "the unsafe baseline culls the revealed object");
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &prev_cam, t: 0.0 };
-    let params = WocParams { rapid_motion_px: None, ..WocParams::default() };
+    let params = WocParams { rapid_motion: None, ..WocParams::default() };
     assert_eq!(woc(&s, &pf, &cam, DT, &params).unwrap().visible, vec![0, 1], "WOC keeps it");
 
     // The diagnostic names the error: object 1, with exactly its REF pixels, not visible
@@ -315,7 +315,7 @@ fn bad_inputs_are_errors() {
     let mut p = WocParams::default();
     p.warp.n_seeds = 0;
     assert!(woc(&s, &pf, &cam, DT, &p).is_err());
-    let p = WocParams { rapid_motion_px: Some(f32::NAN), ..WocParams::default() };
+    let p = WocParams { rapid_motion: Some(f32::NAN), ..WocParams::default() };
     assert!(woc(&s, &pf, &cam, DT, &p).unwrap_err().to_string().contains("rapid-motion"));
     let e = twophase(&s, &[7], &cam, 0.0, MaxDepthKind::NBuffer).unwrap_err().to_string();
     assert!(e.contains("object 7"), "{e}");
@@ -370,14 +370,16 @@ fn rapid_motion_counts_object_motion_not_camera_motion() {
     let b = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
     assert_eq!(screen_speed(&s, 0, &b, 0.0, &b, DT), 0.0);
     let turn = screen_speed(&s, 0, &a, 0.0, &b, DT);
-    assert!(turn > 19.2, "{turn}");
+    assert!(turn > WocParams::default().rapid_threshold_px(W).unwrap(), "{turn}");
     let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &a, t: 0.0 };
     let r = woc(&s, &pf, &b, DT, &WocParams::default()).unwrap();
     assert_eq!((r.stats.rapid, r.predrawn.clone()), (0, vec![]));
-    let with_cam = WocParams { rapid_includes_camera: true, ..WocParams::default() };
+    // 0.4 of the view (19.2 px at this width): the turn moves the on-screen objects farther,
+    // the hidden box (projected near the centre) less.
+    let with_cam = WocParams { rapid_includes_camera: true, rapid_motion: Some(0.4), ..WocParams::default() };
     let r = woc(&s, &pf, &b, DT, &with_cam).unwrap();
-    assert_eq!(r.predrawn, vec![0, 2], "the on-screen objects that move faster than 19.2 px");
+    assert_eq!(r.predrawn, vec![0, 2], "the on-screen objects that move faster than 0.4 of the view");
     assert_eq!(r.visible, vec![0, 2], "drawn exactly, the hidden box is still culled");
 }
 
@@ -589,4 +591,42 @@ fn static_view_culls_what_the_ideal_test_culls() {
     assert!(err < 1e-6, "the warp reproduces the frame (max error {err})");
     let d = woc(&s, &pf, &cam, 0.0, &WocParams::default()).unwrap();
     assert!(ideal.visible.iter().all(|id| d.visible.contains(id)));
+}
+
+/// Thesis Sec. IV.1: the rapid-motion threshold is a fraction of the view (0.02 of the
+/// canonical view volume), so the same objects are rapid at any resolution and downsampling.
+#[test]
+fn rapid_motion_decision_is_resolution_independent() {
+    // A static wall (id 0) and three boxes in front of it moving 0.05, 0.15 and 0.5 units per
+    // frame: 0.0104, 0.031 and 0.104 of the view volume (its width [-1, 1] is 9.6 units).
+    let s = scene_of(&[
+        bx([-4.0, -2.5, -1.0], [4.0, 2.5, -0.5]),
+        (
+            Aabb::new(Vec3::new(-3.0, -1.0, 1.0), Vec3::new(-2.0, 0.0, 2.0)),
+            Animation::Linear { velocity: Vec3::new(0.05 / DT, 0.0, 0.0) },
+        ),
+        (
+            Aabb::new(Vec3::new(-1.0, -1.0, 1.0), Vec3::new(0.0, 0.0, 2.0)),
+            Animation::Linear { velocity: Vec3::new(0.15 / DT, 0.0, 0.0) },
+        ),
+        (
+            Aabb::new(Vec3::new(1.0, 0.5, 1.0), Vec3::new(2.0, 1.5, 2.0)),
+            Animation::Linear { velocity: Vec3::new(0.0, -0.5 / DT, 0.0) },
+        ),
+    ]);
+    let p = WocParams::default();
+    assert!((p.rapid_threshold_px(1920).unwrap() - 19.2).abs() < 1e-4, "the thesis' 1152 px/s at 60 Hz on full HD");
+    for (w, h) in [(W, H), (2 * W, 2 * H), (5 * W, 5 * H)].into_iter() {
+        let cam =
+            Camera::orthographic(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 0.05 * H as f32, 0.1, 100.0, w, h)
+                .unwrap();
+        let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+        let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
+        for downsample in [1, 4] {
+            let r = woc(&s, &pf, &cam, DT, &WocParams { downsample, ..p }).unwrap();
+            assert_eq!(r.predrawn, vec![2, 3], "{w}x{h} /{downsample}");
+        }
+        let thr = p.rapid_threshold_px(w).unwrap();
+        assert!((thr - 0.01 * w as f32).abs() < 1e-4, "{w}: {thr} px");
+    }
 }
