@@ -10,6 +10,15 @@
 //! - [`PyramidKernel`]: the min-max motion mipmap (seed 000 Sec. 3.3) on the GPU.
 //! - [`WarpKernel`]: the backward depth warp (seed 000 Sec. 3, Fig. 3, 5, 6), the twin of
 //!   `zwarp_warp::warp_depth` with axis-aligned bounds.
+//! - [`HoleFillKernel`]: hole filling as a post-pass (Fig. 8 dilation, background fill), the
+//!   twin of `zwarp_warp::fill_holes`.
+//! - [`MaxDepthKernel`]: max mipmap, N-buffer and Y-map (seed 000 Sec. 5.2), bit-identical to
+//!   `zwarp_cull::{MaxMipmap, NBuffer, YMap}`.
+//! - [`CullKernel`]: VFC + screen-space AABB test per object into a visible list and indirect
+//!   draw arguments ([`Renderer::encode_depth_indirect`] draws them), the twin of
+//!   `zwarp_cull::cull_against_depth`.
+//! - [`GpuWoc`]: the whole WOC pipeline (seed 000 Sec. 5, thesis seed 002) on an engine's own
+//!   device, textures and matrices, no CPU round trip; the twin of `zwarp_cull::woc`.
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
 //!
 //! Every WGSL file sits next to its host code and is loaded with `include_str!`.
@@ -28,9 +37,9 @@ pub mod render;
 pub mod timer;
 
 pub use compute::{
-    CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass, GpuMaxDepth, GpuMotionPyramid, GpuWarpLayer,
-    GpuWarpOutput, HoleFillKernel, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel,
-    WarpKernel, MAX_GPU_LAYERS,
+    rapid_flags, CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass, GpuMaxDepth, GpuMotionPyramid,
+    GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams, HoleFillKernel, MaxDepthKernel, MaxDepthLayout,
+    MotionInput, MotionKernel, PyramidKernel, WarpKernel, MAX_GPU_LAYERS,
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{

@@ -166,7 +166,10 @@ fn color_target(ctx: &GpuContext, w: u32, h: u32, format: wgpu::TextureFormat, l
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        // TEXTURE_BINDING: the item target of the previous frame is an input of the GPU WOC.
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::TEXTURE_BINDING,
         view_formats: &[],
     })
 }
@@ -541,6 +544,36 @@ impl Renderer {
         culled: &crate::CullOutput,
         mode: IndirectMode,
     ) -> Result<()> {
+        if culled.len() != scene.object_count() {
+            return Err(Error::invalid(format!(
+                "cull output holds {} objects but the scene has {}",
+                culled.len(),
+                scene.object_count()
+            )));
+        }
+        let (args, count) = match mode {
+            IndirectMode::Count => (&culled.draw_args, Some(&culled.counter)),
+            IndirectMode::Slots => (&culled.slot_args, None),
+        };
+        self.encode_depth_from_args(encoder, scene, camera, t, target, args, count)
+    }
+
+    /// Records a depth-only pass (target cleared to 1) drawing `scene` from indirect arguments:
+    /// `args` holds one `DrawIndexedIndirectArgs` per object (first instance = the object's draw
+    /// slot); with `count` (a u32 draw count, needs `MULTI_DRAW_INDIRECT_COUNT`) only the first
+    /// `count` are drawn. Needs `INDIRECT_FIRST_INSTANCE`. Writes the per-object matrices now
+    /// (queue write), so submit before encoding a render of the same scene with another camera.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_depth_from_args(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        target: &DepthTarget,
+        args: &wgpu::Buffer,
+        count: Option<&wgpu::Buffer>,
+    ) -> Result<()> {
         let features = self.ctx.device.features();
         if !features.contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
             return Err(Error::Unavailable(format!(
@@ -548,14 +581,15 @@ impl Renderer {
                 self.ctx.adapter.name
             )));
         }
-        if mode == IndirectMode::Count && !features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
+        if count.is_some() && !features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
             return Err(Error::Unavailable(format!("{} lacks MULTI_DRAW_INDIRECT_COUNT", self.ctx.adapter.name)));
         }
-        if culled.len() != scene.object_count() {
+        let n = scene.object_count() as u32;
+        let need = n as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64;
+        if args.size() < need || !args.usage().contains(wgpu::BufferUsages::INDIRECT) {
             return Err(Error::invalid(format!(
-                "cull output holds {} objects but the scene has {}",
-                culled.len(),
-                scene.object_count()
+                "indirect argument buffer needs INDIRECT usage and {need} bytes, has {}",
+                args.size()
             )));
         }
         self.check_camera(camera)?;
@@ -584,10 +618,9 @@ impl Renderer {
         pass.set_bind_group(0, &bind, &[]);
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
-        let n = culled.len() as u32;
-        match mode {
-            IndirectMode::Count => pass.multi_draw_indexed_indirect_count(&culled.draw_args, 0, &culled.counter, 0, n),
-            IndirectMode::Slots => pass.multi_draw_indexed_indirect(&culled.slot_args, 0, n),
+        match count {
+            Some(c) => pass.multi_draw_indexed_indirect_count(args, 0, c, 0, n),
+            None => pass.multi_draw_indexed_indirect(args, 0, n),
         }
         Ok(())
     }
