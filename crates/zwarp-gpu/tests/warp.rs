@@ -81,6 +81,7 @@ fn city_single_and_multi_layer_match_cpu() {
         ("pixel seed", WarpParams { seeding: SeedStrategy::Pixel, iterations: 6, ..base() }),
         ("offset seed", WarpParams { seeding: SeedStrategy::Offset(Vec2::new(-3.0, 1.0)), ..base() }),
         ("dilate", WarpParams { holes: HolePolicy::Dilate { radius: 4 }, ..base() }),
+        ("background fill", WarpParams { holes: HolePolicy::Background { radius: 4 }, ..base() }),
     ];
     for nl in [1usize, 3] {
         let layers = layers_of(&d[..nl], &m[..nl]);
@@ -266,4 +267,35 @@ fn all_gpu_chain_matches_cpu() {
     assert!(matches!(k.encode(&mut enc, &[bad_axis], w, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l], 0, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l; 9], w, h, &p), Err(Error::Invalid(_))));
+}
+
+/// `WarpParams::motion_scale` (soft-shadow sample fields, frame interpolation): the GPU twin
+/// scales fetches and mipmap bounds exactly like the CPU — per-axis and negative factors under
+/// axis-aligned bounds, a uniform factor under oriented bounds — and rejects a non-uniform
+/// factor under an oriented frame.
+#[test]
+fn motion_scale_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (d, m) = city_pair(96, 64, 3);
+    for nl in [1usize, 3] {
+        let layers = layers_of(&d[..nl], &m[..nl]);
+        for (name, p) in [
+            ("tight (0.5, 1.7)", WarpParams { bound: BoundKind::Tight, motion_scale: Vec2::new(0.5, 1.7), ..base() }),
+            ("tight (-1, 0.3)", WarpParams { bound: BoundKind::Tight, motion_scale: Vec2::new(-1.0, 0.3), ..base() }),
+            ("oriented -0.6", WarpParams { motion_scale: Vec2::splat(-0.6), ..base() }),
+        ] {
+            let cpu = warp_depth(&layers, &p).unwrap();
+            let gpu = k.warp(&layers, &p).unwrap();
+            let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("L={nl} {name}"));
+            eprintln!("motion_scale L={nl} {name}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?}", cpu.counts());
+            assert!(cpu.counts().0 > cpu.depth.len() / 3, "{name}");
+        }
+    }
+    let layers = layers_of(&d[..1], &m[..1]);
+    if WarpKernel::frames(&layers, BoundKind::Oriented)[0] != Vec2::X {
+        let p = WarpParams { motion_scale: Vec2::new(1.0, 0.5), ..base() };
+        assert!(matches!(k.warp(&layers, &p), Err(Error::Invalid(_))));
+        assert!(matches!(warp_depth(&layers, &p), Err(Error::Invalid(_))));
+    }
 }

@@ -11,7 +11,8 @@
 //! cross-layer seeding and borrowing (Fig. 6), the 4x4-tile then per-pixel bound tightening
 //! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
 //! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication
-//! of `PreparedLayer::prepare_stack`. `HolePolicy::Awoc` and `record_source` return
+//! of `PreparedLayer::prepare_stack`, and `WarpParams::motion_scale` (scaled texel fetches and
+//! mipmap look-ups, rejected when non-uniform under an oriented frame). `HolePolicy::Awoc` and `record_source` return
 //! [`Error::Invalid`]; [`WarpKernel::gpu_params`] turns any CPU configuration into the one the
 //! GPU reproduces.
 //!
@@ -62,7 +63,7 @@ struct Params {
     expand: f32,
     level_total: u32,
     inf: [f32; 2],
-    pad: [f32; 2],
+    motion_scale: [f32; 2],
     levels: [[u32; 4]; MAX_LEVELS],
     axes: [[f32; 4]; MAX_GPU_LAYERS],
 }
@@ -73,6 +74,8 @@ const FLAG_ADAPTIVE: u32 = 4;
 const FLAG_FIRST: u32 = 8;
 const FLAG_SEED_PIXEL: u32 = 16;
 const FLAG_SEED_OFFSET: u32 = 32;
+/// The `dilate` pass applies `FillRule::Background` instead of Fig. 8's nearest-neighbour rule.
+const FLAG_BACKGROUND: u32 = 64;
 
 /// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
 /// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
@@ -172,7 +175,10 @@ impl WarpKernel {
     /// function exactly.
     pub fn gpu_params(params: &WarpParams) -> WarpParams {
         WarpParams {
-            holes: if params.holes == HolePolicy::Awoc { HolePolicy::FarDepth } else { params.holes },
+            holes: match params.holes {
+                HolePolicy::Awoc => HolePolicy::FarDepth,
+                h => h,
+            },
             record_source: false,
             ..*params
         }
@@ -182,7 +188,9 @@ impl WarpKernel {
     pub fn check_params(params: &WarpParams) -> Result<()> {
         params.validate()?;
         if params.holes == HolePolicy::Awoc {
-            return Err(Error::invalid("GPU warp supports HolePolicy::FarDepth and Dilate (AWOC is CPU-only)"));
+            return Err(Error::invalid(
+                "GPU warp supports HolePolicy::FarDepth, Dilate and Background (AWOC is CPU-only)",
+            ));
         }
         if params.record_source {
             return Err(Error::invalid("GPU warp does not record source positions (record_source must be false)"));
@@ -273,6 +281,16 @@ impl WarpKernel {
                 axes[k] = [l.axis.x, l.axis.y, 0.0, 0.0];
             }
         }
+        // The CPU's check (zwarp_warp::warp_prepared): per-axis motion scaling does not commute
+        // with a rotated bound frame.
+        let sc = params.motion_scale;
+        if sc.x != sc.y {
+            if let Some(k) = axes.iter().take(layers.len()).position(|a| !(a[0] == 1.0 && a[1] == 0.0)) {
+                return Err(Error::invalid(format!(
+                    "non-uniform motion_scale {sc} needs axis-aligned bounds, but layer {k} has an oriented frame (use BoundKind::Tight)"
+                )));
+            }
+        }
         let sizes = pyramid_level_sizes(width, height);
         if sizes.len() > MAX_LEVELS {
             return Err(Error::invalid(format!("{width}x{height} is too large for the GPU warp")));
@@ -305,6 +323,14 @@ impl WarpKernel {
                 seed_offset = d.to_array();
             }
         }
+        let radius = match params.holes {
+            HolePolicy::Dilate { radius } => radius,
+            HolePolicy::Background { radius } => {
+                flags |= FLAG_BACKGROUND;
+                radius
+            }
+            HolePolicy::FarDepth | HolePolicy::Awoc => 0,
+        };
         let base = Params {
             size: [width, height],
             layers: nl,
@@ -316,12 +342,12 @@ impl WarpKernel {
             threshold: params.threshold,
             bound_iterations: if params.bound == BoundKind::Global { 0 } else { params.bound_iterations },
             flags,
-            radius: if let HolePolicy::Dilate { radius } = params.holes { radius } else { 0 },
+            radius,
             seed_offset,
             expand: params.sampling.footprint(),
             level_total: total,
             inf: [f32::INFINITY, f32::NEG_INFINITY],
-            pad: [0.0; 2],
+            motion_scale: params.motion_scale.to_array(),
             levels,
             axes,
         };
@@ -362,7 +388,7 @@ impl WarpKernel {
             &[(0, &u), (3, &samples), (4, &mip), (5, &zmin), (6, &out_depth), (7, &out_state)],
             groups,
         );
-        if let HolePolicy::Dilate { .. } = params.holes {
+        if let HolePolicy::Dilate { .. } | HolePolicy::Background { .. } = params.holes {
             let fill_depth = self.storage(wh * 4, "zwarp warp dilated depth")?;
             let fill_state = self.storage(wh * 4, "zwarp warp dilated state")?;
             self.dispatch(

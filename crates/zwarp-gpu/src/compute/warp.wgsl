@@ -29,7 +29,8 @@ struct Params {
     level_total: u32,
     // (+inf, -inf): WGSL has no infinity literal.
     inf: vec2<f32>,
-    pad: vec2<f32>,
+    // WarpParams::motion_scale: factor on every fetched motion and every mipmap bound.
+    motion_scale: vec2<f32>,
     // Per level l - 1: (offset within a layer's block, width, height, 0).
     levels: array<vec4<u32>, 16>,
     // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
@@ -42,6 +43,7 @@ const FLAG_ADAPTIVE: u32 = 4u;
 const FLAG_FIRST: u32 = 8u;
 const FLAG_SEED_PIXEL: u32 = 16u;
 const FLAG_SEED_OFFSET: u32 = 32u;
+const FLAG_BACKGROUND: u32 = 64u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::search::POLISH_MIN_RESIDUAL and CONTINUITY_PX.
 const POLISH: f32 = 0.05;
@@ -277,6 +279,19 @@ fn is_empty(b: vec4<f32>) -> bool {
     return !(b.x <= b.z && b.y <= b.w);
 }
 
+// Bound::scaled: the bound of motion_scale * v (lo and hi swap per negative factor; empty
+// stays empty).
+fn scale_bound(b: vec4<f32>) -> vec4<f32> {
+    if (is_empty(b)) {
+        return vec4<f32>(params.inf.x, params.inf.x, params.inf.y, params.inf.y);
+    }
+    let s = params.motion_scale;
+    let a = s * b.xy;
+    let c = s * b.zw;
+    let neg = s < vec2<f32>(0.0);
+    return vec4<f32>(select(a, c, neg), select(c, a, neg));
+}
+
 struct Tight {
     ok: bool,
     // Motion bound (lo.xy, hi.xy) and search region (lo.xy, hi.xy).
@@ -317,7 +332,7 @@ fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, i
         return none;
     }
     for (var i = 0u; i < iterations; i++) {
-        let m = lookup_range(k, range.r);
+        let m = scale_bound(lookup_range(k, range.r));
         let nb = vec4<f32>(max(b.xy, m.xy), min(b.zw, m.zw));
         if (is_empty(nb)) {
             return none;
@@ -347,8 +362,10 @@ struct Smp {
     dvdy: vec2<f32>,
 };
 
+// One texel with its motion scaled by motion_scale (LayerSampler::with_scale).
 fn at(k: u32, x: u32, y: u32) -> vec4<f32> {
-    return samples[k * params.size.x * params.size.y + y * params.size.x + x];
+    let t = samples[k * params.size.x * params.size.y + y * params.size.x + x];
+    return vec4<f32>(params.motion_scale * t.xy, t.zw);
 }
 
 // glam's Vec2::lerp: a * (1 - s) + b * s.
@@ -523,7 +540,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5);
             let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5);
             let top = params.levels[params.top - 1u];
-            let gb = mip_ro[kt * params.level_total + top.x];
+            let gb = scale_bound(mip_ro[kt * params.level_total + top.x]);
             let tile = tight_bound_box(kt, p_lo, p_hi, gb, iters, expand);
             ok = select(0u, 1u, tile.ok);
             motion = tile.motion;
@@ -668,8 +685,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     }
 }
 
-// holes::dilate_holes (Fig. 8): a hole with a converged pixel within the radius on both sides
-// along all four directions takes the depth of the nearest one (ties: the farther depth).
+// holes::fill_holes. Fig. 8 (FillRule::Nearest): a hole with a converged pixel within the radius
+// on both sides along all four directions takes the depth of the nearest one (ties: the farther
+// depth). FLAG_BACKGROUND (FillRule::Background): a hole bracketed along at least one direction
+// takes the farthest of the nearest converged pixels along the eight probes.
 @compute @workgroup_size(8, 8, 1)
 fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w = params.size.x;
@@ -683,10 +702,14 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (out_state[i] != 2u) {
         return;
     }
+    let background = (params.flags & FLAG_BACKGROUND) != 0u;
     let r = i32(params.radius);
     var best_ok = false;
     var best_d = 0.0;
     var best_z = 0.0;
+    var far_ok = false;
+    var far_z = 0.0;
+    var bracketed = false;
     for (var dir = 0; dir < 4; dir++) {
         var dx = 1;
         var dy = 0;
@@ -702,6 +725,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (dx != 0 && dy != 0) {
             step = 1.4142135;
         }
+        var hits = 0;
         for (var side = 0; side < 2; side++) {
             let sx = select(-dx, dx, side == 0);
             let sy = select(-dy, dy, side == 0);
@@ -721,16 +745,30 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                         best_d = d;
                         best_z = z;
                     }
+                    if (!far_ok || z > far_z) {
+                        far_ok = true;
+                        far_z = z;
+                    }
                     hit = true;
                     break;
                 }
             }
-            if (!hit) {
+            if (hit) {
+                hits++;
+            } else if (!background) {
                 return;
             }
         }
+        if (hits == 2) {
+            bracketed = true;
+        }
     }
-    if (best_ok) {
+    if (background) {
+        if (bracketed) {
+            fill_depth[i] = far_z;
+            fill_state[i] = 1u;
+        }
+    } else if (best_ok) {
         fill_depth[i] = best_z;
         fill_state[i] = 1u;
     }
