@@ -33,6 +33,6 @@ pub use sequence::{run_sequence, summarize, FrameReport, Method, SequenceSummary
 pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
     lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference, screen_speed, twophase,
-    vfc_cull, visible_from_items, woc, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode,
-    TwoPhaseResult, WocParams, DEPTH_TOLERANCE, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
+    vfc_cull, visible_from_items, woc, woc_motion_field, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame,
+    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
 };

@@ -23,7 +23,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
-use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
+use zwarp_core::{Aabb, Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, HolePolicy, PixelState, Sampling, SourcePos, WarpLayer, WarpParams};
 
@@ -279,7 +279,7 @@ fn check_camera_depth(depth: &Image<f32>, cam: &Camera, what: &str) -> Result<()
             cam.height
         )));
     }
-    if depth.data().iter().any(|d| d.is_nan()) {
+    if depth.data().par_iter().any(|d| d.is_nan()) {
         return Err(Error::invalid(format!("{what} holds NaN")));
     }
     Ok(())
@@ -314,13 +314,28 @@ enum Class {
 /// VFC + screen-space max-depth test of every object (parallel). `forced[id]` objects are
 /// kept without a test.
 fn test_objects(aabbs: &[Aabb], cam: &Camera, map: &impl MaxDepthQuery, forced: Option<&[bool]>) -> Vec<Class> {
+    test_objects_in(aabbs, None, cam, map, forced)
+}
+
+/// [`test_objects`] with the VFC result given (`inside[id]`) when already computed.
+fn test_objects_in(
+    aabbs: &[Aabb],
+    inside: Option<&[bool]>,
+    cam: &Camera,
+    map: &impl MaxDepthQuery,
+    forced: Option<&[bool]>,
+) -> Vec<Class> {
     let frustum = Frustum::from_camera(cam);
     let vp = cam.view_proj();
     aabbs
         .par_iter()
         .enumerate()
         .map(|(id, b)| {
-            if !frustum.intersects(b) {
+            let in_view = match inside {
+                Some(f) => f[id],
+                None => frustum.intersects(b),
+            };
+            if !in_view {
                 return Class::Frustum;
             }
             if forced.is_some_and(|f| f[id]) {
@@ -539,6 +554,66 @@ pub fn downsample_max(
     Ok((Image::from_vec(width, height, d)?, Image::from_vec(width, height, it)?))
 }
 
+/// The motion buffer of [`zwarp_core::motion_field`] (seed 000 Sec. 3.1, camera motion plus
+/// each object's own motion through the item buffer), with the per-object matrices computed
+/// only for the *animated objects present in the item buffer*: building all of
+/// [`Scene::object_deltas`] costs O(objects) serial matrix products per frame (6-7 ms at 93K
+/// objects, more than the coarse warp), while a frame shows a few thousand. Bit-identical to
+/// `motion_field(depth, Some(items), cam_a, cam_b, &scene.object_deltas(t_a, t_b))`.
+///
+/// Errors: as [`zwarp_core::motion_field`].
+pub fn woc_motion_field(
+    scene: &Scene,
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    t_a: f32,
+    t_b: f32,
+) -> Result<Image<zwarp_core::Motion>> {
+    use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+    zwarp_core::motion::check_motion_inputs(depth, Some(items), cam_a)?;
+    let n = scene.instances.len();
+    let animated = |id: u32| (id as usize) < n && scene.instances[id as usize].animation.is_animated();
+    let present: Vec<AtomicBool> = (0..n).into_par_iter().map(|_| AtomicBool::new(false)).collect();
+    items.data().par_iter().zip(depth.data().par_iter()).for_each(|(&id, &d)| {
+        // Empty pixels (depth 1) move with the camera, whatever their id (as motion_field).
+        if d < 1.0 && animated(id) && !present[id as usize].load(Relaxed) {
+            present[id as usize].store(true, Relaxed);
+        }
+    });
+    let ids: Vec<u32> = (0..n as u32).into_par_iter().filter(|&i| present[i as usize].load(Relaxed)).collect();
+    let vp_b = cam_b.view_proj();
+    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * scene.instances[id as usize].delta(t_a, t_b)).collect();
+    let mut slot = vec![u32::MAX; n];
+    for (k, &id) in ids.iter().enumerate() {
+        slot[id as usize] = k as u32;
+    }
+    let inv_a = cam_a.view_proj().inverse();
+    let (w, h) = depth.size();
+    let mut out = Image::new(w, h, zwarp_core::Motion::default());
+    out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let i = y * w as usize + x;
+            let (d, id) = (depth.data()[i], items.data()[i]);
+            let m = match slot.get(id as usize) {
+                Some(&k) if d < 1.0 && k != u32::MAX => &mats[k as usize],
+                _ => &vp_b,
+            };
+            *o = zwarp_core::motion::reproject_pixel(
+                &inv_a,
+                m,
+                (w, h),
+                (cam_b.width, cam_b.height),
+                x as u32,
+                y as u32,
+                d,
+            );
+        }
+    });
+    Ok(out)
+}
+
 /// WOC for one frame (see the module docs): the visible objects of `scene` at time `t` seen by
 /// `cam`, predicted from the previous frame `prev`.
 ///
@@ -577,8 +652,7 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     };
 
     // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
-    let deltas = scene.object_deltas(prev.t, t);
-    let motion = motion_field(prev_depth, Some(prev_items), prev_cam, cam, &deltas)?;
+    let motion = woc_motion_field(scene, prev_depth, prev_items, prev_cam, cam, prev.t, t)?;
     tm.motion_ms = ms(t0);
 
     // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
@@ -615,10 +689,18 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
     //    (rasterized depth needs no safety margin), and kept visible.
     let t0 = Instant::now();
-    let aabbs = instance_aabbs(scene, t);
+    // One pass over the objects: bounds at `t` and VFC (reused by the screen-space test).
     let frustum = Frustum::from_camera(cam);
+    let (aabbs, inside): (Vec<Aabb>, Vec<bool>) = (0..scene.instances.len() as u32)
+        .into_par_iter()
+        .map(|id| {
+            let b = scene.instance_aabb_at(id, t);
+            let i = frustum.intersects(&b);
+            (b, i)
+        })
+        .unzip();
     let n = scene.instances.len();
-    let mut forced = vec![false; n];
+    let mut forced = Vec::new();
     let mut predrawn = Vec::new();
     // Threshold from the full-resolution width: the same fraction of the view at any
     // resolution and downsampling factor.
@@ -626,9 +708,7 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         let cam_a = if params.rapid_includes_camera { full_prev_cam } else { full_cam };
         let flags: Vec<bool> = (0..n as u32)
             .into_par_iter()
-            .map(|id| {
-                frustum.intersects(&aabbs[id as usize]) && screen_speed(scene, id, cam_a, prev.t, full_cam, t) > thr
-            })
+            .map(|id| inside[id as usize] && screen_speed(scene, id, cam_a, prev.t, full_cam, t) > thr)
             .collect();
         predrawn = (0..n as u32).filter(|&id| flags[id as usize]).collect();
         forced = flags;
@@ -658,7 +738,8 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
 
     // 6. VFC + screen-space test.
     let t0 = Instant::now();
-    let mut classes = test_objects(&aabbs, cam, &map, Some(&forced));
+    let forced = (!forced.is_empty()).then_some(forced.as_slice());
+    let mut classes = test_objects_in(&aabbs, Some(&inside), cam, &map, forced);
     tm.test_ms = ms(t0);
 
     // 7. Hybrid object-space query of the heaviest survivors.

@@ -6,8 +6,8 @@ use zwarp_core::{motion_field, Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, culled_visible, downsample_max, hybrid_cull,
     ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
-    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, MaxDepthKind,
-    Method, PrevFrame, RimMode, ScreenRect, WocParams,
+    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, woc_motion_field,
+    MaxDepthKind, Method, PrevFrame, RimMode, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, WarpLayer, WarpParams};
@@ -629,4 +629,22 @@ fn rapid_motion_decision_is_resolution_independent() {
         let thr = p.rapid_threshold_px(w).unwrap();
         assert!((thr - 0.01 * w as f32).abs() < 1e-4, "{w}: {thr} px");
     }
+}
+
+/// The WOC motion buffer computes object matrices only for the animated objects on screen; it
+/// must equal the core motion field with every object's delta, bit for bit.
+#[test]
+fn woc_motion_field_equals_the_core_motion_field() {
+    let s = random_scene(3);
+    let a = cam_at(Vec3::new(0.5, 3.0, 18.0), Vec3::new(0.0, 1.0, 0.0));
+    let b = cam_at(Vec3::new(0.9, 3.1, 17.6), Vec3::new(0.2, 1.0, 0.0));
+    let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
+    assert!(visible_from_items(&prev.items, s.instances.len())
+        .iter()
+        .any(|&id| s.instances[id as usize].animation.is_animated()));
+    let want = motion_field(&prev.depth, Some(&prev.items), &a, &b, &s.object_deltas(0.0, DT)).unwrap();
+    let got = woc_motion_field(&s, &prev.depth, &prev.items, &a, &b, 0.0, DT).unwrap();
+    assert_eq!(got, want);
+    let small = Image::new(3, 3, 0u32);
+    assert!(woc_motion_field(&s, &prev.depth, &small, &a, &b, 0.0, DT).is_err());
 }

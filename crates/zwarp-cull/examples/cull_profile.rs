@@ -1,0 +1,133 @@
+//! Per-stage cost of WOC (motion, warp, erosion, rapid draw, max-depth build, tests, hybrid)
+//! next to VFC and two-phase in the same run, as `zwarp cull` measures them (cull + draw of the
+//! kept objects; medians over the non-bootstrap frames).
+//!
+//! `cargo run --release -p zwarp-cull --example cull_profile -- [scene] [scale] [width] [height] [frames] [speed] [downsample list]`
+
+use zwarp_cull::{run_sequence, summarize, FrameReport, Method, WocParams};
+use zwarp_scene::{load_scene, SceneOptions};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
+    let scene_name = arg(0, "cb");
+    let scale: f32 = arg(1, "0.25").parse()?;
+    let (w, h): (u32, u32) = (arg(2, "960").parse()?, arg(3, "540").parse()?);
+    let n_frames: usize = arg(4, "12").parse()?;
+    let speed: f32 = arg(5, "1").parse()?;
+    let downs: Vec<u32> = arg(6, "1,4").split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
+    // Optional 8th argument: comma list of WOC variants (`n4`, `n2`, `tight`, `global`, `bi<k>`
+    // bound iterations, `t<k>` iterations, `norims`, `nobase` to skip VFC / two-phase).
+    let mut base = WocParams::default();
+    let mut baselines = true;
+    for opt in arg(7, "-").split(',').filter(|o| *o != "-") {
+        match opt {
+            "n4" => base.warp.n_seeds = 4,
+            "n2" => base.warp.n_seeds = 2,
+            "tight" => base.warp.bound = zwarp_warp::BoundKind::Tight,
+            "global" => base.warp.bound = zwarp_warp::BoundKind::Global,
+            "norims" => base.open_rims = None,
+            "nobase" => baselines = false,
+            o if o.starts_with("bi") => base.warp.bound_iterations = o[2..].parse()?,
+            o if o.starts_with('t') => base.warp.iterations = o[1..].parse()?,
+            o => return Err(format!("unknown option '{o}'").into()),
+        }
+    }
+    let t0 = std::time::Instant::now();
+    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let scene = &loaded.scene;
+    let mut frames = loaded.path_or_default().frames(w, h, speed)?;
+    frames.truncate(n_frames);
+    println!(
+        "{scene_name} scale {scale}: {} objects, {} triangles, {w}x{h}, {} frames, speed {speed}x (load {:.1} s)",
+        scene.instances.len(),
+        scene.triangle_count(),
+        frames.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    println!(
+        "{:<12} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>6} {:>4}",
+        "method",
+        "motion",
+        "warp",
+        "erode",
+        "draw1",
+        "build",
+        "test",
+        "hybrid",
+        "cull",
+        "draw",
+        "frame",
+        "full",
+        "CR",
+        "FN"
+    );
+    let row = |name: &str, reps: &[FrameReport]| {
+        let rs: Vec<&FrameReport> = reps.iter().filter(|r| !r.bootstrap).collect();
+        let m = |f: &dyn Fn(&FrameReport) -> f64| median(rs.iter().map(|r| f(r)).collect());
+        let s = summarize(reps);
+        println!(
+            "{:<12} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>8.2} {:>8.2} {:>8.2} {:>5.1}% {:>4}",
+            name,
+            m(&|r| r.cull.motion_ms),
+            m(&|r| r.cull.warp_ms),
+            m(&|r| r.cull.erosion_ms),
+            m(&|r| r.cull.draw_ms),
+            m(&|r| r.cull.build_ms),
+            m(&|r| r.cull.test_ms),
+            m(&|r| r.cull.hybrid_ms),
+            m(&|r| r.cull.total_ms),
+            m(&|r| r.draw_ms),
+            m(&|r| r.cull.total_ms + r.draw_ms),
+            m(&|r| r.full_draw_ms),
+            100.0 * s.culling_ratio,
+            s.false_negatives
+        );
+    };
+    // `reps<k>` mode (9th argument): WOC on one frame pair (frame 1 from the full render of
+    // frame 0), repeated k times; the minimum of each stage filters out machine load.
+    if let Some(k) = args.get(8).and_then(|a| a.strip_prefix("reps")) {
+        let k: usize = k.parse()?;
+        let prev = zwarp_raster::render_frame(scene, &frames[0].1, frames[0].0, &Default::default())?;
+        let pf = zwarp_cull::PrevFrame { depth: &prev.depth, items: &prev.items, cam: &frames[0].1, t: frames[0].0 };
+        for &f in &downs {
+            let p = WocParams { downsample: f, ..base };
+            let mut best = [f64::INFINITY; 8];
+            for _ in 0..k {
+                let r = zwarp_cull::woc(scene, &pf, &frames[1].1, frames[1].0, &p)?;
+                let c = r.timings;
+                let v =
+                    [c.motion_ms, c.warp_ms, c.erosion_ms, c.draw_ms, c.build_ms, c.test_ms, c.hybrid_ms, c.total_ms];
+                for (b, x) in best.iter_mut().zip(v) {
+                    *b = b.min(x);
+                }
+            }
+            println!(
+                "woc /{f} min of {k}: motion {:.2} warp {:.2} erode {:.2} draw1 {:.2} build {:.2} test {:.2} hybrid {:.2} total {:.2}",
+                best[0], best[1], best[2], best[3], best[4], best[5], best[6], best[7]
+            );
+        }
+        let mut best = f64::INFINITY;
+        for _ in 0..k {
+            best = best.min(zwarp_cull::vfc_cull(scene, &frames[1].1, frames[1].0)?.timings.total_ms);
+        }
+        println!("vfc min of {k}: {best:.2}");
+        return Ok(());
+    }
+    for method in [Method::Vfc, Method::TwoPhase].into_iter().filter(|_| baselines) {
+        row(method.name(), &run_sequence(scene, &frames, method, &WocParams::default())?);
+    }
+    for &f in &downs {
+        let p = WocParams { downsample: f, ..base };
+        row(&format!("woc /{f}"), &run_sequence(scene, &frames, Method::Woc, &p)?);
+    }
+    Ok(())
+}
