@@ -2,7 +2,7 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>]`
+//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
@@ -26,6 +26,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "norims" => params.open_rims = None,
         px => params.open_rims = Some(px.parse()?),
     }
+    // Optional 8th argument: culling resolution divisor.
+    params.downsample = arg(7, "1").parse()?;
     let reps = run_sequence(&loaded.scene, &frames, method, &params)?;
     for r in &reps {
         for c in &r.culled_visible {

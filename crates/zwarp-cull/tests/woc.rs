@@ -546,6 +546,13 @@ fn separating_objects_keep_what_the_opening_shows() {
         let r = woc(&s, &pf, &cam, DT, &WocParams { rim_mode: mode, ..WocParams::default() }).unwrap();
         assert_eq!(r.visible, vec![0, 1, 2], "{mode:?}");
     }
+    // Coarse culling (1/4): the seam lies inside coarse texel 12 (fine columns 48-51), which
+    // keeps B's depth and motion; without the internal-opening rule C is culled.
+    let coarse = WocParams { downsample: 4, ..WocParams::default() };
+    let r = woc(&s, &pf, &cam, DT, &coarse).unwrap();
+    assert_eq!(r.visible, vec![0, 1, 2], "coarse");
+    let r = woc(&s, &pf, &cam, DT, &WocParams { open_rims: None, ..coarse }).unwrap();
+    assert_eq!(r.visible, vec![0, 1], "coarse without rims");
     // The target rule opens column 48 (the strip) on the rows A and B share, nothing else.
     let deltas = s.object_deltas(0.0, DT);
     let motion = motion_field(&prev.depth, Some(&prev.items), &cam, &cam, &deltas).unwrap();
