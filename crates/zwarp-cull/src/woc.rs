@@ -829,10 +829,9 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         predicted.data_mut().par_iter_mut().zip(src.data().par_iter()).zip(warped_state.data().par_iter()).for_each(
             |((d, q), st)| {
                 let (cx, cy) = (q.q.x.floor(), q.q.y.floor());
-                if *st == PixelState::Converged && cx >= 0.0 && cy >= 0.0 && cx < sw as f32 && cy < sh as f32 {
-                    if inner[cy as usize * sw as usize + cx as usize] {
-                        *d = EMPTY_DEPTH;
-                    }
+                let inside = cx >= 0.0 && cy >= 0.0 && cx < sw as f32 && cy < sh as f32;
+                if *st == PixelState::Converged && inside && inner[cy as usize * sw as usize + cx as usize] {
+                    *d = EMPTY_DEPTH;
                 }
             },
         );
