@@ -13,6 +13,49 @@ fn zwarp(args: &[&str]) -> (bool, String, String) {
     )
 }
 
+/// `zwarp` with extra environment variables.
+fn zwarp_env(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_zwarp")).args(args).envs(env.iter().copied()).output().expect("run zwarp");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The small `eval` run the tests share (MO at scale 0.02, 96x64, one frame pair, N = 4,
+/// L = 1, 2, one repetition) with `extra` arguments, writing `json`.
+fn eval_small(extra: &[&str], json: &std::path::Path) -> (bool, String, String) {
+    let mut args = vec![
+        "eval", "--scene", "mo", "--scale", "0.02", "--width", "96", "--height", "64", "--frames", "1", "--n", "4",
+        "--l", "1,2", "--reps", "1",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--json", json.to_str().unwrap()]);
+    zwarp(&args)
+}
+
+/// The `rows` of a JSON report.
+fn json_rows(path: &std::path::Path) -> Vec<serde_json::Value> {
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    v["rows"].as_array().unwrap().clone()
+}
+
+/// Whether `zwarp info` finds a GPU adapter; with `ZWARP_REQUIRE_GPU` set (CI, lavapipe) a
+/// missing adapter fails the test instead of skipping it.
+fn gpu_available() -> bool {
+    let require = std::env::var("ZWARP_REQUIRE_GPU").map(|v| v != "0" && !v.is_empty()).unwrap_or(false);
+    let (ok, out, _) = zwarp(&["info"]);
+    assert!(ok);
+    if !out.contains("GPU adapter:") {
+        assert!(!require, "ZWARP_REQUIRE_GPU is set but no GPU adapter was found:\n{out}");
+        eprintln!("skipped: no GPU adapter");
+        return false;
+    }
+    true
+}
+
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("zwarp-cli-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -132,27 +175,7 @@ fn render_writes_every_buffer() {
 fn eval_writes_the_documented_fields() {
     let d = tmp("eval");
     let j = d.join("e.json");
-    let (ok, _, err) = zwarp(&[
-        "eval",
-        "--scene",
-        "mo",
-        "--scale",
-        "0.02",
-        "--width",
-        "96",
-        "--height",
-        "64",
-        "--frames",
-        "1",
-        "--n",
-        "4",
-        "--l",
-        "1,2",
-        "--reps",
-        "1",
-        "--json",
-        j.to_str().unwrap(),
-    ]);
+    let (ok, _, err) = eval_small(&[], &j);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
@@ -262,49 +285,166 @@ fn shadows_writes_the_documented_fields() {
 /// missing adapter fails here instead of skipping).
 #[test]
 fn eval_gpu_backend_matches_cpu() {
-    let require = std::env::var("ZWARP_REQUIRE_GPU").map(|v| v != "0" && !v.is_empty()).unwrap_or(false);
-    let (ok, out, _) = zwarp(&["info"]);
-    assert!(ok);
-    if !out.contains("GPU adapter:") {
-        assert!(!require, "ZWARP_REQUIRE_GPU is set but no GPU adapter was found:\n{out}");
-        eprintln!("skipped: no GPU adapter");
+    if !gpu_available() {
         return;
     }
     let d = tmp("evalgpu");
     let mut ssim = Vec::new();
     for backend in ["cpu", "gpu"] {
         let j = d.join(format!("{backend}.json"));
-        let (ok, _, err) = zwarp(&[
-            "eval",
+        let (ok, _, err) = eval_small(&["--methods", "ours", "--backend", backend], &j);
+        assert!(ok, "{backend}: {err}");
+        ssim.push(json_rows(&j).iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
+    }
+    assert_eq!(ssim[0].len(), 2);
+    for (c, g) in ssim[0].iter().zip(&ssim[1]) {
+        assert!((c - g).abs() < 2e-3, "cpu {c} vs gpu {g}");
+    }
+}
+
+/// `render --backend gpu` writes the same files and JSON fields as the CPU, with the same
+/// coverage (GPU and CPU rasterizers agree on >= 99.9% of pixels).
+#[test]
+fn render_gpu_backend_matches_cpu() {
+    if !gpu_available() {
+        return;
+    }
+    let d = tmp("rendergpu");
+    let mut rows = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let out = d.join(backend);
+        let j = d.join(format!("{backend}.json"));
+        let (ok, text, err) = zwarp(&[
+            "render",
             "--scene",
             "mo",
             "--scale",
             "0.02",
             "--width",
+            "64",
+            "--height",
+            "48",
+            "--layers",
+            "2",
+            "--backend",
+            backend,
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(ok, "{backend}: {err}");
+        assert!(text.contains(if backend == "gpu" { "on GPU" } else { "on CPU" }), "{text}");
+        rows.push(json_rows(&j).remove(0));
+    }
+    let (c, g) = (&rows[0], &rows[1]);
+    for k in ["objects", "triangles", "width", "height"] {
+        assert_eq!(c[k], g[k], "{k}");
+    }
+    let names = |r: &serde_json::Value| -> Vec<String> {
+        r["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f.as_str().unwrap().rsplit('/').next().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(names(c), names(g));
+    let cov = |r: &serde_json::Value| r["covered_fraction"].as_f64().unwrap();
+    assert!((cov(c) - cov(g)).abs() <= 1e-3, "coverage cpu {} gpu {}", cov(c), cov(g));
+    let lc: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|r| r["layer_coverage"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect())
+        .collect();
+    assert_eq!(lc[0].len(), lc[1].len());
+    for (a, b) in lc[0].iter().zip(&lc[1]) {
+        assert!((a - b).abs() <= 0.01 * (64.0 * 48.0), "layer coverage cpu {a} gpu {b}");
+    }
+}
+
+/// `cull --backend gpu`: the same JSON fields, and the same decisions as the CPU for the
+/// methods whose CPU and GPU versions compute the same function (the kernels are twins;
+/// differences only at the conservative depth margin: at most one object per frame), and a
+/// safe WOC. CPU-only methods are skipped with a note.
+#[test]
+fn cull_gpu_backend_matches_cpu() {
+    if !gpu_available() {
+        return;
+    }
+    let d = tmp("cullgpu");
+    let mut all = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let j = d.join(format!("{backend}.json"));
+        let (ok, _, err) = zwarp(&[
+            "cull",
+            "--scene",
+            "cb",
+            "--scale",
+            "0.01",
+            "--width",
             "96",
             "--height",
             "64",
             "--frames",
-            "1",
-            "--n",
             "4",
-            "--l",
-            "1,2",
-            "--methods",
-            "ours",
-            "--reps",
-            "1",
+            "--method",
+            "nocull,vfc,lastframe,woc,ideal,ref,twophase",
+            "--no-psnr",
             "--backend",
             backend,
             "--json",
             j.to_str().unwrap(),
         ]);
         assert!(ok, "{backend}: {err}");
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
-        ssim.push(v["rows"].as_array().unwrap().iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
+        if backend == "gpu" {
+            assert!(err.contains("twophase CPU-only, skipped"), "{err}");
+        }
+        all.push(json_rows(&j));
     }
-    assert_eq!(ssim[0].len(), 2);
-    for (c, g) in ssim[0].iter().zip(&ssim[1]) {
-        assert!((c - g).abs() < 2e-3, "cpu {c} vs gpu {g}");
+    let (cpu, gpu) = (&all[0], &all[1]);
+    assert_eq!(gpu.len(), 6, "every GPU method but twophase");
+    let get = |rows: &[serde_json::Value], m: &str| rows.iter().find(|r| r["method"] == m).unwrap().clone();
+    for g in gpu {
+        let c = get(cpu, g["method"].as_str().unwrap());
+        let keys = |r: &serde_json::Value| r.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
+        assert_eq!(keys(&c), keys(g), "same JSON fields");
     }
+    let objects = get(gpu, "vfc")["objects"].as_f64().unwrap();
+    let cr = |r: &serde_json::Value| r["culling_ratio"].as_f64().unwrap();
+    for m in ["nocull", "vfc", "lastframe", "ideal", "ref"] {
+        let (c, g) = (get(cpu, m), get(gpu, m));
+        assert!((cr(&c) - cr(&g)).abs() * objects <= 1.0, "{m}: cpu {} gpu {}", cr(&c), cr(&g));
+    }
+    let woc = get(gpu, "woc");
+    assert_eq!(woc["object_error"].as_f64().unwrap(), 0.0, "{woc}");
+    assert!(cr(&woc) >= cr(&get(gpu, "vfc")) - 1e-12, "{woc}");
+}
+
+/// Without an adapter `--backend gpu` fails with one line (no adapter is forced by pointing
+/// wgpu at a backend this build lacks).
+#[test]
+fn gpu_backend_without_adapter_is_one_clear_line() {
+    let d = tmp("noadapter");
+    let j = d.join("c.json");
+    let args = [
+        "cull",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "2",
+        "--backend",
+        "gpu",
+        "--json",
+        j.to_str().unwrap(),
+    ];
+    let (ok, _, err) = zwarp_env(&args, &[("WGPU_BACKEND", "metal")]);
+    assert!(!ok);
+    assert!(error_line(&err).contains("no GPU adapter found"), "{err}");
+    assert!(!j.exists());
 }

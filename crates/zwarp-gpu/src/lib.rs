@@ -34,6 +34,7 @@ pub mod compute;
 pub mod context;
 mod readback;
 pub mod render;
+pub mod sequence;
 pub mod timer;
 
 pub use compute::{
@@ -45,4 +46,7 @@ pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{
     DepthTarget, FrameOptions, GpuFrame, GpuScene, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
 };
+pub use sequence::{gpu_supports, run_gpu_sequence};
 pub use timer::{GpuTimer, TimingMethod, TimingStats};
+/// The wgpu version zwarp is built with (engines pass their own device of this version).
+pub use wgpu;

@@ -9,7 +9,7 @@ use serde::Serialize;
 use zwarp_cull::{run_sequence, Method, WocParams};
 use zwarp_raster::{render_frame, FrameOptions};
 
-use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::report::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp cull`.
@@ -41,6 +41,11 @@ pub struct CullArgs {
     /// Write the results as JSON (`rows`, one per method and speed).
     #[arg(long)]
     pub json: PathBuf,
+    /// `cpu` (default) or `gpu`: culling, full and culled renders on one wgpu device
+    /// (lavapipe without a GPU), same JSON fields. On the GPU `awoc` and `twophase` are
+    /// CPU-only and skipped, and `--downsample` must be 1.
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
 }
 
 /// One method at one speed (JSON `rows`).
@@ -100,10 +105,24 @@ pub fn run(args: CullArgs) -> Result<()> {
     if speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         bail!("--speed values must be positive");
     }
-    let methods = parse_list::<String>(&args.method, "--method")?
+    let mut methods = parse_list::<String>(&args.method, "--method")?
         .iter()
         .map(|m| Method::parse(m).map_err(anyhow::Error::from))
         .collect::<Result<Vec<_>>>()?;
+    let gpu = match args.backend {
+        Backend::Cpu => None,
+        Backend::Gpu => Some(zwarp_gpu::GpuContext::new()?),
+    };
+    if gpu.is_some() {
+        let skipped: Vec<&str> = methods.iter().filter(|m| !zwarp_gpu::gpu_supports(**m)).map(|m| m.name()).collect();
+        if !skipped.is_empty() {
+            eprintln!("zwarp cull: {} CPU-only, skipped on the GPU backend", skipped.join(", "));
+        }
+        methods.retain(|m| zwarp_gpu::gpu_supports(*m));
+        if methods.is_empty() {
+            bail!("none of the requested culling methods runs on the GPU backend");
+        }
+    }
     if args.downsample == 0 {
         bail!("--downsample must be at least 1");
     }
@@ -112,14 +131,17 @@ pub fn run(args: CullArgs) -> Result<()> {
     params.validate()?;
     let loaded = args.scene.load()?;
     let (scene, path) = (&loaded.scene, &loaded.path);
+    let device = match &gpu {
+        Some(ctx) => format!("GPU {}", ctx.adapter),
+        None => format!("CPU with {} threads", rayon::current_num_threads()),
+    };
     println!(
-        "zwarp cull: {} ({} objects, {} triangles), {}x{}, CPU with {} threads",
+        "zwarp cull: {} ({} objects, {} triangles), {}x{}, {device}",
         args.scene.scene,
         scene.instances.len(),
         scene.triangle_count(),
         args.size.width,
         args.size.height,
-        rayon::current_num_threads()
     );
     let mut rows: Vec<CullRow> = Vec::new();
     for &speed in &speeds {
@@ -146,7 +168,10 @@ pub fn run(args: CullArgs) -> Result<()> {
         bar.set_message(format!("cull {} {speed}x", args.scene.scene));
         let mut speed_rows = Vec::new();
         for &method in &methods {
-            let reports = run_sequence(scene, &frames, method, &params)?;
+            let reports = match &gpu {
+                Some(ctx) => zwarp_gpu::run_gpu_sequence(ctx, scene, &frames, method, &params)?,
+                None => run_sequence(scene, &frames, method, &params)?,
+            };
             let steady: Vec<_> = reports.iter().filter(|r| !r.bootstrap).collect();
             let rs = if steady.is_empty() { reports.iter().collect() } else { steady };
             let nf = rs.len().max(1) as f64;
@@ -256,7 +281,14 @@ pub fn run(args: CullArgs) -> Result<()> {
         &args.json,
         "cull",
         &rows,
-        serde_json::json!({ "backend": "cpu", "threads": rayon::current_num_threads(), "width": args.size.width, "height": args.size.height, "downsample": args.downsample }),
+        serde_json::json!({
+            "backend": if gpu.is_some() { "gpu" } else { "cpu" },
+            "adapter": gpu.as_ref().map(|c| c.adapter.to_string()),
+            "threads": rayon::current_num_threads(),
+            "width": args.size.width,
+            "height": args.size.height,
+            "downsample": args.downsample,
+        }),
     )?;
     println!("wrote {}", args.json.display());
     Ok(())

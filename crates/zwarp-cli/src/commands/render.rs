@@ -8,7 +8,7 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions};
 
-use crate::args::{SceneArgs, SizeArgs};
+use crate::args::{Backend, SceneArgs, SizeArgs};
 use crate::report::{self, Timing};
 
 /// Arguments of `zwarp render`.
@@ -30,6 +30,104 @@ pub struct RenderArgs {
     /// Also write a JSON summary (sizes, counts, timings).
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// `cpu` (zwarp-raster) or `gpu` (wgpu, lavapipe without a GPU): same files and JSON fields.
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+}
+
+/// The buffers `zwarp render` writes, from either backend.
+struct Rendered {
+    depth: zwarp_core::Image<f32>,
+    items: zwarp_core::Image<u32>,
+    color: Option<zwarp_core::Image<[f32; 3]>>,
+    motion: zwarp_core::Image<zwarp_core::Motion>,
+    /// Depth of every peeled layer (the ground layer last when the scene has ground).
+    layers: Vec<zwarp_core::Image<f32>>,
+    /// Depth-only render times (ms), 3 samples.
+    depth_samples: Vec<f64>,
+    /// Adapter name on the GPU.
+    adapter: Option<String>,
+}
+
+/// The CPU backend: zwarp-raster and the CPU motion field.
+#[allow(clippy::too_many_arguments)]
+fn render_cpu(
+    scene: &zwarp_core::Scene,
+    cam: &zwarp_core::Camera,
+    t: f32,
+    cam_next: &zwarp_core::Camera,
+    t_next: f32,
+    layers: usize,
+    has_ground: bool,
+) -> Result<Rendered> {
+    let (_, depth_samples) = report::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, cam, t)?))?;
+    let frame = render_frame(scene, cam, t, &FrameOptions { color: true, objects: None })?;
+    let motion =
+        zwarp_core::motion_field(&frame.depth, Some(&frame.items), cam, cam_next, &scene.object_deltas(t, t_next))?;
+    let layers = if layers > 0 {
+        render_layers(scene, cam, t, &PeelOptions { layers, ground_separate: has_ground, umbra: None })?
+            .into_iter()
+            .map(|l| l.depth)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Ok(Rendered {
+        depth: frame.depth,
+        items: frame.items,
+        color: frame.color,
+        motion,
+        layers,
+        depth_samples,
+        adapter: None,
+    })
+}
+
+/// The GPU backend: the wgpu renderer (depth-only time fenced on the device), the WGSL motion
+/// kernel and GPU depth peeling.
+#[allow(clippy::too_many_arguments)]
+fn render_gpu(
+    scene: &zwarp_core::Scene,
+    cam: &zwarp_core::Camera,
+    t: f32,
+    cam_next: &zwarp_core::Camera,
+    t_next: f32,
+    layers: usize,
+    has_ground: bool,
+) -> Result<Rendered> {
+    let ctx = zwarp_gpu::GpuContext::new()?;
+    let r = zwarp_gpu::Renderer::new(&ctx)?;
+    let gs = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
+    let target = zwarp_gpu::DepthTarget::new(&ctx, cam.width, cam.height)?;
+    let (_, depth_samples) = report::time_repeated(3, || {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        r.encode_depth(&mut enc, &gs, cam, t, &target)?;
+        ctx.queue.submit([enc.finish()]);
+        Ok(ctx.wait()?)
+    })?;
+    let frame = r.render_frame(&gs, cam, t, &zwarp_gpu::FrameOptions { color: true, ..Default::default() })?;
+    let motion = zwarp_gpu::MotionKernel::new(&ctx)?.motion_field(
+        &frame.depth,
+        Some(&frame.items),
+        cam,
+        cam_next,
+        &gs.object_deltas(t, t_next),
+    )?;
+    let layers = if layers > 0 {
+        let opts = zwarp_gpu::PeelOptions { layers: layers as u32, ground_separate: has_ground, ..Default::default() };
+        r.render_layers(&gs, cam, t, &opts)?.into_iter().map(|l| l.depth).collect()
+    } else {
+        Vec::new()
+    };
+    Ok(Rendered {
+        depth: frame.depth,
+        items: frame.items,
+        color: frame.color,
+        motion,
+        layers,
+        depth_samples,
+        adapter: Some(ctx.adapter.to_string()),
+    })
 }
 
 /// JSON summary of a render.
@@ -69,10 +167,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let mut files = Vec::new();
     let mut note = |p: &Path| files.push(p.display().to_string());
 
-    let (_, samples) = report::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, &cam, t)?))?;
-    let frame = render_frame(scene, &cam, t, &FrameOptions { color: true, objects: None })?;
-    let motion =
-        zwarp_core::motion_field(&frame.depth, Some(&frame.items), &cam, &cam_next, &scene.object_deltas(t, t_next))?;
+    let has_ground = scene.instances.iter().any(|i| i.is_ground);
+    let rendered = match args.backend {
+        Backend::Cpu => render_cpu(scene, &cam, t, &cam_next, t_next, args.layers, has_ground)?,
+        Backend::Gpu => render_gpu(scene, &cam, t, &cam_next, t_next, args.layers, has_ground)?,
+    };
+    let (frame, motion) = (&rendered, &rendered.motion);
 
     let p = out("depth.png");
     zwarp_viz::write_png(&p, &zwarp_viz::depth_to_rgb8(&frame.depth, Some(&cam)))?;
@@ -92,32 +192,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
         note(&p);
     }
     let p = out("motion.png");
-    zwarp_viz::write_png(&p, &zwarp_viz::motion_to_rgb8(&motion, None))?;
+    zwarp_viz::write_png(&p, &zwarp_viz::motion_to_rgb8(motion, None))?;
     note(&p);
     let p = out("motion.exr");
-    zwarp_viz::write_exr_motion(&p, &motion)?;
+    zwarp_viz::write_exr_motion(&p, motion)?;
     note(&p);
 
     let mut layer_coverage = Vec::new();
-    if args.layers > 0 {
-        let has_ground = scene.instances.iter().any(|i| i.is_ground);
-        let layers = render_layers(
-            scene,
-            &cam,
-            t,
-            &PeelOptions { layers: args.layers, ground_separate: has_ground, umbra: None },
-        )?;
-        for (k, layer) in layers.iter().enumerate() {
-            let name =
-                if has_ground && k + 1 == layers.len() { "layer_ground".to_string() } else { format!("layer{k}") };
-            let p = out(&format!("{name}.png"));
-            zwarp_viz::write_png(&p, &zwarp_viz::depth_to_rgb8(&layer.depth, Some(&cam)))?;
-            note(&p);
-            let p = out(&format!("{name}.exr"));
-            zwarp_viz::write_exr_f32(&p, &layer.depth, "Z")?;
-            note(&p);
-            layer_coverage.push(layer.coverage());
-        }
+    for (k, layer) in rendered.layers.iter().enumerate() {
+        let name =
+            if has_ground && k + 1 == rendered.layers.len() { "layer_ground".to_string() } else { format!("layer{k}") };
+        let p = out(&format!("{name}.png"));
+        zwarp_viz::write_png(&p, &zwarp_viz::depth_to_rgb8(layer, Some(&cam)))?;
+        note(&p);
+        let p = out(&format!("{name}.exr"));
+        zwarp_viz::write_exr_f32(&p, layer, "Z")?;
+        note(&p);
+        layer_coverage.push(layer.data().iter().filter(|&&d| d < 1.0).count());
     }
     let covered = frame.depth.data().iter().filter(|&&d| d < 1.0).count() as f64 / frame.depth.len() as f64;
     let max_motion = motion
@@ -135,14 +226,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         height: h,
         objects: scene.instances.len(),
         triangles: scene.triangle_count(),
-        depth_ms: Timing::of(&samples).median,
+        depth_ms: Timing::of(&rendered.depth_samples).median,
         covered_fraction: covered,
         max_motion_px: max_motion,
         layer_coverage,
         files,
     };
+    let backend = match &rendered.adapter {
+        Some(a) => format!("GPU {a}"),
+        None => format!("CPU, {} threads", rayon::current_num_threads()),
+    };
     println!(
-        "rendered {} frame {} (t = {:.3} s) at {}x{}: {} objects, {} triangles, depth-only {:.1} ms (median of 3), {:.1}% covered, max motion {:.1} px",
+        "rendered {} frame {} (t = {:.3} s) at {}x{} on {backend}: {} objects, {} triangles, depth-only {:.1} ms (median of 3), {:.1}% covered, max motion {:.1} px",
         row.scene,
         row.frame,
         t,
@@ -156,7 +251,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     );
     println!("wrote {} files to {}", row.files.len(), args.out.display());
     if let Some(j) = &args.json {
-        report::write_json(j, "render", std::slice::from_ref(&row), serde_json::json!({}))?;
+        let meta = serde_json::json!({
+            "backend": if rendered.adapter.is_some() { "gpu" } else { "cpu" },
+            "adapter": rendered.adapter,
+            "threads": rayon::current_num_threads(),
+        });
+        report::write_json(j, "render", std::slice::from_ref(&row), meta)?;
     }
     Ok(())
 }

@@ -625,6 +625,94 @@ impl Renderer {
         Ok(())
     }
 
+    /// Records a depth + item pass into layer 0 of `targets` (cleared to 1 / [`NO_ITEM`])
+    /// drawing `scene` from indirect arguments, as [`Renderer::encode_depth_from_args`]: the
+    /// frame an engine draws for the kept objects, whose depth and items are the next frame's
+    /// WOC input. Same requirements as [`Renderer::encode_depth_from_args`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_frame_from_args(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        targets: &LayerTargets,
+        args: &wgpu::Buffer,
+        count: Option<&wgpu::Buffer>,
+    ) -> Result<()> {
+        let features = self.ctx.device.features();
+        if !features.contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
+            return Err(Error::Unavailable(format!(
+                "{} lacks INDIRECT_FIRST_INSTANCE, needed for culled indirect draws",
+                self.ctx.adapter.name
+            )));
+        }
+        if count.is_some() && !features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
+            return Err(Error::Unavailable(format!("{} lacks MULTI_DRAW_INDIRECT_COUNT", self.ctx.adapter.name)));
+        }
+        let n = scene.object_count() as u32;
+        let need = n as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64;
+        if args.size() < need || !args.usage().contains(wgpu::BufferUsages::INDIRECT) {
+            return Err(Error::invalid(format!(
+                "indirect argument buffer needs INDIRECT usage and {need} bytes, has {}",
+                args.size()
+            )));
+        }
+        self.check_camera(camera)?;
+        if targets.size() != (camera.width, camera.height) {
+            return Err(Error::invalid(format!(
+                "layer targets are {}x{} but the camera renders {}x{}",
+                targets.width, targets.height, camera.width, camera.height
+            )));
+        }
+        scene.write_objects(&self.ctx, camera, t)?;
+        let opts = PeelOptions { layers: 1, ..Default::default() };
+        let uni = self.frame_uniform(camera, &opts);
+        self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uni));
+        let bind = self.scene_bind_group(scene);
+        let item_view = targets.items[0].create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("zwarp frame indirect"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &item_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r: NO_ITEM as f64, g: 0.0, b: 0.0, a: 0.0 }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth[0].view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        });
+        pass.set_pipeline(&self.frame_pipeline[0]);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
+        match count {
+            Some(c) => pass.multi_draw_indexed_indirect_count(args, 0, c, 0, n),
+            None => pass.multi_draw_indexed_indirect(args, 0, n),
+        }
+        Ok(())
+    }
+
+    /// Reads layer `k` of `targets` back as a [`GpuFrame`] (depth and items; no colour).
+    pub fn read_layer(&self, targets: &LayerTargets, k: usize) -> Result<GpuFrame> {
+        if k >= targets.layers() {
+            return Err(Error::invalid(format!("layer {k} of {} layers", targets.layers())));
+        }
+        let (w, h) = targets.size();
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let pd = self.depth_to_buffer(&mut enc, &targets.depth[k])?;
+        let pi = copy_texture(&self.ctx, &mut enc, &targets.items[k], wgpu::TextureAspect::All, 4);
+        self.ctx.queue.submit([enc.finish()]);
+        Ok(GpuFrame { depth: self.read_depth(&pd, w, h)?, items: pi.read(&self.ctx)?, color: None })
+    }
+
     /// Depth-only render of the objects `culled` kept (see [`Renderer::encode_depth_indirect`]),
     /// read back. The cull must have been submitted before (or recorded into the same queue).
     pub fn render_depth_indirect(

@@ -1,0 +1,294 @@
+//! Culling methods run along a camera path on the GPU (seed 000 Sec. 5.3, thesis Sec. V): the
+//! GPU twin of [`zwarp_cull::run_sequence`], reporting the same [`FrameReport`]s so that
+//! `zwarp cull --backend gpu` prints the same JSON fields. Per frame, on one device: the full
+//! render (REF, timed), the method's cull (timed: CPU-side AABB/flag uploads + GPU work, fenced
+//! wall clock), the indirect draw of the kept objects (depth + items, timed), which is the next
+//! frame's previous frame. Read-backs for the statistics are not timed.
+//!
+//! Methods: NOCULL, VFC (cull kernel against an empty map), LASTFRAME (max structure of the
+//! previous drawn depth), WOC ([`GpuWoc`]), IDEAL (N-buffer of the true depth) and REF.
+//! AWOC and two-phase culling are CPU-only ([`gpu_supports`]).
+
+use std::time::Instant;
+
+use zwarp_core::{Camera, Error, Image, Result, Scene};
+use zwarp_cull::{
+    accuracy, culled_visible, visible_from_items, CullStats, CullTimings, FrameReport, MaxDepthKind, Method, PrevFrame,
+    WocParams,
+};
+
+use crate::compute::{rapid_flags, GpuWoc, GpuWocParams};
+use crate::{
+    CullKernel, CullObjects, CullOutput, GpuContext, GpuCullClass, GpuMaxDepth, GpuScene, LayerTargets, MaxDepthKernel,
+    PeelOptions, Renderer,
+};
+
+/// `true` for the methods [`run_gpu_sequence`] implements.
+pub fn gpu_supports(method: Method) -> bool {
+    !matches!(method, Method::Awoc | Method::TwoPhase)
+}
+
+fn ms(t0: Instant) -> f64 {
+    t0.elapsed().as_secs_f64() * 1e3
+}
+
+/// Device state shared by the frames of a run.
+struct Run<'a> {
+    ctx: &'a GpuContext,
+    scene: &'a Scene,
+    gs: GpuScene,
+    r: Renderer,
+    max_k: MaxDepthKernel,
+    cull_k: CullKernel,
+    objects: CullObjects,
+    out: CullOutput,
+    /// Slot arguments for CPU-chosen sets (NOCULL, REF).
+    set_args: wgpu::Buffer,
+    /// A depth buffer copy (for max structures over a rendered depth target).
+    depth_buf: wgpu::Buffer,
+    map: GpuMaxDepth,
+    empty_map: GpuMaxDepth,
+    woc: Option<GpuWoc>,
+}
+
+impl Run<'_> {
+    /// Submits `enc` and waits: the fenced wall-clock end of a timed step.
+    fn finish(&self, enc: wgpu::CommandEncoder) -> Result<()> {
+        self.ctx.queue.submit([enc.finish()]);
+        self.ctx.wait()
+    }
+
+    fn encoder(&self) -> wgpu::CommandEncoder {
+        self.ctx.device.create_command_encoder(&Default::default())
+    }
+
+    /// Slot arguments drawing exactly `ids` (one instance for each listed object).
+    fn write_set(&self, ids: &[u32]) {
+        let mut keep = vec![false; self.scene.instances.len()];
+        for &id in ids {
+            keep[id as usize] = true;
+        }
+        let mut args = vec![wgpu::util::DrawIndexedIndirectArgs::default(); keep.len()];
+        for (id, d) in self.gs.draws.iter().enumerate() {
+            args[d[3] as usize] = wgpu::util::DrawIndexedIndirectArgs {
+                index_count: d[1],
+                instance_count: keep[id] as u32,
+                first_index: d[0],
+                base_vertex: d[2] as i32,
+                first_instance: d[3],
+            };
+        }
+        let bytes: Vec<u8> = args.iter().flat_map(|a| a.as_bytes().to_vec()).collect();
+        self.ctx.queue.write_buffer(&self.set_args, 0, &bytes);
+    }
+
+    /// Culls against `map` (built over `depth` first when given), returning the wall time.
+    fn cull_against(&self, cam: &Camera, t: f32, depth: Option<&LayerTargets>, map: &GpuMaxDepth) -> Result<f64> {
+        let t0 = Instant::now();
+        self.objects.write_scene_aabbs(self.ctx, self.scene, t)?;
+        self.objects.write_forced(self.ctx, None)?;
+        let mut enc = self.encoder();
+        if let Some(d) = depth {
+            self.r.encode_depth_copy(&mut enc, &d.depth[0], &self.depth_buf, cam.width)?;
+            self.max_k.encode(&mut enc, &self.depth_buf, map)?;
+        }
+        self.cull_k.encode(
+            &mut enc,
+            &self.objects,
+            &cam.view_proj(),
+            cam.width,
+            cam.height,
+            zwarp_cull::DEPTH_TOLERANCE,
+            map,
+            &self.out,
+        )?;
+        self.finish(enc)?;
+        Ok(ms(t0))
+    }
+}
+
+fn stats_of(classes: &[GpuCullClass]) -> CullStats {
+    let mut st = CullStats { objects: classes.len(), ..CullStats::default() };
+    for c in classes {
+        match c {
+            GpuCullClass::Frustum => st.frustum_culled += 1,
+            GpuCullClass::Occluded => st.occlusion_culled += 1,
+            GpuCullClass::CrossesNear => st.crosses_near += 1,
+            GpuCullClass::Forced => st.rapid += 1,
+            GpuCullClass::Visible => {}
+        }
+    }
+    st
+}
+
+/// Runs `method` along `frames` on `ctx`'s device (see the module docs). `params` as for the
+/// CPU: the GPU WOC runs [`GpuWocParams::from_cpu`]`(params)`, i.e. the CPU's
+/// [`GpuWocParams::cpu_twin`]. Errors: unsupported methods, no frames, differing frame sizes,
+/// parameters the GPU cannot run.
+pub fn run_gpu_sequence(
+    ctx: &GpuContext,
+    scene: &Scene,
+    frames: &[(f32, Camera)],
+    method: Method,
+    params: &WocParams,
+) -> Result<Vec<FrameReport>> {
+    if !gpu_supports(method) {
+        return Err(Error::invalid(format!("culling method '{}' is CPU-only", method.name())));
+    }
+    let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
+    let (w, h) = (first.width, first.height);
+    if let Some((k, (_, c))) = frames.iter().enumerate().find(|(_, (_, c))| (c.width, c.height) != (w, h)) {
+        return Err(Error::invalid(format!("frame {k} renders {}x{} but frame 0 renders {w}x{h}", c.width, c.height)));
+    }
+    let gs = GpuScene::upload(ctx, scene)?;
+    let n = scene.instances.len();
+    let max_k = MaxDepthKernel::new(ctx)?;
+    let depth_buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("zwarp sequence depth"),
+        size: w as u64 * h as u64 * 4,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    // VFC is the cull kernel against a map that never occludes (every texel far).
+    let empty_map = max_k.build(&Image::new(w, h, zwarp_core::EMPTY_DEPTH), MaxDepthKind::Mipmap)?;
+    let woc = if method == Method::Woc { Some(GpuWoc::new(ctx, w, h, GpuWocParams::from_cpu(params)?)?) } else { None };
+    let run = Run {
+        ctx,
+        scene,
+        r: Renderer::new(ctx)?,
+        // IDEAL is the exact N-buffer test (as `zwarp_cull::ideal_screen_space`).
+        map: max_k.create(if method == Method::Ideal { MaxDepthKind::NBuffer } else { params.max_depth }, w, h)?,
+        max_k,
+        cull_k: CullKernel::new(ctx)?,
+        objects: CullObjects::for_scene(ctx, &gs)?,
+        out: CullOutput::new(ctx, n)?,
+        set_args: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("zwarp sequence set args"),
+            size: n as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64,
+            usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+        depth_buf,
+        empty_map,
+        woc,
+        gs,
+    };
+    let full_targets = LayerTargets::new(&run.r, w, h, 1, false)?;
+    // The drawn frame of the previous and the current frame (swapped every frame).
+    let drawn = [LayerTargets::new(&run.r, w, h, 1, false)?, LayerTargets::new(&run.r, w, h, 1, false)?];
+    let tri_of = |ids: &[u32]| -> usize {
+        ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
+    };
+    let history = matches!(method, Method::Woc | Method::LastFrame);
+    let mut prev_cpu: Option<(Image<f32>, Image<u32>)> = None;
+    let mut reports = Vec::with_capacity(frames.len());
+    for (k, (t, cam)) in frames.iter().enumerate() {
+        let t = *t;
+        // REF / NOCULL on the same device.
+        let t0 = Instant::now();
+        let mut enc = run.encoder();
+        run.r.encode_layers(
+            &mut enc,
+            &run.gs,
+            cam,
+            t,
+            &PeelOptions { layers: 1, ..Default::default() },
+            &full_targets,
+        )?;
+        run.finish(enc)?;
+        let full_draw_ms = ms(t0);
+        let full = run.r.read_layer(&full_targets, 0)?;
+        let reference = visible_from_items(&full.items, n);
+
+        let bootstrap = history && prev_cpu.is_none();
+        let (cur, prev) = (k % 2, (k + 1) % 2);
+        // (visible ids, cull ms, stats, occlusion map, args from the cull kernel?)
+        let (visible, cull_ms, stats, occ, from_kernel) = if bootstrap || method == Method::Vfc {
+            let c = run.cull_against(cam, t, None, &run.empty_map)?;
+            let r = run.out.read(ctx)?;
+            (r.visible, c, stats_of(&r.classes), None, true)
+        } else {
+            match method {
+                Method::NoCull | Method::Ref => {
+                    let ids: Vec<u32> = if method == Method::Ref { reference.clone() } else { (0..n as u32).collect() };
+                    run.write_set(&ids);
+                    (ids, 0.0, CullStats { objects: n, ..CullStats::default() }, None, false)
+                }
+                Method::Ideal | Method::LastFrame => {
+                    let src = if method == Method::Ideal { &full_targets } else { &drawn[prev] };
+                    let c = run.cull_against(cam, t, Some(src), &run.map)?;
+                    let r = run.out.read(ctx)?;
+                    let occ = if method == Method::Ideal {
+                        full.depth.clone()
+                    } else {
+                        prev_cpu.as_ref().expect("history").0.clone()
+                    };
+                    (r.visible, c, stats_of(&r.classes), Some(occ), true)
+                }
+                Method::Woc => {
+                    let woc = run.woc.as_ref().expect("built for WOC");
+                    let (t_prev, cam_prev) = &frames[k - 1];
+                    let t0 = Instant::now();
+                    run.objects.write_scene_aabbs(ctx, scene, t)?;
+                    let flags = rapid_flags(scene, cam_prev, *t_prev, cam, t, params);
+                    run.objects.write_forced(ctx, Some(&flags))?;
+                    let items_view = drawn[prev].items[0].create_view(&Default::default());
+                    let pf = crate::GpuPrevFrame {
+                        depth: &drawn[prev].depth[0].view,
+                        items: &items_view,
+                        cam: cam_prev,
+                        t: *t_prev,
+                    };
+                    let mut enc = run.encoder();
+                    woc.encode(
+                        &mut enc,
+                        &run.gs,
+                        &pf,
+                        &run.gs.object_deltas(*t_prev, t),
+                        cam,
+                        t,
+                        &run.objects,
+                        &run.out,
+                    )?;
+                    run.finish(enc)?;
+                    let c = ms(t0);
+                    let r = run.out.read(ctx)?;
+                    let occ = crate::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
+                    (r.visible, c, stats_of(&r.classes), Some(Image::from_vec(w, h, occ)?), true)
+                }
+                Method::Vfc | Method::Awoc | Method::TwoPhase => unreachable!("handled above / rejected"),
+            }
+        };
+        // Draw the kept objects (depth + items): the frame the engine shows, and the next
+        // frame's history.
+        let t0 = Instant::now();
+        let mut enc = run.encoder();
+        let args = if from_kernel { &run.out.slot_args } else { &run.set_args };
+        run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[cur], args, None)?;
+        run.finish(enc)?;
+        let draw_ms = ms(t0);
+        let shown = run.r.read_layer(&drawn[cur], 0)?;
+        let pixel_error = shown.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
+        let pf =
+            prev_cpu.as_ref().map(|(d, i)| PrevFrame { depth: d, items: i, cam: &frames[k - 1].1, t: frames[k - 1].0 });
+        let culled = culled_visible(scene, &visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
+        reports.push(FrameReport {
+            frame: k,
+            t,
+            visible: visible.len(),
+            accuracy: accuracy(&visible, &reference, n),
+            visible_ids: visible.clone(),
+            pixel_error,
+            cull: CullTimings { total_ms: cull_ms, ..CullTimings::default() },
+            stats,
+            draw_ms,
+            full_draw_ms,
+            triangles: tri_of(&visible),
+            full_triangles: scene.triangle_count(),
+            culled_visible: culled,
+            bootstrap,
+        });
+        prev_cpu = Some((shown.depth, shown.items));
+    }
+    Ok(reports)
+}
