@@ -35,6 +35,8 @@ fn main() -> zwarp_core::Result<()> {
         sm_sizes: sms,
         methods: vec![Method::Zwarp, Method::Pcss],
         reps,
+        warmup: 1,
+        full_max_samples: u32::MAX,
         base: ShadowParams {
             parallax_motion: std::env::var("ZW_PARALLAX").map_or(true, |v| v != "0"),
             ..ShadowParams::default()

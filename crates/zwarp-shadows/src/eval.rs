@@ -16,8 +16,14 @@ pub struct EvalConfig {
     pub sm_sizes: Vec<u32>,
     /// Methods besides the reference (which always runs: it is the quality baseline).
     pub methods: Vec<Method>,
-    /// Timed repetitions after one warm-up run (>= 1).
+    /// Timed repetitions (>= 1; the median is reported).
     pub reps: usize,
+    /// Untimed warm-up runs before the timed ones (DESIGN.md "warm"; 0 leaves the median of
+    /// the repetitions to absorb a cold first run, for expensive configurations).
+    pub warmup: usize,
+    /// [`Method::ZwarpFull`] (every texel of every map) is measured only for S up to this
+    /// (it costs up to S full warps; the before/after comparison needs a few S only).
+    pub full_max_samples: u32,
     /// Everything else (L, N, T, holes, bias, seed...); `samples` and `sm_size` are overridden.
     pub base: ShadowParams,
 }
@@ -49,6 +55,8 @@ pub struct EvalRow {
     pub timings: StageTimings,
     /// Hole pixels left in the warped maps (zwarp).
     pub warp_holes: usize,
+    /// Texels warped over the S maps (zwarp; see [`ShadowResult::warped_texels`]).
+    pub warped_texels: usize,
 }
 
 /// Timings of the repetitions of one configuration.
@@ -68,7 +76,9 @@ fn summarize(mut v: Vec<(f64, StageTimings)>) -> Timed {
     Timed { ms: m.0, lo: v[0].0, hi: v[v.len() - 1].0, times, stages: m.1 }
 }
 
-/// Runs `method` `reps + 1` times (first one is warm-up), returns the last result and timings.
+/// Runs `method` `warmup` untimed then `reps` (>= 1) timed times, returns the last result and
+/// the timings.
+#[allow(clippy::too_many_arguments)]
 fn timed(
     scene: &Scene,
     cam: &Camera,
@@ -76,14 +86,20 @@ fn timed(
     light: &AreaLight,
     method: Method,
     p: &ShadowParams,
+    warmup: usize,
     reps: usize,
 ) -> Result<(ShadowResult, Timed)> {
-    let mut out = run_shadows(scene, cam, t, light, method, p)?;
-    let mut times = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        out = run_shadows(scene, cam, t, light, method, p)?;
-        times.push((out.ms, out.timings));
+    for _ in 0..warmup {
+        run_shadows(scene, cam, t, light, method, p)?;
     }
+    let mut times = Vec::with_capacity(reps);
+    let mut out = None;
+    for _ in 0..reps.max(1) {
+        let r = run_shadows(scene, cam, t, light, method, p)?;
+        times.push((r.ms, r.timings));
+        out = Some(r);
+    }
+    let out = out.ok_or_else(|| Error::invalid("no timed repetition"))?;
     Ok((out, summarize(times)))
 }
 
@@ -109,7 +125,7 @@ pub fn evaluate(
         let mut pcss: Option<(ShadowResult, Timed)> = None;
         for &s in &cfg.samples {
             let p = ShadowParams { samples: s, sm_size: sm, ..cfg.base };
-            let (reference, rt) = timed(scene, cam, t, light, Method::Reference, &p, cfg.reps)?;
+            let (reference, rt) = timed(scene, cam, t, light, Method::Reference, &p, cfg.warmup, cfg.reps)?;
             let rms = rt.ms;
             let ref_row = EvalRow {
                 method: Method::Reference,
@@ -124,6 +140,7 @@ pub fn evaluate(
                 speedup: 1.0,
                 timings: rt.stages,
                 warp_holes: 0,
+                warped_texels: 0,
             };
             on_result(&ref_row, &reference, &reference)?;
             rows.push(ref_row);
@@ -132,11 +149,12 @@ pub fn evaluate(
                     Method::Reference => continue,
                     Method::Pcss => {
                         if pcss.is_none() {
-                            pcss = Some(timed(scene, cam, t, light, m, &p, cfg.reps)?);
+                            pcss = Some(timed(scene, cam, t, light, m, &p, cfg.warmup, cfg.reps)?);
                         }
                         pcss.clone().ok_or_else(|| Error::invalid("PCSS result missing"))?
                     }
-                    Method::Zwarp | Method::ZwarpFull => timed(scene, cam, t, light, m, &p, cfg.reps)?,
+                    Method::ZwarpFull if s > cfg.full_max_samples => continue,
+                    Method::Zwarp | Method::ZwarpFull => timed(scene, cam, t, light, m, &p, cfg.warmup, cfg.reps)?,
                 };
                 let ms = tm.ms;
                 let row = EvalRow {
@@ -152,6 +170,7 @@ pub fn evaluate(
                     speedup: rms / ms.max(1e-9),
                     timings: tm.stages,
                     warp_holes: res.warp_holes,
+                    warped_texels: res.warped_texels,
                 };
                 on_result(&row, &res, &reference)?;
                 rows.push(row);

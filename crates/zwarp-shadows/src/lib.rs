@@ -39,7 +39,7 @@ pub use light::{
 };
 pub use lookups::{SparseMap, TexelSet};
 pub use pcss::{pcss_visibility, PcssParams};
-pub use shade::{reconstruct_normals, texel_of, DepthBias, Receiver, Receivers};
+pub use shade::{reconstruct_normals, texel_of, DepthBias, Receiver, Receivers, OFF_MAP};
 
 /// How the sample shadow maps (and so the visibility) are obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -196,7 +196,9 @@ pub struct StageTimings {
     pub render: f64,
     /// Motion buffers centre -> sample (zwarp).
     pub motion: f64,
-    /// Motion mipmaps and warps (zwarp).
+    /// Motion mipmaps (`PreparedLayer`: once with the shared mipmap, per sample otherwise).
+    pub mipmap: f64,
+    /// Warps (zwarp): the full maps, or the looked-up texels and hole neighbours.
     pub warp: f64,
     /// Visibility tests (accumulation over the maps, or the PCSS filter).
     pub visibility: f64,
@@ -216,8 +218,12 @@ pub struct ShadowResult {
     /// Per-stage times.
     pub timings: StageTimings,
     /// Pixels of all warped maps without a converged sample after the hole policy, summed over
-    /// the S maps (zwarp only; includes texels where the light sees no surface at all).
+    /// the S maps (zwarp only; includes texels where the light sees no surface at all; the lazy
+    /// synthesis counts only looked-up texels).
     pub warp_holes: usize,
+    /// Texels warped, summed over the S maps (zwarp: `S * sm^2` for the full maps; the looked-up
+    /// texels plus the hole neighbours the dilation needed for the lazy synthesis).
+    pub warped_texels: usize,
 }
 
 fn ms_since(t: Instant) -> f64 {
@@ -275,7 +281,9 @@ pub struct ZwarpMaps<'a> {
     params: WarpParams,
     /// Accumulated time of the motion buffers (ms).
     pub motion_ms: f64,
-    /// Accumulated time of the motion mipmaps (`PreparedLayer::new`) and warps (ms).
+    /// Accumulated time of the motion mipmaps (`PreparedLayer::new`, ms).
+    pub mipmap_ms: f64,
+    /// Accumulated time of the warps (ms).
     pub warp_ms: f64,
 }
 
@@ -301,6 +309,7 @@ impl<'a> ZwarpMaps<'a> {
             k_ref: Vec2::ZERO,
             params: params.warp_params(),
             motion_ms: 0.0,
+            mipmap_ms: 0.0,
             warp_ms: 0.0,
         };
         if params.parallax_motion || params.shared_mipmap {
@@ -327,7 +336,7 @@ impl<'a> ZwarpMaps<'a> {
                 .zip(&maps.reference)
                 .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, BoundKind::Tight))
                 .collect::<Result<Vec<_>>>()?;
-            maps.warp_ms += ms_since(t0);
+            maps.mipmap_ms += ms_since(t0);
         }
         Ok(maps)
     }
@@ -371,7 +380,7 @@ impl<'a> ZwarpMaps<'a> {
             .zip(&motions)
             .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, self.params.bound))
             .collect::<Result<Vec<_>>>()?;
-        self.warp_ms += ms_since(t1);
+        self.mipmap_ms += ms_since(t1);
         Ok(prepared)
     }
 
@@ -475,6 +484,7 @@ pub fn run_shadows(
 
     let mut lit = vec![0u32; recv.list.len()];
     let mut warp_holes = 0usize;
+    let mut warped_texels = 0usize;
     let visibility = match method {
         Method::Reference => {
             for i in 0..rig.samples() {
@@ -498,11 +508,13 @@ pub fn run_shadows(
                 tm.visibility += ms_since(t2);
                 maps.warp_sparse(i, &mut sparse)?;
                 warp_holes += sparse.holes();
+                warped_texels += sparse.warped();
                 let t2 = Instant::now();
-                recv.accumulate(&sparse.depth, rig.shifts[i], &mut lit);
+                sparse.accumulate(&recv, &mut lit);
                 tm.visibility += ms_since(t2);
             }
             tm.motion = maps.motion_ms;
+            tm.mipmap = maps.mipmap_ms;
             tm.warp = maps.warp_ms;
             recv.visibility_image(&lit, rig.samples() as u32)
         }
@@ -513,11 +525,13 @@ pub fn run_shadows(
             for i in 0..rig.samples() {
                 let out = maps.map(i)?;
                 warp_holes += out.counts().2;
+                warped_texels += out.depth.len();
                 let t2 = Instant::now();
                 recv.accumulate(&out.depth, rig.shifts[i], &mut lit);
                 tm.visibility += ms_since(t2);
             }
             tm.motion = maps.motion_ms;
+            tm.mipmap = maps.mipmap_ms;
             tm.warp = maps.warp_ms;
             recv.visibility_image(&lit, rig.samples() as u32)
         }
@@ -538,7 +552,7 @@ pub fn run_shadows(
     let t3 = Instant::now();
     let image = recv.shade(&visibility, params.ambient)?;
     tm.shade = ms_since(t3);
-    Ok(ShadowResult { image, visibility, ms: ms_since(start), timings: tm, warp_holes })
+    Ok(ShadowResult { image, visibility, ms: ms_since(start), timings: tm, warp_holes, warped_texels })
 }
 
 #[cfg(test)]

@@ -19,7 +19,7 @@ use glam::Vec2;
 use zwarp_core::{Image, EMPTY_DEPTH};
 use zwarp_warp::PixelState;
 
-use crate::shade::{texel_of, Receivers};
+use crate::shade::{Receivers, OFF_MAP};
 
 /// Side of the tiles a [`TexelSet`] orders its texels by (the warp's tile-bound stage works on
 /// 4x4 tiles and reuses a tile's bound while consecutive listed pixels share it).
@@ -129,6 +129,7 @@ pub struct SparseMap {
     extra: TexelSet,
     list: Vec<u32>,
     extra_list: Vec<u32>,
+    per_receiver: Vec<u32>,
 }
 
 impl SparseMap {
@@ -141,25 +142,35 @@ impl SparseMap {
             extra: TexelSet::new(w, h),
             list: Vec::new(),
             extra_list: Vec::new(),
+            per_receiver: Vec::new(),
         }
     }
 
     /// Collects the texels the receivers read in the map of the sample with pixel shift `shift`
     /// (exactly the texels [`Receivers::accumulate`] reads; receivers outside the map read
-    /// nothing). Returns how many distinct texels that is.
+    /// nothing). Returns how many distinct texels that is. The texel of every receiver is kept
+    /// for [`SparseMap::accumulate`].
     pub fn collect(&mut self, recv: &Receivers, shift: Vec2) -> usize {
         self.wanted.clear();
         self.extra.clear();
         self.list.clear();
         self.extra_list.clear();
         let (w, h) = self.depth.size();
-        for r in &recv.list {
-            if let Some(t) = texel_of(r, shift, w, h) {
+        recv.texels(shift, w, h, &mut self.per_receiver);
+        for &t in &self.per_receiver {
+            if t != OFF_MAP {
                 self.wanted.insert(t % w, t / w);
             }
         }
         self.wanted.list_into(&mut self.list);
         self.list.len()
+    }
+
+    /// Adds the current sample's lit tests to `lit` ([`Receivers::accumulate`] on this map,
+    /// with the texels [`SparseMap::collect`] found for `recv`, which must be the same
+    /// receivers).
+    pub fn accumulate(&self, recv: &Receivers, lit: &mut [u32]) {
+        recv.accumulate_texels(&self.depth, &self.per_receiver, lit);
     }
 
     /// The looked-up texels of the current sample (row-major indices, tile-major order).
@@ -179,6 +190,12 @@ impl SparseMap {
     /// The state at texel `t` (only meaningful at warped texels).
     pub fn state(&self, t: u32) -> PixelState {
         self.state[t as usize]
+    }
+
+    /// Texels warped for the current sample: the looked-up ones plus the hole neighbours
+    /// [`SparseMap::dilate`] warped.
+    pub fn warped(&self) -> usize {
+        self.list.len() + self.extra_list.len()
     }
 
     /// Number of looked-up texels that are [`PixelState::Hole`].

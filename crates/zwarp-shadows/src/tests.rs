@@ -374,6 +374,7 @@ fn lazy_visibility_equals_full_map_visibility_exactly() {
         let mut maps = ZwarpMaps::new(&scene, &rig, 0.0, &p).unwrap();
         let mut sparse = SparseMap::new(p.sm_size, p.sm_size);
         let (mut lit_full, mut lit_lazy) = (vec![0u32; recv.list.len()], vec![0u32; recv.list.len()]);
+        let mut lit_kept = vec![0u32; recv.list.len()];
         let mut looked_up = 0usize;
         for i in 0..rig.samples() {
             let full = maps.map(i).unwrap();
@@ -388,8 +389,10 @@ fn lazy_visibility_equals_full_map_visibility_exactly() {
             }
             recv.accumulate(&full.depth, rig.shifts[i], &mut lit_full);
             recv.accumulate(&sparse.depth, rig.shifts[i], &mut lit_lazy);
+            sparse.accumulate(&recv, &mut lit_kept);
         }
         assert_eq!(lit_full, lit_lazy);
+        assert_eq!(lit_full, lit_kept);
         assert!(lit_full.iter().any(|&l| l > 0 && l < 16), "no penumbra: the test would be vacuous");
         eprintln!("directional {directional}: {looked_up} texels looked up over 16 samples");
         if !shared_mipmap {

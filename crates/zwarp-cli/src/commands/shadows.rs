@@ -38,7 +38,8 @@ pub struct ShadowsArgs {
     /// Shadow-map sizes (comma list).
     #[arg(long, default_value = "512,1024,2048")]
     pub sm: String,
-    /// Methods besides the reference (comma list of zwarp, pcss).
+    /// Methods besides the reference (comma list of zwarp, zwarp-full, pcss; zwarp-full warps
+    /// every texel of every sample map: the path before the lazy synthesis).
     #[arg(long, default_value = "zwarp,pcss")]
     pub methods: String,
     /// Depth layers L of zwarp (the ground is the last one when the scene has one).
@@ -47,9 +48,16 @@ pub struct ShadowsArgs {
     /// Search seeds N of zwarp.
     #[arg(long, default_value_t = 4)]
     pub n: u32,
-    /// Timed repetitions per measurement (after one warm-up run).
+    /// Timed repetitions per measurement (the median is reported).
     #[arg(long, default_value_t = 3)]
     pub reps: usize,
+    /// Untimed warm-up runs before the repetitions (0 for expensive tables: the median of the
+    /// repetitions absorbs a cold first run).
+    #[arg(long, default_value_t = 1)]
+    pub warmup: usize,
+    /// Measure zwarp-full only for S up to this (it warps S full maps).
+    #[arg(long, default_value_t = u32::MAX)]
+    pub full_max_samples: u32,
     /// Write shaded images, visibility maps and visibility difference heat-maps here.
     #[arg(long)]
     pub images: Option<PathBuf>,
@@ -86,12 +94,17 @@ pub struct ShadowRow {
     pub render_ms: f64,
     /// Motion buffers (zwarp).
     pub motion_ms: f64,
-    /// Motion mipmaps and warps (zwarp).
+    /// Motion mipmaps (zwarp: once with the shared mipmap, per sample for zwarp-full).
+    pub mipmap_ms: f64,
+    /// Warps (zwarp).
     pub warp_ms: f64,
     /// Visibility tests / PCSS filtering.
     pub visibility_ms: f64,
     /// Shading.
     pub shade_ms: f64,
+    /// Texels warped over the S maps (zwarp: S sm^2 for zwarp-full, the looked-up texels and
+    /// the hole neighbours of the dilation for zwarp).
+    pub warped_texels: usize,
 }
 
 fn gray(v: &Image<f32>) -> Image<u8> {
@@ -128,7 +141,15 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
     };
     let base = ShadowParams { layers: a.layers, n_seeds: a.n, seed: a.scene.seed, ..ShadowParams::default() };
     base.validate()?;
-    let cfg = EvalConfig { samples, sm_sizes: sms, methods, reps: a.reps, base };
+    let cfg = EvalConfig {
+        samples,
+        sm_sizes: sms,
+        methods,
+        reps: a.reps,
+        warmup: a.warmup,
+        full_max_samples: a.full_max_samples,
+        base,
+    };
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
     }
@@ -184,13 +205,16 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             camera_ms: r.timings.camera,
             render_ms: r.timings.render,
             motion_ms: r.timings.motion,
+            mipmap_ms: r.timings.mipmap,
             warp_ms: r.timings.warp,
             visibility_ms: r.timings.visibility,
             shade_ms: r.timings.shade,
+            warped_texels: r.warped_texels,
         })
         .collect();
     let mut table = Table::new(&[
-        "method", "S", "sm", "ms", "min", "max", "psnr", "ssim", "speedup", "render", "motion", "warp", "vis",
+        "method", "S", "sm", "ms", "min", "max", "psnr", "ssim", "speedup", "render", "motion", "mipmap", "warp",
+        "vis", "warped",
     ]);
     for r in &out {
         table.row(vec![
@@ -205,8 +229,10 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             fmt(r.speedup, 2),
             fmt(r.render_ms, 1),
             fmt(r.motion_ms, 1),
+            fmt(r.mipmap_ms, 1),
             fmt(r.warp_ms, 1),
             fmt(r.visibility_ms, 1),
+            r.warped_texels.to_string(),
         ]);
     }
     println!("{}", table.render());
@@ -227,6 +253,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             "layers": a.layers,
             "n": a.n,
             "reps": a.reps,
+            "warmup": a.warmup,
             "threads": rayon::current_num_threads(),
         }),
     )?;
