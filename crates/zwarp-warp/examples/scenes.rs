@@ -1,0 +1,136 @@
+//! Warp cost and quality on the procedural scenes of seed 000 (YR, MO, BL, CB), as `zwarp eval`
+//! renders them (frame k -> k+1 along the recorded path, umbra peeling, ground as the last
+//! layer, the paper's hole protocol), without the CLI: a fast loop for optimising the warp.
+//!
+//! `cargo run --release -p zwarp-warp --example scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
+//! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3]`
+//!
+//! Times are on-CPU times of the process' threads (`/proc/self/task/*/schedstat`, ns), so a
+//! loaded machine inflates them far less than wall time. Per configuration: prepare (mipmaps)
+//! and warp ms per frame, Mpx/s per core of the warp, the render time of the same target
+//! (zwarp-raster `render_depth`, same thread count), PSNR / SSIM against it.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use zwarp_core::{motion_field, Image, Motion};
+use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_scene::SceneOptions;
+use zwarp_warp::*;
+
+/// Total on-CPU time of all threads of this process (ns).
+fn cpu_ns() -> u64 {
+    let mut total = 0;
+    if let Ok(dir) = std::fs::read_dir("/proc/self/task") {
+        for e in dir.flatten() {
+            let s = std::fs::read_to_string(e.path().join("schedstat")).unwrap_or_default();
+            total += s.split_whitespace().next().and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+        }
+    }
+    total
+}
+
+/// Runs `f` `reps` times; returns the last result, mean CPU ms and min wall ms per run.
+fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (T, f64, f64) {
+    let mut out = f();
+    let c0 = cpu_ns();
+    let mut wall = f64::INFINITY;
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        out = f();
+        wall = wall.min(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    (out, (cpu_ns() - c0) as f64 / 1e6 / reps as f64, wall)
+}
+
+fn main() {
+    let mut args: HashMap<String, String> = HashMap::new();
+    for a in std::env::args().skip(1) {
+        if let Some((k, v)) = a.split_once('=') {
+            args.insert(k.to_string(), v.to_string());
+        }
+    }
+    let get = |k: &str, d: &str| args.get(k).cloned().unwrap_or_else(|| d.to_string());
+    let list = |k: &str, d: &str| -> Vec<u32> { get(k, d).split(',').map(|s| s.parse().unwrap()).collect() };
+    let scenes: Vec<String> = get("scenes", "mo,bl,cb,yr").split(',').map(String::from).collect();
+    let (w, h): (u32, u32) = (get("w", "960").parse().unwrap(), get("h", "540").parse().unwrap());
+    let scale: f32 = get("scale", "0.5").parse().unwrap();
+    let frames: usize = get("frames", "2").parse().unwrap();
+    let ls = list("l", "1,3,4");
+    let ns = list("n", "4,16");
+    let threads: usize = get("threads", "1").parse().unwrap();
+    let reps: usize = get("reps", "3").parse().unwrap();
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
+    let max_l = *ls.iter().max().unwrap() as usize;
+    println!("scene  L  N  prepare_ms  warp_ms  render_ms  Mpx/s/core  psnr     ssim      converged");
+    for name in &scenes {
+        let opts = SceneOptions { seed: 1, scale, ..SceneOptions::default() };
+        let loaded = zwarp_scene::load_scene(name, &opts).unwrap();
+        let path = loaded.path_or_default();
+        let scene = loaded.scene;
+        // Frame pairs as `zwarp eval` (evenly spread along the path, 1x speed).
+        let total = path.frame_count_at(1.0);
+        let last = total - 2;
+        let count = frames.min(last + 1);
+        // (L, N) -> (prepare ms, warp ms, render ms, psnr, ssim, converged) summed over pairs.
+        let mut acc: HashMap<(u32, u32), [f64; 6]> = HashMap::new();
+        for i in 0..count {
+            let k = if count == 1 { 0 } else { i * last / (count - 1) };
+            let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
+            let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
+            let (reference, render_ms, _) = time(reps, || render_depth(&scene, &cb, tb).unwrap());
+            let deltas = scene.object_deltas(ta, tb);
+            let has_ground = scene.instances.iter().any(|i| i.is_ground);
+            let frame = render_frame(&scene, &ca, ta, &FrameOptions::default()).unwrap();
+            let e = (cb.eye() - ca.eye()).length() * 1.5;
+            let peel = PeelOptions {
+                layers: if has_ground { max_l.saturating_sub(1).max(1) } else { max_l },
+                ground_separate: has_ground,
+                umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
+            };
+            let peeled = if max_l > 1 { render_layers(&scene, &ca, ta, &peel).unwrap() } else { Vec::new() };
+            let single =
+                (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb, &deltas).unwrap());
+            let mut bufs: Vec<(Image<f32>, Image<Motion>)> = peeled
+                .iter()
+                .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb, &deltas).unwrap()))
+                .collect();
+            let ground = if has_ground && max_l > 1 { bufs.pop() } else { None };
+            for &l in &ls {
+                let layers: Vec<WarpLayer> = if l == 1 {
+                    vec![WarpLayer { depth: &single.0, motion: &single.1 }]
+                } else {
+                    let take = if ground.is_some() { l as usize - 1 } else { l as usize };
+                    bufs.iter()
+                        .take(take)
+                        .chain(ground.iter())
+                        .map(|(d, m)| WarpLayer { depth: d, motion: m })
+                        .collect()
+                };
+                let (prepared, prep_ms, _) =
+                    time(reps, || PreparedLayer::prepare_stack(&layers, BoundKind::Oriented).unwrap());
+                for &n in &ns {
+                    let holes = if l == 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth };
+                    let params = WarpParams { n_seeds: n, holes, ..Default::default() };
+                    let (out, warp_ms, _) = time(reps, || warp_prepared(&prepared, &params).unwrap());
+                    let q = zwarp_metrics::depth_quality(&out.depth, &reference, &cb).unwrap();
+                    let conv = 1.0 - out.non_converged_fraction();
+                    let a = acc.entry((l, n)).or_default();
+                    for (s, v) in a.iter_mut().zip([prep_ms, warp_ms, render_ms, q.psnr, q.ssim, conv]) {
+                        *s += v;
+                    }
+                }
+            }
+        }
+        for &l in &ls {
+            for &n in &ns {
+                let a = acc[&(l, n)].map(|v| v / count as f64);
+                let mpx = (w * h) as f64 / 1e6 / ((a[0] + a[1]) / 1e3) / threads as f64;
+                println!(
+                    "{name:5} {l:2} {n:2}  {:9.1}  {:7.1}  {:9.1}  {mpx:10.2}  {:7.3}  {:.5}  {:.4}",
+                    a[0], a[1], a[2], a[3], a[4], a[5]
+                );
+            }
+        }
+    }
+}
