@@ -37,9 +37,9 @@ pub use eval::{evaluate, EvalConfig, EvalRow};
 pub use light::{
     default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
 };
-pub use lookups::{SparseMap, TexelSet};
+pub use lookups::{HotReceivers, SparseMap, TexelSet};
 pub use pcss::{pcss_visibility, PcssParams};
-pub use shade::{reconstruct_normals, texel_of, DepthBias, Receiver, Receivers, OFF_MAP};
+pub use shade::{reconstruct_normals, texel_at, texel_of, texel_xy, DepthBias, Receiver, Receivers, OFF_MAP};
 
 /// How the sample shadow maps (and so the visibility) are obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -420,19 +420,89 @@ impl<'a> ZwarpMaps<'a> {
     /// there ([`SparseMap::dilate`] for the dilation). The depth at those texels equals
     /// [`ZwarpMaps::map`]`(i)` bit for bit.
     pub fn warp_sparse(&mut self, i: usize, sparse: &mut SparseMap) -> Result<()> {
-        let params = self.sample_params(i)?;
         if self.shares_mipmap() {
             let t1 = Instant::now();
-            let r = sparse_warp(&self.shared, &params, sparse);
+            let r = self.warp_sparse_shared(i, sparse);
             self.warp_ms += ms_since(t1);
             return r;
         }
+        let params = self.sample_params(i)?;
         let prepared = self.prepared(i)?;
         let t1 = Instant::now();
         let r = sparse_warp(&prepared, &params, sparse);
         self.warp_ms += ms_since(t1);
         r
     }
+}
+
+impl ZwarpMaps<'_> {
+    /// [`ZwarpMaps::warp_sparse`] with the shared mipmap, through a shared reference (nothing
+    /// is prepared per sample), so several samples can be warped concurrently; not timed.
+    /// Errors without the shared mipmap ([`ShadowParams::shared_mipmap`]).
+    pub fn warp_sparse_shared(&self, i: usize, sparse: &mut SparseMap) -> Result<()> {
+        if !self.shares_mipmap() {
+            return Err(Error::invalid("warp_sparse_shared needs the shared mipmap (ShadowParams::shared_mipmap)"));
+        }
+        sparse_warp(&self.shared, &self.sample_params(i)?, sparse)
+    }
+}
+
+/// Per-group outcome of the parallel lazy synthesis in [`run_shadows`].
+struct GroupOut {
+    lit: Vec<u32>,
+    holes: usize,
+    warped: usize,
+    warp_ms: f64,
+    vis_ms: f64,
+}
+
+/// The lazy synthesis with the shared mipmap over all samples (seed 000, Sec. 6): the samples
+/// are split into one interleaved group per worker thread, each with its own [`SparseMap`] and
+/// lit counts (summed at the end, so the result does not depend on the grouping). The serial
+/// parts of a sample (texel set, scatter, dilation bookkeeping) then overlap with the other
+/// group's warps. Stage times are per-thread times divided by the number of groups.
+fn lazy_shared(
+    maps: &ZwarpMaps<'_>,
+    rig: &LightRig,
+    hot: &HotReceivers,
+    lit: &mut [u32],
+    tm: &mut StageTimings,
+) -> Result<(usize, usize)> {
+    let s = rig.samples();
+    let groups = rayon::current_num_threads().clamp(1, s.max(1));
+    let outs: Vec<Result<GroupOut>> = (0..groups)
+        .into_par_iter()
+        .map(|g| {
+            let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
+            let mut out = GroupOut { lit: vec![0u32; hot.len()], holes: 0, warped: 0, warp_ms: 0.0, vis_ms: 0.0 };
+            for i in (g..s).step_by(groups) {
+                let t0 = Instant::now();
+                sparse.collect(hot, rig.shifts[i]);
+                out.vis_ms += ms_since(t0);
+                let t1 = Instant::now();
+                maps.warp_sparse_shared(i, &mut sparse)?;
+                out.warp_ms += ms_since(t1);
+                out.holes += sparse.holes();
+                out.warped += sparse.warped();
+                let t2 = Instant::now();
+                sparse.accumulate(hot, &mut out.lit);
+                out.vis_ms += ms_since(t2);
+            }
+            Ok(out)
+        })
+        .collect();
+    let (mut holes, mut warped) = (0, 0);
+    for out in outs {
+        let out = out?;
+        for (a, b) in lit.iter_mut().zip(&out.lit) {
+            *a += b;
+        }
+        holes += out.holes;
+        warped += out.warped;
+        tm.warp += out.warp_ms / groups as f64;
+        tm.visibility += out.vis_ms / groups as f64;
+    }
+    Ok((holes, warped))
 }
 
 /// `warp_pixels` at the texels of `sparse` plus the hole policy (the dilation needs the
@@ -446,9 +516,8 @@ fn sparse_warp(layers: &[PreparedLayer], params: &WarpParams, sparse: &mut Spars
         _ => None,
     };
     let per_pixel = WarpParams { holes: if radius.is_some() { HolePolicy::FarDepth } else { params.holes }, ..*params };
-    let texels = sparse.texels().to_vec();
-    let values = warp_pixels(layers, &per_pixel, &texels)?;
-    sparse.scatter(&texels, &values);
+    let values = warp_pixels(layers, &per_pixel, sparse.texels())?;
+    sparse.scatter_looked_up(&values);
     if let Some(r) = radius {
         sparse.dilate(r, |extra| warp_pixels(layers, &per_pixel, extra))?;
     }
@@ -500,28 +569,33 @@ pub fn run_shadows(
         Method::Zwarp => {
             let t1 = Instant::now();
             let mut maps = ZwarpMaps::new(scene, &rig, t, params)?;
-            tm.render = ms_since(t1);
-            let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
-            for i in 0..rig.samples() {
-                let t2 = Instant::now();
-                sparse.collect(&recv, rig.shifts[i]);
-                tm.visibility += ms_since(t2);
-                maps.warp_sparse(i, &mut sparse)?;
-                warp_holes += sparse.holes();
-                warped_texels += sparse.warped();
-                let t2 = Instant::now();
-                sparse.accumulate(&recv, &mut lit);
-                tm.visibility += ms_since(t2);
+            tm.render = ms_since(t1) - maps.motion_ms - maps.mipmap_ms;
+            let hot = HotReceivers::new(&recv);
+            if maps.shares_mipmap() {
+                (warp_holes, warped_texels) = lazy_shared(&maps, &rig, &hot, &mut lit, &mut tm)?;
+            } else {
+                let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
+                for i in 0..rig.samples() {
+                    let t2 = Instant::now();
+                    sparse.collect(&hot, rig.shifts[i]);
+                    tm.visibility += ms_since(t2);
+                    maps.warp_sparse(i, &mut sparse)?;
+                    warp_holes += sparse.holes();
+                    warped_texels += sparse.warped();
+                    let t2 = Instant::now();
+                    sparse.accumulate(&hot, &mut lit);
+                    tm.visibility += ms_since(t2);
+                }
             }
             tm.motion = maps.motion_ms;
             tm.mipmap = maps.mipmap_ms;
-            tm.warp = maps.warp_ms;
+            tm.warp += maps.warp_ms;
             recv.visibility_image(&lit, rig.samples() as u32)
         }
         Method::ZwarpFull => {
             let t1 = Instant::now();
             let mut maps = ZwarpMaps::new(scene, &rig, t, &ShadowParams { shared_mipmap: false, ..*params })?;
-            tm.render = ms_since(t1);
+            tm.render = ms_since(t1) - maps.motion_ms - maps.mipmap_ms;
             for i in 0..rig.samples() {
                 let out = maps.map(i)?;
                 warp_holes += out.counts().2;

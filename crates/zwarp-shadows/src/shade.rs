@@ -156,11 +156,23 @@ pub fn reconstruct_normals(frame: &Frame, cam: &Camera) -> Image<Vec3> {
 /// same texels.
 #[inline]
 pub fn texel_of(r: &Receiver, shift: Vec2, mw: u32, mh: u32) -> Option<u32> {
-    let p = r.p_c + shift * r.g;
+    texel_at(r.p_c, r.g, shift, mw, mh)
+}
+
+/// [`texel_of`] from a receiver's centre-map position `p_c` and shift parameter `g`.
+#[inline]
+pub fn texel_at(p_c: Vec2, g: f32, shift: Vec2, mw: u32, mh: u32) -> Option<u32> {
+    texel_xy(p_c, g, shift, mw, mh).map(|(x, y)| y * mw + x)
+}
+
+/// [`texel_at`] as `(x, y)`: `floor(p_c + shift g)` if inside the `mw x mh` map.
+#[inline]
+pub fn texel_xy(p_c: Vec2, g: f32, shift: Vec2, mw: u32, mh: u32) -> Option<(u32, u32)> {
+    let p = p_c + shift * g;
     // Inside `[0, mw) x [0, mh)` truncation is floor (`f32::floor` is a libm call on baseline
     // x86-64); the comparisons are false for NaN, which is sent off the map.
     if p.x >= 0.0 && p.y >= 0.0 && p.x < mw as f32 && p.y < mh as f32 {
-        Some(p.y as u32 * mw + p.x as u32)
+        Some((p.x as u32, p.y as u32))
     } else {
         None
     }
@@ -250,31 +262,6 @@ impl Receivers {
                 *a += lit_here as u32;
             }
         });
-    }
-
-    /// The texel every receiver reads in the `mw x mh` map of the sample with pixel shift
-    /// `shift` ([`texel_of`], [`OFF_MAP`] outside), written into `out` (resized), in parallel.
-    pub fn texels(&self, shift: Vec2, mw: u32, mh: u32, out: &mut Vec<u32>) {
-        out.resize(self.list.len(), OFF_MAP);
-        out.par_chunks_mut(4096).zip(self.list.par_chunks(4096)).for_each(|(o, recv)| {
-            for (t, r) in o.iter_mut().zip(recv) {
-                *t = texel_of(r, shift, mw, mh).unwrap_or(OFF_MAP);
-            }
-        });
-    }
-
-    /// [`Receivers::accumulate`] with the texels already known ([`Receivers::texels`] of the
-    /// same map size and shift): adds 1 to `lit[k]` where `map[texels[k]] >= threshold` or the
-    /// receiver is off the map.
-    pub fn accumulate_texels(&self, map: &Image<f32>, texels: &[u32], lit: &mut [u32]) {
-        let data = map.data();
-        lit.par_chunks_mut(4096).zip(self.list.par_chunks(4096)).zip(texels.par_chunks(4096)).for_each(
-            |((acc, recv), ts)| {
-                for ((a, r), &t) in acc.iter_mut().zip(recv).zip(ts) {
-                    *a += (t == OFF_MAP || data[t as usize] >= r.threshold) as u32;
-                }
-            },
-        );
     }
 
     /// Visibility image: `lit[k] / samples` at receiver pixels, 1 elsewhere.

@@ -375,26 +375,36 @@ fn lazy_visibility_equals_full_map_visibility_exactly() {
         let mut sparse = SparseMap::new(p.sm_size, p.sm_size);
         let (mut lit_full, mut lit_lazy) = (vec![0u32; recv.list.len()], vec![0u32; recv.list.len()]);
         let mut lit_kept = vec![0u32; recv.list.len()];
+        let hot = HotReceivers::new(&recv);
         let mut looked_up = 0usize;
         for i in 0..rig.samples() {
             let full = maps.map(i).unwrap();
-            let n = sparse.collect(&recv, rig.shifts[i]);
+            let n = sparse.collect(&hot, rig.shifts[i]);
             assert!(n > 0 && n < (p.sm_size * p.sm_size) as usize);
             looked_up += n;
             maps.warp_sparse(i, &mut sparse).unwrap();
             for &t in sparse.texels() {
-                assert_eq!(sparse.depth.data()[t as usize].to_bits(), full.depth.data()[t as usize].to_bits());
+                assert_eq!(sparse.depth_at(t).to_bits(), full.depth.data()[t as usize].to_bits());
                 assert_eq!(sparse.state(t), full.state.data()[t as usize], "sample {i} texel {t}");
                 filled_seen += (sparse.state(t) == zwarp_warp::PixelState::Filled) as usize;
             }
             recv.accumulate(&full.depth, rig.shifts[i], &mut lit_full);
-            recv.accumulate(&sparse.depth, rig.shifts[i], &mut lit_lazy);
-            sparse.accumulate(&recv, &mut lit_kept);
+            // The sparse map as a full image (stale texels never read) through the plain pass.
+            let mut img = Image::new(p.sm_size, p.sm_size, 0.5f32);
+            for &t in sparse.texels() {
+                img.data_mut()[t as usize] = sparse.depth_at(t);
+            }
+            recv.accumulate(&img, rig.shifts[i], &mut lit_lazy);
+            sparse.accumulate(&hot, &mut lit_kept);
         }
         assert_eq!(lit_full, lit_lazy);
         assert_eq!(lit_full, lit_kept);
         assert!(lit_full.iter().any(|&l| l > 0 && l < 16), "no penumbra: the test would be vacuous");
         eprintln!("directional {directional}: {looked_up} texels looked up over 16 samples");
+        // run_shadows (samples warped in parallel groups with the shared mipmap) gives the
+        // visibility of these full maps.
+        let a = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
+        assert_eq!(a.visibility, recv.visibility_image(&lit_full, 16));
         if !shared_mipmap {
             // run_shadows gives the same visibility through both methods (ZwarpFull always
             // uses per-sample mipmaps).
@@ -427,7 +437,7 @@ fn shared_mipmap_equals_per_sample_scaled_mipmaps() {
         for i in 0..rig.samples() {
             let sp = maps.sample_params(i).unwrap();
             signs.insert((sp.motion_scale.x < 0.0, sp.motion_scale.y < 0.0));
-            sparse.collect(&recv, rig.shifts[i]);
+            sparse.collect(&HotReceivers::new(&recv), rig.shifts[i]);
             maps.warp_sparse(i, &mut sparse).unwrap();
             // The per-sample path: scaled buffers, own AAB mipmaps, unit scale.
             let motions = maps.motions(i).unwrap();
@@ -441,7 +451,7 @@ fn shared_mipmap_equals_per_sample_scaled_mipmaps() {
             let full = warp_prepared(&own, &wp).unwrap();
             for &t in sparse.texels() {
                 assert_eq!(
-                    sparse.depth.data()[t as usize].to_bits(),
+                    sparse.depth_at(t).to_bits(),
                     full.depth.data()[t as usize].to_bits(),
                     "directional {directional} sample {i} texel {t}"
                 );
