@@ -30,6 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let d = WocParams::default();
     let variants: Vec<(&str, WocParams)> = vec![
         ("default", d),
+        ("hole-bound", WocParams { hole_bound: true, ..d }),
         ("source-rims", WocParams { rim_mode: RimMode::Source, ..d }),
         ("norims", WocParams { open_rims: None, ..d }),
         ("norims-noerode", WocParams { open_rims: None, erosion: false, ..d }),
@@ -48,6 +49,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut line = format!("frame {k:2}:");
         for (i, (name, params)) in variants.iter().enumerate() {
             let r = woc(scene, &p, cam, *t, params)?;
+            if *name == "default" || *name == "hole-bound" {
+                let m = r.occlusion_map.as_ref().unwrap();
+                let far_surf = m.data().iter().zip(full.depth.data()).filter(|(a, b)| **a >= 1.0 && **b < 1.0).count();
+                line += &format!(" [{name} far-over-surface {far_surf}]");
+            }
             let a = accuracy(&r.visible, &reference, n);
             sums[i].0 += a.culling_ratio;
             sums[i].1 += a.false_negatives;

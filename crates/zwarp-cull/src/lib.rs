@@ -18,6 +18,7 @@
 
 pub mod diagnose;
 pub mod frustum;
+pub mod holebound;
 pub mod maxdepth;
 pub mod screen;
 pub mod sequence;
@@ -25,6 +26,7 @@ pub mod woc;
 
 pub use diagnose::{culled_visible, CulledVisible};
 pub use frustum::{vfc, Frustum};
+pub use holebound::{bound_far_pixels, StaticRays};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
@@ -34,5 +36,5 @@ pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
     lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference, screen_speed, twophase,
     vfc_cull, visible_from_items, woc, woc_motion_field, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame,
-    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
+    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
 };

@@ -79,6 +79,16 @@ pub struct WocParams {
     pub open_rims: Option<f32>,
     /// Where the opening rims become far (see [`RimMode`]). Default [`RimMode::Target`].
     pub rim_mode: RimMode,
+    /// Bound far pixels near surfaces by the first static surface of the previous frame that
+    /// their ray crosses ([`crate::holebound`]), instead of leaving them at the far depth.
+    /// Full resolution only (`downsample == 1`). Default off: measured on CB, MO and BL
+    /// (scale 0.25, 960x540, 23 frames) it changes the culling ratio by less than 0.01
+    /// points. The far pixels that matter are disocclusions and opening rims, which show
+    /// surfaces the previous frame never saw; a ray that hits such a surface is behind the
+    /// seen surfaces from then on and never crosses one in front-to-back order. (A first
+    /// version that accepted crossings within one pixel of a rim gained 2 points on CB, but
+    /// those were rays passing behind the occluder's edge: unsound.)
+    pub hole_bound: bool,
     /// Rapid-motion threshold per frame in units of the canonical view volume (thesis
     /// Sec. IV.1: "a 3D movement of > 0.02 in the canonical view volume, means a horizontal
     /// movement of 1152 pixel/second on a full-HD image"): objects whose AABB corners move
@@ -149,6 +159,7 @@ impl Default for WocParams {
             erosion_radius: 1,
             open_rims: Some(0.1),
             rim_mode: RimMode::Target,
+            hole_bound: false,
             rapid_motion: Some(0.02),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
@@ -846,6 +857,15 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         tm.warp_ms += ms(t0);
     }
 
+    // 4c. Far pixels near surfaces: bounded by static surfaces their ray crosses.
+    if params.hole_bound && f == 1 {
+        let t0 = Instant::now();
+        let rays = crate::holebound::StaticRays::new(scene, prev.depth, prev.items, prev.cam, cam)?;
+        let candidates = near_surface(&predicted, HOLE_BOUND_RADIUS);
+        crate::holebound::bound_far_pixels(&mut predicted, &candidates, &rays)?;
+        tm.erosion_ms += ms(t0);
+    }
+
     // 5. Max-depth structure.
     let t0 = Instant::now();
     let map = MaxDepthMap::build(params.max_depth, &predicted)?;
@@ -1035,6 +1055,31 @@ pub fn open_rims_in_target(
         })
         .sum();
     Ok(opened)
+}
+
+/// Far pixels within this many pixels (Chebyshev) of a surface pixel get a static-ray bound
+/// ([`WocParams::hole_bound`]); the inside of wide far regions (sky) is not marched.
+pub const HOLE_BOUND_RADIUS: usize = 4;
+
+/// Flags the far pixels of `depth` that have a non-far pixel within `r` (Chebyshev).
+fn near_surface(depth: &Image<f32>, r: usize) -> Vec<bool> {
+    let (w, h) = (depth.width() as usize, depth.height() as usize);
+    let d = depth.data();
+    // Separable dilation of the surface mask: rows, then columns.
+    let rows: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            (x.saturating_sub(r)..(x + r + 1).min(w)).any(|xx| d[y * w + xx] < EMPTY_DEPTH)
+        })
+        .collect();
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            d[i] >= EMPTY_DEPTH && (y.saturating_sub(r)..(y + r + 1).min(h)).any(|yy| rows[yy * w + x])
+        })
+        .collect()
 }
 
 /// `radius` steps of the 3x3 max erosion ([`erode_max`]): a `(2 radius + 1)^2` max filter.

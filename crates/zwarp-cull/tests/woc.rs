@@ -655,3 +655,37 @@ fn woc_motion_field_equals_the_core_motion_field() {
     let small = Image::new(3, 3, 0u32);
     assert!(woc_motion_field(&s, &prev.depth, &small, &a, &b, 0.0, DT).is_err());
 }
+
+/// The static-ray hole bound is an upper bound of the true depth wherever it answers: over
+/// every pixel of a moving camera on the random scene (static and moving boxes), and it does
+/// answer for a good share of the pixels (small boxes at 96x61: many 3x3 neighbourhoods straddle
+/// an edge and are not trusted).
+#[test]
+fn static_ray_bounds_are_never_nearer_than_the_truth() {
+    use zwarp_cull::StaticRays;
+    for (seed, shift) in [(2u64, Vec3::new(0.6, 0.1, -0.4)), (9, Vec3::new(-0.8, 0.3, 0.5))] {
+        let s = random_scene(seed);
+        let a = cam_at(Vec3::new(0.5, 4.0, 18.0), Vec3::new(0.0, 1.0, 0.0));
+        let b = cam_at(Vec3::new(0.5, 4.0, 18.0) + shift, Vec3::new(0.2, 1.0, 0.0));
+        let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
+        let cur = render_frame(&s, &b, DT, &FrameOptions::default()).unwrap();
+        let rays = StaticRays::new(&s, &prev.depth, &prev.items, &a, &b).unwrap();
+        let (mut answered, mut surfaces) = (0, 0);
+        for y in 0..H {
+            for x in 0..W {
+                let truth = *cur.depth.get(x, y);
+                surfaces += (truth < 1.0) as usize;
+                if let Some(bd) = rays.bound(x as f32 + 0.5, y as f32 + 0.5) {
+                    answered += 1;
+                    assert!(bd >= truth - 1e-6, "seed {seed} ({x}, {y}): bound {bd} < true {truth}");
+                }
+            }
+        }
+        assert!(answered * 8 > surfaces, "seed {seed}: {answered} bounds for {surfaces} surface pixels");
+    }
+    let s = random_scene(2);
+    let a = cam_at(Vec3::new(0.5, 4.0, 18.0), Vec3::ZERO);
+    let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
+    let small = Image::new(3, 3, 0u32);
+    assert!(StaticRays::new(&s, &prev.depth, &small, &a, &a).is_err());
+}
