@@ -132,7 +132,7 @@ impl<'a> StaticRays<'a> {
                 z_hi = z_hi.min(-a / b);
             }
         }
-        if !(z_lo < z_hi) {
+        if z_lo.partial_cmp(&z_hi) != Some(std::cmp::Ordering::Less) {
             return None;
         }
         let (pw, ph) = (self.prev_cam.width as f32, self.prev_cam.height as f32);
@@ -156,7 +156,7 @@ impl<'a> StaticRays<'a> {
                 }
             }
         }
-        if !(u0 < u1) {
+        if u0.partial_cmp(&u1) != Some(std::cmp::Ordering::Less) {
             return None;
         }
         let len = d.length() * (u1 - u0);
@@ -192,13 +192,9 @@ impl<'a> StaticRays<'a> {
                         // One more step of margin for the surface between pixel centres.
                         return Some((z + (z - last_z).max(0.0)).min(EMPTY_DEPTH));
                     }
-                    if zp < lo {
-                        chain = Some((id, (ix, iy)));
-                    } else if linked {
-                        chain = Some((id, (ix, iy)));
-                    } else {
-                        chain = None;
-                    }
+                    // In front of the whole neighbourhood starts (or restarts) a chain; in
+                    // between keeps a linked chain going.
+                    chain = (zp < lo || linked).then_some((id, (ix, iy)));
                 }
                 None => chain = None,
             }
