@@ -37,6 +37,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "norims" => base.open_rims = None,
             "nobase" => baselines = false,
             o if o.starts_with("bi") => base.warp.bound_iterations = o[2..].parse()?,
+            o if o.starts_with("hyb") => {
+                base.hybrid_objects = o[3..].parse()?;
+                base.hybrid_min_triangles = 0;
+            }
             o if o.starts_with('t') => base.warp.iterations = o[1..].parse()?,
             o => return Err(format!("unknown option '{o}'").into()),
         }

@@ -30,11 +30,12 @@ pub use holebound::{bound_far_pixels, StaticRays};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
-pub use screen::{screen_rect, screen_rect_with, PixelRect, ScreenRect};
+pub use screen::{screen_hull_with, screen_rect, screen_rect_with, square_meets_hull, PixelRect, ScreenRect};
 pub use sequence::{run_sequence, summarize, FrameReport, Method, SequenceSummary};
 pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
     lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference, screen_speed, twophase,
     vfc_cull, visible_from_items, woc, woc_motion_field, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame,
-    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
+    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE,
+    NEIGHBOURS, RIM_MARGIN,
 };

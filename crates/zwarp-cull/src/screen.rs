@@ -3,7 +3,7 @@
 //! nearest corner depth are what the max-depth query tests ("when the minimum depth of the
 //! proxy corners exceeds the maximum of the screen-space depth, we can safely cull").
 
-use glam::Mat4;
+use glam::{Mat4, Vec2};
 use zwarp_core::{camera::project_with, Aabb, Camera, Error, Result};
 
 /// A non-empty, half-open pixel rectangle `[x0, x1) x [y0, y1)` (row 0 at the top).
@@ -117,6 +117,77 @@ pub fn screen_rect_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) 
         return ScreenRect::Outside;
     }
     ScreenRect::Rect { rect: PixelRect { x0: x0 as u32, y0: y0 as u32, x1: x1 as u32, y1: y1 as u32 }, nearest }
+}
+
+/// The convex hull (counter-clockwise in pixel coordinates, at most 8 vertices) of the 8
+/// projected corners of `aabb`, or `None` when a corner is behind the eye or in front of the
+/// near plane (the box then crosses the near plane and must be kept). The exact screen
+/// silhouette of the box: an object inside the box covers only pixels this polygon touches.
+pub fn screen_hull_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> Option<([Vec2; 8], usize)> {
+    if aabb.is_empty() || !aabb.min.is_finite() || !aabb.max.is_finite() {
+        return None;
+    }
+    let mut pts = [Vec2::ZERO; 8];
+    for (p, c) in pts.iter_mut().zip(aabb.corners()) {
+        match project_with(view_proj, width, height, c) {
+            Some(s) if s.z >= 0.0 && s.is_finite() => *p = s.truncate(),
+            _ => return None,
+        }
+    }
+    // Andrew's monotone chain.
+    pts.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut hull = [Vec2::ZERO; 16];
+    let mut k = 0;
+    for &p in &pts {
+        while k >= 2 && cross(hull[k - 2], hull[k - 1], p) <= 0.0 {
+            k -= 1;
+        }
+        hull[k] = p;
+        k += 1;
+    }
+    let lower = k + 1;
+    for &p in pts.iter().rev().skip(1) {
+        while k >= lower && cross(hull[k - 2], hull[k - 1], p) <= 0.0 {
+            k -= 1;
+        }
+        hull[k] = p;
+        k += 1;
+    }
+    let n = (k - 1).max(1);
+    let mut out = [Vec2::ZERO; 8];
+    out[..n.min(8)].copy_from_slice(&hull[..n.min(8)]);
+    Some((out, n.min(8)))
+}
+
+/// Whether the closed pixel square `[x, x + 1] x [y, y + 1]`, grown by `slack` pixels, meets
+/// the convex polygon `hull[..n]` (counter-clockwise; separating-axis test). Degenerate hulls
+/// (a point or a segment) are treated by their bounding box, conservatively.
+pub fn square_meets_hull(x: f32, y: f32, slack: f32, hull: &[Vec2], n: usize) -> bool {
+    let (lo, hi) = (Vec2::new(x - slack, y - slack), Vec2::new(x + 1.0 + slack, y + 1.0 + slack));
+    let h = &hull[..n];
+    let (mut bmin, mut bmax) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for &p in h {
+        bmin = bmin.min(p);
+        bmax = bmax.max(p);
+    }
+    if bmax.x < lo.x || bmin.x > hi.x || bmax.y < lo.y || bmin.y > hi.y {
+        return false;
+    }
+    if n < 3 {
+        return true;
+    }
+    let corners = [lo, Vec2::new(hi.x, lo.y), hi, Vec2::new(lo.x, hi.y)];
+    for i in 0..n {
+        let (a, b) = (h[i], h[(i + 1) % n]);
+        let e = b - a;
+        // Counter-clockwise: inside is where e.perp_dot(p - a) >= 0. Separated when every
+        // square corner is strictly outside this edge.
+        if corners.iter().all(|&c| e.perp_dot(c - a) < 0.0) {
+            return false;
+        }
+    }
+    true
 }
 
 #[cfg(test)]

@@ -106,6 +106,14 @@ pub struct WocParams {
     pub rapid_includes_camera: bool,
     /// Max-depth structure for the screen-space test. Default: Y-map with 2 mip levels.
     pub max_depth: MaxDepthKind,
+    /// After the rectangle test, re-test the kept objects (rectangles up to
+    /// [`HULL_TEST_MAX_AREA`] pixels) against their box's exact screen silhouette instead of
+    /// its bounding rectangle (the rectangle of a box seen obliquely is up to twice its
+    /// silhouette): a far pixel in a rectangle's corner (an opening rim, a disocclusion sliver
+    /// beside the object) no longer keeps it. Works at any culling resolution (pixel squares,
+    /// not centres). Default on. A zwarp addition between the thesis' rectangle test and its
+    /// object-space hybrid query.
+    pub hull_test: bool,
     /// K: how many of the heaviest still-visible objects get the hybrid object-space query
     /// (thesis Sec. IV.2 used 300 objects of > 100K triangles). 0 disables it.
     pub hybrid_objects: usize,
@@ -160,6 +168,7 @@ impl Default for WocParams {
             open_rims: Some(0.1),
             rim_mode: RimMode::Target,
             hole_bound: false,
+            hull_test: true,
             rapid_motion: Some(0.02),
             rapid_includes_camera: false,
             max_depth: MaxDepthKind::YMap { switch: 2 },
@@ -369,6 +378,43 @@ fn test_objects_in(
             }
         })
         .collect()
+}
+
+/// Largest screen rectangle (pixels of the culling resolution) given the silhouette test of
+/// [`WocParams::hull_test`]; bigger objects keep the rectangle's answer (scanning them would
+/// cost more than drawing most of them).
+pub const HULL_TEST_MAX_AREA: u64 = 16_384;
+
+/// Second screen-space test (see [`WocParams::hull_test`]): an object the rectangle test keeps
+/// is culled when no pixel of its rectangle that could show it (predicted depth not nearer
+/// than its nearest corner, [`DEPTH_TOLERANCE`] included) touches the box's projected
+/// silhouette (the convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`];
+/// pixel squares grown by 0.01 px against f32 rounding).
+fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted: &Image<f32>) {
+    let vp = cam.view_proj();
+    let (w, h) = (cam.width, cam.height);
+    let d = predicted.data();
+    classes.par_iter_mut().enumerate().for_each(|(id, c)| {
+        if *c != Class::Visible {
+            return;
+        }
+        let b = &aabbs[id];
+        let ScreenRect::Rect { rect, nearest } = screen_rect_with(b, &vp, w, h) else { return };
+        if rect.area() > HULL_TEST_MAX_AREA {
+            return;
+        }
+        let Some((hull, n)) = crate::screen::screen_hull_with(b, &vp, w, h) else { return };
+        let limit = nearest - DEPTH_TOLERANCE;
+        let seen = (rect.y0..rect.y1).any(|y| {
+            (rect.x0..rect.x1).any(|x| {
+                d[y as usize * w as usize + x as usize] >= limit
+                    && crate::screen::square_meets_hull(x as f32, y as f32, 0.01, &hull, n)
+            })
+        });
+        if !seen {
+            *c = Class::Occluded;
+        }
+    });
 }
 
 /// Hybrid object-space query (thesis Sec. IV.2, a CPU analogue of the HOQ variant of Kubisch &
@@ -875,6 +921,9 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let t0 = Instant::now();
     let forced = (!forced.is_empty()).then_some(forced.as_slice());
     let mut classes = test_objects_in(&aabbs, Some(&inside), cam, &map, forced);
+    if params.hull_test {
+        refine_by_hull(&aabbs, &mut classes, cam, &predicted);
+    }
     tm.test_ms = ms(t0);
 
     // 7. Hybrid object-space query of the heaviest survivors.

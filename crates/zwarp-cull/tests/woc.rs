@@ -579,9 +579,10 @@ fn separating_objects_keep_what_the_opening_shows() {
     assert!(opening_rim_dirs(&prev.depth, &prev.items, &motion, -0.5).is_err());
 }
 
-/// Where the warp is exact (no camera or object motion), WOC without erosion culls exactly what
-/// the ideal screen-space test culls, opens no rim, and with the default erosion keeps a
-/// superset.
+/// Where the warp is exact (no camera or object motion), WOC without erosion (and without the
+/// silhouette test) culls exactly what the ideal screen-space test culls, and with the default
+/// erosion keeps a superset; the silhouette test culls more than the ideal rectangle test,
+/// never an object REF shows.
 #[test]
 fn static_view_culls_what_the_ideal_test_culls() {
     let s = random_scene(5);
@@ -590,14 +591,21 @@ fn static_view_culls_what_the_ideal_test_culls() {
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
     let ideal = ideal_screen_space(&s, &prev.depth, &cam, 0.0).unwrap();
     assert!(ideal.stats.occlusion_culled > 3, "the scene must have occluded objects");
-    let exact = WocParams { erosion: false, max_depth: MaxDepthKind::NBuffer, ..WocParams::default() };
+    let exact =
+        WocParams { erosion: false, max_depth: MaxDepthKind::NBuffer, hull_test: false, ..WocParams::default() };
     let r = woc(&s, &pf, &cam, 0.0, &exact).unwrap();
     assert_eq!(r.visible, ideal.visible);
     let map = r.occlusion_map.as_ref().unwrap();
     let err = map.data().iter().zip(prev.depth.data()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(err < 1e-6, "the warp reproduces the frame (max error {err})");
-    let d = woc(&s, &pf, &cam, 0.0, &WocParams::default()).unwrap();
+    let d = woc(&s, &pf, &cam, 0.0, &WocParams { hull_test: false, ..WocParams::default() }).unwrap();
     assert!(ideal.visible.iter().all(|id| d.visible.contains(id)));
+    // The silhouette test goes beyond the ideal *rectangle* test, never beyond REF.
+    let h = WocParams { hull_test: true, ..exact };
+    let h = woc(&s, &pf, &cam, 0.0, &h).unwrap();
+    let reference = visible_from_items(&prev.items, s.instances.len());
+    assert!(h.visible.iter().all(|id| ideal.visible.contains(id)) && h.visible.len() < ideal.visible.len());
+    assert!(reference.iter().all(|id| h.visible.contains(id)));
 }
 
 /// Thesis Sec. IV.1: the rapid-motion threshold is a fraction of the view (0.02 of the
@@ -688,4 +696,64 @@ fn static_ray_bounds_are_never_nearer_than_the_truth() {
     let prev = render_frame(&s, &a, 0.0, &FrameOptions::default()).unwrap();
     let small = Image::new(3, 3, 0u32);
     assert!(StaticRays::new(&s, &prev.depth, &small, &a, &a).is_err());
+}
+
+/// The box silhouette of the hull test: an axis-aligned view of a box gives its square; a
+/// diamond (the silhouette of a box turned 45 degrees) excludes its bounding square's corners.
+#[test]
+fn box_silhouette_and_pixel_squares() {
+    use glam::Vec2;
+    use zwarp_cull::{screen_hull_with, square_meets_hull};
+    let cam = ortho_cam(); // 0.1 world units per pixel, x = 0.1 px - 4.8
+    let b = Aabb::new(Vec3::new(-1.0, -1.0, -1.0), Vec3::new(1.0, 1.0, 0.0));
+    let (hull, n) = screen_hull_with(&b, &cam.view_proj(), W, H).unwrap();
+    assert_eq!(n, 4, "{:?}", &hull[..n]);
+    let (lo, hi) = hull[..n].iter().fold((Vec2::splat(1e9), Vec2::splat(-1e9)), |(l, h), p| (l.min(*p), h.max(*p)));
+    assert!(
+        (lo - Vec2::new(38.0, 20.5)).abs().max_element() < 1e-3
+            && (hi - Vec2::new(58.0, 40.5)).abs().max_element() < 1e-3
+    );
+    assert!(square_meets_hull(38.0, 20.0, 0.0, &hull, n) && !square_meets_hull(58.5, 30.0, 0.0, &hull, n));
+    // Diamond |x - 10| + |y - 10| <= 4 (counter-clockwise in pixel coordinates).
+    let d = [Vec2::new(10.0, 6.0), Vec2::new(14.0, 10.0), Vec2::new(10.0, 14.0), Vec2::new(6.0, 10.0)];
+    let mut hull = [Vec2::ZERO; 8];
+    hull[..4].copy_from_slice(&d);
+    assert!(square_meets_hull(9.0, 9.0, 0.0, &hull, 4), "centre");
+    assert!(!square_meets_hull(6.0, 6.0, 0.0, &hull, 4), "bounding-square corner");
+    assert!(!square_meets_hull(12.6, 12.6, 0.0, &hull, 4), "just outside an edge");
+    assert!(square_meets_hull(11.9, 11.9, 0.0, &hull, 4), "touching an edge");
+    // Behind the eye: no hull (the object crosses the near plane).
+    assert!(screen_hull_with(
+        &Aabb::new(Vec3::new(-1.0, -1.0, 9.0), Vec3::new(1.0, 1.0, 11.0)),
+        &cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO).view_proj(),
+        W,
+        H
+    )
+    .is_none());
+}
+
+/// The hull test only removes objects the rectangle test kept, never a visible one: along a
+/// moving camera on random scenes, WOC with it keeps a subset of WOC without it and a superset
+/// of REF.
+#[test]
+fn hull_test_culls_more_and_stays_conservative() {
+    let mut gained = 0;
+    for seed in [4u64, 8] {
+        let s = random_scene(seed);
+        let frames: Vec<(f32, Camera)> = (0..6)
+            .map(|k| {
+                let e = Vec3::new(-3.0 + 0.35 * k as f32, 2.0 + 0.05 * k as f32, 16.0 - 0.3 * k as f32);
+                (k as f32 * DT, cam_at(e, Vec3::new(0.5 * k as f32, 1.0, 0.0)))
+            })
+            .collect();
+        let on = run_sequence(&s, &frames, Method::Woc, &WocParams::default()).unwrap();
+        let off =
+            run_sequence(&s, &frames, Method::Woc, &WocParams { hull_test: false, ..WocParams::default() }).unwrap();
+        for (a, b) in on.iter().zip(&off) {
+            assert_eq!(a.accuracy.false_negatives, 0, "seed {seed} frame {}", a.frame);
+            assert!(a.visible_ids.iter().all(|id| b.visible_ids.contains(id)));
+            gained += b.visible - a.visible;
+        }
+    }
+    assert!(gained > 0, "the silhouette removes some rectangle-only survivors");
 }
