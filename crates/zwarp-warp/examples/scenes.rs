@@ -5,8 +5,9 @@
 //! `cargo run --release -p zwarp-warp --example scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
 //! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3]`
 //!
-//! Times are on-CPU times of the process' threads (`/proc/self/task/*/schedstat`, ns), so a
-//! loaded machine inflates them far less than wall time. Per configuration: prepare (mipmaps)
+//! Times are the minimum over `reps` runs of the on-CPU time of the process' threads
+//! (`/proc/self/task/*/schedstat`, ns), so a loaded machine inflates them far less than wall
+//! time. Per configuration: prepare (mipmaps)
 //! and warp ms per frame, Mpx/s per core of the warp, the render time of the same target
 //! (zwarp-raster `render_depth`, same thread count), PSNR / SSIM against it.
 
@@ -30,17 +31,18 @@ fn cpu_ns() -> u64 {
     total
 }
 
-/// Runs `f` `reps` times; returns the last result, mean CPU ms and min wall ms per run.
+/// Runs `f` `reps` times after one warm-up run; returns the last result and the minimal CPU
+/// and wall ms of one run (the minimum is the figure least disturbed by other processes).
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (T, f64, f64) {
     let mut out = f();
-    let c0 = cpu_ns();
-    let mut wall = f64::INFINITY;
+    let (mut cpu, mut wall) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..reps {
-        let t0 = Instant::now();
+        let (c0, t0) = (cpu_ns(), Instant::now());
         out = f();
         wall = wall.min(t0.elapsed().as_secs_f64() * 1e3);
+        cpu = cpu.min((cpu_ns() - c0) as f64 / 1e6);
     }
-    (out, (cpu_ns() - c0) as f64 / 1e6 / reps as f64, wall)
+    (out, cpu, wall)
 }
 
 fn main() {

@@ -221,8 +221,6 @@ impl MotionPyramid {
     /// Builds from raw samples (already validated, `w * h` long, `w, h >= 1`).
     pub(crate) fn from_samples(samples: &[Motion], w: u32, h: u32, frame: BoundFrame) -> Self {
         debug_assert_eq!(samples.len(), w as usize * h as usize);
-        let top = ceil_log2(w.max(h)).max(1);
-        let mut levels: Vec<Level> = Vec::with_capacity(top as usize);
         // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
         let identity = frame.is_identity();
@@ -251,6 +249,17 @@ impl MotionPyramid {
                 }
             },
         );
+        Self::from_level1(w, h, frame, data, zmin)
+    }
+
+    /// Builds levels `2..=top` over a given level 1 (`ceil(w / 2) x ceil(h / 2)` min-max texels
+    /// in `frame` and their min depths), e.g. from the fused pass of
+    /// `PreparedLayer::prepare_stack` that validates the samples and reduces them at once.
+    pub(crate) fn from_level1(w: u32, h: u32, frame: BoundFrame, data: Vec<[f32; 4]>, zmin: Vec<f32>) -> Self {
+        let top = ceil_log2(w.max(h)).max(1);
+        let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
+        debug_assert_eq!(data.len(), lw as usize * lh as usize);
+        let mut levels: Vec<Level> = Vec::with_capacity(top as usize);
         levels.push(Level { w: lw, h: lh, data, zmin });
         for _ in 1..top {
             let prev = levels.last().expect("level 1 exists");
@@ -569,6 +578,16 @@ pub(crate) fn global_bound(samples: &[Motion], frame: BoundFrame) -> Bound {
 /// small number (e.g., 64) usually suffices"). Falls back to a denser grid if fewer than 8 grid
 /// samples are valid, and to the identity frame when motion is isotropic or absent.
 pub fn pca_frame(samples: &[Motion], w: u32, h: u32, n: u32) -> BoundFrame {
+    pca_frame_by(w, h, n, |i| {
+        let m = &samples[i];
+        is_valid_sample(m).then_some(m.v)
+    })
+}
+
+/// [`pca_frame`] over a `w x h` image given as `motion(i)` = the motion of pixel `i` (row-major)
+/// if it is a valid sample, else `None` (lets the caller validate on the fly, reading only the
+/// grid pixels).
+pub(crate) fn pca_frame_by(w: u32, h: u32, n: u32, motion: impl Fn(usize) -> Option<Vec2>) -> BoundFrame {
     let mut pts: Vec<Vec2> = Vec::with_capacity(n as usize);
     for grid in [(n as f32).sqrt().ceil().max(1.0) as u32, 32] {
         pts.clear();
@@ -576,9 +595,8 @@ pub fn pca_frame(samples: &[Motion], w: u32, h: u32, n: u32) -> BoundFrame {
             for i in 0..grid {
                 let x = (((i as f32 + 0.5) * w as f32 / grid as f32) as u32).min(w - 1);
                 let y = (((j as f32 + 0.5) * h as f32 / grid as f32) as u32).min(h - 1);
-                let m = &samples[y as usize * w as usize + x as usize];
-                if is_valid_sample(m) {
-                    pts.push(m.v);
+                if let Some(v) = motion(y as usize * w as usize + x as usize) {
+                    pts.push(v);
                 }
             }
         }

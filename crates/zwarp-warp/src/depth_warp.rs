@@ -280,7 +280,8 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
         .par_chunks(CHUNK)
         .flat_map_iter(|chunk| {
             let mut tile: Option<(u32, u32)> = None;
-            let mut tile_bounds: Vec<Option<Bound>> = vec![None; layers.len()];
+            let mut tile_bounds: Vec<Option<TileBound>> = vec![None; layers.len()];
+            let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
             chunk
                 .iter()
                 .map(|&i| {
@@ -290,7 +291,7 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
                         kernel.tile_bounds(t.0 * TILE, t.1 * TILE, &mut tile_bounds);
                         tile = Some(t);
                     }
-                    let (z, st, _) = kernel.pixel(x, y, &tile_bounds);
+                    let (z, st, _) = kernel.pixel(x, y, &tile_bounds, &mut seeds);
                     (z, st)
                 })
                 .collect::<Vec<_>>()
@@ -310,6 +311,15 @@ fn check_motion_scale(layers: &[PreparedLayer], params: &WarpParams) -> Result<(
         }
     }
     Ok(())
+}
+
+/// The first-stage bound of one 4x4 tile and layer: the motion bound every pixel of the tile
+/// starts its own tightening from, and (layers after the first) the min target depth over the
+/// tile's search region (`-inf` for layer 0, where it is not used).
+#[derive(Clone, Copy, Debug)]
+struct TileBound {
+    motion: Bound,
+    min_depth: f32,
 }
 
 struct Kernel<'a> {
@@ -335,19 +345,25 @@ impl Kernel<'_> {
 
     /// The first tightening stage (Fig. 5 on the union of the tile's search regions) of every
     /// layer for the tile whose top-left pixel is `(x0, y0)`, clipped to the image.
-    fn tile_bounds(&self, x0: u32, y0: u32, out: &mut [Option<Bound>]) {
+    fn tile_bounds(&self, x0: u32, y0: u32, out: &mut [Option<TileBound>]) {
         let x1 = (x0 + TILE).min(self.w) - 1;
         let y1 = (y0 + TILE).min(self.h) - 1;
         let p_lo = Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5);
         let p_hi = Vec2::new(x1 as f32 + 0.5, y1 as f32 + 0.5);
         let iters = self.bound_iterations();
         let expand = self.params.sampling.footprint();
-        for (tb, layer) in out.iter_mut().zip(self.layers) {
+        let scale = self.params.motion_scale;
+        for (k, (tb, layer)) in out.iter_mut().zip(self.layers).enumerate() {
             let pyr = &layer.pyramid;
-            let scale = self.params.motion_scale;
-            *tb = pyr
-                .tight_bound_box_scaled(p_lo, p_hi, pyr.global().scaled(scale), iters, expand, scale)
-                .map(|t| t.motion);
+            let start = pyr.global().scaled(scale);
+            // Layers after the first also get the min depth over the tile's search region: a
+            // pixel whose best candidate is not farther skips the layer without tightening.
+            *tb = if k == 0 {
+                pyr.tight_bound_box_scaled(p_lo, p_hi, start, iters, expand, scale)
+            } else {
+                pyr.tight_bound_box_with_depth_scaled(p_lo, p_hi, start, iters, expand, scale)
+            }
+            .map(|t| TileBound { motion: t.motion, min_depth: t.min_depth });
         }
     }
 
@@ -360,14 +376,15 @@ impl Kernel<'_> {
         let w = self.w as usize;
         let rows = (depth.len() / w) as u32;
         let y0 = ty * TILE;
-        let mut tile_bounds: Vec<Option<Bound>> = vec![None; self.layers.len()];
+        let mut tile_bounds: Vec<Option<TileBound>> = vec![None; self.layers.len()];
+        let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
         for x0 in (0..self.w).step_by(TILE as usize) {
             let x1 = (x0 + TILE).min(self.w) - 1;
             let y1 = y0 + rows - 1;
             self.tile_bounds(x0, y0, &mut tile_bounds);
             for y in y0..=y1 {
                 for x in x0..=x1 {
-                    let (z, st, src) = self.pixel(x, y, &tile_bounds);
+                    let (z, st, src) = self.pixel(x, y, &tile_bounds, &mut seeds);
                     let i = (y - y0) as usize * w + x as usize;
                     depth[i] = z;
                     state[i] = st;
@@ -381,7 +398,16 @@ impl Kernel<'_> {
 
     /// The warp of one target pixel over all layers.
     #[inline]
-    fn pixel(&self, x: u32, y: u32, tile_bounds: &[Option<Bound>]) -> (f32, PixelState, SourcePos) {
+    ///
+    /// `seeds` is scratch space owned by the caller: zeroing a 64-seed stack array per pixel
+    /// (512 bytes) was a measurable part of the per-pixel cost.
+    fn pixel(
+        &self,
+        x: u32,
+        y: u32,
+        tile_bounds: &[Option<TileBound>],
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+    ) -> (f32, PixelState, SourcePos) {
         let params = self.params;
         let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let expand = params.sampling.footprint();
@@ -396,11 +422,10 @@ impl Kernel<'_> {
         let mut best: Option<crate::Candidate> = None;
         let mut prev_q: Option<Vec2> = None;
         let mut awoc: Option<(BoundFrame, TightBound)> = None;
-        let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
         for (k, layer) in self.layers.iter().enumerate() {
             let pyr = &layer.pyramid;
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
-            let Some(start) = tile_bounds[k] else { continue };
+            let Some(TileBound { motion: start, min_depth: tile_min_depth }) = tile_bounds[k] else { continue };
             let e = start.extent();
             let tb = if e.x <= 1.0 && e.y <= 1.0 && best.is_none() {
                 // The tile's bound is already narrower than a pixel: one seed at the centre of
@@ -408,7 +433,12 @@ impl Kernel<'_> {
                 TightBound { motion: start, region: pyr.region(p, &start), min_depth: f32::NEG_INFINITY }
             } else if k > 0 && best.is_some() {
                 // A later layer only matters if it can beat the best candidate so far: skip it
-                // when no sample of its search region is nearer (min-depth mipmap look-up).
+                // when no sample of its search region is nearer (min-depth mipmap look-up),
+                // first over the whole tile's region (free: computed once per tile), then over
+                // the pixel's tightened region.
+                if best.is_some_and(|b| tile_min_depth >= b.depth) {
+                    continue;
+                }
                 let Some(tb) =
                     pyr.tight_bound_box_with_depth_scaled(p, p, start, self.bound_iterations(), expand, scale)
                 else {
@@ -431,7 +461,7 @@ impl Kernel<'_> {
             let mut n = match params.seeding {
                 SeedStrategy::Stratified => {
                     let ne = effective_seeds(params.n_seeds, tb.region.extent());
-                    stratified_seeds(&frame, &tb.region, ne, seed_key(x, y, k as u32), &mut seeds)
+                    stratified_seeds(&frame, &tb.region, ne, seed_key(x, y, k as u32), seeds)
                 }
                 SeedStrategy::Pixel => {
                     seeds[0] = p;

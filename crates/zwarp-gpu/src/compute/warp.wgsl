@@ -519,6 +519,8 @@ struct Cand {
 // invocation per (tile, layer) tightens the tile's bound, the pixels then start from it.
 var<workgroup> tile_motion: array<vec4<f32>, 32>;
 var<workgroup> tile_ok: array<u32, 32>;
+// Layers k > 0: min target depth over the tile's search region (Kernel::tile_bounds).
+var<workgroup> tile_zmin: array<f32, 32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
@@ -534,6 +536,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         let ty0 = wid.y * 8u + 4u * (t / 2u);
         var ok = 0u;
         var motion = vec4<f32>(0.0);
+        var tz = params.inf.y;
         if (tx0 < w && ty0 < h) {
             let tx1 = min(tx0 + 4u, w) - 1u;
             let ty1 = min(ty0 + 4u, h) - 1u;
@@ -544,9 +547,15 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             let tile = tight_bound_box(kt, p_lo, p_hi, gb, iters, expand);
             ok = select(0u, 1u, tile.ok);
             motion = tile.motion;
+            if (tile.ok && kt > 0u) {
+                // tight_bound_box_with_depth: the final region's range always exists here.
+                let r = pixel_range(kt, tile.region.xy, tile.region.zw, expand);
+                tz = lookup_min_depth(kt, r.r);
+            }
         }
         tile_ok[task] = ok;
         tile_motion[task] = motion;
+        tile_zmin[task] = tz;
     }
     workgroupBarrier();
     let x = gid.x;
@@ -576,6 +585,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
             tb = Tight(true, start, region_of(c, c, start));
         } else if (k > 0u && best.ok) {
+            // Nothing in the whole tile's region is nearer than the best: skip the layer.
+            if (tile_zmin[k * 4u + tile_index] >= best.depth) {
+                continue;
+            }
             tb = tight_bound_box(k, p, p, start, iters, expand);
             if (!tb.ok) {
                 continue;
