@@ -143,6 +143,9 @@ impl MaxDepthLayout {
     }
 }
 
+/// Levels read back by [`GpuMaxDepth::read_levels`]: `(mip levels, N-buffer levels)`.
+pub type MaxDepthLevels = (Vec<Image<f32>>, Vec<Image<f32>>);
+
 /// A max-depth structure resident on the GPU (see the module docs), built by
 /// [`MaxDepthKernel::encode`] from a depth buffer and read by the cull kernel.
 #[derive(Debug)]
@@ -160,7 +163,7 @@ pub struct GpuMaxDepth {
 impl GpuMaxDepth {
     /// Reads every level back: `(mip levels, N-buffer levels)`, in the order of
     /// `zwarp_cull::{MaxMipmap, NBuffer, YMap}`'s level accessors.
-    pub fn read_levels(&self, ctx: &GpuContext) -> Result<(Vec<Image<f32>>, Vec<Image<f32>>)> {
+    pub fn read_levels(&self, ctx: &GpuContext) -> Result<MaxDepthLevels> {
         let (offs, total) = self.layout.offsets();
         let all = read_buffer::<f32>(ctx, &self.data, total as usize)?;
         let mut imgs: Vec<Image<f32>> = offs

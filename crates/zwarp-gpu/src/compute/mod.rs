@@ -15,7 +15,7 @@ pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
 pub use warp::{GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};
-pub use woc::{rapid_flags, GpuPrevFrame, GpuWoc, GpuWocParams};
+pub use woc::{rapid_flags, GpuPrevFrame, GpuWoc, GpuWocParams, WocStage};
 
 /// Bind-group layout with one compute-visible buffer per entry of `kinds` (bindings 0..n) and
 /// its pipeline layout: the set-up every buffer-only kernel here shares.

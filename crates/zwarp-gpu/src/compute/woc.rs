@@ -131,6 +131,27 @@ pub fn rapid_flags(
         .collect()
 }
 
+/// The stages of [`GpuWoc`] in order, for [`GpuWoc::encode_until`] (per-stage timings).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum WocStage {
+    /// Previous depth + items gathered from the textures.
+    Gather,
+    /// Motion buffer.
+    Motion,
+    /// Source-side opening rims.
+    Rims,
+    /// Single-layer warp.
+    Warp,
+    /// Max erosion.
+    Erosion,
+    /// Rapid-motion objects drawn and merged.
+    Rapid,
+    /// Max-depth structure built.
+    MaxDepth,
+    /// Cull kernel (the whole pipeline).
+    Cull,
+}
+
 /// The previous frame as an engine has it on the GPU.
 #[derive(Clone, Copy, Debug)]
 pub struct GpuPrevFrame<'a> {
@@ -368,6 +389,26 @@ impl GpuWoc {
         objects: &CullObjects,
         out: &CullOutput,
     ) -> Result<()> {
+        self.encode_stages(enc, scene, prev, object_deltas, cam, t, objects, out, WocStage::Gather..=WocStage::Cull)
+    }
+
+    /// Records only the `stages` of [`GpuWoc::encode`] (for per-stage timings): every stage
+    /// reads what the earlier stages left in this pipeline's buffers, so after one full
+    /// [`GpuWoc::encode`] any single stage can be re-run and timed on its own (the result is
+    /// only that of a full run when every stage runs).
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_stages(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        prev: &GpuPrevFrame<'_>,
+        object_deltas: &[Mat4],
+        cam: &Camera,
+        t: f32,
+        objects: &CullObjects,
+        out: &CullOutput,
+        stages: std::ops::RangeInclusive<WocStage>,
+    ) -> Result<()> {
         let (w, h) = (self.width, self.height);
         for c in [prev.cam, cam] {
             if (c.width, c.height) != (w, h) {
@@ -410,24 +451,29 @@ impl GpuWoc {
         self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&params));
         let u = || self.uniform.as_entire_binding();
         let px = (w.div_ceil(8), h.div_ceil(8));
+        let run = |stage: WocStage| stages.contains(&stage);
         // 1. Previous depth + items into buffers.
-        self.dispatch(
-            enc,
-            &self.gather,
-            &[
-                (0, u()),
-                (1, wgpu::BindingResource::TextureView(prev.depth)),
-                (2, wgpu::BindingResource::TextureView(prev.items)),
-                (3, self.prev_depth.as_entire_binding()),
-                (4, self.prev_items.as_entire_binding()),
-            ],
-            px,
-        );
+        if run(WocStage::Gather) {
+            self.dispatch(
+                enc,
+                &self.gather,
+                &[
+                    (0, u()),
+                    (1, wgpu::BindingResource::TextureView(prev.depth)),
+                    (2, wgpu::BindingResource::TextureView(prev.items)),
+                    (3, self.prev_depth.as_entire_binding()),
+                    (4, self.prev_items.as_entire_binding()),
+                ],
+                px,
+            );
+        }
         // 2. Motion (camera + objects through the item buffer).
-        let input = MotionInput { depth: &self.prev_depth, items: Some(&self.prev_items), row_stride: w };
-        self.motion_k.encode(enc, &input, prev.cam, cam, object_deltas, &self.motion)?;
+        if run(WocStage::Motion) {
+            let input = MotionInput { depth: &self.prev_depth, items: Some(&self.prev_items), row_stride: w };
+            self.motion_k.encode(enc, &input, prev.cam, cam, object_deltas, &self.motion)?;
+        }
         // 3. Opening rims.
-        let src = if self.params.open_rims.is_some() {
+        if run(WocStage::Rims) && self.params.open_rims.is_some() {
             self.dispatch(
                 enc,
                 &self.rims,
@@ -440,48 +486,67 @@ impl GpuWoc {
                 ],
                 px,
             );
-            &self.rimmed
-        } else {
-            &self.prev_depth
-        };
-        // 4. Single-layer warp with far holes (any fill policy would be unsafe for culling).
-        let wp = WarpParams { holes: HolePolicy::FarDepth, ..self.params.warp };
-        let layer = GpuWarpLayer { depth: src, motion: &self.motion, axis: self.params.axis };
-        let warped = self.warp_k.encode(enc, &[layer], w, h, &wp)?;
+        }
+        // 4. Single-layer warp with far holes (any fill policy would be unsafe for culling),
+        //    into the first predicted buffer.
+        if run(WocStage::Warp) {
+            let src = if self.params.open_rims.is_some() { &self.rimmed } else { &self.prev_depth };
+            let wp = WarpParams { holes: HolePolicy::FarDepth, ..self.params.warp };
+            let layer = GpuWarpLayer { depth: src, motion: &self.motion, axis: self.params.axis };
+            let warped = self.warp_k.encode(enc, &[layer], w, h, &wp)?;
+            enc.copy_buffer_to_buffer(&warped.depth, 0, &self.predicted[0], 0, w as u64 * h as u64 * 4);
+        }
         // 5. Erosion, ping-ponging so that the result ends in `predicted()`.
-        enc.copy_buffer_to_buffer(&warped.depth, 0, &self.predicted[0], 0, w as u64 * h as u64 * 4);
-        for k in 0..self.params.erosion_radius as usize {
-            let (a, b) = (&self.predicted[k % 2], &self.predicted[(k + 1) % 2]);
-            self.dispatch(enc, &self.erode, &[(0, u()), (5, a.as_entire_binding()), (8, b.as_entire_binding())], px);
+        if run(WocStage::Erosion) {
+            for k in 0..self.params.erosion_radius as usize {
+                let (a, b) = (&self.predicted[k % 2], &self.predicted[(k + 1) % 2]);
+                self.dispatch(
+                    enc,
+                    &self.erode,
+                    &[(0, u()), (5, a.as_entire_binding()), (8, b.as_entire_binding())],
+                    px,
+                );
+            }
         }
         let predicted = self.predicted();
         // 6. Forced objects drawn into the prediction (after the erosion, as on the CPU).
-        let forced_args = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("zwarp woc forced args"),
-            size: objects.len() as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-            mapped_at_creation: false,
-        });
-        self.dispatch(
-            enc,
-            &self.forced_draws,
-            &[
-                (0, u()),
-                (9, objects.draws.as_entire_binding()),
-                (10, objects.forced.as_entire_binding()),
-                (11, forced_args.as_entire_binding()),
-            ],
-            ((objects.len() as u32).div_ceil(64), 1),
-        );
-        self.renderer.encode_depth_from_args(enc, scene, cam, t, &self.rapid, &forced_args, None)?;
-        self.dispatch(
-            enc,
-            &self.merge_min,
-            &[(0, u()), (1, wgpu::BindingResource::TextureView(&self.rapid.view)), (8, predicted.as_entire_binding())],
-            px,
-        );
+        if run(WocStage::Rapid) {
+            let forced_args = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("zwarp woc forced args"),
+                size: objects.len() as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+                mapped_at_creation: false,
+            });
+            self.dispatch(
+                enc,
+                &self.forced_draws,
+                &[
+                    (0, u()),
+                    (9, objects.draws.as_entire_binding()),
+                    (10, objects.forced.as_entire_binding()),
+                    (11, forced_args.as_entire_binding()),
+                ],
+                ((objects.len() as u32).div_ceil(64), 1),
+            );
+            self.renderer.encode_depth_from_args(enc, scene, cam, t, &self.rapid, &forced_args, None)?;
+            self.dispatch(
+                enc,
+                &self.merge_min,
+                &[
+                    (0, u()),
+                    (1, wgpu::BindingResource::TextureView(&self.rapid.view)),
+                    (8, predicted.as_entire_binding()),
+                ],
+                px,
+            );
+        }
         // 7. Max-depth structure, 8. cull.
-        self.max_k.encode(enc, predicted, &self.map)?;
+        if run(WocStage::MaxDepth) {
+            self.max_k.encode(enc, predicted, &self.map)?;
+        }
+        if !run(WocStage::Cull) {
+            return Ok(());
+        }
         self.cull_k.encode(enc, objects, &cam.view_proj(), w, h, self.params.tolerance, &self.map, out)
     }
 }
