@@ -151,6 +151,11 @@ impl Bound {
     fn to_texel(self) -> [f32; 4] {
         [self.lo.x, self.lo.y, self.hi.x, self.hi.y]
     }
+    /// The mipmap texel layout `[lo.x, lo.y, hi.x, hi.y]`.
+    #[inline]
+    pub(crate) fn to_texel_pub(self) -> [f32; 4] {
+        self.to_texel()
+    }
 }
 
 /// The tight bound of one target pixel: the motion bound (in the pyramid's frame) and the
@@ -558,7 +563,9 @@ impl MotionPyramid {
     }
 }
 
-/// Global bound of the valid samples in `frame` (one parallel pass).
+/// Global bound of the valid samples in `frame` (one parallel pass). The reference the fused
+/// preparation (`PreparedLayer::prepare_stack`) is tested against.
+#[cfg(test)]
 pub(crate) fn global_bound(samples: &[Motion], frame: BoundFrame) -> Bound {
     samples
         .par_chunks(4096)
@@ -624,6 +631,7 @@ pub(crate) fn pca_frame_by(w: u32, h: u32, n: u32, motion: impl Fn(usize) -> Opt
 
 /// Picks the frame for a layer under `kind`: identity for Global/Tight; for Oriented the PCA
 /// frame if its global bound has a smaller area than the axis-aligned one (per frame, Sec. 3.3).
+#[cfg(test)]
 pub(crate) fn choose_frame(samples: &[Motion], w: u32, h: u32, kind: crate::BoundKind) -> BoundFrame {
     match kind {
         crate::BoundKind::Global | crate::BoundKind::Tight => BoundFrame::IDENTITY,

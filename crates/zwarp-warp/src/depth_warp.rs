@@ -22,7 +22,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
-use crate::bounds::{choose_frame, Bound, BoundFrame, MotionPyramid, TightBound};
+use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid, TightBound};
 use crate::holes::{awoc_depth, fill_holes, FillRule, HolePolicy};
 use crate::search::{
     effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SearchParams,
@@ -57,11 +57,7 @@ impl PreparedLayer {
     /// smaller). A sample is valid iff its source depth is `< 1` and its target depth is in
     /// `[0, 1)` (see [`crate::bounds`]).
     pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
-        let samples = validated_samples(layer)?;
-        let (w, h) = layer.depth.size();
-        let frame = choose_frame(&samples, w, h, bound);
-        let pyramid = MotionPyramid::from_samples(&samples, w, h, frame);
-        Ok(PreparedLayer { w, h, samples, pyramid, bound })
+        Self::prepare(layer, &[], bound)
     }
 
     /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
@@ -74,33 +70,124 @@ impl PreparedLayer {
     pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
         let mut out: Vec<PreparedLayer> = Vec::with_capacity(layers.len());
         for (k, layer) in layers.iter().enumerate() {
-            if k == 0 {
-                out.push(Self::new(layer, bound)?);
-                continue;
-            }
-            let samples = validated_samples(layer)?;
-            let (w, h) = layer.depth.size();
-            if (w, h) != out[0].size() {
-                return Err(Error::invalid(format!("layer {k} is {w}x{h} but layer 0 is {}x{}", out[0].w, out[0].h)));
+            if k > 0 {
+                let (w, h) = layer.depth.size();
+                if (w, h) != out[0].size() {
+                    return Err(Error::invalid(format!(
+                        "layer {k} is {w}x{h} but layer 0 is {}x{}",
+                        out[0].w, out[0].h
+                    )));
+                }
             }
             let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
-            let depth = layer.depth.data();
-            let new_only: Vec<Motion> = samples
-                .par_iter()
-                .enumerate()
-                .map(|(i, m)| {
-                    if earlier.iter().any(|e| e[i] == depth[i]) {
-                        Motion { v: Vec2::ZERO, depth: f32::INFINITY }
-                    } else {
-                        *m
-                    }
-                })
-                .collect();
-            let frame = choose_frame(&new_only, w, h, bound);
-            let pyramid = MotionPyramid::from_samples(&new_only, w, h, frame);
-            out.push(PreparedLayer { w, h, samples, pyramid, bound });
+            out.push(Self::prepare(layer, &earlier, bound)?);
         }
         Ok(out)
+    }
+
+    /// Validation, sample copy and mipmap of one layer in ONE pass over its buffers (Sec. 3.3).
+    /// Per pair of rows: check for NaN, write the validated samples (empty ones with an
+    /// infinite depth, as [`validated_samples`]) and reduce the mipmap's level 1 over the
+    /// samples that do not repeat an `earlier` layer, in the axis-aligned frame and, when the
+    /// PCA frame is a candidate, in that frame too; the global bounds of both then come from
+    /// the level-1 texels and pick the frame ([`crate::BoundKind::Oriented`]). Bit for bit the
+    /// samples, frame and mipmap of separate passes (min / max are exact), at a fraction of the
+    /// memory traffic: the separate passes read the motion buffer five times and allocated
+    /// three copies of it (their page faults were a visible part of the preparation).
+    fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind) -> Result<Self> {
+        layer.depth.check_nonempty("layer depth")?;
+        layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+        let (w, h) = layer.depth.size();
+        let (depth, motion) = (layer.depth.data(), layer.motion.data());
+        let valid = |i: usize| {
+            let (d, m) = (depth[i], &motion[i]);
+            d < EMPTY_DEPTH && m.depth >= 0.0 && m.depth < 1.0 && m.v.is_finite()
+        };
+        // A sample enters the mipmap if valid and not a repeat of an earlier layer's sample.
+        let fresh = |i: usize| valid(i) && !earlier.iter().any(|e| e[i] == depth[i]);
+        let ob = match bound {
+            BoundKind::Oriented => pca_frame_by(w, h, 64, |i| fresh(i).then_some(motion[i].v)),
+            BoundKind::Global | BoundKind::Tight => BoundFrame::IDENTITY,
+        };
+        let need_ob = !ob.is_identity();
+        let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
+        // Zeroed allocation (calloc): pages are mapped on first write, no memset pass.
+        let mut samples = vec![Motion::default(); wu * h as usize];
+        let mut aab = vec![[0.0f32; 4]; lw * lh];
+        let mut obd = if need_ob { vec![[0.0f32; 4]; lw * lh] } else { Vec::new() };
+        let mut zmin = vec![0.0f32; lw * lh];
+        // One level-1 row (two image rows): returns error flags (1: bad depth, 2: NaN motion).
+        let row = |ty: usize, s: &mut [Motion], a: &mut [[f32; 4]], mut o: Option<&mut [[f32; 4]]>, z: &mut [f32]| {
+            let mut flags = 0u8;
+            a.fill(Bound::EMPTY.to_texel_pub());
+            if let Some(o) = o.as_deref_mut() {
+                o.fill(Bound::EMPTY.to_texel_pub());
+            }
+            z.fill(f32::INFINITY);
+            for (dy, srow) in s.chunks_mut(wu).enumerate() {
+                let base = (2 * ty + dy) * wu;
+                for (x, out) in srow.iter_mut().enumerate() {
+                    let i = base + x;
+                    let (d, m) = (depth[i], motion[i]);
+                    flags |= (!d.is_finite()) as u8 | ((m.v.is_nan() || m.depth.is_nan()) as u8) << 1;
+                    if !valid(i) {
+                        *out = Motion { v: Vec2::ZERO, depth: f32::INFINITY };
+                        continue;
+                    }
+                    *out = m;
+                    if earlier.iter().any(|e| e[i] == d) {
+                        continue;
+                    }
+                    let t = &mut a[x >> 1];
+                    *t = [t[0].min(m.v.x), t[1].min(m.v.y), t[2].max(m.v.x), t[3].max(m.v.y)];
+                    if let Some(o) = o.as_deref_mut() {
+                        let u = ob.to_frame(m.v);
+                        let t = &mut o[x >> 1];
+                        *t = [t[0].min(u.x), t[1].min(u.y), t[2].max(u.x), t[3].max(u.y)];
+                    }
+                    z[x >> 1] = z[x >> 1].min(m.depth);
+                }
+            }
+            flags
+        };
+        let flags = if need_ob {
+            samples
+                .par_chunks_mut(2 * wu)
+                .zip(aab.par_chunks_mut(lw))
+                .zip(obd.par_chunks_mut(lw))
+                .zip(zmin.par_chunks_mut(lw))
+                .enumerate()
+                .map(|(ty, (((s, a), o), z))| row(ty, s, a, Some(o), z))
+                .reduce(|| 0, |a, b| a | b)
+        } else {
+            samples
+                .par_chunks_mut(2 * wu)
+                .zip(aab.par_chunks_mut(lw))
+                .zip(zmin.par_chunks_mut(lw))
+                .enumerate()
+                .map(|(ty, ((s, a), z))| row(ty, s, a, None, z))
+                .reduce(|| 0, |a, b| a | b)
+        };
+        if flags & 1 != 0 {
+            return Err(Error::invalid("layer depth holds NaN or infinite values"));
+        }
+        if flags & 2 != 0 {
+            return Err(Error::invalid("motion buffer holds NaN values"));
+        }
+        // Oriented: the PCA frame if its global bound has the smaller (ex + 1)(ey + 1)
+        // (`choose_frame`), the global bounds being the union of the level-1 texels.
+        let global = |d: &[[f32; 4]]| {
+            d.par_iter()
+                .map(|t| Bound { lo: Vec2::new(t[0], t[1]), hi: Vec2::new(t[2], t[3]) })
+                .reduce(|| Bound::EMPTY, |a, b| a.union(&b))
+        };
+        let use_ob = need_ob && global(&obd).pixel_area() < global(&aab).pixel_area();
+        let pyramid = if use_ob {
+            MotionPyramid::from_level1(w, h, ob, obd, zmin)
+        } else {
+            MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin)
+        };
+        Ok(PreparedLayer { w, h, samples, pyramid, bound })
     }
 
     /// Image size.
@@ -524,6 +611,65 @@ mod tests {
 
     fn layer(vals: &[(f32, f32)]) -> Vec<Motion> {
         vals.iter().map(|&(vx, d)| Motion { v: Vec2::new(vx, 0.0), depth: d }).collect()
+    }
+
+    /// The fused one-pass preparation equals the separate passes it replaced (validated
+    /// samples, repeat-free copy for layers k > 0, frame choice, mipmap from samples) bit for bit:
+    /// samples, frame, every texel and the min-depth look-ups, for every bound kind, on layers
+    /// with empty pixels, repeated ground samples, odd sizes and diagonal motion (PCA frame).
+    #[test]
+    fn fused_preparation_equals_separate_passes() {
+        use crate::bounds::choose_frame;
+        let (w, h) = (37u32, 22u32);
+        let d0 = Image::from_fn(w, h, |x, y| if (x + y) % 7 == 0 { 1.0 } else { 0.3 + 0.01 * x as f32 });
+        // Layer 1 repeats layer 0's depth on a third of the pixels (a ground layer).
+        let d1 = Image::from_fn(w, h, |x, y| if x % 3 == 0 { *d0.get(x, y) } else { 0.8 + 0.001 * y as f32 });
+        let m = |x: u32, y: u32, d: f32| {
+            let t = 0.3 * x as f32 - 0.2 * y as f32;
+            Motion { v: Vec2::new(t + 0.05 * (y % 3) as f32, 0.9 * t - 2.0), depth: if x == 5 { 1.5 } else { d } }
+        };
+        let m0 = Image::from_fn(w, h, |x, y| m(x, y, *d0.get(x, y)));
+        let m1 = Image::from_fn(w, h, |x, y| m(x, y, *d1.get(x, y)));
+        let layers = [WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }];
+        for bound in [BoundKind::Global, BoundKind::Tight, BoundKind::Oriented] {
+            let fused = PreparedLayer::prepare_stack(&layers, bound).unwrap();
+            for (k, got) in fused.iter().enumerate() {
+                let samples = validated_samples(&layers[k]).unwrap();
+                let mip: Vec<Motion> = samples
+                    .iter()
+                    .enumerate()
+                    .map(|(i, s)| {
+                        if layers[..k].iter().any(|e| e.depth.data()[i] == layers[k].depth.data()[i]) {
+                            Motion { v: Vec2::ZERO, depth: f32::INFINITY }
+                        } else {
+                            *s
+                        }
+                    })
+                    .collect();
+                let frame = choose_frame(&mip, w, h, bound);
+                if bound == BoundKind::Oriented {
+                    assert!(!frame.is_identity(), "the test needs a rotated frame");
+                }
+                let want = MotionPyramid::from_samples(&mip, w, h, frame);
+                let bits = |v: &[Motion]| {
+                    v.iter().map(|m| (m.v.x.to_bits(), m.v.y.to_bits(), m.depth.to_bits())).collect::<Vec<_>>()
+                };
+                assert_eq!(bits(got.samples()), bits(&samples), "{bound:?} layer {k}");
+                assert_eq!(got.pyramid().frame(), want.frame());
+                assert_eq!(got.pyramid().top_level(), want.top_level());
+                for level in 1..=want.top_level() {
+                    let (lw, lh) = want.level_size(level);
+                    for ty in 0..lh {
+                        for tx in 0..lw {
+                            assert_eq!(got.pyramid().texel(level, tx, ty), want.texel(level, tx, ty));
+                        }
+                    }
+                }
+                for (x0, y0, x1, y1) in [(0, 0, 0, 0), (3, 4, 9, 6), (0, 0, w - 1, h - 1), (30, 20, 36, 21)] {
+                    assert_eq!(got.pyramid().lookup_min_depth(x0, y0, x1, y1), want.lookup_min_depth(x0, y0, x1, y1));
+                }
+            }
+        }
     }
 
     /// Fig. 6: an empty landing in layer k borrows the nearest non-empty layer above; the second
