@@ -388,9 +388,13 @@ pub const HULL_TEST_MAX_AREA: u64 = 16_384;
 /// Second screen-space test (see [`WocParams::hull_test`]): an object the rectangle test keeps
 /// is culled when no pixel of its rectangle that could show it (predicted depth not nearer
 /// than its nearest corner, [`DEPTH_TOLERANCE`] included) touches the box's projected
-/// silhouette (the convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`];
-/// pixel squares grown by 0.01 px against f32 rounding).
-fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted: &Image<f32>) {
+/// silhouette (the convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`]):
+/// at full resolution the pixel centre must lie in it (the renderer's coverage rule), at a
+/// coarse resolution any part of the coarse pixel (so every fine pixel centre under it counts).
+fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted: &Image<f32>, centres: bool) {
+    // Full resolution: the rasterizer covers pixel centres, so the silhouette must contain the
+    // centre (a 0.02 px square around it, against f32 rounding). Coarse: the whole square.
+    let slack = if centres { -0.49 } else { 0.01 };
     let vp = cam.view_proj();
     let (w, h) = (cam.width, cam.height);
     let d = predicted.data();
@@ -408,7 +412,7 @@ fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted
         let seen = (rect.y0..rect.y1).any(|y| {
             (rect.x0..rect.x1).any(|x| {
                 d[y as usize * w as usize + x as usize] >= limit
-                    && crate::screen::square_meets_hull(x as f32, y as f32, 0.01, &hull, n)
+                    && crate::screen::square_meets_hull(x as f32, y as f32, slack, &hull, n)
             })
         });
         if !seen {
@@ -922,7 +926,7 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let forced = (!forced.is_empty()).then_some(forced.as_slice());
     let mut classes = test_objects_in(&aabbs, Some(&inside), cam, &map, forced);
     if params.hull_test {
-        refine_by_hull(&aabbs, &mut classes, cam, &predicted);
+        refine_by_hull(&aabbs, &mut classes, cam, &predicted, f == 1);
     }
     tm.test_ms = ms(t0);
 
