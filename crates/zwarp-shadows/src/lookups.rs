@@ -233,10 +233,14 @@ impl SparseMap {
                 *s = texel_xy(r.p_c, r.g, shift, w, h).map_or(OFF_MAP, |(x, y)| set.slot(x, y));
             }
         });
+        // Neighbouring camera pixels mostly read the same texel: skipping repeats avoids a
+        // chain of read-modify-writes of one mask word (store-to-load forwarding latency).
+        let mut prev = OFF_MAP;
         for &s in &self.per_receiver {
-            if s != OFF_MAP {
+            if s != prev && s != OFF_MAP {
                 self.wanted.insert_slot(s);
             }
+            prev = s;
         }
         self.wanted.list_into(&mut self.list, &mut self.list_slots);
         self.list.len()
