@@ -8,8 +8,11 @@
 //! Times are the minimum over `reps` runs of the on-CPU time of the process' threads
 //! (`/proc/self/task/*/schedstat`, ns), so a loaded machine inflates them far less than wall
 //! time. Per configuration: prepare (mipmaps)
-//! and warp ms per frame, Mpx/s per core of the warp, the render time of the same target
-//! (zwarp-raster `render_depth`, same thread count), PSNR / SSIM against it.
+//! and warp ms per frame, the render time of the same target (zwarp-raster `render_depth`,
+//! same thread count) and the ratio (prepare + warp) / render, Mpx/s per core of prepare + warp,
+//! bytes touched per pixel by the warp (counted: build with `--features stats`, see
+//! `zwarp_warp::stats`; the preparation adds ~37 B per pixel and layer), PSNR / SSIM against the
+//! render and the converged fraction.
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -64,7 +67,9 @@ fn main() {
     let reps: usize = get("reps", "3").parse().unwrap();
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
     let max_l = *ls.iter().max().unwrap() as usize;
-    println!("scene  L  N  prepare_ms  warp_ms  render_ms  Mpx/s/core  psnr     ssim      converged");
+    println!(
+        "scene  L  N  prepare_ms  warp_ms  render_ms  w/r_ratio  Mpx/s/core  B/px    psnr     ssim      converged"
+    );
     for name in &scenes {
         let opts = SceneOptions { seed: 1, scale, ..SceneOptions::default() };
         let loaded = zwarp_scene::load_scene(name, &opts).unwrap();
@@ -74,8 +79,9 @@ fn main() {
         let total = path.frame_count_at(1.0);
         let last = total - 2;
         let count = frames.min(last + 1);
-        // (L, N) -> (prepare ms, warp ms, render ms, psnr, ssim, converged) summed over pairs.
-        let mut acc: HashMap<(u32, u32), [f64; 6]> = HashMap::new();
+        // (L, N) -> (prepare ms, warp ms, render ms, psnr, ssim, converged, bytes per pixel)
+        // summed over pairs.
+        let mut acc: HashMap<(u32, u32), [f64; 7]> = HashMap::new();
         for i in 0..count {
             let k = if count == 1 { 0 } else { i * last / (count - 1) };
             let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
@@ -115,10 +121,14 @@ fn main() {
                     let holes = if l == 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth };
                     let params = WarpParams { n_seeds: n, holes, ..Default::default() };
                     let (out, warp_ms, _) = time(reps, || warp_prepared(&prepared, &params).unwrap());
+                    // One more run for the counters (`--features stats`): bytes touched / pixel.
+                    stats::take();
+                    let _ = warp_prepared(&prepared, &params).unwrap();
+                    let bpp = stats::take().bytes_per_pixel();
                     let q = zwarp_metrics::depth_quality(&out.depth, &reference, &cb).unwrap();
                     let conv = 1.0 - out.non_converged_fraction();
                     let a = acc.entry((l, n)).or_default();
-                    for (s, v) in a.iter_mut().zip([prep_ms, warp_ms, render_ms, q.psnr, q.ssim, conv]) {
+                    for (s, v) in a.iter_mut().zip([prep_ms, warp_ms, render_ms, q.psnr, q.ssim, conv, bpp]) {
                         *s += v;
                     }
                 }
@@ -128,9 +138,16 @@ fn main() {
             for &n in &ns {
                 let a = acc[&(l, n)].map(|v| v / count as f64);
                 let mpx = (w * h) as f64 / 1e6 / ((a[0] + a[1]) / 1e3) / threads as f64;
+                let bpp = if stats::ENABLED { format!("{:6.0}", a[6]) } else { "     -".into() };
                 println!(
-                    "{name:5} {l:2} {n:2}  {:9.1}  {:7.1}  {:9.1}  {mpx:10.2}  {:7.3}  {:.5}  {:.4}",
-                    a[0], a[1], a[2], a[3], a[4], a[5]
+                    "{name:5} {l:2} {n:2}  {:9.1}  {:7.1}  {:9.1}  {:7.2}  {mpx:10.2}  {bpp}  {:7.3}  {:.5}  {:.4}",
+                    a[0],
+                    a[1],
+                    a[2],
+                    (a[0] + a[1]) / a[2],
+                    a[3],
+                    a[4],
+                    a[5]
                 );
             }
         }

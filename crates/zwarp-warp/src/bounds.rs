@@ -350,6 +350,7 @@ impl MotionPyramid {
         let lw = l.w as usize;
         let (r0, r1) = (&l.data[ty0 * lw..ty0 * lw + lw], &l.data[ty1 * lw..ty1 * lw + lw]);
         let (a, b, c, d) = (r0[tx0], r0[tx1], r1[tx0], r1[tx1]);
+        crate::stats::count(crate::stats::Counter::MipTexels, 4);
         let lo = Vec2::new(a[0].min(b[0]).min(c[0].min(d[0])), a[1].min(b[1]).min(c[1].min(d[1])));
         let hi = Vec2::new(a[2].max(b[2]).max(c[2].max(d[2])), a[3].max(b[3]).max(c[3].max(d[3])));
         Bound { lo, hi }
@@ -382,6 +383,7 @@ impl MotionPyramid {
         let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
         let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
         let mut z = f32::INFINITY;
+        crate::stats::count(crate::stats::Counter::DepthTexels, ((tx1 - tx0 + 1) * (ty1 - ty0 + 1)) as u64);
         for ty in ty0..=ty1 {
             let row = &l.zmin[ty as usize * l.w as usize..];
             for t in &row[tx0 as usize..=tx1 as usize] {

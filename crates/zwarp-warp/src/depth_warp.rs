@@ -472,6 +472,7 @@ impl Kernel<'_> {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let (z, st, src) = self.pixel(x, y, &tile_bounds, &mut seeds);
+                    crate::stats::count(crate::stats::Counter::Pixels, 1);
                     let i = (y - y0) as usize * w + x as usize;
                     depth[i] = z;
                     state[i] = st;

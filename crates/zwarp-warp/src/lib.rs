@@ -27,6 +27,7 @@ pub mod bounds;
 pub mod depth_warp;
 pub mod holes;
 pub mod search;
+pub mod stats;
 pub mod synth;
 
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};

@@ -126,6 +126,9 @@ impl<'a> LayerSampler<'a> {
         // baseline x86-64, which showed up at ~9 % of the warp in a profile.)
         let (wm, hm) = (self.w - 1, self.h - 1);
         let (xn, yn) = ((q.x as u32).min(wm), (q.y as u32).min(hm));
+        crate::stats::count(crate::stats::Counter::Fetches, 1);
+        let texels = if self.sampling == Sampling::Adaptive { 4 } else { 1 };
+        crate::stats::count(crate::stats::Counter::MotionTexels, texels);
         if self.sampling == Sampling::Adaptive {
             // Texel-centre coordinates t = q - 0.5 >= -0.5: floor(t) = trunc(t + 1) - 1.
             let (tx, ty) = (q.x + 0.5, q.y + 0.5);
