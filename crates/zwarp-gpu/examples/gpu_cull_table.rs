@@ -14,8 +14,8 @@ use std::time::{Duration, Instant};
 use zwarp_core::Result;
 use zwarp_cull::{MaxDepthKind, MaxDepthMap, WocParams};
 use zwarp_gpu::{
-    rapid_flags, CullKernel, CullObjects, CullOutput, DepthTarget, GpuContext, GpuPrevFrame, GpuScene, GpuTimer,
-    GpuWoc, GpuWocParams, IndirectMode, LayerTargets, MaxDepthKernel, MaxDepthLayout, PeelOptions, Renderer,
+    rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, DepthTarget, GpuContext, GpuPrevFrame, GpuScene,
+    GpuTimer, GpuWoc, GpuWocParams, IndirectMode, LayerTargets, MaxDepthKernel, MaxDepthLayout, PeelOptions, Renderer,
     TimingStats, WocStage,
 };
 
@@ -139,7 +139,7 @@ fn main() -> Result<()> {
         let build = measure(&mut |e| mk.encode(e, &depth_buf, &map))?;
         let cpu = cpu_time(&mut || MaxDepthMap::build(kind, &true_depth).map(|_| ()))?;
         row(&format!("build {name}"), &build, Some(cpu), Some(build_bytes(&map.layout)));
-        let cull = measure(&mut |e| ck.encode(e, &objects, &vp, w, h, zwarp_cull::DEPTH_TOLERANCE, &map, &out))?;
+        let cull = measure(&mut |e| ck.encode(e, &objects, &vp, w, h, &CullParams::default(), &map, &out))?;
         let res = out.read(&ctx)?;
         let cpu =
             cpu_time(&mut || zwarp_cull::cull_against_depth(&scene, &true_depth, &cam1, t1, kind, None).map(|_| ()))?;

@@ -17,7 +17,7 @@ use zwarp_cull::{
     WocParams,
 };
 
-use crate::compute::{rapid_flags, GpuWoc, GpuWocParams};
+use crate::compute::{rapid_flags, CullParams, GpuWoc, GpuWocParams};
 use crate::{
     CullKernel, CullObjects, CullOutput, GpuContext, GpuCullClass, GpuMaxDepth, GpuScene, LayerTargets, MaxDepthKernel,
     PeelOptions, Renderer,
@@ -98,7 +98,7 @@ impl Run<'_> {
             &cam.view_proj(),
             cam.width,
             cam.height,
-            zwarp_cull::DEPTH_TOLERANCE,
+            &CullParams::default(),
             map,
             &self.out,
         )?;

@@ -10,7 +10,8 @@ use zwarp_cull::{
     DEPTH_TOLERANCE,
 };
 use zwarp_gpu::{
-    test_context, CullKernel, CullObjects, CullOutput, GpuCullClass, GpuScene, IndirectMode, MaxDepthKernel, Renderer,
+    test_context, CullKernel, CullObjects, CullOutput, CullParams, GpuCullClass, GpuScene, IndirectMode,
+    MaxDepthKernel, Renderer,
 };
 
 const W: u32 = 97;
@@ -130,6 +131,60 @@ fn decisions_equal_the_cpu_test_on_random_boxes() {
     assert!(margin_diffs <= 3, "{margin_diffs} margin decisions differ");
 }
 
+/// The silhouette test (WOC's `hull_test`) on random boxes against a random depth: the CPU
+/// rule (`refine_by_hull`: rectangle-kept objects up to `HULL_TEST_MAX_AREA` pixels culled when
+/// no unoccluded pixel centre lies in the box's projected hull) gives the same decisions up to
+/// the 1e-6 margin, and culls something the rectangle test keeps.
+#[test]
+fn silhouette_test_equals_the_cpu_rule() {
+    let Some(ctx) = test_context() else { return };
+    let cam = camera();
+    let depth = blocky_depth(&cam, 7);
+    let boxes = random_boxes(3000, 7);
+    let objs = CullObjects::new(&ctx, boxes.len()).unwrap();
+    objs.write_aabbs(&ctx, &boxes).unwrap();
+    let out = CullOutput::new(&ctx, boxes.len()).unwrap();
+    let kind = MaxDepthKind::YMap { switch: 2 };
+    let map = MaxDepthKernel::new(&ctx).unwrap().build(&depth, kind).unwrap();
+    let ck = CullKernel::new(&ctx).unwrap();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let params = CullParams { hull_test: true, ..CullParams::default() };
+    ck.encode(&mut enc, &objs, &cam.view_proj(), W, H, &params, &map, &out).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    let gpu = out.read(&ctx).unwrap();
+    let cpu_map = MaxDepthMap::build(kind, &depth).unwrap();
+    let vp = cam.view_proj();
+    let (mut refined, mut differ) = (0, 0);
+    for (id, b) in boxes.iter().enumerate() {
+        let (mut c, margin) = cpu_class(b, &cam, &cpu_map);
+        if c == GpuCullClass::Visible {
+            let ScreenRect::Rect { rect, nearest } = screen_rect_with(b, &vp, W, H) else { unreachable!() };
+            if rect.area() <= zwarp_cull::woc::HULL_TEST_MAX_AREA {
+                let (hull, n) = zwarp_cull::screen::screen_hull_with(b, &vp, W, H).unwrap();
+                let limit = nearest - DEPTH_TOLERANCE;
+                let seen = (rect.y0..rect.y1).any(|y| {
+                    (rect.x0..rect.x1).any(|x| {
+                        *depth.get(x, y) >= limit
+                            && zwarp_cull::screen::square_meets_hull(x as f32, y as f32, -0.49, &hull, n)
+                    })
+                });
+                if !seen {
+                    c = GpuCullClass::Occluded;
+                    refined += 1;
+                }
+            }
+        }
+        if gpu.classes[id] != c {
+            let m = margin.unwrap_or(f32::INFINITY);
+            assert!(m.abs() <= 1e-6, "box {id} {b:?}: GPU {:?}, CPU {c:?} (margin {m})", gpu.classes[id]);
+            differ += 1;
+        }
+    }
+    eprintln!("silhouette test culled {refined} rectangle-kept boxes; {differ} margin decisions differ");
+    assert!(refined > 10, "the silhouette test culled only {refined}");
+    assert!(differ <= 2);
+}
+
 #[test]
 fn forced_objects_are_kept_untested() {
     let Some(ctx) = test_context() else { return };
@@ -217,6 +272,6 @@ fn bad_input_is_an_error() {
     let e = ck.cull(&objs, &cam, &map, &CullOutput::new(&ctx, 5).unwrap()).unwrap_err().to_string();
     assert!(e.contains("5 objects, 4 given"), "{e}");
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let e = ck.encode(&mut enc, &objs, &Mat4::NAN, W, H, 1e-6, &map, &out).unwrap_err().to_string();
+    let e = ck.encode(&mut enc, &objs, &Mat4::NAN, W, H, &CullParams::default(), &map, &out).unwrap_err().to_string();
     assert!(e.contains("not finite"), "{e}");
 }

@@ -26,6 +26,31 @@ struct Params {
     counts: [u32; 4],
 }
 
+/// Options of the cull kernel's occlusion test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CullParams {
+    /// An object is occluded when the max depth over its rectangle is below its nearest corner
+    /// depth minus this ([`zwarp_cull::DEPTH_TOLERANCE`] in the CPU pipeline).
+    pub tolerance: f32,
+    /// WOC's silhouette test (`zwarp_cull::WocParams::hull_test`, full resolution): an object
+    /// the rectangle test keeps (rectangle up to `zwarp_cull::woc::HULL_TEST_MAX_AREA` pixels)
+    /// is culled when no pixel centre of its rectangle whose depth (level 0 of the max
+    /// structure) is not nearer than its nearest corner lies in the convex hull of its 8
+    /// projected corners.
+    pub hull_test: bool,
+}
+
+impl Default for CullParams {
+    /// The tolerance of the CPU pipeline, no silhouette test (as `cull_against_depth`).
+    fn default() -> Self {
+        CullParams { tolerance: zwarp_cull::DEPTH_TOLERANCE, hull_test: false }
+    }
+}
+
+/// Slack of the silhouette test's pixel squares at full resolution: -0.49 shrinks the square
+/// to 0.02 px around the centre, the renderer's coverage rule (as `refine_by_hull`).
+const HULL_CENTRE_SLACK: f32 = -0.49;
+
 /// How the cull kernel classified an object (as `zwarp_cull::woc`'s stages count them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GpuCullClass {
@@ -289,8 +314,8 @@ impl CullKernel {
 
     /// Records the culling of `objects` seen through `view_proj` on a `width x height` image
     /// against `map` (built over the same image): an object is occluded when the max depth over
-    /// its rectangle is below its nearest corner depth minus `tolerance`
-    /// ([`zwarp_cull::DEPTH_TOLERANCE`] in the CPU pipeline). Clears the counter first.
+    /// its rectangle is below its nearest corner depth minus `params.tolerance`
+    /// ([`CullParams`]). Clears the counter first.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
@@ -299,10 +324,11 @@ impl CullKernel {
         view_proj: &Mat4,
         width: u32,
         height: u32,
-        tolerance: f32,
+        params: &CullParams,
         map: &GpuMaxDepth,
         out: &CullOutput,
     ) -> Result<()> {
+        let tolerance = params.tolerance;
         if map.layout.size != (width, height) {
             return Err(Error::invalid(format!(
                 "max-depth structure is {}x{} but the camera renders {width}x{height}",
@@ -319,16 +345,16 @@ impl CullKernel {
             return Err(Error::invalid(format!("depth tolerance must be finite and >= 0, got {tolerance}")));
         }
         let planes = Frustum::from_view_proj(view_proj).planes.map(|p| p.to_array());
-        let params = Params {
+        let uniform = Params {
             view_proj: view_proj.to_cols_array_2d(),
             planes,
-            size_tol: [width as f32, height as f32, tolerance, 0.0],
-            counts: [objects.count, width, height, 0],
+            size_tol: [width as f32, height as f32, tolerance, HULL_CENTRE_SLACK],
+            counts: [objects.count, width, height, params.hull_test as u32],
         };
         let dev = &self.ctx.device;
         let ubuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("zwarp cull params"),
-            contents: bytemuck::bytes_of(&params),
+            contents: bytemuck::bytes_of(&uniform),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let bufs = [
@@ -365,8 +391,8 @@ impl CullKernel {
         Ok(())
     }
 
-    /// Culls `objects` for `camera` against `map` with [`zwarp_cull::DEPTH_TOLERANCE`],
-    /// submits and reads the result back.
+    /// Culls `objects` for `camera` against `map` with [`CullParams::default`] (the test of
+    /// `zwarp_cull::cull_against_depth`), submits and reads the result back.
     pub fn cull(
         &self,
         objects: &CullObjects,
@@ -381,7 +407,7 @@ impl CullKernel {
             &camera.view_proj(),
             camera.width,
             camera.height,
-            zwarp_cull::DEPTH_TOLERANCE,
+            &CullParams::default(),
             map,
             out,
         )?;

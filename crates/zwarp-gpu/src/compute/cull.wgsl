@@ -11,9 +11,9 @@ struct Params {
     view_proj: mat4x4<f32>,
     // Frustum planes (n, d), n . x + d >= 0 inside: left, right, bottom, top, near, far.
     planes: array<vec4<f32>, 6>,
-    // (image width, image height) as floats, depth tolerance, object count as float (unused).
+    // (image width, image height) as floats, depth tolerance, silhouette-test square slack.
     size_tol: vec4<f32>,
-    // (object count, image width, image height, 0).
+    // (object count, image width, image height, silhouette test on (1) / off (0)).
     counts: vec4<u32>,
 };
 
@@ -133,10 +133,118 @@ fn classify(i: u32) -> u32 {
         return C_FRUSTUM;
     }
     let rect = vec4<u32>(u32(x0), u32(y0), u32(x1), u32(y1));
-    if (md_max_depth(rect) < nearest - params.size_tol.z) {
+    let limit = nearest - params.size_tol.z;
+    if (md_max_depth(rect) < limit) {
+        return C_OCCLUDED;
+    }
+    if (params.counts.w != 0u && (rect.z - rect.x) * (rect.w - rect.y) <= HULL_TEST_MAX_AREA
+        && !silhouette_seen(lo, hi, rect, limit)) {
         return C_OCCLUDED;
     }
     return C_VISIBLE;
+}
+
+// zwarp_cull's silhouette test (WocParams::hull_test, `refine_by_hull`): rectangles up to this
+// many pixels are scanned.
+const HULL_TEST_MAX_AREA: u32 = 16384u;
+
+fn perp_dot(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return a.x * b.y - a.y * b.x;
+}
+
+fn cross3(o: vec2<f32>, a: vec2<f32>, b: vec2<f32>) -> f32 {
+    return perp_dot(a - o, b - o);
+}
+
+// zwarp_cull::screen::square_meets_hull: the pixel square grown by `slack` meets the convex
+// counter-clockwise polygon hull[..n] (separating axes; degenerate hulls by their bounds).
+fn square_meets_hull(x: f32, y: f32, slack: f32, hull: ptr<function, array<vec2<f32>, 16>>, n: u32) -> bool {
+    let lo = vec2<f32>(x - slack, y - slack);
+    let hi = vec2<f32>(x + 1.0 + slack, y + 1.0 + slack);
+    var bmin = vec2<f32>(3.4028235e38);
+    var bmax = vec2<f32>(-3.4028235e38);
+    for (var i = 0u; i < n; i++) {
+        bmin = min(bmin, (*hull)[i]);
+        bmax = max(bmax, (*hull)[i]);
+    }
+    if (bmax.x < lo.x || bmin.x > hi.x || bmax.y < lo.y || bmin.y > hi.y) {
+        return false;
+    }
+    if (n < 3u) {
+        return true;
+    }
+    let corners = array<vec2<f32>, 4>(lo, vec2<f32>(hi.x, lo.y), hi, vec2<f32>(lo.x, hi.y));
+    for (var i = 0u; i < n; i++) {
+        let a = (*hull)[i];
+        let e = (*hull)[(i + 1u) % n] - a;
+        var all_out = true;
+        for (var c = 0u; c < 4u; c++) {
+            if (perp_dot(e, corners[c] - a) >= 0.0) {
+                all_out = false;
+            }
+        }
+        if (all_out) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// `refine_by_hull` for one object the rectangle test kept: whether some pixel of its rectangle
+// whose predicted depth is not nearer than `limit` meets the convex hull of the 8 projected
+// corners (zwarp_cull::screen::screen_hull_with, Andrew's monotone chain). The predicted depth
+// is level 0 of the max structure (offset 0, full size, for every kind).
+fn silhouette_seen(lo: vec3<f32>, hi: vec3<f32>, rect: vec4<u32>, limit: f32) -> bool {
+    let w = params.size_tol.x;
+    let h = params.size_tol.y;
+    var pts: array<vec2<f32>, 8>;
+    for (var k = 0u; k < 8u; k++) {
+        let c = vec3<f32>(select(lo.x, hi.x, (k & 1u) != 0u), select(lo.y, hi.y, (k & 2u) != 0u),
+                          select(lo.z, hi.z, (k & 4u) != 0u));
+        let clip = params.view_proj * vec4<f32>(c, 1.0);
+        let inv_w = 1.0 / clip.w;
+        pts[k] = vec2<f32>((clip.x * inv_w + 1.0) * 0.5 * w, (1.0 - clip.y * inv_w) * 0.5 * h);
+    }
+    // Sort by x, then y (insertion sort of 8).
+    for (var i = 1u; i < 8u; i++) {
+        let p = pts[i];
+        var j = i;
+        while (j > 0u && (pts[j - 1u].x > p.x || (pts[j - 1u].x == p.x && pts[j - 1u].y > p.y))) {
+            pts[j] = pts[j - 1u];
+            j--;
+        }
+        pts[j] = p;
+    }
+    var hull: array<vec2<f32>, 16>;
+    var k = 0u;
+    for (var i = 0u; i < 8u; i++) {
+        let p = pts[i];
+        while (k >= 2u && cross3(hull[k - 2u], hull[k - 1u], p) <= 0.0) {
+            k--;
+        }
+        hull[k] = p;
+        k++;
+    }
+    let lower = k + 1u;
+    for (var i = 7u; i > 0u; i--) {
+        let p = pts[i - 1u];
+        while (k >= lower && cross3(hull[k - 2u], hull[k - 1u], p) <= 0.0) {
+            k--;
+        }
+        hull[k] = p;
+        k++;
+    }
+    let n = min(max(k, 2u) - 1u, 8u);
+    let slack = params.size_tol.w;
+    let stride = u32(w);
+    for (var y = rect.y; y < rect.w; y++) {
+        for (var x = rect.x; x < rect.z; x++) {
+            if (md_data[y * stride + x] >= limit && square_meets_hull(f32(x), f32(y), slack, &hull, n)) {
+                return true;
+            }
+        }
+    }
+    return false;
 }
 
 @compute @workgroup_size(64, 1, 1)

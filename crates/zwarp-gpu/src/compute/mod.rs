@@ -9,7 +9,7 @@ mod pyramid;
 mod warp;
 mod woc;
 
-pub use cull::{CullKernel, CullObjects, CullOutput, CullReadback, GpuCullClass};
+pub use cull::{CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass};
 pub use holes::HoleFillKernel;
 pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};

@@ -14,15 +14,17 @@
 //! 6. forced (rapid-motion) objects, flagged in [`CullObjects::forced`], are rasterized and
 //!    merged into the predicted depth by the depth test ([`zwarp_raster::draw_into`]);
 //! 7. max-depth structure ([`crate::MaxDepthKernel`]) and 8. the cull kernel
-//!    ([`crate::CullKernel`]) into the caller's [`CullOutput`].
+//!    ([`crate::CullKernel`], with the silhouette test of `WocParams::hull_test`) into the
+//!    caller's [`CullOutput`].
 //!
-//! Differences from the CPU `woc`: opening rims are always dropped in the source
+//! Differences from the CPU `woc` (as of zwarp-cull b12f000): opening rims are always dropped in the source
 //! (`RimMode::Source`): the CPU default `RimMode::Target` needs each target pixel's source
 //! position, which the GPU warp does not record; Source opens a superset of Target's pixels
 //! (safe, culls less). The warp's bound frame axis is given (default
 //! axis-aligned, i.e. the CPU's `BoundKind::Tight`; the CPU's PCA frame needs a pass over the
 //! motion buffer on the CPU), the hybrid object-space query and coarse resolution
-//! (`downsample`) are not ported, AWOC is CPU-only, and the rapid-motion flags are computed by
+//! (`downsample`) and the static hole bounds (`hole_bound`, off by default on the CPU) are not
+//! ported, AWOC is CPU-only, and the rapid-motion flags are computed by
 //! the caller ([`rapid_flags`] is the CPU rule).
 
 use bytemuck::{Pod, Zeroable};
@@ -32,7 +34,7 @@ use zwarp_cull::woc::RimMode;
 use zwarp_cull::{screen_speed, Frustum, MaxDepthKind, WocParams, DEPTH_TOLERANCE};
 use zwarp_warp::{BoundKind, HolePolicy, WarpParams};
 
-use super::cull::{CullKernel, CullObjects, CullOutput};
+use super::cull::{CullKernel, CullObjects, CullOutput, CullParams};
 use super::maxdepth::{GpuMaxDepth, MaxDepthKernel};
 use super::motion::{MotionInput, MotionKernel};
 use super::warp::{GpuWarpLayer, WarpKernel};
@@ -63,6 +65,8 @@ pub struct GpuWocParams {
     pub max_depth: MaxDepthKind,
     /// Depth tolerance of the occlusion test ([`DEPTH_TOLERANCE`]).
     pub tolerance: f32,
+    /// The silhouette test after the rectangle test ([`WocParams::hull_test`]).
+    pub hull_test: bool,
 }
 
 impl Default for GpuWocParams {
@@ -75,8 +79,8 @@ impl Default for GpuWocParams {
 impl GpuWocParams {
     /// The GPU configuration computing what `zwarp_cull::woc` computes with
     /// [`GpuWocParams::cpu_twin`]`(p)`: an oriented warp bound becomes axis-aligned
-    /// (`BoundKind::Tight`), target-side opening rims become source-side, `hybrid_objects` is
-    /// ignored.
+    /// (`BoundKind::Tight`), target-side opening rims become source-side, `hole_bound` and
+    /// `hybrid_objects` are ignored.
     /// Errors on AWOC and on `downsample > 1` (not ported).
     pub fn from_cpu(p: &WocParams) -> Result<Self> {
         p.validate()?;
@@ -96,15 +100,22 @@ impl GpuWocParams {
             erosion_radius: if p.erosion { p.erosion_radius } else { 0 },
             max_depth: p.max_depth,
             tolerance: DEPTH_TOLERANCE,
+            hull_test: p.hull_test,
         })
     }
 
     /// The CPU parameters whose `woc` the GPU computes from [`GpuWocParams::from_cpu`]`(cpu)`
-    /// (for cross-checks): the warp bound axis-aligned, opening rims in the source, no hybrid
-    /// query.
+    /// (for cross-checks): the warp bound axis-aligned, opening rims in the source, no static
+    /// hole bounds (`hole_bound`), no hybrid query.
     pub fn cpu_twin(cpu: &WocParams) -> WocParams {
         let bound = if cpu.warp.bound == BoundKind::Oriented { BoundKind::Tight } else { cpu.warp.bound };
-        WocParams { warp: WarpParams { bound, ..cpu.warp }, rim_mode: RimMode::Source, hybrid_objects: 0, ..*cpu }
+        WocParams {
+            warp: WarpParams { bound, ..cpu.warp },
+            rim_mode: RimMode::Source,
+            hole_bound: false,
+            hybrid_objects: 0,
+            ..*cpu
+        }
     }
 }
 
@@ -547,6 +558,7 @@ impl GpuWoc {
         if !run(WocStage::Cull) {
             return Ok(());
         }
-        self.cull_k.encode(enc, objects, &cam.view_proj(), w, h, self.params.tolerance, &self.map, out)
+        let cp = CullParams { tolerance: self.params.tolerance, hull_test: self.params.hull_test };
+        self.cull_k.encode(enc, objects, &cam.view_proj(), w, h, &cp, &self.map, out)
     }
 }
