@@ -30,7 +30,9 @@ pub use holebound::{bound_far_pixels, StaticRays};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
-pub use screen::{screen_hull_with, screen_rect, screen_rect_with, square_meets_hull, PixelRect, ScreenRect};
+pub use screen::{
+    hull_x_range_in_strip, screen_hull_with, screen_rect, screen_rect_with, square_meets_hull, PixelRect, ScreenRect,
+};
 pub use sequence::{run_sequence, summarize, FrameReport, Method, SequenceSummary};
 pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,

@@ -190,6 +190,29 @@ pub fn square_meets_hull(x: f32, y: f32, slack: f32, hull: &[Vec2], n: usize) ->
     true
 }
 
+/// The x-extent of convex polygon `hull[..n]` inside the horizontal strip `ya <= y <= yb`, or
+/// `None` if they do not meet. A pixel square spanning the whole strip meets the polygon exactly
+/// when its x-interval overlaps this extent (the polygon's part in the strip is convex), which
+/// turns the per-pixel test of [`square_meets_hull`] into one clip per row.
+pub fn hull_x_range_in_strip(hull: &[Vec2], n: usize, ya: f32, yb: f32) -> Option<(f32, f32)> {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let h = &hull[..n];
+    for i in 0..n {
+        let (a, b) = (h[i], h[(i + 1) % n]);
+        // Clip the edge to the strip.
+        let (p, q) = if a.y <= b.y { (a, b) } else { (b, a) };
+        if q.y < ya || p.y > yb {
+            continue;
+        }
+        let at = |y: f32| if q.y > p.y { p.x + (q.x - p.x) * ((y - p.y) / (q.y - p.y)) } else { p.x };
+        let (y0, y1) = (p.y.max(ya), q.y.min(yb));
+        let (x0, x1) = if q.y > p.y { (at(y0), at(y1)) } else { (p.x, q.x) };
+        lo = lo.min(x0.min(x1));
+        hi = hi.max(x0.max(x1));
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -409,12 +409,27 @@ fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted
         }
         let Some((hull, n)) = crate::screen::screen_hull_with(b, &vp, w, h) else { return };
         let limit = nearest - DEPTH_TOLERANCE;
-        let seen = (rect.y0..rect.y1).any(|y| {
-            (rect.x0..rect.x1).any(|x| {
-                d[y as usize * w as usize + x as usize] >= limit
-                    && crate::screen::square_meets_hull(x as f32, y as f32, slack, &hull, n)
-            })
-        });
+        let row_visible = |y: u32| -> bool {
+            let row = &d[y as usize * w as usize..(y as usize + 1) * w as usize];
+            if n < 3 {
+                // Degenerate silhouette (a segment or a point): per-pixel test.
+                return (rect.x0..rect.x1).any(|x| {
+                    row[x as usize] >= limit && crate::screen::square_meets_hull(x as f32, y as f32, slack, &hull, n)
+                });
+            }
+            // Pixel squares of this row span the strip [y - slack, y + 1 + slack]; the ones
+            // meeting the silhouette are those whose x-interval overlaps its extent there.
+            let Some((xa, xb)) =
+                crate::screen::hull_x_range_in_strip(&hull, n, y as f32 - slack, y as f32 + 1.0 + slack)
+            else {
+                return false;
+            };
+            // x - slack <= xb and x + 1 + slack >= xa.
+            let first = (xa - 1.0 - slack).ceil().clamp(rect.x0 as f32, rect.x1 as f32) as u32;
+            let last = ((xb + slack).floor() + 1.0).min(rect.x1 as f32).max(first as f32) as u32;
+            row[first as usize..last as usize].iter().any(|&p| p >= limit)
+        };
+        let seen = (rect.y0..rect.y1).any(row_visible);
         if !seen {
             *c = Class::Occluded;
         }

@@ -61,3 +61,48 @@ proptest! {
         }
     }
 }
+
+/// The per-row silhouette extent of the hull test picks exactly the pixel squares that the
+/// separating-axis test accepts (random convex hulls from projected random boxes).
+#[test]
+fn hull_row_extent_matches_the_square_test() {
+    use glam::{Mat4, Vec3};
+    use zwarp_core::{Aabb, Camera};
+    use zwarp_cull::{hull_x_range_in_strip, screen_hull_with, square_meets_hull};
+    let cam = Camera::perspective(Vec3::new(3.0, 4.0, 9.0), Vec3::ZERO, Vec3::Y, 1.0, 0.1, 100.0, 40, 30).unwrap();
+    let vp: Mat4 = cam.view_proj();
+    let mut st = 7u64;
+    let mut rnd = || {
+        st = st.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((st >> 33) as f32) / (1u64 << 31) as f32
+    };
+    let mut checked = 0;
+    for _ in 0..200 {
+        let c = Vec3::new(rnd() * 6.0 - 3.0, rnd() * 4.0 - 2.0, rnd() * 6.0 - 3.0);
+        let e = Vec3::new(0.05 + rnd() * 2.0, 0.05 + rnd() * 2.0, 0.05 + rnd() * 2.0);
+        let Some((hull, n)) = screen_hull_with(&Aabb::new(c - e, c + e), &vp, 40, 30) else { continue };
+        if n < 3 {
+            continue;
+        }
+        for slack in [0.01f32, -0.49] {
+            for y in -2..32 {
+                let r = hull_x_range_in_strip(&hull, n, y as f32 - slack, y as f32 + 1.0 + slack);
+                for x in -2..42 {
+                    let (xf, yf) = (x as f32, y as f32);
+                    let by_row = r.is_some_and(|(a, b)| xf - slack <= b && xf + 1.0 + slack >= a);
+                    let by_sat = square_meets_hull(xf, yf, slack, &hull, n);
+                    // Allow disagreement only within f32 rounding of a touching edge.
+                    if by_row != by_sat {
+                        assert!(
+                            square_meets_hull(xf, yf, slack + 1e-3, &hull, n)
+                                && !square_meets_hull(xf, yf, slack - 1e-3, &hull, n),
+                            "({x}, {y}) slack {slack}: row {by_row} vs SAT {by_sat}"
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 100_000);
+}
