@@ -60,7 +60,8 @@ fn gpu_params_is_the_supported_cpu_configuration() {
     assert_eq!(p.bound, BoundKind::Oriented);
     assert_eq!((p.n_seeds, p.iterations, p.threshold, p.bound_iterations), (8, 3, 0.5, 6));
     assert!(p.accelerate && p.cross_layer && !p.record_source);
-    assert_eq!(WarpKernel::gpu_params(&WarpParams { holes: HolePolicy::Awoc, ..p }).holes, HolePolicy::FarDepth);
+    assert_eq!(WarpKernel::gpu_params(&WarpParams { holes: HolePolicy::Awoc, ..p }).holes, HolePolicy::Awoc);
+    assert!(!WarpKernel::gpu_params(&WarpParams { record_source: true, ..p }).record_source);
     assert!(WarpKernel::check_params(&p).is_ok());
 }
 
@@ -194,7 +195,6 @@ fn bad_input_is_an_error() {
     let layer = [WarpLayer { depth: &d, motion: &m }];
     let inval = |r: zwarp_core::Result<WarpOutput>| matches!(r, Err(Error::Invalid(_)));
     assert!(inval(k.warp(&[], &base())));
-    assert!(inval(k.warp(&layer, &WarpParams { holes: HolePolicy::Awoc, ..base() })));
     assert!(inval(k.warp(&layer, &WarpParams { record_source: true, ..base() })));
     assert!(inval(k.warp(&layer, &WarpParams { n_seeds: 0, ..base() })));
     let small = Image::new(4, 8, Motion::default());
@@ -297,5 +297,33 @@ fn motion_scale_matches_cpu() {
         let p = WarpParams { motion_scale: Vec2::new(1.0, 0.5), ..base() };
         assert!(matches!(k.warp(&layers, &p), Err(Error::Invalid(_))));
         assert!(matches!(warp_depth(&layers, &p), Err(Error::Invalid(_))));
+    }
+}
+
+/// AWOC (Sec. 5.3) in the GPU twin: non-converged pixels take the nearest sample at the corners
+/// of the first searched layer's tight region, as on the CPU; single and multi layer, oriented
+/// and axis-aligned bounds. The fill must actually happen (filled pixels exist) and agree.
+#[test]
+fn awoc_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (d, m) = city_pair(128, 96, 3);
+    for nl in [1usize, 3] {
+        let layers = layers_of(&d[..nl], &m[..nl]);
+        for bound in [BoundKind::Oriented, BoundKind::Tight] {
+            let p = WarpParams { holes: HolePolicy::Awoc, bound, ..base() };
+            let cpu = warp_depth(&layers, &p).unwrap();
+            let gpu = k.warp(&layers, &p).unwrap();
+            let (s, mask, exact) = assert_same(&gpu, &cpu, &format!("AWOC L={nl} {bound:?}"));
+            eprintln!(
+                "AWOC L={nl} {bound:?}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?} gpu {:?}",
+                cpu.counts(),
+                gpu.counts()
+            );
+            assert!(cpu.counts().1 > 0, "AWOC filled nothing (L={nl} {bound:?})");
+            let filled_cpu = cpu.counts().1 as f64;
+            let filled_gpu = gpu.counts().1 as f64;
+            assert!((filled_cpu - filled_gpu).abs() <= 0.01 * filled_cpu + 2.0, "{filled_cpu} vs {filled_gpu}");
+        }
     }
 }

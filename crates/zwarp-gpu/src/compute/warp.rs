@@ -2,7 +2,7 @@
 //! [`zwarp_warp::warp_depth`]. Shader: `warp.wgsl`.
 //!
 //! **Which CPU function.** The GPU computes `zwarp_warp::warp_depth(layers, params)` for every
-//! [`WarpParams`] with `holes: FarDepth` or `Dilate` and `record_source: false`, every
+//! [`WarpParams`] with `record_source: false` (every hole policy, AWOC included), every
 //! [`BoundKind`] (Oriented: the per-layer PCA frame is chosen on the CPU by
 //! [`WarpKernel::frames`], exactly as `PreparedLayer::prepare_stack` does, and passed in
 //! [`GpuWarpLayer::axis`]); everything else is reproduced as on the CPU: N stratified seeds (corners + R2 sequence with the same PCG `seed_key` jitter),
@@ -12,9 +12,10 @@
 //! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
 //! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication
 //! of `PreparedLayer::prepare_stack`, and `WarpParams::motion_scale` (scaled texel fetches and
-//! mipmap look-ups, rejected when non-uniform under an oriented frame). `HolePolicy::Awoc` and `record_source` return
-//! [`Error::Invalid`]; [`WarpKernel::gpu_params`] turns any CPU configuration into the one the
-//! GPU reproduces.
+//! mipmap look-ups, rejected when non-uniform under an oriented frame), and the AWOC fill
+//! (Sec. 5.3: nearest sample over all layers at the corners of the first searched layer's tight
+//! region). `record_source` returns [`Error::Invalid`]; [`WarpKernel::gpu_params`] turns any CPU
+//! configuration into the one the GPU reproduces.
 //!
 //! Differences are floating-point only (the GPU compiler may fuse multiply-adds), which moves a
 //! few converged positions by ulps; the tests require warped-depth SSIM >= 0.999 and equal
@@ -76,6 +77,8 @@ const FLAG_SEED_PIXEL: u32 = 16;
 const FLAG_SEED_OFFSET: u32 = 32;
 /// The `dilate` pass applies `FillRule::Background` instead of Fig. 8's nearest-neighbour rule.
 const FLAG_BACKGROUND: u32 = 64;
+/// `HolePolicy::Awoc`: the warp pass fills non-converged pixels from the region corners.
+const FLAG_AWOC: u32 = 128;
 
 /// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
 /// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
@@ -170,28 +173,15 @@ impl WarpKernel {
         })
     }
 
-    /// The configuration of `params` the GPU reproduces: `Awoc` holes become `FarDepth`,
-    /// `record_source` is cleared. Run the CPU `warp_depth` with the result to get the GPU's
-    /// function exactly.
+    /// The configuration of `params` the GPU reproduces: `record_source` is cleared. Run the
+    /// CPU `warp_depth` with the result to get the GPU's function exactly.
     pub fn gpu_params(params: &WarpParams) -> WarpParams {
-        WarpParams {
-            holes: match params.holes {
-                HolePolicy::Awoc => HolePolicy::FarDepth,
-                h => h,
-            },
-            record_source: false,
-            ..*params
-        }
+        WarpParams { record_source: false, ..*params }
     }
 
     /// Checks that `params` is valid and within what the GPU computes (see the module docs).
     pub fn check_params(params: &WarpParams) -> Result<()> {
         params.validate()?;
-        if params.holes == HolePolicy::Awoc {
-            return Err(Error::invalid(
-                "GPU warp supports HolePolicy::FarDepth, Dilate and Background (AWOC is CPU-only)",
-            ));
-        }
         if params.record_source {
             return Err(Error::invalid("GPU warp does not record source positions (record_source must be false)"));
         }
@@ -329,7 +319,11 @@ impl WarpKernel {
                 flags |= FLAG_BACKGROUND;
                 radius
             }
-            HolePolicy::FarDepth | HolePolicy::Awoc => 0,
+            HolePolicy::Awoc => {
+                flags |= FLAG_AWOC;
+                0
+            }
+            HolePolicy::FarDepth => 0,
         };
         let base = Params {
             size: [width, height],

@@ -44,6 +44,9 @@ const FLAG_FIRST: u32 = 8u;
 const FLAG_SEED_PIXEL: u32 = 16u;
 const FLAG_SEED_OFFSET: u32 = 32u;
 const FLAG_BACKGROUND: u32 = 64u;
+// HolePolicy::Awoc (Sec. 5.3): non-converged pixels take the nearest sample at the corners of
+// the first searched layer's tight region.
+const FLAG_AWOC: u32 = 128u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::search::POLISH_MIN_RESIDUAL and CONTINUITY_PX.
 const POLISH: f32 = 0.05;
@@ -569,6 +572,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     let thr2 = params.threshold * params.threshold;
 
     var best = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+    // AWOC: the frame (layer) and tight region of the first layer that reaches the search.
+    var awoc_ok = false;
+    var awoc_k = 0u;
+    var awoc_region = vec4<f32>(0.0);
     var has_prev = false;
     var prev_q = vec2<f32>(0.0);
     for (var k = 0u; k < params.layers; k++) {
@@ -605,6 +612,11 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             if (!tb.ok) {
                 continue;
             }
+        }
+        if ((params.flags & FLAG_AWOC) != 0u && !awoc_ok) {
+            awoc_ok = true;
+            awoc_k = k;
+            awoc_region = tb.region;
         }
         // Seeds.
         var ns = 1u;
@@ -692,9 +704,35 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     if (best.ok) {
         out_depth[i] = best.depth;
         out_state[i] = 0u;
-    } else {
-        out_depth[i] = 1.0;
-        out_state[i] = 2u;
+        return;
+    }
+    out_depth[i] = 1.0;
+    out_state[i] = 2u;
+    if (awoc_ok) {
+        // depth_warp::Kernel::pixel + holes::awoc_depth: the nearest valid sample over all
+        // layers at the four region corners (frame -> image, clamped into the image).
+        var fill = 1.0;
+        for (var c = 0u; c < 4u; c++) {
+            var u = awoc_region.xy;
+            if (c == 1u) {
+                u = vec2<f32>(awoc_region.z, awoc_region.y);
+            } else if (c == 2u) {
+                u = vec2<f32>(awoc_region.x, awoc_region.w);
+            } else if (c == 3u) {
+                u = awoc_region.zw;
+            }
+            let q = clamp(from_frame(awoc_k, u), vec2<f32>(0.0), max_q);
+            for (var j = 0u; j < params.layers; j++) {
+                let s = fetch(j, q);
+                if (s.ok) {
+                    fill = min(fill, s.depth);
+                }
+            }
+        }
+        if (fill < 1.0) {
+            out_depth[i] = fill;
+            out_state[i] = 1u;
+        }
     }
 }
 
