@@ -167,3 +167,100 @@ fn bad_input_is_an_error() {
     let m = Image::new(8, 6, Motion::default());
     assert!(k.opening_rims_image(&d, &i, &m, -1.0).unwrap_err().to_string().contains(">= 0 pixels"));
 }
+
+/// Engine-owned outputs: a cull into buffers the caller created (`CullOutput::from_buffers`)
+/// gives the same result as into ours, and a depth buffer lands bit-exactly in the caller's
+/// R32Float texture; wrong buffers are named in the error.
+#[test]
+fn engine_owned_buffers_and_textures() {
+    let Some(ctx) = test_context() else { return };
+    let (w, h) = (64u32, 20u32);
+    let woc = GpuWoc::new(&ctx, w, h, GpuWocParams::default()).unwrap();
+    let depth =
+        Image::from_fn(w, h, |x, y| if (x + y) % 7 == 0 { EMPTY_DEPTH } else { (x * 31 + y * 17) as f32 / 3000.0 });
+    let dev = &ctx.device;
+    let buf = |size: u64, usage: wgpu::BufferUsages| {
+        dev.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage, mapped_at_creation: false })
+    };
+    let src = buf(w as u64 * h as u64 * 4, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST);
+    ctx.queue.write_buffer(&src, 0, bytemuck::cast_slice(depth.data()));
+    let tex = dev.create_texture(&wgpu::TextureDescriptor {
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        ..tex_desc(w, h)
+    });
+    let staging = buf(w as u64 * h as u64 * 4, wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ);
+    let mut enc = dev.create_command_encoder(&Default::default());
+    woc.encode_depth_to_texture(&mut enc, &src, &tex.create_view(&Default::default())).unwrap();
+    enc.copy_texture_to_buffer(
+        tex.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &staging,
+            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(w * 4), rows_per_image: None },
+        },
+        tex.size(),
+    );
+    ctx.queue.submit([enc.finish()]);
+    staging.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    ctx.wait().unwrap();
+    let back = bytemuck::pod_collect_to_vec::<u8, f32>(&staging.get_mapped_range(..).unwrap());
+    assert_eq!(back, depth.data());
+    let wrong = dev.create_texture(&wgpu::TextureDescriptor { format: wgpu::TextureFormat::R32Uint, ..tex_desc(w, h) });
+    let mut enc = dev.create_command_encoder(&Default::default());
+    let e = woc.encode_depth_to_texture(&mut enc, &src, &wrong.create_view(&Default::default())).unwrap_err();
+    assert!(e.to_string().contains("R32Float"), "{e}");
+
+    // Cull into engine buffers vs into ours.
+    use zwarp_gpu::{CullKernel, MaxDepthKernel};
+    let cam = Camera::perspective(
+        glam::Vec3::new(0.0, -5.0, 1.0),
+        glam::Vec3::new(0.0, 0.0, 1.0),
+        glam::Vec3::Z,
+        1.0,
+        0.5,
+        50.0,
+        w,
+        h,
+    )
+    .unwrap();
+    let boxes: Vec<zwarp_core::Aabb> = (0..40)
+        .map(|i| {
+            let c = glam::Vec3::new((i % 8) as f32 - 4.0, (i / 8) as f32 * 2.0, 1.0);
+            zwarp_core::Aabb::new(c - glam::Vec3::splat(0.3), c + glam::Vec3::splat(0.3))
+        })
+        .collect();
+    let objs = CullObjects::new(&ctx, boxes.len()).unwrap();
+    objs.write_aabbs(&ctx, &boxes).unwrap();
+    let map = MaxDepthKernel::new(&ctx).unwrap().build(&depth, zwarp_cull::MaxDepthKind::Default).unwrap();
+    let ck = CullKernel::new(&ctx).unwrap();
+    let ours = ck.cull(&objs, &cam, &map, &CullOutput::new(&ctx, 40).unwrap()).unwrap();
+    let (st, cs, ind) = (wgpu::BufferUsages::STORAGE, wgpu::BufferUsages::COPY_SRC, wgpu::BufferUsages::INDIRECT);
+    let theirs = CullOutput::from_buffers(
+        40,
+        buf(160, st | cs),
+        buf(160, st | cs),
+        buf(4, st | cs | ind | wgpu::BufferUsages::COPY_DST),
+        buf(800, st | ind),
+        buf(800, st | ind),
+    )
+    .unwrap();
+    assert_eq!(ck.cull(&objs, &cam, &map, &theirs).unwrap(), ours);
+    assert!(ours.visible.len() > 5 && ours.visible.len() < 40, "{:?}", ours.visible);
+    let e =
+        CullOutput::from_buffers(40, buf(160, st), buf(160, st), buf(4, st), buf(800, st | ind), buf(800, st | ind))
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("'counter'"), "{e}");
+}
+
+fn tex_desc(w: u32, h: u32) -> wgpu::TextureDescriptor<'static> {
+    wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING,
+        view_formats: &[],
+    }
+}

@@ -247,6 +247,41 @@ impl CullOutput {
         })
     }
 
+    /// Wraps buffers the caller already owns (an engine's): `classes` and `visible` of `4 n`
+    /// bytes, `counter` of 4 bytes (`INDIRECT | COPY_DST`, the draw count), `draw_args` and
+    /// `slot_args` of `20 n` bytes (`INDIRECT`); all `STORAGE` (and `COPY_SRC` for
+    /// [`CullOutput::read`]). Errors name the first buffer that does not fit.
+    pub fn from_buffers(
+        n: usize,
+        classes: wgpu::Buffer,
+        visible: wgpu::Buffer,
+        counter: wgpu::Buffer,
+        draw_args: wgpu::Buffer,
+        slot_args: wgpu::Buffer,
+    ) -> Result<Self> {
+        if n == 0 {
+            return Err(Error::invalid("culling needs at least one object"));
+        }
+        let args = n as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64;
+        let (st, ind) = (wgpu::BufferUsages::STORAGE, wgpu::BufferUsages::INDIRECT);
+        for (name, b, bytes, usage) in [
+            ("classes", &classes, n as u64 * 4, st),
+            ("visible", &visible, n as u64 * 4, st),
+            ("counter", &counter, 4, st | ind | wgpu::BufferUsages::COPY_DST),
+            ("draw_args", &draw_args, args, st | ind),
+            ("slot_args", &slot_args, args, st | ind),
+        ] {
+            if b.size() < bytes || !b.usage().contains(usage) {
+                return Err(Error::invalid(format!(
+                    "cull output buffer '{name}' needs {bytes} bytes and {usage:?}, has {} bytes and {:?}",
+                    b.size(),
+                    b.usage()
+                )));
+            }
+        }
+        Ok(CullOutput { classes, visible, counter, draw_args, slot_args, count: n as u32 })
+    }
+
     /// Number of objects it holds results for.
     pub fn len(&self) -> usize {
         self.count as usize

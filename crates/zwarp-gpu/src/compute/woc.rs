@@ -192,6 +192,7 @@ pub struct GpuWoc {
     erode: wgpu::ComputePipeline,
     forced_draws: wgpu::ComputePipeline,
     merge_min: wgpu::ComputePipeline,
+    to_texture: wgpu::ComputePipeline,
     uniform: wgpu::Buffer,
     prev_depth: wgpu::Buffer,
     prev_items: wgpu::Buffer,
@@ -265,6 +266,7 @@ impl GpuWoc {
             erode: pipe("erode")?,
             forced_draws: pipe("forced_draws")?,
             merge_min: pipe("merge_min")?,
+            to_texture: pipe("to_texture")?,
             uniform: dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("zwarp woc params"),
                 size: std::mem::size_of::<Params>() as u64,
@@ -318,6 +320,54 @@ impl GpuWoc {
         pass.set_pipeline(pipe);
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(groups.0.max(1), groups.1.max(1), 1);
+    }
+
+    /// Records a copy of a `width x height` f32 depth buffer of this pipeline's size (e.g.
+    /// [`GpuWoc::predicted`] or a [`crate::GpuWarpOutput`]'s depth) into `target`, an
+    /// `R32Float` texture of the same size with `STORAGE_BINDING` usage that the caller owns
+    /// (issue #6: "warp into a texture it owns"). Bit-exact.
+    pub fn encode_depth_to_texture(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        depth: &wgpu::Buffer,
+        target: &wgpu::TextureView,
+    ) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        let tex = target.texture();
+        if (tex.width(), tex.height()) != (w, h)
+            || tex.format() != wgpu::TextureFormat::R32Float
+            || !tex.usage().contains(wgpu::TextureUsages::STORAGE_BINDING)
+        {
+            return Err(Error::invalid(format!(
+                "depth texture must be {w}x{h} R32Float with STORAGE_BINDING, got {}x{} {:?}",
+                tex.width(),
+                tex.height(),
+                tex.format()
+            )));
+        }
+        if depth.size() < w as u64 * h as u64 * 4 {
+            return Err(Error::invalid(format!("depth buffer holds {} bytes, {w}x{h} needs more", depth.size())));
+        }
+        let params = Params { width: w, height: h, min_separation: 0.0, n_objects: 0 };
+        let ubuf = {
+            use wgpu::util::DeviceExt;
+            self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("zwarp depth to texture"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        self.dispatch(
+            enc,
+            &self.to_texture,
+            &[
+                (0, ubuf.as_entire_binding()),
+                (5, depth.as_entire_binding()),
+                (12, wgpu::BindingResource::TextureView(target)),
+            ],
+            (w.div_ceil(8), h.div_ceil(8)),
+        );
+        Ok(())
     }
 
     /// Uploads a CPU buffer (`STORAGE | COPY_SRC`).

@@ -138,3 +138,16 @@ fn merge_min(@builtin(global_invocation_id) gid: vec3<u32>) {
         out[i] = z;
     }
 }
+
+// A depth buffer (width * height f32) into a caller's R32Float storage texture: the engine's
+// own texture for a warped or predicted depth.
+@group(0) @binding(12) var depth_target: texture_storage_2d<r32float, write>;
+
+@compute @workgroup_size(8, 8, 1)
+fn to_texture(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.width || gid.y >= params.height) {
+        return;
+    }
+    let d = depth_in[gid.y * params.width + gid.x];
+    textureStore(depth_target, vec2<i32>(gid.xy), vec4<f32>(d, 0.0, 0.0, 1.0));
+}
