@@ -19,6 +19,8 @@
 //!   `zwarp_cull::cull_against_depth`.
 //! - [`GpuWoc`]: the whole WOC pipeline (seed 000 Sec. 5, thesis seed 002) on an engine's own
 //!   device, textures and matrices, no CPU round trip; the twin of `zwarp_cull::woc`.
+//! - [`GpuShadows`]: soft shadows (seed 000 Sec. 6) — reference and zwarp sample maps with the
+//!   visibility accumulated on the GPU, the twin of `zwarp_shadows::run_shadows`.
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
 //!
 //! Every WGSL file sits next to its host code and is loaded with `include_str!`.
@@ -35,6 +37,7 @@ pub mod context;
 mod readback;
 pub mod render;
 pub mod sequence;
+pub mod shadows;
 pub mod timer;
 
 pub use compute::{
@@ -47,6 +50,7 @@ pub use render::{
     DepthTarget, FrameOptions, GpuFrame, GpuScene, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
 };
 pub use sequence::{gpu_supports, run_gpu_sequence};
+pub use shadows::{evaluate_gpu, run_shadows_gpu, GpuReceivers, GpuShadowLayers, GpuShadows};
 pub use timer::{GpuTimer, TimingMethod, TimingStats};
 /// The wgpu version zwarp is built with (engines pass their own device of this version).
 pub use wgpu;
