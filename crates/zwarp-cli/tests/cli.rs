@@ -388,7 +388,7 @@ fn cull_gpu_backend_matches_cpu() {
             "--frames",
             "4",
             "--method",
-            "nocull,vfc,lastframe,woc,ideal,ref,twophase",
+            "nocull,vfc,lastframe,woc,awoc,ideal,ref,twophase",
             "--no-psnr",
             "--backend",
             backend,
@@ -402,7 +402,7 @@ fn cull_gpu_backend_matches_cpu() {
         all.push(json_rows(&j));
     }
     let (cpu, gpu) = (&all[0], &all[1]);
-    assert_eq!(gpu.len(), 6, "every GPU method but twophase");
+    assert_eq!(gpu.len(), 7, "every GPU method but twophase");
     let get = |rows: &[serde_json::Value], m: &str| rows.iter().find(|r| r["method"] == m).unwrap().clone();
     for g in gpu {
         let c = get(cpu, g["method"].as_str().unwrap());

@@ -6,8 +6,8 @@
 //! frame's previous frame. Read-backs for the statistics are not timed.
 //!
 //! Methods: NOCULL, VFC (cull kernel against an empty map), LASTFRAME (max structure of the
-//! previous drawn depth), WOC ([`GpuWoc`]), IDEAL (N-buffer of the true depth) and REF.
-//! AWOC and two-phase culling are CPU-only ([`gpu_supports`]).
+//! previous drawn depth), WOC and AWOC ([`GpuWoc`]), IDEAL (N-buffer of the true depth) and
+//! REF. Two-phase culling is CPU-only ([`gpu_supports`]).
 
 use std::time::Instant;
 
@@ -25,7 +25,7 @@ use crate::{
 
 /// `true` for the methods [`run_gpu_sequence`] implements.
 pub fn gpu_supports(method: Method) -> bool {
-    !matches!(method, Method::Awoc | Method::TwoPhase)
+    method != Method::TwoPhase
 }
 
 fn ms(t0: Instant) -> f64 {
@@ -151,7 +151,13 @@ pub fn run_gpu_sequence(
     });
     // VFC is the cull kernel against a map that never occludes (every texel far).
     let empty_map = max_k.build(&Image::new(w, h, zwarp_core::EMPTY_DEPTH), MaxDepthKind::Mipmap)?;
-    let woc = if method == Method::Woc { Some(GpuWoc::new(ctx, w, h, GpuWocParams::from_cpu(params)?)?) } else { None };
+    let woc = match method {
+        Method::Woc | Method::Awoc => {
+            let p = WocParams { awoc: method == Method::Awoc, ..*params };
+            Some(GpuWoc::new(ctx, w, h, GpuWocParams::from_cpu(&p)?)?)
+        }
+        _ => None,
+    };
     let run = Run {
         ctx,
         scene,
@@ -179,7 +185,7 @@ pub fn run_gpu_sequence(
     let tri_of = |ids: &[u32]| -> usize {
         ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
     };
-    let history = matches!(method, Method::Woc | Method::LastFrame);
+    let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame);
     let mut prev_cpu: Option<(Image<f32>, Image<u32>)> = None;
     let mut reports = Vec::with_capacity(frames.len());
     for (k, (t, cam)) in frames.iter().enumerate() {
@@ -225,7 +231,7 @@ pub fn run_gpu_sequence(
                     };
                     (r.visible, c, stats_of(&r.classes), Some(occ), true)
                 }
-                Method::Woc => {
+                Method::Woc | Method::Awoc => {
                     let woc = run.woc.as_ref().expect("built for WOC");
                     let (t_prev, cam_prev) = &frames[k - 1];
                     let t0 = Instant::now();
@@ -256,7 +262,7 @@ pub fn run_gpu_sequence(
                     let occ = crate::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
                     (r.visible, c, stats_of(&r.classes), Some(Image::from_vec(w, h, occ)?), true)
                 }
-                Method::Vfc | Method::Awoc | Method::TwoPhase => unreachable!("handled above / rejected"),
+                Method::Vfc | Method::TwoPhase => unreachable!("handled above / rejected"),
             }
         };
         // Draw the kept objects (depth + items): the frame the engine shows, and the next

@@ -42,8 +42,8 @@ pub struct CullArgs {
     #[arg(long)]
     pub json: PathBuf,
     /// `cpu` (default) or `gpu`: culling, full and culled renders on one wgpu device
-    /// (lavapipe without a GPU), same JSON fields. On the GPU `awoc` and `twophase` are
-    /// CPU-only and skipped, and `--downsample` must be 1.
+    /// (lavapipe without a GPU), same JSON fields. On the GPU `twophase` is CPU-only and
+    /// skipped, and `--downsample` must be 1.
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 }

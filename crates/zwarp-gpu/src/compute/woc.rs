@@ -9,7 +9,8 @@
 //! 2. motion buffer ([`crate::MotionKernel`], camera + per-object motion through the items);
 //! 3. opening rims in the source ([`zwarp_cull::opening_rims`], `RimMode::Source`): near-side
 //!    rim texels of separating boundaries become far holes before the warp;
-//! 4. single-layer warp ([`crate::WarpKernel`], N = 8, far-depth holes, nearest sampling);
+//! 4. single-layer warp ([`crate::WarpKernel`], N = 8, far-depth holes or AWOC's fill,
+//!    nearest sampling);
 //! 5. `erosion_radius` steps of the 3x3 max erosion ([`zwarp_cull::erode_max`]);
 //! 6. forced (rapid-motion) objects, flagged in [`CullObjects::forced`], are rasterized and
 //!    merged into the predicted depth by the depth test ([`zwarp_raster::draw_into`]);
@@ -24,7 +25,7 @@
 //! axis-aligned, i.e. the CPU's `BoundKind::Tight`; the CPU's PCA frame needs a pass over the
 //! motion buffer on the CPU), the hybrid object-space query and coarse resolution
 //! (`downsample`) and the static hole bounds (`hole_bound`, off by default on the CPU) are not
-//! ported, AWOC is CPU-only, and the rapid-motion flags are computed by
+//! ported, and the rapid-motion flags are computed by
 //! the caller ([`rapid_flags`] is the CPU rule).
 
 use bytemuck::{Pod, Zeroable};
@@ -67,6 +68,9 @@ pub struct GpuWocParams {
     pub tolerance: f32,
     /// The silhouette test after the rectangle test ([`WocParams::hull_test`]).
     pub hull_test: bool,
+    /// AWOC (seed 000 Sec. 5.3, [`WocParams::awoc`]): the warp fills holes from the corners of
+    /// the local search region instead of the far depth (approximate, may cull visible objects).
+    pub awoc: bool,
 }
 
 impl Default for GpuWocParams {
@@ -81,12 +85,9 @@ impl GpuWocParams {
     /// [`GpuWocParams::cpu_twin`]`(p)`: an oriented warp bound becomes axis-aligned
     /// (`BoundKind::Tight`), target-side opening rims become source-side, `hole_bound` and
     /// `hybrid_objects` are ignored.
-    /// Errors on AWOC and on `downsample > 1` (not ported).
+    /// Errors on `downsample > 1` (not ported).
     pub fn from_cpu(p: &WocParams) -> Result<Self> {
         p.validate()?;
-        if p.awoc {
-            return Err(Error::invalid("AWOC is CPU-only; the GPU WOC keeps holes at the far depth"));
-        }
         if p.downsample != 1 {
             return Err(Error::invalid(format!("the GPU WOC runs at full resolution (downsample {})", p.downsample)));
         }
@@ -101,6 +102,7 @@ impl GpuWocParams {
             max_depth: p.max_depth,
             tolerance: DEPTH_TOLERANCE,
             hull_test: p.hull_test,
+            awoc: p.awoc,
         })
     }
 
@@ -548,11 +550,12 @@ impl GpuWoc {
                 px,
             );
         }
-        // 4. Single-layer warp with far holes (any fill policy would be unsafe for culling),
-        //    into the first predicted buffer.
+        // 4. Single-layer warp with far holes (any other fill would be unsafe for culling) or
+        //    AWOC's approximate fill, into the first predicted buffer.
         if run(WocStage::Warp) {
             let src = if self.params.open_rims.is_some() { &self.rimmed } else { &self.prev_depth };
-            let wp = WarpParams { holes: HolePolicy::FarDepth, ..self.params.warp };
+            let holes = if self.params.awoc { HolePolicy::Awoc } else { HolePolicy::FarDepth };
+            let wp = WarpParams { holes, ..self.params.warp };
             let layer = GpuWarpLayer { depth: src, motion: &self.motion, axis: self.params.axis };
             let warped = self.warp_k.encode(enc, &[layer], w, h, &wp)?;
             enc.copy_buffer_to_buffer(&warped.depth, 0, &self.predicted[0], 0, w as u64 * h as u64 * 4);
