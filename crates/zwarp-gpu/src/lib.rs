@@ -21,6 +21,8 @@
 //!   device, textures and matrices, no CPU round trip; the twin of `zwarp_cull::woc`.
 //! - [`GpuShadows`]: soft shadows (seed 000 Sec. 6) — reference and zwarp sample maps with the
 //!   visibility accumulated on the GPU, the twin of `zwarp_shadows::run_shadows`.
+//! - [`run_gpu_sequence`]: a culling method along a camera path on one device, the twin of
+//!   `zwarp_cull::run_sequence` (`zwarp cull --backend gpu`).
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
 //!
 //! Every WGSL file sits next to its host code and is loaded with `include_str!`.

@@ -144,7 +144,7 @@ pub fn rapid_flags(
         .collect()
 }
 
-/// The stages of [`GpuWoc`] in order, for [`GpuWoc::encode_until`] (per-stage timings).
+/// The stages of [`GpuWoc`] in order, for [`GpuWoc::encode_stages`] (per-stage timings).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum WocStage {
     /// Previous depth + items gathered from the textures.

@@ -6,6 +6,6 @@ mod scene;
 
 pub use depth::{
     DepthTarget, FrameOptions, GpuFrame, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
-    COLOR_FORMAT, DEPTH_FORMAT, ITEM_FORMAT,
+    COLOR_FORMAT, COLOR_FORMAT_FALLBACK, DEPTH_FORMAT, ITEM_FORMAT,
 };
 pub use scene::GpuScene;
