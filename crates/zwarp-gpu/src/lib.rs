@@ -44,8 +44,8 @@ pub mod timer;
 
 pub use compute::{
     rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass, GpuMaxDepth,
-    GpuMotionPyramid, GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams, HoleFillKernel, MaxDepthKernel,
-    MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel, WocStage, MAX_GPU_LAYERS,
+    GpuMotionPyramid, GpuPreparedWarp, GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams, HoleFillKernel,
+    MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel, WocStage, MAX_GPU_LAYERS,
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{

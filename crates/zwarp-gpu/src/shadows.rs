@@ -14,9 +14,10 @@
 //! - **parallax** (`LightRig::parallax_field`): the motion of each peeled layer to the reference
 //!   emitter offset `o_ref = (e, e)` once, `v = K_ref g(z)`, plus the layer's coverage (the CPU
 //!   drops empty layers; so does the GPU path after reading back L counters);
-//! - per sample `i`, [`WarpKernel::encode`] with the shared-mipmap parameters of
-//!   `ZwarpMaps::sample_params` (axis-aligned tight bounds, `motion_scale = K_i / K_ref`, the
-//!   dilation hole policy), then accumulate on the warped map. Holes left after the dilation are
+//! - the layers prepared once ([`WarpKernel::encode_prepare`]: samples and min-max mipmaps of
+//!   the reference field), then per sample `i` [`WarpKernel::encode_prepared`] with the
+//!   shared-mipmap parameters of `ZwarpMaps::sample_params` (axis-aligned tight bounds,
+//!   `motion_scale = K_i / K_ref`, the dilation hole policy), then accumulate on the warped map. Holes left after the dilation are
 //!   far depth, i.e. lit — as in the CPU's lazy path (`sparse_warp`: far-depth holes, then the
 //!   dilation) and full-map path (`warp_prepared` with the same policy).
 //!
@@ -467,12 +468,23 @@ impl GpuShadows {
         let views: Vec<GpuWarpLayer<'_>> =
             layers.layers.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
         let lit = self.lit_buffer(recv)?;
+        // One preparation (samples + min-max mipmaps of the reference field) for all samples:
+        // only WarpParams::motion_scale differs between them.
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let prepared = self.warp.encode_prepare(
+            &mut enc,
+            &views,
+            w,
+            h,
+            &sample_warp_params(params, layers.k_ref, layers.k_ref),
+        )?;
+        self.ctx.queue.submit([enc.finish()]);
         for &shift in &rig.shifts {
             let wp = sample_warp_params(params, shift, layers.k_ref);
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            let out = self.warp.encode(&mut enc, &views, w, h, &wp)?;
+            let out = self.warp.encode_prepared(&mut enc, &prepared, wp.motion_scale)?;
             self.encode_accumulate(&mut enc, recv, &out.depth, (w, h), shift, &lit)?;
-            // One submission per sample: the warp's scratch buffers are freed as each finishes.
+            // One submission per sample: the warp's output buffers are freed as each finishes.
             self.ctx.queue.submit([enc.finish()]);
         }
         read_buffer::<u32>(&self.ctx, &lit, recv.count as usize)

@@ -4,14 +4,15 @@
 
 use glam::{Mat4, Vec2, Vec3};
 use zwarp_core::{Animation, Camera, Error, Image, Mesh, Scene};
-use zwarp_gpu::shadows::{gpu_peel_options, reference_shift};
-use zwarp_gpu::{run_shadows_gpu, test_context, GpuScene, GpuShadows};
+use zwarp_gpu::shadows::{gpu_peel_options, reference_shift, sample_warp_params};
+use zwarp_gpu::{run_shadows_gpu, test_context, GpuScene, GpuShadows, GpuWarpLayer, WarpKernel};
 use zwarp_raster::scenes::box_mesh;
 use zwarp_raster::{render_frame, FrameOptions};
 use zwarp_shadows::{
     default_light, peel_options, render_sample_map, run_shadows, LightRig, Method, Receiver, Receivers, ShadowParams,
     ZwarpMaps,
 };
+use zwarp_warp::WarpLayer;
 
 const W: u32 = 128;
 const H: u32 = 96;
@@ -169,6 +170,7 @@ fn gpu_reference_lit_counts_match_the_cpu_reference() {
     // and a receiver reads one texel per map: >= 99.5 % identical counts, never more than a
     // couple of samples apart.
     let (same, max, mean) = compare(&lit, &cpu);
+    eprintln!("reference: identical {same}, max {max}, mean {mean}");
     assert!(same >= 0.995, "identical on {same}");
     assert!(max <= 2, "max difference {max}");
     assert!(mean < 0.005, "mean difference {mean}");
@@ -201,6 +203,7 @@ fn gpu_zwarp_lit_counts_match_the_cpu_full_map_warps() {
     }
     let lit = gpu.zwarp_lit(&layers, &rig, &p, &gr).unwrap();
     let (same, max, mean) = compare(&lit, &cpu);
+    eprintln!("zwarp: identical {same}, max {max}, mean {mean}");
     assert!(same >= 0.995, "identical on {same} (max {max}, mean {mean})");
     assert!(mean < 0.01, "mean difference {mean}");
     // And zwarp is close to the reference on this scene (the method works on the GPU too).
@@ -263,4 +266,38 @@ fn accumulate_rejects_bad_inputs() {
     // Empty receiver lists are fine.
     let none = Receivers { width: 4, height: 4, list: Vec::new() };
     gpu.accumulate(&none, &map, Vec2::ONE, &mut []).unwrap();
+}
+
+#[test]
+fn prepared_warps_equal_one_shot_warps() {
+    // WarpKernel::encode_prepare once + encode_prepared per sample (what GpuShadows::zwarp_lit
+    // runs) gives WarpKernel::encode's output bit for bit at every sample's motion_scale.
+    let Some(ctx) = test_context() else { return };
+    let (scene, rig, _, p) = setup(4);
+    let maps = ZwarpMaps::new(&scene, &rig, 0.0, &p).unwrap();
+    let k = reference_shift(&rig);
+    let motions: Vec<_> = maps.layers().iter().map(|l| rig.parallax_field(&l.depth, k).unwrap()).collect();
+    let layers: Vec<WarpLayer<'_>> =
+        maps.layers().iter().zip(&motions).map(|(l, m)| WarpLayer { depth: &l.depth, motion: m }).collect();
+    let kernel = WarpKernel::new(&ctx).unwrap();
+    let base = sample_warp_params(&p, k, k);
+    let bufs = kernel.upload(&layers, &base).unwrap();
+    let views: Vec<GpuWarpLayer<'_>> =
+        bufs.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let prepared = kernel.encode_prepare(&mut enc, &views, SM, SM, &base).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    assert_eq!(prepared.size(), (SM, SM));
+    for &shift in &rig.shifts {
+        let wp = sample_warp_params(&p, shift, k);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let one = kernel.encode(&mut enc, &views, SM, SM, &wp).unwrap();
+        let two = kernel.encode_prepared(&mut enc, &prepared, wp.motion_scale).unwrap();
+        ctx.queue.submit([enc.finish()]);
+        let (a, b) = (one.read(&ctx).unwrap(), two.read(&ctx).unwrap());
+        assert_eq!(a.depth.data(), b.depth.data());
+        assert_eq!(a.state.data(), b.state.data());
+    }
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    assert!(kernel.encode_prepared(&mut enc, &prepared, Vec2::new(f32::NAN, 1.0)).is_err());
 }

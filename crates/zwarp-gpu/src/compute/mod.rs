@@ -14,7 +14,7 @@ pub use holes::HoleFillKernel;
 pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
-pub use warp::{GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};
+pub use warp::{GpuPreparedWarp, GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};
 pub use woc::{rapid_flags, GpuPrevFrame, GpuWoc, GpuWocParams, WocStage};
 
 /// Bind-group layout with one compute-visible buffer per entry of `kinds` (bindings 0..n) and

@@ -129,6 +129,25 @@ impl GpuWarpOutput {
     }
 }
 
+/// Source layers prepared once on the GPU by [`WarpKernel::encode_prepare`] (validated
+/// samples, min-max motion mipmaps and min-depth mipmaps of every layer), warped any number of
+/// times by [`WarpKernel::encode_prepared`] with different `WarpParams::motion_scale`.
+pub struct GpuPreparedWarp {
+    samples: wgpu::Buffer,
+    mip: wgpu::Buffer,
+    zmin: wgpu::Buffer,
+    base: Params,
+    holes: HolePolicy,
+    layers: usize,
+}
+
+impl GpuPreparedWarp {
+    /// `(width, height)` of the prepared layers (and of every warp from them).
+    pub fn size(&self) -> (u32, u32) {
+        (self.base.size[0], self.base.size[1])
+    }
+}
+
 /// The GPU depth warp (seed 000 Sec. 3): compiled pipelines, reusable across calls and sizes.
 pub struct WarpKernel {
     ctx: GpuContext,
@@ -241,6 +260,23 @@ impl WarpKernel {
         height: u32,
         params: &WarpParams,
     ) -> Result<GpuWarpOutput> {
+        let prepared = self.encode_prepare(encoder, layers, width, height, params)?;
+        self.encode_prepared(encoder, &prepared, params.motion_scale)
+    }
+
+    /// The first half of [`Self::encode`]: records the per-layer `prepare` pass and the
+    /// min-max motion mipmaps (Sec. 3.3), which do not depend on `WarpParams::motion_scale`,
+    /// so one preparation serves many warps with different scales ([`Self::encode_prepared`]),
+    /// e.g. the S light-sample views of a soft shadow (seed 000 Sec. 6), each the reference
+    /// parallax field scaled by `K_i / K_ref`. Errors as [`Self::encode`].
+    pub fn encode_prepare(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        layers: &[GpuWarpLayer<'_>],
+        width: u32,
+        height: u32,
+        params: &WarpParams,
+    ) -> Result<GpuPreparedWarp> {
         Self::check_params(params)?;
         if layers.is_empty() {
             return Err(Error::invalid("warp_depth needs at least one layer"));
@@ -348,8 +384,6 @@ impl WarpKernel {
         let samples = self.storage(nl as u64 * wh * 16, "zwarp warp samples")?;
         let mip = self.storage(nl as u64 * total as u64 * 16, "zwarp warp mipmap")?;
         let zmin = self.storage(nl as u64 * total as u64 * 4, "zwarp warp min-depth mipmap")?;
-        let out_depth = self.storage(wh * 4, "zwarp warp depth")?;
-        let out_state = self.storage(wh * 4, "zwarp warp state")?;
         let groups = (width.div_ceil(8), height.div_ceil(8));
         // Samples of every layer first: the mipmap of layer k reads layers < k (de-duplication).
         for (k, l) in layers.iter().enumerate() {
@@ -375,14 +409,46 @@ impl WarpKernel {
                 );
             }
         }
+        Ok(GpuPreparedWarp { samples, mip, zmin, base, holes: params.holes, layers: layers.len() })
+    }
+
+    /// The second half of [`Self::encode`]: records the warp (and the hole pass) of layers
+    /// prepared by [`Self::encode_prepare`] with `WarpParams::motion_scale = motion_scale`
+    /// (every other parameter as prepared); the output is exactly [`Self::encode`]'s with those
+    /// parameters. The prepared buffers are only read, so any number of warps may follow one
+    /// preparation. Errors on a non-finite scale, or a non-uniform one with oriented frames.
+    pub fn encode_prepared(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        prepared: &GpuPreparedWarp,
+        motion_scale: Vec2,
+    ) -> Result<GpuWarpOutput> {
+        if !motion_scale.is_finite() {
+            return Err(Error::invalid(format!("motion_scale must be finite, got {motion_scale}")));
+        }
+        let base = Params { motion_scale: motion_scale.to_array(), ..prepared.base };
+        let sc = motion_scale;
+        if sc.x != sc.y {
+            if let Some(k) = base.axes.iter().take(prepared.layers).position(|a| !(a[0] == 1.0 && a[1] == 0.0)) {
+                return Err(Error::invalid(format!(
+                    "non-uniform motion_scale {sc} needs axis-aligned bounds, but layer {k} has an oriented frame (use BoundKind::Tight)"
+                )));
+            }
+        }
+        let [width, height] = base.size;
+        let wh = width as u64 * height as u64;
+        let (samples, mip, zmin) = (&prepared.samples, &prepared.mip, &prepared.zmin);
+        let out_depth = self.storage(wh * 4, "zwarp warp depth")?;
+        let out_state = self.storage(wh * 4, "zwarp warp state")?;
+        let groups = (width.div_ceil(8), height.div_ceil(8));
         let u = self.uniform(&base);
         self.dispatch(
             encoder,
             &self.warp,
-            &[(0, &u), (3, &samples), (4, &mip), (5, &zmin), (6, &out_depth), (7, &out_state)],
+            &[(0, &u), (3, samples), (4, mip), (5, zmin), (6, &out_depth), (7, &out_state)],
             groups,
         );
-        if let HolePolicy::Dilate { .. } | HolePolicy::Background { .. } = params.holes {
+        if let HolePolicy::Dilate { .. } | HolePolicy::Background { .. } = prepared.holes {
             let fill_depth = self.storage(wh * 4, "zwarp warp dilated depth")?;
             let fill_state = self.storage(wh * 4, "zwarp warp dilated state")?;
             self.dispatch(
