@@ -558,22 +558,11 @@ impl Renderer {
         self.encode_depth_from_args(encoder, scene, camera, t, target, args, count)
     }
 
-    /// Records a depth-only pass (target cleared to 1) drawing `scene` from indirect arguments:
-    /// `args` holds one `DrawIndexedIndirectArgs` per object (first instance = the object's draw
-    /// slot); with `count` (a u32 draw count, needs `MULTI_DRAW_INDIRECT_COUNT`) only the first
-    /// `count` are drawn. Needs `INDIRECT_FIRST_INSTANCE`. Writes the per-object matrices now
-    /// (queue write), so submit before encoding a render of the same scene with another camera.
-    #[allow(clippy::too_many_arguments)]
-    pub fn encode_depth_from_args(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        scene: &GpuScene,
-        camera: &Camera,
-        t: f32,
-        target: &DepthTarget,
-        args: &wgpu::Buffer,
-        count: Option<&wgpu::Buffer>,
-    ) -> Result<()> {
+    /// Checks what the `*_from_args` draws need: `INDIRECT_FIRST_INSTANCE` (the first instance
+    /// carries the object's draw slot), `MULTI_DRAW_INDIRECT_COUNT` when a count buffer is given,
+    /// and an `INDIRECT` argument buffer with one `DrawIndexedIndirectArgs` per object. Returns
+    /// the object count.
+    fn check_indirect(&self, scene: &GpuScene, args: &wgpu::Buffer, count: Option<&wgpu::Buffer>) -> Result<u32> {
         let features = self.ctx.device.features();
         if !features.contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
             return Err(Error::Unavailable(format!(
@@ -592,6 +581,26 @@ impl Renderer {
                 args.size()
             )));
         }
+        Ok(n)
+    }
+
+    /// Records a depth-only pass (target cleared to 1) drawing `scene` from indirect arguments:
+    /// `args` holds one `DrawIndexedIndirectArgs` per object (first instance = the object's draw
+    /// slot); with `count` (a u32 draw count, needs `MULTI_DRAW_INDIRECT_COUNT`) only the first
+    /// `count` are drawn. Needs `INDIRECT_FIRST_INSTANCE`. Writes the per-object matrices now
+    /// (queue write), so submit before encoding a render of the same scene with another camera.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_depth_from_args(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        target: &DepthTarget,
+        args: &wgpu::Buffer,
+        count: Option<&wgpu::Buffer>,
+    ) -> Result<()> {
+        let n = self.check_indirect(scene, args, count)?;
         self.check_camera(camera)?;
         if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
             return Err(Error::invalid(format!(
@@ -640,24 +649,7 @@ impl Renderer {
         args: &wgpu::Buffer,
         count: Option<&wgpu::Buffer>,
     ) -> Result<()> {
-        let features = self.ctx.device.features();
-        if !features.contains(wgpu::Features::INDIRECT_FIRST_INSTANCE) {
-            return Err(Error::Unavailable(format!(
-                "{} lacks INDIRECT_FIRST_INSTANCE, needed for culled indirect draws",
-                self.ctx.adapter.name
-            )));
-        }
-        if count.is_some() && !features.contains(wgpu::Features::MULTI_DRAW_INDIRECT_COUNT) {
-            return Err(Error::Unavailable(format!("{} lacks MULTI_DRAW_INDIRECT_COUNT", self.ctx.adapter.name)));
-        }
-        let n = scene.object_count() as u32;
-        let need = n as u64 * std::mem::size_of::<wgpu::util::DrawIndexedIndirectArgs>() as u64;
-        if args.size() < need || !args.usage().contains(wgpu::BufferUsages::INDIRECT) {
-            return Err(Error::invalid(format!(
-                "indirect argument buffer needs INDIRECT usage and {need} bytes, has {}",
-                args.size()
-            )));
-        }
+        let n = self.check_indirect(scene, args, count)?;
         self.check_camera(camera)?;
         if targets.size() != (camera.width, camera.height) {
             return Err(Error::invalid(format!(
