@@ -13,9 +13,11 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde::Serialize;
 use zwarp_core::Image;
-use zwarp_shadows::{default_light, evaluate, light_to_json, load_light, EvalConfig, Method, ShadowParams};
+use zwarp_shadows::{
+    default_light, evaluate, light_to_json, load_light, EvalConfig, EvalRow, Method, ShadowParams, ShadowResult,
+};
 
-use crate::args::{parse_list, SceneArgs, SizeArgs};
+use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::report::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp shadows`.
@@ -64,6 +66,10 @@ pub struct ShadowsArgs {
     /// Write the results as JSON (`rows`, one per method / S / map size).
     #[arg(long)]
     pub json: PathBuf,
+    /// Where the shadow maps are made: `gpu` renders, warps and accumulates them with wgpu
+    /// (`zwarp_gpu::GpuShadows`; reference and zwarp only, PCSS is skipped), same JSON fields.
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
 }
 
 /// One measured configuration (JSON `rows`).
@@ -166,7 +172,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
         a.size.width,
         a.size.height
     );
-    let rows = evaluate(scene, &cam, t, &light, &cfg, |row, res, reference| {
+    let mut on_result = |row: &EvalRow, res: &ShadowResult, reference: &ShadowResult| -> zwarp_core::Result<()> {
         eprintln!(
             "  {:<9} S={:<4} sm={:<5} {:>9.1} ms  ssim {:.4}",
             row.method.name(),
@@ -188,7 +194,19 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             }
         }
         Ok(())
-    })?;
+    };
+    let rows = match a.backend {
+        Backend::Cpu => evaluate(scene, &cam, t, &light, &cfg, &mut on_result)?,
+        Backend::Gpu => {
+            let ctx = zwarp_gpu::GpuContext::new()?;
+            if cfg.methods.contains(&Method::Pcss) {
+                eprintln!("zwarp shadows: pcss is CPU-only, skipped on the GPU backend");
+            }
+            let gpu = zwarp_gpu::GpuShadows::new(&ctx)?;
+            let gpu_scene = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
+            zwarp_gpu::evaluate_gpu(&gpu, scene, &gpu_scene, &cam, t, &light, &cfg, &mut on_result)?
+        }
+    };
 
     let out: Vec<ShadowRow> = rows
         .iter()
@@ -255,6 +273,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             "reps": a.reps,
             "warmup": a.warmup,
             "threads": rayon::current_num_threads(),
+            "backend": if a.backend == Backend::Gpu { "gpu" } else { "cpu" },
         }),
     )?;
     Ok(())
