@@ -448,3 +448,65 @@ fn gpu_backend_without_adapter_is_one_clear_line() {
     assert!(error_line(&err).contains("no GPU adapter found"), "{err}");
     assert!(!j.exists());
 }
+
+/// `shadows --backend gpu` (zwarp_gpu::GpuShadows): the same JSON fields, and reference and
+/// zwarp images close to the CPU's on a small scene (SSIM >= 0.99 per row, same S and map size).
+#[test]
+fn shadows_gpu_backend_matches_cpu() {
+    if !gpu_available() {
+        return;
+    }
+    let d = tmp("shadowsgpu");
+    let mut runs = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let j = d.join(format!("{backend}.json"));
+        let imgs = d.join(backend);
+        let (ok, _, err) = zwarp(&[
+            "shadows",
+            "--scene",
+            "mo",
+            "--scale",
+            "0.02",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--samples",
+            "4",
+            "--sm",
+            "128",
+            "--methods",
+            "zwarp",
+            "--reps",
+            "1",
+            "--warmup",
+            "0",
+            "--images",
+            imgs.to_str().unwrap(),
+            "--backend",
+            backend,
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(ok, "{backend}: {err}");
+        let rows = json_rows(&j);
+        assert_eq!(rows.len(), 2, "{backend}: {rows:?}");
+        for r in &rows {
+            for k in ["method", "scene", "samples", "sm", "ms", "psnr", "ssim", "speedup"] {
+                assert!(!r[k].is_null(), "{backend}: field {k} missing in {r}");
+            }
+        }
+        runs.push(imgs);
+    }
+    for m in ["reference", "zwarp"] {
+        // The shaded images as written (8-bit PNG), compared as [0, 1] RGB.
+        let load = |dir: &PathBuf| {
+            let p = dir.join(format!("mo_{m}_s4_sm128.png"));
+            let img = zwarp_viz::read_png(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            img.map(|c| (*c).map(|v| v as f32 / 255.0))
+        };
+        let (c, g) = (load(&runs[0]), load(&runs[1]));
+        let ssim = zwarp_metrics::ssim_rgb(&g, &c, 1.0).unwrap();
+        assert!(ssim >= 0.99, "{m}: gpu vs cpu SSIM {ssim}");
+    }
+}
