@@ -23,10 +23,11 @@
 //!
 //! Only the final lit counts are read back; visibility = lit / S.
 //!
-//! Differences to the CPU are floating point only: the GPU rasterizer matches the CPU on
-//! >= 99.9 % of texels (shared edges), and GPU compilers may fuse `p_c + K_i g` into a
+//! Differences to the CPU are floating point only: the GPU rasterizer matches the CPU on at
+//! least 99.9 % of texels (shared edges), and GPU compilers may fuse `p_c + K_i g` into a
 //! multiply-add, which moves a look-up across a texel border only when the position is within
-//! one ulp of it. The tests bound the resulting lit-count differences.
+//! one ulp of it. The tests bound the resulting lit-count differences (>= 99.5 % identical; on
+//! the test scene all are).
 
 use std::time::Instant;
 
