@@ -10,7 +10,11 @@
 //!   the cost grows linearly with S;
 //! - [`Method::Zwarp`]: the centre map is depth-peeled once into L layers with generalized umbra
 //!   culling (Sec. 3.4, eq. (1), sized from the emitter) and the ground as the last layer, then
-//!   warped to every sample view by multi-layer backward warping (Sec. 3.2-3.4, N = 4 seeds);
+//!   warped to every sample view by multi-layer backward warping (Sec. 3.2-3.4, N = 4 seeds) —
+//!   only at the texels the receivers look up ([`lookups`]), with one motion mipmap for all
+//!   samples (every sample's parallax is a per-axis multiple of one reference field,
+//!   [`ZwarpMaps`]); [`Method::ZwarpFull`] warps every texel of every map with per-sample
+//!   mipmaps (the path before, same maps where looked up);
 //! - [`Method::Pcss`]: Fernando 2005, filtering of the single centre map (no per-sample maps).
 //!
 //! All sample cameras share the centre camera's orientation, so centre -> sample is a pure
