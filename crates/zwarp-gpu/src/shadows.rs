@@ -29,6 +29,7 @@
 //! one ulp of it. The tests bound the resulting lit-count differences (>= 99.5 % identical; on
 //! the test scene all are).
 
+use crate::compute::AutoPipelines;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
@@ -145,25 +146,8 @@ fn ms_since(t: Instant) -> f64 {
 impl GpuShadows {
     /// Compiles the renderer, the warp kernel and `shadows.wgsl` on `ctx`'s device.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let dev = &ctx.device;
-        let module = ctx.catch("compiling shadows.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("shadows.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("shadows.wgsl").into()),
-            })
-        })?;
-        let pipe = |entry: &str| {
-            ctx.catch("building the shadow pipelines", || {
-                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: None,
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-        };
+        let pipelines = AutoPipelines::new(ctx, "shadows.wgsl", include_str!("shadows.wgsl"), "shadow")?;
+        let pipe = |entry: &str| pipelines.pipeline(entry);
         Ok(GpuShadows {
             ctx: ctx.clone(),
             renderer: Renderer::new(ctx)?,

@@ -1,6 +1,10 @@
 //! GPU compute kernels, each the WGSL twin of a CPU function (DESIGN.md "One kernel, many
 //! callers": tests compare them on the same inputs).
 
+use zwarp_core::Result;
+
+use crate::GpuContext;
+
 mod cull;
 mod holes;
 mod maxdepth;
@@ -42,4 +46,41 @@ pub(crate) fn buffer_layouts(
         immediate_size: 0,
     });
     (layout, pl)
+}
+
+/// A compiled WGSL module whose entry points get automatic pipeline layouts (each entry binds only
+/// the buffers it uses, which keeps every pipeline within the default limit of 8 storage buffers
+/// per stage): the set-up of every multi-entry kernel here.
+pub(crate) struct AutoPipelines<'a> {
+    ctx: &'a GpuContext,
+    module: wgpu::ShaderModule,
+    what: &'static str,
+}
+
+impl<'a> AutoPipelines<'a> {
+    /// Compiles `source` (named `label` in errors and debuggers); `what` names the kernel in
+    /// pipeline-building errors.
+    pub(crate) fn new(ctx: &'a GpuContext, label: &'static str, source: &str, what: &'static str) -> Result<Self> {
+        let module = ctx.catch(&format!("compiling {label}"), || {
+            ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        })?;
+        Ok(AutoPipelines { ctx, module, what })
+    }
+
+    /// The compute pipeline of entry point `entry`.
+    pub(crate) fn pipeline(&self, entry: &str) -> Result<wgpu::ComputePipeline> {
+        self.ctx.catch(&format!("building the {} pipelines", self.what), || {
+            self.ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &self.module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+    }
 }

@@ -26,6 +26,7 @@
 //! same level layout as [`crate::PyramidKernel`] and the CPU `MotionPyramid`), then one `warp`
 //! dispatch over the target pixels, then `dilate` for `HolePolicy::Dilate`.
 
+use super::AutoPipelines;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec2;
 use rayon::prelude::*;
@@ -161,27 +162,8 @@ pub struct WarpKernel {
 impl WarpKernel {
     /// Compiles `warp.wgsl` on `ctx`'s device (an engine's own via [`GpuContext::from_device`]).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let dev = &ctx.device;
-        let module = ctx.catch("compiling warp.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("warp.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("warp.wgsl").into()),
-            })
-        })?;
-        // Automatic layouts: each entry point binds only the buffers it uses, which keeps every
-        // pipeline within the default limit of 8 storage buffers per stage.
-        let pipe = |entry: &str| {
-            ctx.catch("building the warp pipeline", || {
-                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: None,
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-        };
+        let pipelines = AutoPipelines::new(ctx, "warp.wgsl", include_str!("warp.wgsl"), "warp")?;
+        let pipe = |entry: &str| pipelines.pipeline(entry);
         Ok(WarpKernel {
             ctx: ctx.clone(),
             prepare: pipe("prepare")?,

@@ -28,6 +28,7 @@
 //! ported, and the rapid-motion flags are computed by
 //! the caller ([`rapid_flags`] is the CPU rule).
 
+use super::AutoPipelines;
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2};
 use zwarp_core::{Camera, Error, Image, Motion, Result, Scene};
@@ -223,24 +224,8 @@ impl GpuWoc {
             }
         }
         let dev = &ctx.device;
-        let module = ctx.catch("compiling woc.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("woc.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("woc.wgsl").into()),
-            })
-        })?;
-        let pipe = |entry: &str| {
-            ctx.catch("building the WOC pipelines", || {
-                dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: None,
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-        };
+        let pipelines = AutoPipelines::new(ctx, "woc.wgsl", include_str!("woc.wgsl"), "WOC")?;
+        let pipe = |entry: &str| pipelines.pipeline(entry);
         let n = width as u64 * height as u64;
         ctx.check_storage_size(n * std::mem::size_of::<Motion>() as u64, "WOC motion buffer")?;
         let buf = |label, bytes: u64| {
