@@ -394,8 +394,8 @@ impl SparseMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use zwarp_core::Image;
     use proptest::prelude::*;
+    use zwarp_core::Image;
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
