@@ -307,7 +307,6 @@ impl SparseMap {
     ) -> zwarp_core::Result<()> {
         let (w, h) = (self.w, self.h);
         let r = radius as i64;
-        const DIRS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
         let holes: Vec<(u32, u32)> = self
             .list
             .iter()
@@ -320,7 +319,7 @@ impl SparseMap {
         }
         for &(t, _) in &holes {
             let (x, y) = ((t % w) as i64, (t / w) as i64);
-            for (dx, dy) in DIRS {
+            for (dx, dy) in zwarp_warp::FILL_DIRECTIONS {
                 for sgn in [-1i64, 1] {
                     for k in 1..=r {
                         let (xx, yy) = (x + sgn * dx * k, y + sgn * dy * k);
@@ -362,27 +361,7 @@ impl SparseMap {
                 }
                 None
             };
-            let mut best: Option<(f32, f32)> = None; // (distance, depth)
-            let mut surrounded = true;
-            for (dx, dy) in DIRS {
-                let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
-                match (probe(dx, dy), probe(-dx, -dy)) {
-                    (Some(a), Some(b)) => {
-                        for (k, z) in [a, b] {
-                            let d = k as f32 * step;
-                            best = match best {
-                                Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
-                                _ => Some((d, z)),
-                            };
-                        }
-                    }
-                    _ => {
-                        surrounded = false;
-                        break;
-                    }
-                }
-            }
-            if let (true, Some((_, z))) = (surrounded, best) {
+            if let Some(z) = zwarp_warp::hole_fill(zwarp_warp::FillRule::Nearest, probe) {
                 self.depth[slot as usize] = z;
                 self.state[slot as usize] = PixelState::Filled;
             }

@@ -68,7 +68,6 @@ pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius:
     let src_depth = depth.data().to_vec();
     let src_state = state.data().to_vec();
     let r = radius as i64;
-    const DIRS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
     depth.data_mut().par_chunks_mut(w as usize).zip(state.data_mut().par_chunks_mut(w as usize)).enumerate().for_each(
         |(y, (drow, srow))| {
             for x in 0..w as usize {
@@ -89,43 +88,7 @@ pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius:
                     }
                     None
                 };
-                let fill = match rule {
-                    FillRule::Nearest => {
-                        let mut best: Option<(f32, f32)> = None; // (distance, depth)
-                        let mut surrounded = true;
-                        for (dx, dy) in DIRS {
-                            let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
-                            match (probe(dx, dy), probe(-dx, -dy)) {
-                                (Some(a), Some(b)) => {
-                                    for (k, z) in [a, b] {
-                                        let d = k as f32 * step;
-                                        best = match best {
-                                            Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
-                                            _ => Some((d, z)),
-                                        };
-                                    }
-                                }
-                                _ => {
-                                    surrounded = false;
-                                    break;
-                                }
-                            }
-                        }
-                        best.filter(|_| surrounded).map(|(_, z)| z)
-                    }
-                    FillRule::Background => {
-                        let mut farthest: Option<f32> = None;
-                        let mut bracketed = false;
-                        for (dx, dy) in DIRS {
-                            let (a, b) = (probe(dx, dy), probe(-dx, -dy));
-                            bracketed |= a.is_some() && b.is_some();
-                            for (_, z) in a.into_iter().chain(b) {
-                                farthest = Some(farthest.map_or(z, |f: f32| f.max(z)));
-                            }
-                        }
-                        farthest.filter(|_| bracketed)
-                    }
-                };
+                let fill = hole_fill(rule, probe);
                 if let Some(z) = fill {
                     drow[x] = z;
                     srow[x] = PixelState::Filled;
@@ -133,6 +96,47 @@ pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius:
             }
         },
     );
+}
+
+/// The four probe directions of [`fill_holes`] (each probed both ways): horizontal, vertical and
+/// both diagonals.
+pub const FILL_DIRECTIONS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
+
+/// The [`FillRule`] decision for one hole: `probe(dx, dy)` returns the nearest converged pixel
+/// along `(dx, dy)` within the radius as `(steps, depth)`. Shared by [`fill_holes`] and sparse
+/// callers (soft shadows fill only the texels they look up), so both apply the same rule.
+pub fn hole_fill(rule: FillRule, probe: impl Fn(i64, i64) -> Option<(i64, f32)>) -> Option<f32> {
+    match rule {
+        FillRule::Nearest => {
+            let mut best: Option<(f32, f32)> = None; // (distance, depth)
+            for (dx, dy) in FILL_DIRECTIONS {
+                let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
+                let (Some(a), Some(b)) = (probe(dx, dy), probe(-dx, -dy)) else {
+                    return None; // not surrounded
+                };
+                for (k, z) in [a, b] {
+                    let d = k as f32 * step;
+                    best = match best {
+                        Some((bd, bz)) if bd < d || (bd == d && bz >= z) => Some((bd, bz)),
+                        _ => Some((d, z)),
+                    };
+                }
+            }
+            best.map(|(_, z)| z)
+        }
+        FillRule::Background => {
+            let mut farthest: Option<f32> = None;
+            let mut bracketed = false;
+            for (dx, dy) in FILL_DIRECTIONS {
+                let (a, b) = (probe(dx, dy), probe(-dx, -dy));
+                bracketed |= a.is_some() && b.is_some();
+                for (_, z) in a.into_iter().chain(b) {
+                    farthest = Some(farthest.map_or(z, |f: f32| f.max(z)));
+                }
+            }
+            farthest.filter(|_| bracketed)
+        }
+    }
 }
 
 /// AWOC fill (Sec. 5.3) for one pixel: the nearest valid target depth among `fetch(q)` at the
