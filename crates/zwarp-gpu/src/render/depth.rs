@@ -487,30 +487,7 @@ impl Renderer {
         t: f32,
         target: &DepthTarget,
     ) -> Result<()> {
-        self.check_camera(camera)?;
-        if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
-            return Err(Error::invalid(format!(
-                "depth target is {}x{} but the camera renders {}x{}",
-                target.texture.width(),
-                target.texture.height(),
-                camera.width,
-                camera.height
-            )));
-        }
-        scene.write_objects(&self.ctx, camera, t)?;
-        let bind = self.scene_bind_group(scene);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("zwarp depth-only"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &target.view,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-                stencil_ops: None,
-            }),
-            ..Default::default()
-        });
-        pass.set_pipeline(&self.depth_pipeline);
-        pass.set_bind_group(0, &bind, &[]);
+        let mut pass = self.begin_depth_pass(encoder, scene, camera, t, target, "zwarp depth-only")?;
         Self::draw(&mut pass, scene, None);
         Ok(())
     }
@@ -558,6 +535,45 @@ impl Renderer {
         self.encode_depth_from_args(encoder, scene, camera, t, target, args, count)
     }
 
+    /// Checks `camera` and `target`, writes the per-object matrices for `camera` at `t` and opens
+    /// a depth-only pass on `target` (cleared to 1) with the depth pipeline and scene bound: the
+    /// start of every depth-only draw, direct or indirect.
+    fn begin_depth_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        camera: &Camera,
+        t: f32,
+        target: &DepthTarget,
+        label: &'static str,
+    ) -> Result<wgpu::RenderPass<'e>> {
+        self.check_camera(camera)?;
+        if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
+            return Err(Error::invalid(format!(
+                "depth target is {}x{} but the camera renders {}x{}",
+                target.texture.width(),
+                target.texture.height(),
+                camera.width,
+                camera.height
+            )));
+        }
+        scene.write_objects(&self.ctx, camera, t)?;
+        let bind = self.scene_bind_group(scene);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.view,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        });
+        pass.set_pipeline(&self.depth_pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        Ok(pass)
+    }
+
     /// Checks what the `*_from_args` draws need: `INDIRECT_FIRST_INSTANCE` (the first instance
     /// carries the object's draw slot), `MULTI_DRAW_INDIRECT_COUNT` when a count buffer is given,
     /// and an `INDIRECT` argument buffer with one `DrawIndexedIndirectArgs` per object. Returns
@@ -601,30 +617,7 @@ impl Renderer {
         count: Option<&wgpu::Buffer>,
     ) -> Result<()> {
         let n = self.check_indirect(scene, args, count)?;
-        self.check_camera(camera)?;
-        if (target.texture.width(), target.texture.height()) != (camera.width, camera.height) {
-            return Err(Error::invalid(format!(
-                "depth target is {}x{} but the camera renders {}x{}",
-                target.texture.width(),
-                target.texture.height(),
-                camera.width,
-                camera.height
-            )));
-        }
-        scene.write_objects(&self.ctx, camera, t)?;
-        let bind = self.scene_bind_group(scene);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("zwarp depth-only indirect"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &target.view,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-                stencil_ops: None,
-            }),
-            ..Default::default()
-        });
-        pass.set_pipeline(&self.depth_pipeline);
-        pass.set_bind_group(0, &bind, &[]);
+        let mut pass = self.begin_depth_pass(encoder, scene, camera, t, target, "zwarp depth-only indirect")?;
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         match count {
