@@ -3,9 +3,10 @@
 
 use glam::Vec2;
 use rayon::prelude::*;
-use zwarp_core::{Image, EMPTY_DEPTH};
+use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
-use crate::PixelState;
+use crate::search::{fixed_point_search, MotionSource, Sample, SearchParams};
+use crate::{PixelState, WarpLayer, WarpOutput};
 
 /// What the warp writes where no search converged. Selectable per call.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -34,7 +35,10 @@ pub enum HolePolicy {
     /// pixels found along the eight probes ([`PixelState::Filled`]). A disocclusion sliver lies
     /// between the occluder and the surface it uncovers; the uncovered surface is the farther
     /// side. Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
-    /// for culling.
+    /// for culling. This is the part of the protocol that needs only the warped buffer (the
+    /// WGSL twin does the same); the complete protocol, which also keeps sky seen through a hole
+    /// far and fills the strips a moving camera uncovers at the image border, needs the source
+    /// layers: warp with [`HolePolicy::FarDepth`], then call [`fill_background`].
     Background {
         /// Search radius in pixels (1..=64).
         radius: u32,
@@ -139,6 +143,169 @@ pub fn hole_fill(rule: FillRule, probe: impl Fn(i64, i64) -> Option<(i64, f32)>)
     }
 }
 
+/// The source's empty background as a [`MotionSource`]: a sample exists only on texels where
+/// no layer has a surface (all depths `1.0`), nearest sampled, with the motion the motion field
+/// gives them (`zwarp_core::motion_field` moves an empty pixel as the point on the far plane,
+/// i.e. with the camera's rotation and, negligibly, its translation) and the far depth.
+struct EmptyBackground<'a> {
+    layers: &'a [WarpLayer<'a>],
+    motion: &'a [Motion],
+    w: u32,
+    h: u32,
+}
+
+impl MotionSource for EmptyBackground<'_> {
+    type Walk = ();
+    #[inline]
+    fn sample(&self, q: Vec2, _walk: &mut ()) -> Option<Sample> {
+        if !(q.x >= 0.0 && q.y >= 0.0 && q.x < self.w as f32 && q.y < self.h as f32) {
+            return None;
+        }
+        let i = (q.y as u32).min(self.h - 1) as usize * self.w as usize + (q.x as u32).min(self.w - 1) as usize;
+        let v = self.motion[i].v;
+        (self.layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) && v.is_finite()).then_some(Sample {
+            v,
+            depth: EMPTY_DEPTH,
+            tag: 0,
+            dv: [Vec2::ZERO; 2],
+        })
+    }
+}
+
+/// Seeds of the background search: the pixel itself and the pixel moved back by the motion
+/// found there (the fixed point of a smooth field lies next to `p - v(p)`).
+const BACKGROUND_SEEDS: usize = 2;
+
+/// Sec. 4's quality protocol for holes ("filled with the background depth"), made to hold on
+/// open scenes and at the image border; the complete form of [`HolePolicy::Background`] for
+/// callers that have the source layers (`layers`: the depth and motion buffers `out` was warped
+/// from, nearest first; a separately peeled ground counts as a layer). Three steps over the [`PixelState::Hole`] pixels of `out`:
+///
+/// 1. **Background seen through**: a hole whose fixed-point search (the one [`fixed_point_search`],
+///    `search`'s T and threshold) converges on texels where no source layer has a surface shows
+///    the empty background the source shows there — sky: it keeps the far depth and becomes
+///    [`PixelState::Converged`] (it did converge, on an empty sample). Without this step a sky
+///    pixel between two surfaces would be filled with the farther surface.
+/// 2. **Bracketed holes**: [`fill_holes`] with [`FillRule::Background`] and `radius`
+///    (disocclusion slivers take the farther side).
+/// 3. **Image border**: a hole whose row (or column) runs to the image border, where the source
+///    has no pixels (the strip a moving camera uncovers), takes the depth of the nearest
+///    converged pixel inwards along that row or column, within the largest motion of the source
+///    plus one pixel (no strip is wider). Converged background pixels count, so sky at the
+///    border stays sky.
+///
+/// Not conservative (a fill may be nearer than the truth): for quality, never for culling.
+/// Errors if there is no layer or a layer's size differs from `out`'s.
+pub fn fill_background(
+    layers: &[WarpLayer<'_>],
+    out: &mut WarpOutput,
+    radius: u32,
+    search: &SearchParams,
+) -> Result<()> {
+    let (w, h) = out.depth.size();
+    let source = layers.first().ok_or_else(|| Error::invalid("fill_background needs at least one source layer"))?;
+    for (k, l) in layers.iter().enumerate() {
+        if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
+            return Err(Error::invalid(format!(
+                "fill_background: source layer {k} is {}x{} but the warped buffer is {w}x{h}",
+                l.depth.width(),
+                l.depth.height()
+            )));
+        }
+    }
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    // 1. Holes that see the source's empty background.
+    let bg = EmptyBackground { layers, motion: source.motion.data(), w, h };
+    let max_q = Vec2::new(w as f32, h as f32) - Vec2::splat(1e-3);
+    out.depth
+        .data_mut()
+        .par_chunks_mut(w as usize)
+        .zip(out.state.data_mut().par_chunks_mut(w as usize))
+        .enumerate()
+        .for_each(|(y, (drow, srow))| {
+            for x in 0..w as usize {
+                if srow[x] != PixelState::Hole {
+                    continue;
+                }
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let back = source.motion.data()[y * w as usize + x].v;
+                let mut seeds = [p, p - back];
+                for s in &mut seeds {
+                    *s = if s.is_finite() { s.clamp(Vec2::ZERO, max_q) } else { p };
+                }
+                if let Some(c) = fixed_point_search(&bg, p, &seeds[..BACKGROUND_SEEDS], search) {
+                    drow[x] = c.depth;
+                    srow[x] = PixelState::Converged;
+                }
+            }
+        });
+    // 2. Bracketed holes.
+    fill_holes(&mut out.depth, &mut out.state, radius, FillRule::Background);
+    // 3. Holes open to the image border.
+    let max_motion = layers
+        .iter()
+        .flat_map(|l| l.depth.data().iter().zip(l.motion.data()))
+        .filter(|(d, m)| **d < EMPTY_DEPTH && m.v.is_finite())
+        .map(|(_, m)| m.v.abs().max_element())
+        .fold(0.0f32, f32::max);
+    let reach = (max_motion.ceil() as i64 + 1).min(w.max(h) as i64);
+    fill_border_holes(&mut out.depth, &mut out.state, reach);
+    Ok(())
+}
+
+/// Step 3 of [`fill_background`]: holes whose row or column reaches the image border within
+/// `reach` pixels take the depth of the nearest converged pixel inwards (within `reach`);
+/// the nearest of up to four such pixels wins (ties: the farther depth).
+fn fill_border_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, reach: i64) {
+    let (w, h) = depth.size();
+    let src_depth = depth.data().to_vec();
+    let src_state = state.data().to_vec();
+    let (wi, hi) = (w as i64, h as i64);
+    depth.data_mut().par_chunks_mut(w as usize).zip(state.data_mut().par_chunks_mut(w as usize)).enumerate().for_each(
+        |(y, (drow, srow))| {
+            let y = y as i64;
+            for x in 0..wi {
+                if srow[x as usize] != PixelState::Hole {
+                    continue;
+                }
+                // Within `reach` from the border along (dx, dy) only if the border lies that way.
+                let mut best: Option<(i64, f32)> = None;
+                for (dx, dy, to_border) in [(-1i64, 0i64, x), (1, 0, wi - 1 - x), (0, -1, y), (0, 1, hi - 1 - y)] {
+                    if to_border >= reach {
+                        continue;
+                    }
+                    // The run towards the border must be all holes; then look inwards.
+                    let open = (1..=to_border)
+                        .all(|k| src_state[((y + dy * k) * wi + x + dx * k) as usize] != PixelState::Converged);
+                    if !open {
+                        continue;
+                    }
+                    for k in 1..=reach {
+                        let (xx, yy) = (x - dx * k, y - dy * k);
+                        if xx < 0 || yy < 0 || xx >= wi || yy >= hi {
+                            break;
+                        }
+                        let i = (yy * wi + xx) as usize;
+                        if src_state[i] == PixelState::Converged {
+                            let z = src_depth[i];
+                            if best.is_none_or(|(bk, bz)| k < bk || (k == bk && z > bz)) {
+                                best = Some((k, z));
+                            }
+                            break;
+                        }
+                    }
+                }
+                if let Some((_, z)) = best {
+                    drow[x as usize] = z;
+                    srow[x as usize] = PixelState::Filled;
+                }
+            }
+        },
+    );
+}
+
 /// AWOC fill (Sec. 5.3) for one pixel: the nearest valid target depth among `fetch(q)` at the
 /// four corners `corners` of the local search region (image coordinates, clamped to the image
 /// by the caller). Returns `None` if none of them is a surface.
@@ -226,6 +393,103 @@ mod tests {
         let (mut d3, mut s3) = grid(&["55...", "55...", "55..."]);
         fill_holes(&mut d3, &mut s3, 4, FillRule::Background);
         assert!(s3.data().iter().filter(|&&st| st == PixelState::Filled).count() == 0);
+    }
+
+    /// A `w x h` source layer from per-pixel `(depth, motion x)` (motion y = 0); a pixel's
+    /// target depth is its source depth (pure screen-space shift).
+    fn shifted_layer(w: u32, h: u32, f: impl Fn(u32, u32) -> (f32, f32)) -> (Image<f32>, Image<Motion>) {
+        let d = Image::from_fn(w, h, |x, y| f(x, y).0);
+        let m = Image::from_fn(w, h, |x, y| {
+            let (z, vx) = f(x, y);
+            Motion { v: Vec2::new(vx, 0.0), depth: z }
+        });
+        (d, m)
+    }
+
+    fn background_fill(d: &Image<f32>, m: &Image<Motion>) -> WarpOutput {
+        let layers = [WarpLayer { depth: d, motion: m }];
+        let params = crate::WarpParams { holes: HolePolicy::FarDepth, ..Default::default() };
+        let mut out = crate::warp_depth(&layers, &params).unwrap();
+        let search = SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+        fill_background(&layers, &mut out, 4, &search).unwrap();
+        out
+    }
+
+    #[test]
+    fn background_fill_keeps_sky_and_extends_the_border_strip() {
+        // Camera pans: everything (ground on rows >= 6, sky above, where the motion field gives
+        // the far plane's motion) moves 3 px right. The 3-px strip at the left border has no
+        // source pixel: on ground rows it takes the row's ground depth, on sky rows it stays sky.
+        let ground = |y: u32| 0.6 + 0.01 * y as f32;
+        let (d, m) = shifted_layer(24, 12, |_, y| (if y >= 6 { ground(y) } else { EMPTY_DEPTH }, 3.0));
+        let out = background_fill(&d, &m);
+        for y in 0..12 {
+            for x in 0..24 {
+                let (z, st) = (*out.depth.get(x, y), *out.state.get(x, y));
+                if y < 6 {
+                    // Sky: converged on the empty background (x >= 3) or filled from it.
+                    assert_eq!(z, EMPTY_DEPTH, "sky at ({x},{y})");
+                    assert_eq!(st, if x >= 3 { PixelState::Converged } else { PixelState::Filled });
+                } else {
+                    assert_eq!(z, ground(y), "ground at ({x},{y})");
+                    assert_eq!(st, if x >= 3 { PixelState::Converged } else { PixelState::Filled });
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn background_fill_does_not_fill_sky_between_two_objects_but_fills_a_disocclusion() {
+        // Row layout (static camera): object A (0.3) on x 2..8, sky on 8..10, object B (0.5)
+        // on 10..16, a ground (0.8) on 16..24 that B's motion (+2 px) uncovers on 16..18.
+        let (d, m) = shifted_layer(24, 6, |x, _| match x {
+            2..8 => (0.3, 0.0),
+            10..16 => (0.5, 2.0),
+            16..24 => (0.8, 0.0),
+            _ => (EMPTY_DEPTH, 0.0),
+        });
+        let out = background_fill(&d, &m);
+        for y in 0..6 {
+            // The sky gap x 8..10 sees the empty background: far, converged. (The bracketed
+            // rule alone would have filled it with B's 0.5.)
+            for x in 8..10 {
+                assert_eq!((*out.depth.get(x, y), *out.state.get(x, y)), (EMPTY_DEPTH, PixelState::Converged));
+            }
+            // B moved to 12..18: the sky it uncovers on 10..12 was hidden in the source (no
+            // empty texel to converge on), a hole bracketed by sky and B: the farther side, sky.
+            for x in 10..12 {
+                assert_eq!((*out.depth.get(x, y), *out.state.get(x, y)), (EMPTY_DEPTH, PixelState::Filled));
+            }
+            for x in 12..18 {
+                assert_eq!(*out.depth.get(x, y), 0.5);
+            }
+            for x in 18..24 {
+                assert_eq!(*out.depth.get(x, y), 0.8);
+            }
+        }
+        // A 2-px disocclusion of the ground: B (0.5) moves left by 2 over a static ground.
+        let (d, m) = shifted_layer(24, 6, |x, _| match x {
+            8..14 => (0.5, -2.0),
+            _ => (0.8, 0.0),
+        });
+        let out = background_fill(&d, &m);
+        for y in 0..6 {
+            for x in 12..14 {
+                // Bracketed by B (0.5) and the ground (0.8): the farther side.
+                assert_eq!((*out.depth.get(x, y), *out.state.get(x, y)), (0.8, PixelState::Filled));
+            }
+        }
+    }
+
+    #[test]
+    fn background_fill_rejects_mismatched_layers() {
+        let (d, m) = shifted_layer(8, 4, |_, _| (0.5, 0.0));
+        let mut out = background_fill(&d, &m);
+        let (d2, m2) = shifted_layer(7, 4, |_, _| (0.5, 0.0));
+        let search = SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+        let err = fill_background(&[WarpLayer { depth: &d2, motion: &m2 }], &mut out, 4, &search).unwrap_err();
+        assert!(err.to_string().contains("7x4"), "{err}");
+        assert!(fill_background(&[], &mut out, 4, &search).is_err());
     }
 
     #[test]

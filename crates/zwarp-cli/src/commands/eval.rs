@@ -49,9 +49,11 @@ pub struct EvalArgs {
     pub methods: String,
     /// Hole policy of our warp: `paper` (Sec. 4's protocol for Tables 1-3: "the single-layer
     /// solution keeps holes (filled with the background depth), the multi-layer solutions use
-    /// deep depth buffers", dilation disabled: `background` for L = 1, `far` for L > 1), `far`
-    /// (far depth everywhere), `dilate` (Fig. 8), `awoc` (Sec. 5.3) or `background` (holes
-    /// bracketed within 4 px take the farther neighbour's depth).
+    /// deep depth buffers, and employ our inpainting", Fig. 8's dilation disabled: `background`
+    /// at every L), `far` (far depth everywhere: the conservative culling setting), `dilate`
+    /// (Fig. 8), `awoc` (Sec. 5.3) or `background` (`zwarp_warp::holes::fill_background`: holes
+    /// that see the source's empty background stay far, holes bracketed within 4 px take the
+    /// farther neighbour's depth, strips open to the image border take the nearest depth inwards).
     #[arg(long, default_value = "paper")]
     pub holes: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
@@ -151,9 +153,9 @@ pub struct EvalPlan {
 
 impl EvalPlan {
     /// The hole policy of our warp with `l` layers: the explicit `--holes`, or the paper's Sec. 4
-    /// protocol (background fill for L = 1, holes kept at the far depth for L > 1).
-    pub fn holes_for(&self, l: usize) -> HolePolicy {
-        self.holes.unwrap_or(if l <= 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth })
+    /// protocol (holes filled with the background depth, at every L; see `EvalArgs::holes`).
+    pub fn holes_for(&self, _l: usize) -> HolePolicy {
+        self.holes.unwrap_or(HolePolicy::Background { radius: 4 })
     }
 }
 
@@ -470,11 +472,33 @@ pub fn evaluate(
                                             holes: plan.holes_for(l),
                                             ..WarpParams::default()
                                         };
+                                        // The background protocol needs the source layers (sky
+                                        // seen through holes, border strips): the warp keeps far
+                                        // holes, then `fill_background` (on the CPU for both
+                                        // backends) fills them.
+                                        let fill = match params.holes {
+                                            HolePolicy::Background { radius } => Some(radius),
+                                            _ => None,
+                                        };
+                                        let warp_params = if fill.is_some() {
+                                            WarpParams { holes: HolePolicy::FarDepth, ..params }
+                                        } else {
+                                            params
+                                        };
+                                        let search = zwarp_warp::SearchParams {
+                                            iterations: params.iterations,
+                                            threshold: params.threshold,
+                                            choice: params.choice,
+                                            accelerate: params.accelerate,
+                                        };
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
-                                            let o = match &gpu {
-                                                Some((_, _, kernel, _)) => kernel.warp(&layers, &params)?,
-                                                None => zwarp_warp::warp_depth(&layers, &params)?,
+                                            let mut o = match &gpu {
+                                                Some((_, _, kernel, _)) => kernel.warp(&layers, &warp_params)?,
+                                                None => zwarp_warp::warp_depth(&layers, &warp_params)?,
                                             };
+                                            if let Some(radius) = fill {
+                                                zwarp_warp::holes::fill_background(&layers, &mut o, radius, &search)?;
+                                            }
                                             Ok((o.depth, Some(o.state)))
                                         })?;
                                     }
