@@ -68,7 +68,7 @@ fn main() {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
     let max_l = *ls.iter().max().unwrap() as usize;
     println!(
-        "scene  L  N  prepare_ms  warp_ms  render_ms  w/r_ratio  Mpx/s/core  B/px    psnr     ssim      converged"
+        "scene  L  N  prepare_ms  warp_ms  render_ms  w/r_ratio  Mpx/s/core  B/px    psnr     ssim      converged  output_hash"
     );
     for name in &scenes {
         let opts = SceneOptions { seed: 1, scale, ..SceneOptions::default() };
@@ -82,6 +82,7 @@ fn main() {
         // (L, N) -> (prepare ms, warp ms, render ms, psnr, ssim, converged, bytes per pixel)
         // summed over pairs.
         let mut acc: HashMap<(u32, u32), [f64; 7]> = HashMap::new();
+        let mut hashes: HashMap<(u32, u32), u64> = HashMap::new();
         for i in 0..count {
             let k = if count == 1 { 0 } else { i * last / (count - 1) };
             let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
@@ -124,9 +125,29 @@ fn main() {
                     // One more run for the counters (`--features stats`): bytes touched / pixel.
                     stats::take();
                     let _ = warp_prepared(&prepared, &params).unwrap();
-                    let bpp = stats::take().bytes_per_pixel();
+                    let counts = stats::take();
+                    let bpp = counts.bytes_per_pixel();
+                    if stats::ENABLED {
+                        let px = counts.pixels.max(1) as f64;
+                        eprintln!(
+                            "  {name} L={l} N={n}: per pixel {:.2} tightenings (incl. tiles), {:.2} mip texels, {:.2} seeds, {:.2} fetches",
+                            counts.tightenings as f64 / px,
+                            counts.mip_texels as f64 / px,
+                            counts.seeds as f64 / px,
+                            counts.fetches as f64 / px
+                        );
+                    }
                     let q = zwarp_metrics::depth_quality(&out.depth, &reference, &cb).unwrap();
                     let conv = 1.0 - out.non_converged_fraction();
+                    // Output fingerprint (FNV-1a over depth bits and states): tells a
+                    // bit-identical optimisation from one that changes the function.
+                    let mut fp = 0xcbf29ce484222325u64;
+                    for (z, s) in out.depth.data().iter().zip(out.state.data()) {
+                        for b in z.to_bits().to_le_bytes().into_iter().chain([*s as u8]) {
+                            fp = (fp ^ b as u64).wrapping_mul(0x100000001b3);
+                        }
+                    }
+                    *hashes.entry((l, n)).or_insert(0) ^= fp.rotate_left(i as u32);
                     let a = acc.entry((l, n)).or_default();
                     for (s, v) in a.iter_mut().zip([prep_ms, warp_ms, render_ms, q.psnr, q.ssim, conv, bpp]) {
                         *s += v;
@@ -140,14 +161,15 @@ fn main() {
                 let mpx = (w * h) as f64 / 1e6 / ((a[0] + a[1]) / 1e3) / threads as f64;
                 let bpp = if stats::ENABLED { format!("{:6.0}", a[6]) } else { "     -".into() };
                 println!(
-                    "{name:5} {l:2} {n:2}  {:9.1}  {:7.1}  {:9.1}  {:7.2}  {mpx:10.2}  {bpp}  {:7.3}  {:.5}  {:.4}",
+                    "{name:5} {l:2} {n:2}  {:9.1}  {:7.1}  {:9.1}  {:7.2}  {mpx:10.2}  {bpp}  {:7.3}  {:.5}  {:.4}  {:016x}",
                     a[0],
                     a[1],
                     a[2],
                     (a[0] + a[1]) / a[2],
                     a[3],
                     a[4],
-                    a[5]
+                    a[5],
+                    hashes[&(l, n)]
                 );
             }
         }

@@ -24,7 +24,7 @@
 //! sampled motion vectors (oriented bound, OB); the mipmap stores min/max of the rotated motion,
 //! and reading a bound back means rotating by `R^T` (paper: "reversing the motion coordinates").
 
-use glam::Vec2;
+use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
@@ -344,16 +344,21 @@ impl MotionPyramid {
         // At this level the range spans at most 2x2 texels (see `level_for_range`; the top
         // level has one texel), so four direct reads cover it (duplicates are harmless for a
         // union): the hot path of every tightening step, without the generic loop.
-        let (tx0, tx1) = ((ix0 >> level) as usize, (ix1 >> level).min(l.w - 1) as usize);
-        let (ty0, ty1) = ((iy0 >> level) as usize, (iy1 >> level).min(l.h - 1) as usize);
+        let (tx0, tx1) = ((ix0 >> level).min(l.w - 1) as usize, (ix1 >> level).min(l.w - 1) as usize);
+        let (ty0, ty1) = ((iy0 >> level).min(l.h - 1) as usize, (iy1 >> level).min(l.h - 1) as usize);
         debug_assert!(tx1 - tx0 <= 1 && ty1 - ty0 <= 1);
         let lw = l.w as usize;
-        let (r0, r1) = (&l.data[ty0 * lw..ty0 * lw + lw], &l.data[ty1 * lw..ty1 * lw + lw]);
-        let (a, b, c, d) = (r0[tx0], r0[tx1], r1[tx0], r1[tx1]);
+        // SAFETY: tx0, tx1 <= l.w - 1 and ty0, ty1 <= l.h - 1 (clamped above), and
+        // `l.data.len() == l.w * l.h` (every level is built with exactly that many texels).
+        let t = |x: usize, y: usize| Vec4::from_array(unsafe { *l.data.get_unchecked(y * lw + x) });
+        let (a, b, c, d) = (t(tx0, ty0), t(tx1, ty0), t(tx0, ty1), t(tx1, ty1));
         crate::stats::count(crate::stats::Counter::MipTexels, 4);
-        let lo = Vec2::new(a[0].min(b[0]).min(c[0].min(d[0])), a[1].min(b[1]).min(c[1].min(d[1])));
-        let hi = Vec2::new(a[2].max(b[2]).max(c[2].max(d[2])), a[3].max(b[3]).max(c[3].max(d[3])));
-        Bound { lo, hi }
+        // Four lanes at once: lanes 0-1 (lo) take the min, lanes 2-3 (hi) the max. Texels hold
+        // no NaN (NaN motion is rejected, empty texels are +-inf), where the compare-select
+        // `min`/`max` equal `f32::min`/`f32::max` (up to the sign of a zero, which no bound
+        // comparison or region sees).
+        let (lo, hi) = (a.min(b).min(c.min(d)), a.max(b).max(c.max(d)));
+        Bound { lo: Vec2::new(lo.x, lo.y), hi: Vec2::new(hi.z, hi.w) }
     }
 
     /// Like [`Self::lookup_range`] at an explicit level (clamped to `1..=top_level`); at levels
@@ -426,10 +431,24 @@ impl MotionPyramid {
         if !(hi.x >= 0.0 && hi.y >= 0.0 && lo.x < w && lo.y < h) {
             return None;
         }
-        let ix0 = lo.x.max(0.0) as u32;
-        let iy0 = lo.y.max(0.0) as u32;
-        let ix1 = (hi.x.min(w - 1.0) as u32).min(self.width - 1);
-        let iy1 = (hi.y.min(h - 1.0) as u32).min(self.height - 1);
+        // Past the test no coordinate is NaN, `lo < (w, h)` and `hi >= 0`: the clamped values
+        // lie in `[0, w - 1]` x `[0, h - 1]`, where compare-select clamps equal `f32::max/min`
+        // and truncation needs no saturation.
+        let cl = |v: f32, m: f32| {
+            if v < 0.0 {
+                0.0
+            } else if v > m {
+                m
+            } else {
+                v
+            }
+        };
+        // SAFETY: each argument lies in [0, w - 1] or [0, h - 1] (see above): in u32 range.
+        let u = |v: f32| -> u32 { unsafe { v.to_int_unchecked() } };
+        let ix0 = u(cl(lo.x, w - 1.0)).min(self.width - 1);
+        let iy0 = u(cl(lo.y, h - 1.0)).min(self.height - 1);
+        let ix1 = u(cl(hi.x, w - 1.0)).min(self.width - 1);
+        let iy1 = u(cl(hi.y, h - 1.0)).min(self.height - 1);
         Some((ix0, iy0, ix1, iy1))
     }
 
@@ -484,6 +503,7 @@ impl MotionPyramid {
         scale: Vec2,
     ) -> Option<TightBound> {
         let unit = scale == Vec2::ONE;
+        crate::stats::count(crate::stats::Counter::Tightenings, 1);
         let mut b = start;
         if b.is_empty() {
             return None;

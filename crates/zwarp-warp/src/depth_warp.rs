@@ -254,7 +254,7 @@ impl MotionSource for StackSampler<'_> {
         if !own.inside(q) {
             return None;
         }
-        if let Some(s) = own.fetch(q) {
+        if let Some(s) = own.fetch_inside(q) {
             return Some(s);
         }
         if !self.cross || self.k == 0 {
@@ -549,7 +549,9 @@ impl Kernel<'_> {
             let mut n = match params.seeding {
                 SeedStrategy::Stratified => {
                     let ne = effective_seeds(params.n_seeds, tb.region.extent());
-                    stratified_seeds(&frame, &tb.region, ne, seed_key(x, y, k as u32), seeds)
+                    // The key only jitters seeds 2.. (one seed sits at the region centre).
+                    let key = if ne > 1 { seed_key(x, y, k as u32) } else { 0 };
+                    stratified_seeds(&frame, &tb.region, ne, key, seeds)
                 }
                 SeedStrategy::Pixel => {
                     seeds[0] = p;

@@ -89,6 +89,8 @@ pub struct LayerSampler<'a> {
     tag: u32,
     /// Component-wise factor on every fetched motion (`WarpParams::motion_scale`).
     scale: Vec2,
+    /// `(w, h)` as floats (the `inside` test of every sample).
+    size: Vec2,
 }
 
 impl<'a> LayerSampler<'a> {
@@ -96,7 +98,7 @@ impl<'a> LayerSampler<'a> {
     /// callers validate sizes first).
     pub fn new(samples: &'a [Motion], w: u32, h: u32, sampling: Sampling, tag: u32) -> Self {
         assert_eq!(samples.len(), w as usize * h as usize, "motion buffer size");
-        LayerSampler { samples, w, h, sampling, tag, scale: Vec2::ONE }
+        LayerSampler { samples, w, h, sampling, tag, scale: Vec2::ONE, size: Vec2::new(w as f32, h as f32) }
     }
 
     /// The same sampler for the motion field `scale * v` (component-wise; see
@@ -110,7 +112,7 @@ impl<'a> LayerSampler<'a> {
     /// `true` if `q` lies inside the image `[0, w) x [0, h)`.
     #[inline]
     pub fn inside(&self, q: Vec2) -> bool {
-        q.x >= 0.0 && q.y >= 0.0 && q.x < self.w as f32 && q.y < self.h as f32
+        (q.x >= 0.0) & (q.y >= 0.0) & (q.x < self.size.x) & (q.y < self.size.y)
     }
 
     #[inline]
@@ -122,6 +124,73 @@ impl<'a> LayerSampler<'a> {
     /// The sample at `q` (must be inside, see [`Self::inside`]); `None` if empty.
     #[inline(always)]
     pub fn fetch(&self, q: Vec2) -> Option<Sample> {
+        if self.inside(q) {
+            self.fetch_inside(q)
+        } else {
+            self.fetch_clamped(q)
+        }
+    }
+
+    /// [`Self::fetch`] for a `q` that [`Self::inside`] accepted: the hot path of every walk.
+    /// Same arithmetic as [`Self::fetch_clamped`] (bit for bit), without its saturating
+    /// conversions and bounds checks, and without the multiplication by a unit scale.
+    #[inline(always)]
+    pub(crate) fn fetch_inside(&self, q: Vec2) -> Option<Sample> {
+        debug_assert!(self.inside(q));
+        if self.scale == Vec2::ONE {
+            self.fetch_inside_scaled::<true>(q)
+        } else {
+            self.fetch_inside_scaled::<false>(q)
+        }
+    }
+
+    #[inline(always)]
+    fn fetch_inside_scaled<const UNIT: bool>(&self, q: Vec2) -> Option<Sample> {
+        crate::stats::count(crate::stats::Counter::Fetches, 1);
+        let (wm, hm) = (self.w - 1, self.h - 1);
+        let wu = self.w as usize;
+        // SAFETY (both `get_unchecked`s below): every index is `y * w + x` with `x <= w - 1`
+        // and `y <= h - 1` (clamped by `min`), and `samples.len() == w * h` (asserted in
+        // `new`; the fields are private and `with_scale` keeps them).
+        let at = |x: u32, y: u32| unsafe { *self.samples.get_unchecked(y as usize * wu + x as usize) };
+        let sc = |m: Motion| if UNIT { m } else { Motion { v: self.scale * m.v, depth: m.depth } };
+        if self.sampling == Sampling::Adaptive {
+            crate::stats::count(crate::stats::Counter::MotionTexels, 4);
+            // Texel-centre coordinates t = q - 0.5 >= -0.5: floor(t) = trunc(t + 1) - 1.
+            let (tx, ty) = (q.x + 0.5, q.y + 0.5);
+            // SAFETY: `inside(q)` means 0 <= q < (w, h) (so q is finite), hence
+            // 0.5 <= t <= (w, h) + 0.5, well inside u32 after truncation.
+            let (ix, iy): (u32, u32) = unsafe { (tx.to_int_unchecked(), ty.to_int_unchecked()) };
+            let (ax, ay) = (tx - ix as f32, ty - iy as f32);
+            let x0 = ix.saturating_sub(1).min(wm);
+            let y0 = iy.saturating_sub(1).min(hm);
+            let (x1, y1) = (ix.min(wm), iy.min(hm));
+            let (s00, s10, s01, s11) = (sc(at(x0, y0)), sc(at(x1, y0)), sc(at(x0, y1)), sc(at(x1, y1)));
+            // Invalid samples carry depth >= 1 (or < 0). Non-short-circuit `&`: one branch.
+            let valid = |m: &Motion| (m.depth >= 0.0) & (m.depth < 1.0);
+            if valid(&s00) & valid(&s10) & valid(&s01) & valid(&s11) {
+                let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
+                let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
+                if (hi - lo).max_element() < CONTINUITY_PX {
+                    return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
+                }
+            }
+        } else {
+            crate::stats::count(crate::stats::Counter::MotionTexels, 1);
+        }
+        // SAFETY: as above, 0 <= q < (w, h).
+        let (xn, yn): (u32, u32) = unsafe { (q.x.to_int_unchecked(), q.y.to_int_unchecked()) };
+        let m = at(xn.min(wm), yn.min(hm));
+        if (m.depth >= 0.0) & (m.depth < 1.0) {
+            let m = sc(m);
+            Some(Sample { v: m.v, depth: m.depth, tag: self.tag, dv: [Vec2::ZERO; 2] })
+        } else {
+            None
+        }
+    }
+
+    /// [`Self::fetch`] for any `q`: indices clamped into the image.
+    fn fetch_clamped(&self, q: Vec2) -> Option<Sample> {
         // `q >= 0` inside the image: truncation is floor. (`f32::floor` is a libm call on
         // baseline x86-64, which showed up at ~9 % of the warp in a profile.)
         let (wm, hm) = (self.w - 1, self.h - 1);
@@ -140,26 +209,12 @@ impl<'a> LayerSampler<'a> {
             let sc = |m: &Motion| Motion { v: self.scale * m.v, depth: m.depth };
             let (s00, s10, s01, s11) =
                 (sc(self.at(x0, y0)), sc(self.at(x1, y0)), sc(self.at(x0, y1)), sc(self.at(x1, y1)));
-            let (s00, s10, s01, s11) = (&s00, &s10, &s01, &s11);
-            // Invalid samples carry depth >= 1 (or < 0): one compare per texel.
             let valid = |m: &Motion| m.depth >= 0.0 && m.depth < 1.0;
-            if valid(s00) && valid(s10) && valid(s01) && valid(s11) {
+            if valid(&s00) && valid(&s10) && valid(&s01) && valid(&s11) {
                 let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
                 let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
                 if (hi - lo).max_element() < CONTINUITY_PX {
-                    let top_v = s00.v.lerp(s10.v, ax);
-                    let bot_v = s01.v.lerp(s11.v, ax);
-                    let top_d = s00.depth + (s10.depth - s00.depth) * ax;
-                    let bot_d = s01.depth + (s11.depth - s01.depth) * ax;
-                    // Exact derivatives of the bilinear interpolant (per pixel).
-                    let dvdx = (s10.v - s00.v).lerp(s11.v - s01.v, ay);
-                    let dvdy = bot_v - top_v;
-                    return Some(Sample {
-                        v: top_v.lerp(bot_v, ay),
-                        depth: top_d + (bot_d - top_d) * ay,
-                        tag: self.tag,
-                        dv: [dvdx, dvdy],
-                    });
+                    return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
                 }
             }
         }
@@ -170,6 +225,19 @@ impl<'a> LayerSampler<'a> {
             None
         }
     }
+}
+
+/// Bilinear sample of four valid, continuous texels at fractions `(ax, ay)` (Bowles Fig. 4),
+/// with the exact Jacobian of the bilinear interpolant (per pixel) for the Newton step.
+#[inline(always)]
+fn bilinear(s00: &Motion, s10: &Motion, s01: &Motion, s11: &Motion, ax: f32, ay: f32, tag: u32) -> Sample {
+    let top_v = s00.v.lerp(s10.v, ax);
+    let bot_v = s01.v.lerp(s11.v, ax);
+    let top_d = s00.depth + (s10.depth - s00.depth) * ax;
+    let bot_d = s01.depth + (s11.depth - s01.depth) * ax;
+    let dvdx = (s10.v - s00.v).lerp(s11.v - s01.v, ay);
+    let dvdy = bot_v - top_v;
+    Sample { v: top_v.lerp(bot_v, ay), depth: top_d + (bot_d - top_d) * ay, tag, dv: [dvdx, dvdy] }
 }
 
 impl MotionSource for LayerSampler<'_> {
@@ -260,6 +328,7 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
 ) -> Option<Candidate> {
     let thr2 = params.threshold * params.threshold;
     let mut best: Option<Candidate> = None;
+    crate::stats::count(crate::stats::Counter::Seeds, seeds.len() as u64);
     for (i, &seed) in seeds.iter().enumerate() {
         let mut walk = S::Walk::default();
         let mut q = seed;
@@ -274,15 +343,19 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
             // magnifies by 2x or more (Bowles' rho >= 1); Newton converges quadratically on
             // smooth motion and is the plain step where Dv = 0 (translation, nearest sampling
             // at discontinuities). Near a fold (I + Dv singular) the plain step is kept.
-            let mut next = w;
-            if params.accelerate {
-                let [a, b] = s.dv;
-                let (m00, m01, m10, m11) = (1.0 + a.x, b.x, a.y, 1.0 + b.y);
-                let det = m00 * m11 - m01 * m10;
-                if det.abs() > 0.05 {
-                    next = q + Vec2::new(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
+            // Evaluated only where needed (not for a converged seed that is not polished: the
+            // division was a visible share of the warp).
+            let next = || {
+                if params.accelerate {
+                    let [a, b] = s.dv;
+                    let (m00, m01, m10, m11) = (1.0 + a.x, b.x, a.y, 1.0 + b.y);
+                    let det = m00 * m11 - m01 * m10;
+                    if det.abs() > 0.05 {
+                        return q + Vec2::new(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
+                    }
                 }
-            }
+                w
+            };
             if r2 < thr2 {
                 let mut c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
                 // Polish: `next` is one more step towards the exact fixed point. One extra
@@ -290,6 +363,7 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
                 // up-to-threshold position error on smooth surfaces (visible on slanted ground
                 // near the horizon) while keeping `|q + v(q) - p| < threshold`.
                 if r2 > POLISH_MIN_RESIDUAL * POLISH_MIN_RESIDUAL {
+                    let next = next();
                     if let Some(s2) = src.sample(next, &mut walk) {
                         if (p - s2.v - next).length_squared() < r2 {
                             c = Candidate { q: next, depth: s2.depth, tag: s2.tag, seed: i as u32 };
@@ -306,7 +380,7 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
                 }
                 break;
             }
-            q = next;
+            q = next();
         }
     }
     best

@@ -22,6 +22,10 @@ pub enum Counter {
     Fetches = 3,
     /// Output pixels written (5 bytes each).
     Pixels = 4,
+    /// Seeds searched (fixed-point walks started).
+    Seeds = 5,
+    /// Per-pixel bound tightenings (Fig. 5 runs after the tile stage).
+    Tightenings = 6,
 }
 
 /// Snapshot of the counters.
@@ -37,6 +41,10 @@ pub struct Counts {
     pub fetches: u64,
     /// See [`Counter::Pixels`].
     pub pixels: u64,
+    /// See [`Counter::Seeds`].
+    pub seeds: u64,
+    /// See [`Counter::Tightenings`].
+    pub tightenings: u64,
 }
 
 impl Counts {
@@ -52,7 +60,7 @@ impl Counts {
 }
 
 #[cfg(feature = "stats")]
-static COUNTERS: [std::sync::atomic::AtomicU64; 5] = [const { std::sync::atomic::AtomicU64::new(0) }; 5];
+static COUNTERS: [std::sync::atomic::AtomicU64; 7] = [const { std::sync::atomic::AtomicU64::new(0) }; 7];
 
 /// Adds `n` to counter `c` (no-op without the `stats` feature).
 #[inline(always)]
@@ -78,6 +86,8 @@ pub fn take() -> Counts {
             motion_texels: t(Counter::MotionTexels),
             fetches: t(Counter::Fetches),
             pixels: t(Counter::Pixels),
+            seeds: t(Counter::Seeds),
+            tightenings: t(Counter::Tightenings),
         }
     }
     #[cfg(not(feature = "stats"))]
@@ -90,7 +100,7 @@ mod tests {
 
     #[test]
     fn bytes_follow_the_texel_sizes() {
-        let c = Counts { mip_texels: 2, depth_texels: 3, motion_texels: 4, fetches: 1, pixels: 1 };
+        let c = Counts { mip_texels: 2, depth_texels: 3, motion_texels: 4, fetches: 1, pixels: 1, ..Counts::default() };
         assert_eq!(c.bytes(), 32 + 12 + 48 + 5);
         assert_eq!(c.bytes_per_pixel(), 97.0);
         assert_eq!(Counts::default().bytes_per_pixel(), 0.0);
