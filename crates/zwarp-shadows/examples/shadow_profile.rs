@@ -2,7 +2,8 @@
 //! prints its stage times and the texels warped. Usage:
 //! `cargo run --release -p zwarp-shadows --example shadow_profile -- SCENE SCALE S SM [METHOD] [REPS]`
 //! (640x360 camera, frame 0, default light; METHOD = zwarp | zwarp-full | reference | pcss;
-//! `ZW_SHARED=0` gives every sample its own motion mipmap).
+//! `ZW_SHARED=0` gives every sample its own motion mipmap; `ZW_GROUPING=auto|never|always`
+//! chooses how the receivers are tested, [`Grouping`]).
 use zwarp_shadows::*;
 
 fn main() -> zwarp_core::Result<()> {
@@ -21,7 +22,12 @@ fn main() -> zwarp_core::Result<()> {
     let light = default_light(&loaded.scene)?;
     // ZW_SHARED=0: per-sample motion buffers and (oriented) mipmaps instead of the shared one.
     let shared_mipmap = std::env::var("ZW_SHARED").map_or(true, |v| v != "0");
-    let p = ShadowParams { samples, sm_size: sm, shared_mipmap, ..ShadowParams::default() };
+    let grouping = match std::env::var("ZW_GROUPING").as_deref() {
+        Ok("never") => Grouping::Never,
+        Ok("always") => Grouping::Always,
+        _ => Grouping::Auto,
+    };
+    let p = ShadowParams { samples, sm_size: sm, shared_mipmap, grouping, ..ShadowParams::default() };
     for _ in 0..reps {
         let r = run_shadows(&loaded.scene, &cam, t, &light, method, &p)?;
         let tm = r.timings;

@@ -13,7 +13,9 @@
 //!   warped to every sample view by multi-layer backward warping (Sec. 3.2-3.4, N = 4 seeds) —
 //!   only at the texels the receivers look up ([`lookups`]), with one motion mipmap for all
 //!   samples (every sample's parallax is a per-axis multiple of one reference field,
-//!   [`ZwarpMaps`]); [`Method::ZwarpFull`] warps every texel of every map with per-sample
+//!   [`ZwarpMaps`]); where many camera pixels share a texel, receivers are tested in groups
+//!   that read the same one or two texels per axis ([`ReceiverGroups`], same visibility bit
+//!   for bit); [`Method::ZwarpFull`] warps every texel of every map with per-sample
 //!   mipmaps (the path before, same maps where looked up);
 //! - [`Method::Pcss`]: Fernando 2005, filtering of the single centre map (no per-sample maps).
 //!
@@ -41,7 +43,7 @@ pub use eval::{evaluate, EvalConfig, EvalRow};
 pub use light::{
     default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
 };
-pub use lookups::{HotReceivers, SparseMap, TexelSet};
+pub use lookups::{GroupCounts, HotReceivers, ReceiverGroups, SparseMap, TexelSet};
 pub use pcss::{pcss_visibility, PcssParams};
 pub use shade::{reconstruct_normals, texel_at, texel_of, texel_xy, DepthBias, Receiver, Receivers, OFF_MAP};
 
@@ -130,6 +132,22 @@ pub struct ShadowParams {
     pub ambient: f32,
     /// PCSS settings.
     pub pcss: PcssParams,
+    /// Whether the lazy synthesis tests groups of receivers ([`ReceiverGroups`]) instead of
+    /// single receivers (same visibility, bit for bit; [`Method::Zwarp`] with the shared mipmap).
+    pub grouping: Grouping,
+}
+
+/// How [`Method::Zwarp`] tests the receivers against the lazily synthesized maps (same
+/// visibility either way; only the cost differs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Grouping {
+    /// [`ReceiverGroups`] when they pay ([`use_groups`]).
+    #[default]
+    Auto,
+    /// Always one test per receiver and sample.
+    Never,
+    /// Always [`ReceiverGroups`].
+    Always,
 }
 
 impl Default for ShadowParams {
@@ -154,6 +172,7 @@ impl Default for ShadowParams {
             jitter: true,
             ambient: zwarp_raster::shading::AMBIENT,
             pcss: PcssParams::default(),
+            grouping: Grouping::Auto,
         }
     }
 }
@@ -451,37 +470,80 @@ impl ZwarpMaps<'_> {
     }
 }
 
-/// Per-group outcome of the parallel lazy synthesis in [`run_shadows`].
-struct GroupOut {
+/// Per-thread outcome of the parallel lazy synthesis in [`run_shadows`].
+struct ThreadOut {
     lit: Vec<u32>,
+    /// Lit counts of the grouped receivers ([`ReceiverGroups`]), `None` on the per-receiver
+    /// path.
+    counts: Option<GroupCounts>,
     holes: usize,
     warped: usize,
     warp_ms: f64,
     vis_ms: f64,
 }
 
+/// Whether the lazy synthesis should test [`ReceiverGroups`] instead of single receivers
+/// ([`Grouping::Auto`]): when S >= [`GROUP_MIN_SAMPLES`] and the receivers read at least
+/// [`GROUP_MIN_DENSITY`] receivers per texel of the centre map on average (counted once, at
+/// the centre), i.e. when the group tests replace many receiver tests per texel. Below that the
+/// groups hold about one receiver each and only add their look-up boxes to the warp.
+pub fn use_groups(grouping: Grouping, hot: &HotReceivers, rig: &LightRig) -> bool {
+    match grouping {
+        Grouping::Never => false,
+        Grouping::Always => true,
+        Grouping::Auto => {
+            if rig.samples() < GROUP_MIN_SAMPLES as usize || hot.is_empty() {
+                return false;
+            }
+            let mut set = SparseMap::new(rig.center.width, rig.center.height);
+            let texels = set.collect(hot, Vec2::ZERO).max(1);
+            hot.len() as f64 / texels as f64 >= GROUP_MIN_DENSITY
+        }
+    }
+}
+
+/// Smallest S at which [`Grouping::Auto`] groups the receivers (the grouping sorts them once).
+pub const GROUP_MIN_SAMPLES: u32 = 8;
+
+/// Smallest mean number of receivers per looked-up centre-map texel at which
+/// [`Grouping::Auto`] groups the receivers (a group covers a quarter texel).
+pub const GROUP_MIN_DENSITY: f64 = 16.0;
+
 /// The lazy synthesis with the shared mipmap over all samples (seed 000, Sec. 6): the samples
-/// are split into one interleaved group per worker thread, each with its own [`SparseMap`] and
-/// lit counts (summed at the end, so the result does not depend on the grouping). The serial
+/// are split into one interleaved set per worker thread, each with its own [`SparseMap`] and
+/// lit counts (summed at the end, so the result does not depend on the split). The serial
 /// parts of a sample (texel set, scatter, dilation bookkeeping) then overlap with the other
-/// group's warps. Stage times are per-thread times divided by the number of groups.
+/// thread's warps. With `groups` the receivers are tested per [`ReceiverGroups`] group (same
+/// counts). Stage times are per-thread times divided by the number of threads.
 fn lazy_shared(
     maps: &ZwarpMaps<'_>,
     rig: &LightRig,
     hot: &HotReceivers,
+    groups: Option<&ReceiverGroups>,
     lit: &mut [u32],
     tm: &mut StageTimings,
 ) -> Result<(usize, usize)> {
     let s = rig.samples();
-    let groups = rayon::current_num_threads().clamp(1, s.max(1));
-    let outs: Vec<Result<GroupOut>> = (0..groups)
+    let threads = rayon::current_num_threads().clamp(1, s.max(1));
+    let outs: Vec<Result<ThreadOut>> = (0..threads)
         .into_par_iter()
         .map(|g| {
             let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
-            let mut out = GroupOut { lit: vec![0u32; hot.len()], holes: 0, warped: 0, warp_ms: 0.0, vis_ms: 0.0 };
-            for i in (g..s).step_by(groups) {
+            let mut out = ThreadOut {
+                lit: if groups.is_some() { Vec::new() } else { vec![0u32; hot.len()] },
+                counts: groups.map(GroupCounts::new),
+                holes: 0,
+                warped: 0,
+                warp_ms: 0.0,
+                vis_ms: 0.0,
+            };
+            for i in (g..s).step_by(threads) {
+                let shift = rig.shifts[i];
                 let t0 = Instant::now();
-                sparse.collect(hot, rig.shifts[i]);
+                match groups {
+                    Some(gr) => sparse.collect_groups(gr, shift),
+                    None => sparse.collect(hot, shift),
+                };
                 out.vis_ms += ms_since(t0);
                 let t1 = Instant::now();
                 maps.warp_sparse_shared(i, &mut sparse)?;
@@ -489,22 +551,35 @@ fn lazy_shared(
                 out.holes += sparse.holes();
                 out.warped += sparse.warped();
                 let t2 = Instant::now();
-                sparse.accumulate(hot, &mut out.lit);
+                match (groups, out.counts.as_mut()) {
+                    (Some(gr), Some(c)) => {
+                        sparse.accumulate_groups(gr, shift, c);
+                    }
+                    _ => sparse.accumulate(hot, &mut out.lit),
+                }
                 out.vis_ms += ms_since(t2);
             }
             Ok(out)
         })
         .collect();
     let (mut holes, mut warped) = (0, 0);
+    let mut counts: Option<GroupCounts> = None;
     for out in outs {
         let out = out?;
-        for (a, b) in lit.iter_mut().zip(&out.lit) {
-            *a += b;
+        match (&mut counts, out.counts) {
+            (Some(c), Some(o)) => c.add(&o),
+            (c @ None, Some(o)) => *c = Some(o),
+            _ => lit.iter_mut().zip(&out.lit).for_each(|(a, b)| *a += b),
         }
         holes += out.holes;
         warped += out.warped;
-        tm.warp += out.warp_ms / groups as f64;
-        tm.visibility += out.vis_ms / groups as f64;
+        tm.warp += out.warp_ms / threads as f64;
+        tm.visibility += out.vis_ms / threads as f64;
+    }
+    if let (Some(gr), Some(c)) = (groups, &counts) {
+        let t = Instant::now();
+        gr.lit_counts(c, s as u32, lit);
+        tm.visibility += ms_since(t);
     }
     Ok((holes, warped))
 }
@@ -576,7 +651,10 @@ pub fn run_shadows(
             tm.render = ms_since(t1) - maps.motion_ms - maps.mipmap_ms;
             let hot = HotReceivers::new(&recv);
             if maps.shares_mipmap() {
-                (warp_holes, warped_texels) = lazy_shared(&maps, &rig, &hot, &mut lit, &mut tm)?;
+                let t2 = Instant::now();
+                let groups = use_groups(params.grouping, &hot, &rig).then(|| ReceiverGroups::new(&hot, &rig.shifts));
+                tm.visibility += ms_since(t2);
+                (warp_holes, warped_texels) = lazy_shared(&maps, &rig, &hot, groups.as_ref(), &mut lit, &mut tm)?;
             } else {
                 let mut sparse = SparseMap::new(rig.center.width, rig.center.height);
                 for i in 0..rig.samples() {

@@ -405,6 +405,11 @@ fn lazy_visibility_equals_full_map_visibility_exactly() {
         // visibility of these full maps.
         let a = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &p).unwrap();
         assert_eq!(a.visibility, recv.visibility_image(&lit_full, 16));
+        // Receivers tested in groups (ReceiverGroups) or one by one: the same visibility.
+        for grouping in [Grouping::Always, Grouping::Never] {
+            let a = run_shadows(&scene, &cam, 0.0, &light, Method::Zwarp, &ShadowParams { grouping, ..p }).unwrap();
+            assert_eq!(a.visibility, recv.visibility_image(&lit_full, 16), "{grouping:?}");
+        }
         if !shared_mipmap {
             // run_shadows gives the same visibility through both methods (ZwarpFull always
             // uses per-sample mipmaps).
