@@ -3,7 +3,7 @@
 //! `cargo run --release -p zwarp-shadows --example shadow_table -- SCENE SCALE WIDTH HEIGHT S,S.. SM,SM.. [REPS] [OUTDIR] [JSON]`
 //! (OUTDIR: shaded images, visibility and difference heat-maps as `zwarp shadows --images`;
 //! JSON: the rows in the format of `zwarp shadows --json`; env `ZW_WARMUP` = untimed runs,
-//! default 1; `ZW_GROUPING` = auto | never | always). Needs only this crate's dependencies, so
+//! default 1; `ZW_GROUPING` = auto | never | always; `ZW_UMBRA=0`: peel without umbra culling). Needs only this crate's dependencies, so
 //! it builds while other crates of the workspace are being edited.
 use zwarp_shadows::*;
 
@@ -51,6 +51,7 @@ fn main() -> zwarp_core::Result<()> {
         base: ShadowParams {
             parallax_motion: std::env::var("ZW_PARALLAX").map_or(true, |v| v != "0"),
             grouping,
+            umbra: std::env::var("ZW_UMBRA").map_or(true, |v| v != "0"),
             ..ShadowParams::default()
         },
     };

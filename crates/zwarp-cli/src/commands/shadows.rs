@@ -14,7 +14,8 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_core::Image;
 use zwarp_shadows::{
-    default_light, evaluate, light_to_json, load_light, EvalConfig, EvalRow, Method, ShadowParams, ShadowResult,
+    default_light, evaluate, light_to_json, load_light, EvalConfig, EvalRow, Grouping, Method, ShadowParams,
+    ShadowResult,
 };
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
@@ -66,6 +67,11 @@ pub struct ShadowsArgs {
     /// Write the results as JSON (`rows`, one per method / S / map size).
     #[arg(long)]
     pub json: PathBuf,
+    /// How zwarp tests the receivers against its lazily synthesized maps: `auto` (groups of
+    /// receivers sharing a texel when there are many per texel), `never` (one test per receiver
+    /// and sample), `always`. Same visibility bit for bit; only the time differs.
+    #[arg(long, default_value = "auto")]
+    pub grouping: String,
     /// Where the shadow maps are made: `gpu` renders, warps and accumulates them with wgpu
     /// (`zwarp_gpu::GpuShadows`; reference and zwarp only, PCSS is skipped), same JSON fields.
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
@@ -145,7 +151,13 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
         Some(p) => load_light(p)?,
         None => default_light(scene)?,
     };
-    let base = ShadowParams { layers: a.layers, n_seeds: a.n, seed: a.scene.seed, ..ShadowParams::default() };
+    let grouping = match a.grouping.to_ascii_lowercase().as_str() {
+        "auto" => Grouping::Auto,
+        "never" => Grouping::Never,
+        "always" => Grouping::Always,
+        other => bail!("--grouping: '{other}' is not one of auto, never, always"),
+    };
+    let base = ShadowParams { layers: a.layers, n_seeds: a.n, seed: a.scene.seed, grouping, ..ShadowParams::default() };
     base.validate()?;
     let cfg = EvalConfig {
         samples,
@@ -269,6 +281,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             "height": a.size.height,
             "light": light_json,
             "layers": a.layers,
+            "grouping": a.grouping.to_ascii_lowercase(),
             "n": a.n,
             "reps": a.reps,
             "warmup": a.warmup,
