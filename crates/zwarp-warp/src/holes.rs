@@ -186,8 +186,10 @@ const BACKGROUND_SEEDS: usize = 2;
 ///    the empty background the source shows there — sky: it keeps the far depth and becomes
 ///    [`PixelState::Converged`] (it did converge, on an empty sample). Without this step a sky
 ///    pixel between two surfaces would be filled with the farther surface.
-/// 2. **Bracketed holes**: [`fill_holes`] with [`FillRule::Background`] and `radius`
-///    (disocclusion slivers take the farther side).
+/// 2. **Bracketed holes**: [`fill_holes`] with [`FillRule::Background`] (disocclusion slivers
+///    take the farther side), bracketed within the motion range of the source surfaces plus one
+///    pixel (no disocclusion opens wider than the motions of its two sides differ), at most
+///    `radius` (1..=64).
 /// 3. **Image border**: a hole whose row (or column) runs to the image border, where the source
 ///    has no pixels (the strip a moving camera uncovers), takes the depth of the nearest
 ///    converged pixel inwards along that row or column, within the largest motion of the source
@@ -204,6 +206,9 @@ pub fn fill_background(
 ) -> Result<()> {
     let (w, h) = out.depth.size();
     let source = layers.first().ok_or_else(|| Error::invalid("fill_background needs at least one source layer"))?;
+    if !(1..=64).contains(&radius) {
+        return Err(Error::invalid(format!("fill_background: radius must be in 1..=64, got {radius}")));
+    }
     for (k, l) in layers.iter().enumerate() {
         if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
             return Err(Error::invalid(format!(
@@ -241,16 +246,21 @@ pub fn fill_background(
                 }
             }
         });
-    // 2. Bracketed holes.
-    fill_holes(&mut out.depth, &mut out.state, radius, FillRule::Background);
-    // 3. Holes open to the image border.
-    let max_motion = layers
+    // The motion of the surfaces bounds how wide a hole can open: a disocclusion between two
+    // surfaces is at most as wide as their motions differ (the motion range), a border strip at
+    // most as wide as the largest motion.
+    let (lo, hi) = layers
         .iter()
         .flat_map(|l| l.depth.data().iter().zip(l.motion.data()))
         .filter(|(d, m)| **d < EMPTY_DEPTH && m.v.is_finite())
-        .map(|(_, m)| m.v.abs().max_element())
-        .fold(0.0f32, f32::max);
-    let reach = (max_motion.ceil() as i64 + 1).min(w.max(h) as i64);
+        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), (_, m)| (lo.min(m.v), hi.max(m.v)));
+    let (range, largest) =
+        if lo.x <= hi.x { ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element()) } else { (0.0, 0.0) };
+    // 2. Bracketed holes, within the motion range (at most `radius`).
+    let bracket = (range.ceil() as u32 + 1).min(radius);
+    fill_holes(&mut out.depth, &mut out.state, bracket, FillRule::Background);
+    // 3. Holes open to the image border.
+    let reach = (largest.ceil() as i64 + 1).min(w.max(h) as i64);
     fill_border_holes(&mut out.depth, &mut out.state, reach);
     Ok(())
 }
@@ -490,6 +500,9 @@ mod tests {
         let err = fill_background(&[WarpLayer { depth: &d2, motion: &m2 }], &mut out, 4, &search).unwrap_err();
         assert!(err.to_string().contains("7x4"), "{err}");
         assert!(fill_background(&[], &mut out, 4, &search).is_err());
+        let layers = [WarpLayer { depth: &d, motion: &m }];
+        assert!(fill_background(&layers, &mut out, 0, &search).unwrap_err().to_string().contains("radius"));
+        assert!(fill_background(&layers, &mut out, 65, &search).is_err());
     }
 
     #[test]

@@ -155,7 +155,35 @@ impl EvalPlan {
     /// The hole policy of our warp with `l` layers: the explicit `--holes`, or the paper's Sec. 4
     /// protocol (holes filled with the background depth, at every L; see `EvalArgs::holes`).
     pub fn holes_for(&self, _l: usize) -> HolePolicy {
-        self.holes.unwrap_or(HolePolicy::Background { radius: 4 })
+        self.holes.unwrap_or(HolePolicy::Background { radius: 64 })
+    }
+}
+
+/// The same hole protocol for the forward-warping baselines as for ours, so the comparison is
+/// fair: under [`HolePolicy::Background`] their uncovered pixels (far depth) go through
+/// `fill_background` too (sky seen through them stays far); other policies leave them far.
+fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy) -> Result<Image<f32>> {
+    let HolePolicy::Background { radius } = holes else { return Ok(depth) };
+    let state = Image::from_fn(depth.width(), depth.height(), |x, y| {
+        if *depth.get(x, y) >= zwarp_core::EMPTY_DEPTH {
+            zwarp_warp::PixelState::Hole
+        } else {
+            zwarp_warp::PixelState::Converged
+        }
+    });
+    let search = search_params(&WarpParams::default());
+    let mut out = zwarp_warp::WarpOutput { depth, state, source: None };
+    zwarp_warp::holes::fill_background(layers, &mut out, radius, &search)?;
+    Ok(out.depth)
+}
+
+/// The fixed-point search settings of `p` (for the background fill's search).
+fn search_params(p: &WarpParams) -> zwarp_warp::SearchParams {
+    zwarp_warp::SearchParams {
+        iterations: p.iterations,
+        threshold: p.threshold,
+        choice: p.choice,
+        accelerate: p.accelerate,
     }
 }
 
@@ -213,7 +241,7 @@ impl EvalArgs {
             "far" => Some(HolePolicy::FarDepth),
             "dilate" => Some(HolePolicy::Dilate { radius: 4 }),
             "awoc" => Some(HolePolicy::Awoc),
-            "background" => Some(HolePolicy::Background { radius: 4 }),
+            "background" => Some(HolePolicy::Background { radius: 64 }),
             o => bail!("--holes: unknown hole policy '{o}' (paper, far, dilate, awoc, background)"),
         };
         let umbra = match self.peel.as_str() {
@@ -485,12 +513,7 @@ pub fn evaluate(
                                         } else {
                                             params
                                         };
-                                        let search = zwarp_warp::SearchParams {
-                                            iterations: params.iterations,
-                                            threshold: params.threshold,
-                                            choice: params.choice,
-                                            accelerate: params.accelerate,
-                                        };
+                                        let search = search_params(&params);
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
                                             let mut o = match &gpu {
                                                 Some((_, _, kernel, _)) => kernel.warp(&layers, &warp_params)?,
@@ -505,10 +528,12 @@ pub fn evaluate(
                                 }
                             }
                         }
-                        "vfw" => {
-                            run(("vfw".into(), l, 0, 0, None), &mut || Ok((zwarp_warp::vfw_layers(&layers)?, None)))?
-                        }
-                        _ => run(("afw".into(), l, 0, 0, None), &mut || Ok((zwarp_warp::afw_layers(&layers)?, None)))?,
+                        "vfw" => run(("vfw".into(), l, 0, 0, None), &mut || {
+                            Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes_for(l))?, None))
+                        })?,
+                        _ => run(("afw".into(), l, 0, 0, None), &mut || {
+                            Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes_for(l))?, None))
+                        })?,
                     }
                 }
             }
@@ -525,7 +550,12 @@ pub fn evaluate(
                 l: key.1,
                 t: key.3,
                 bound: key.4.map_or("-", bound_name).to_string(),
-                holes: if key.4.is_some() { hole_name(plan.holes_for(key.1)).to_string() } else { "-".to_string() },
+                holes: match (key.4, plan.holes_for(key.1)) {
+                    (Some(_), h) => hole_name(h),
+                    (None, h @ HolePolicy::Background { .. }) => hole_name(h),
+                    (None, _) => "far",
+                }
+                .to_string(),
                 speed,
                 frames: pairs.len(),
                 width: plan.width,
