@@ -527,6 +527,14 @@ impl Kernel<'_> {
                 if best.is_some_and(|b| tile_min_depth >= b.depth) {
                     continue;
                 }
+                // The same test over this pixel's region under the tile's bound, before any
+                // tightening: exact, because the tightened region lies inside it and a min-depth
+                // look-up over a sub-range (at a finer or equal level, whose texels nest in the
+                // coarser ones read here) is never smaller. One look-up instead of a tightening.
+                let Some(r) = pyr.pixel_range(&pyr.region(p, &start), expand) else { continue };
+                if best.is_some_and(|b| pyr.lookup_min_depth(r.0, r.1, r.2, r.3) >= b.depth) {
+                    continue;
+                }
                 let Some(tb) =
                     pyr.tight_bound_box_with_depth_scaled(p, p, start, self.bound_iterations(), expand, scale)
                 else {

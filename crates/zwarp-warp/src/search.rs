@@ -277,8 +277,8 @@ pub enum SeedStrategy {
     Offset(Vec2),
 }
 
-/// Residual (pixels) below which a converged seed is not polished: the position error is then
-/// already far below a pixel and the extra sample would not change the depth measurably.
+/// Residual (pixels) below which a converged seed was not polished by earlier versions of
+/// [`fixed_point_search`]. The search no longer polishes (see there); kept for API stability.
 pub const POLISH_MIN_RESIDUAL: f32 = 0.05;
 
 /// Parameters of one fixed-point search.
@@ -308,9 +308,9 @@ pub struct Candidate {
 }
 
 /// The fixed-point search of Fig. 3 for target position `p` from each of `seeds`: at most
-/// `params.iterations` (T) samples per seed, converged when `|q_{i+1} - q_i| < threshold`
-/// (plus one polishing sample at `q_{i+1}` for a converged seed whose step was at least
-/// [`POLISH_MIN_RESIDUAL`]; kept if its residual is smaller).
+/// `params.iterations` (T) samples per seed, converged when `|q_{i+1} - q_i| < threshold`; the
+/// candidate is the sample at `q_i` (no extra "polishing" sample: measured neutral for quality
+/// on the procedural scenes and ~10 % of the warp's cost).
 ///
 /// With `params.accelerate` (a zwarp addition to Fig. 3, Bowles' "future work"), the next
 /// iterate is the Newton step `q + (I + Dv)^-1 (p - v(q) - q)` where the sample has a Jacobian
@@ -337,39 +337,11 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
             let w = p - s.v;
             let step = w - q;
             let r2 = step.length_squared();
-            // Next iterate: the plain step `w`, or with `accelerate` the Newton step on
-            // F(q) = q + v(q) - p with the sample's Jacobian, solving (I + Dv) d = p - v(q) - q.
-            // Plain iteration contracts only by rho = |Dv| per step and diverges where the warp
-            // magnifies by 2x or more (Bowles' rho >= 1); Newton converges quadratically on
-            // smooth motion and is the plain step where Dv = 0 (translation, nearest sampling
-            // at discontinuities). Near a fold (I + Dv singular) the plain step is kept.
-            // Evaluated only where needed (not for a converged seed that is not polished: the
-            // division was a visible share of the warp).
-            let next = || {
-                if params.accelerate {
-                    let [a, b] = s.dv;
-                    let (m00, m01, m10, m11) = (1.0 + a.x, b.x, a.y, 1.0 + b.y);
-                    let det = m00 * m11 - m01 * m10;
-                    if det.abs() > 0.05 {
-                        return q + Vec2::new(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
-                    }
-                }
-                w
-            };
             if r2 < thr2 {
-                let mut c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
-                // Polish: `next` is one more step towards the exact fixed point. One extra
-                // sample keeps it if its residual is smaller, which removes most of the
-                // up-to-threshold position error on smooth surfaces (visible on slanted ground
-                // near the horizon) while keeping `|q + v(q) - p| < threshold`.
-                if r2 > POLISH_MIN_RESIDUAL * POLISH_MIN_RESIDUAL {
-                    let next = next();
-                    if let Some(s2) = src.sample(next, &mut walk) {
-                        if (p - s2.v - next).length_squared() < r2 {
-                            c = Candidate { q: next, depth: s2.depth, tag: s2.tag, seed: i as u32 };
-                        }
-                    }
-                }
+                // Converged: the sample at `q` (Fig. 3). Earlier versions took one more
+                // "polishing" sample at the next iterate; on the procedural scenes it cost ~10 %
+                // of the warp and changed PSNR / SSIM by < 0.03 dB / 0.0002 (up, not down).
+                let c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
                 match params.choice {
                     CandidateChoice::FirstConverged => return Some(c),
                     CandidateChoice::MinDepth => {
@@ -380,7 +352,22 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
                 }
                 break;
             }
-            q = next();
+            // Next iterate: the plain step `w`, or with `accelerate` the Newton step on
+            // F(q) = q + v(q) - p with the sample's Jacobian, solving (I + Dv) d = p - v(q) - q.
+            // Plain iteration contracts only by rho = |Dv| per step and diverges where the warp
+            // magnifies by 2x or more (Bowles' rho >= 1); Newton converges quadratically on
+            // smooth motion and is the plain step where Dv = 0 (translation, nearest sampling
+            // at discontinuities). Near a fold (I + Dv singular) the plain step is kept.
+            let mut next = w;
+            if params.accelerate {
+                let [a, b] = s.dv;
+                let (m00, m01, m10, m11) = (1.0 + a.x, b.x, a.y, 1.0 + b.y);
+                let det = m00 * m11 - m01 * m10;
+                if det.abs() > 0.05 {
+                    next = q + Vec2::new(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
+                }
+            }
+            q = next;
         }
     }
     best

@@ -6,8 +6,8 @@
 //! [`BoundKind`] (Oriented: the per-layer PCA frame is chosen on the CPU by
 //! [`WarpKernel::frames`], exactly as `PreparedLayer::prepare_stack` does, and passed in
 //! [`GpuWarpLayer::axis`]); everything else is reproduced as on the CPU: N stratified seeds (corners + R2 sequence with the same PCG `seed_key` jitter),
-//! T iterations, the convergence threshold, Newton steps (`accelerate`) and the polishing
-//! sample, adaptive or nearest sampling, minimal-depth (or first-converged) candidates,
+//! T iterations, the convergence threshold, Newton steps (`accelerate`), adaptive or nearest
+//! sampling, minimal-depth (or first-converged) candidates,
 //! cross-layer seeding and borrowing (Fig. 6), the 4x4-tile then per-pixel bound tightening
 //! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
 //! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication

@@ -48,8 +48,7 @@ const FLAG_BACKGROUND: u32 = 64u;
 // the first searched layer's tight region.
 const FLAG_AWOC: u32 = 128u;
 const EMPTY_Z: f32 = 2.0;
-// zwarp_warp::search::POLISH_MIN_RESIDUAL and CONTINUITY_PX.
-const POLISH: f32 = 0.05;
+// zwarp_warp::search::CONTINUITY_PX.
 const CONTINUITY: f32 = 1.0;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
 // f32::EPSILON.
@@ -670,16 +669,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                     }
                 }
                 if (r2 < thr2) {
-                    var c = Cand(true, q, s.depth, s.tag);
-                    if (r2 > POLISH * POLISH) {
-                        let s2 = stack_sample(k, next, &empties);
-                        if (s2.ok) {
-                            let st2 = p - s2.v - next;
-                            if (dot(st2, st2) < r2) {
-                                c = Cand(true, next, s2.depth, s2.tag);
-                            }
-                        }
-                    }
+                    // search::fixed_point_search: the sample at q, no polishing sample.
+                    let c = Cand(true, q, s.depth, s.tag);
                     if (!found.ok || c.depth < found.depth) {
                         found = c;
                     }
