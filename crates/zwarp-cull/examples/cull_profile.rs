@@ -102,11 +102,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let k: usize = k.parse()?;
         let prev = zwarp_raster::render_frame(scene, &frames[0].1, frames[0].0, &Default::default())?;
         let pf = zwarp_cull::PrevFrame { depth: &prev.depth, items: &prev.items, cam: &frames[0].1, t: frames[0].0 };
+        // Boxes kept across frames, as `run_sequence` (and an engine) keeps them.
+        let bounds = zwarp_cull::ObjectBounds::new(scene);
         for &f in &downs {
             let p = WocParams { downsample: f, ..base };
             let mut best = [f64::INFINITY; 8];
             for _ in 0..k {
-                let r = zwarp_cull::woc(scene, &pf, &frames[1].1, frames[1].0, &p)?;
+                let r = zwarp_cull::woc_with(scene, &bounds, &pf, &frames[1].1, frames[1].0, &p)?;
                 let c = r.timings;
                 let v =
                     [c.motion_ms, c.warp_ms, c.erosion_ms, c.draw_ms, c.build_ms, c.test_ms, c.hybrid_ms, c.total_ms];
@@ -121,7 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         let mut best = f64::INFINITY;
         for _ in 0..k {
-            best = best.min(zwarp_cull::vfc_cull(scene, &frames[1].1, frames[1].0)?.timings.total_ms);
+            best = best.min(zwarp_cull::vfc_cull_with(scene, &bounds, &frames[1].1, frames[1].0)?.timings.total_ms);
         }
         println!("vfc min of {k}: {best:.2}");
         return Ok(());

@@ -1,6 +1,7 @@
 //! zwarp-cull: warping-based occlusion culling (WOC, seed 000 Sec. 5; thesis seed 002).
 //!
 //! The building blocks, usable on their own with any depth buffer:
+//! - [`bounds`]: the objects' world boxes kept across frames (static ones stored once);
 //! - [`frustum`]: view-frustum culling (VFC) of world AABBs, the first test of WOC;
 //! - [`screen`]: screen-space bounds (pixel rectangle + nearest depth) of an AABB proxy;
 //! - [`maxdepth`]: max-depth structures answering `is_occluded(rect, nearest)` — max mipmap
@@ -16,6 +17,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bounds;
 pub mod diagnose;
 pub mod frustum;
 pub mod holebound;
@@ -24,6 +26,7 @@ pub mod screen;
 pub mod sequence;
 pub mod woc;
 
+pub use bounds::ObjectBounds;
 pub use diagnose::{culled_visible, CulledVisible};
 pub use frustum::{vfc, Frustum};
 pub use holebound::{bound_far_pixels, StaticRays};
@@ -31,13 +34,14 @@ pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
 pub use screen::{
-    hull_x_range_in_strip, screen_hull_with, screen_rect, screen_rect_with, square_meets_hull, PixelRect, ScreenRect,
+    hull_of_corners, hull_x_range_in_strip, project_corner_lanes, project_corners, rect_of_corners, screen_hull_with,
+    screen_rect, screen_rect_with, square_meets_hull, CornerLanes, PixelRect, ScreenRect,
 };
 pub use sequence::{run_sequence, summarize, FrameReport, Method, SequenceSummary};
 pub use woc::{
-    aabb_triangles, accuracy, coarse_camera, cull_against_depth, downsample_max, hybrid_cull, ideal_screen_space,
-    lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference, screen_speed, twophase,
-    vfc_cull, visible_from_items, woc, woc_motion_field, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame,
-    RimMode, TwoPhaseResult, WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE,
-    NEIGHBOURS, RIM_MARGIN,
+    aabb_triangles, accuracy, coarse_camera, cull_against_depth, cull_against_depth_with, downsample_max, hybrid_cull,
+    ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
+    screen_speed, twophase, twophase_with, vfc_cull, vfc_cull_with, visible_from_items, woc, woc_motion_field,
+    woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode, TwoPhaseResult, WocParams,
+    DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
 };

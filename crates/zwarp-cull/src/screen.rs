@@ -3,8 +3,8 @@
 //! nearest corner depth are what the max-depth query tests ("when the minimum depth of the
 //! proxy corners exceeds the maximum of the screen-space depth, we can safely cull").
 
-use glam::{Mat4, Vec2};
-use zwarp_core::{camera::project_with, Aabb, Camera, Error, Result};
+use glam::{Mat4, Vec2, Vec3, Vec4};
+use zwarp_core::{Aabb, Camera, Error, Result};
 
 /// A non-empty, half-open pixel rectangle `[x0, x1) x [y0, y1)` (row 0 at the top).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -80,6 +80,97 @@ pub fn screen_rect(aabb: &Aabb, cam: &Camera) -> ScreenRect {
     screen_rect_with(aabb, &cam.view_proj(), cam.width, cam.height)
 }
 
+/// The 8 projected corners of a box in lanes: corner `4 h + k` (in [`Aabb::corners`] order:
+/// bit 0 = x, bit 1 = y, bit 2 = z) is lane `k` of half `h` (see [`project_corner_lanes`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CornerLanes {
+    /// Pixel x of the corners.
+    pub x: [Vec4; 2],
+    /// Pixel y (row 0 at the top).
+    pub y: [Vec4; 2],
+    /// Stored depth.
+    pub z: [Vec4; 2],
+}
+
+impl CornerLanes {
+    /// The corners as points (pixel x, pixel y, depth), in [`Aabb::corners`] order.
+    pub fn points(&self) -> [Vec3; 8] {
+        std::array::from_fn(|i| {
+            let (h, k) = (i >> 2, i & 3);
+            Vec3::new(self.x[h][k], self.y[h][k], self.z[h][k])
+        })
+    }
+}
+
+/// The 8 corners of `aabb` projected to pixel coordinates + stored depth, or `None` when one
+/// is behind the eye, in front of the near plane or not finite (the box then crosses the near
+/// plane and must be kept).
+///
+/// Bit-identical to [`zwarp_core::camera::project_with`] on each corner, at a fraction of the
+/// cost: glam's `Mat4 * Vec4` sums `x_axis * x + y_axis * y + z_axis * z + w_axis` in that
+/// order, and a box corner takes each coordinate from `min` or `max`, so each clip component
+/// of four corners is one lane-parallel evaluation of that same sum (the screen-space tests of
+/// seed 000 Sec. 5.2 project every box in the frustum once per frame).
+#[inline]
+pub fn project_corner_lanes(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> Option<CornerLanes> {
+    let (a, b) = (aabb.min, aabb.max);
+    let m = view_proj;
+    let px = Vec4::new(a.x, b.x, a.x, b.x);
+    let py = Vec4::new(a.y, a.y, b.y, b.y);
+    let comp = |c: usize| -> [Vec4; 2] {
+        let xy = Vec4::splat(m.x_axis[c]) * px + Vec4::splat(m.y_axis[c]) * py;
+        let w = Vec4::splat(m.w_axis[c]);
+        [xy + Vec4::splat(m.z_axis[c] * a.z) + w, xy + Vec4::splat(m.z_axis[c] * b.z) + w]
+    };
+    let (cx, cy, cz, cw) = (comp(0), comp(1), comp(2), comp(3));
+    if cw[0].cmple(Vec4::ZERO).any() || cw[1].cmple(Vec4::ZERO).any() {
+        return None;
+    }
+    let (w, h) = (Vec4::splat(width as f32), Vec4::splat(height as f32));
+    let half = Vec4::splat(0.5);
+    let mut out = CornerLanes { x: [Vec4::ZERO; 2], y: [Vec4::ZERO; 2], z: [Vec4::ZERO; 2] };
+    for k in 0..2 {
+        let inv_w = Vec4::ONE / cw[k];
+        let (nx, ny, nz) = (cx[k] * inv_w, cy[k] * inv_w, cz[k] * inv_w);
+        out.x[k] = (nx + Vec4::ONE) * half * w;
+        out.y[k] = (Vec4::ONE - ny) * half * h;
+        out.z[k] = nz;
+        if !(nz.cmpge(Vec4::ZERO).all() && out.x[k].is_finite() && out.y[k].is_finite() && nz.is_finite()) {
+            return None;
+        }
+    }
+    Some(out)
+}
+
+/// [`project_corner_lanes`] as points, in [`Aabb::corners`] order.
+#[inline]
+pub fn project_corners(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> Option<[Vec3; 8]> {
+    project_corner_lanes(aabb, view_proj, width, height).map(|l| l.points())
+}
+
+/// `v.floor()` for `|v| < 2^31` without a libm call (the default x86-64 target has no SSE4.1
+/// `roundps`, so `f32::floor` is a function call in the per-object loops).
+#[inline(always)]
+pub(crate) fn ffloor(v: f32) -> f32 {
+    let t = v as i32 as f32;
+    if t > v {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// `v.ceil()` for `|v| < 2^31`, see [`ffloor`].
+#[inline(always)]
+pub(crate) fn fceil(v: f32) -> f32 {
+    let t = v as i32 as f32;
+    if t < v {
+        t + 1.0
+    } else {
+        t
+    }
+}
+
 /// Hot-loop form of [`screen_rect`] with a precomputed view-projection matrix.
 pub fn screen_rect_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> ScreenRect {
     if aabb.min.is_nan() || aabb.max.is_nan() || !aabb.min.is_finite() && !aabb.is_empty() {
@@ -89,30 +180,30 @@ pub fn screen_rect_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) 
     if aabb.is_empty() || width == 0 || height == 0 {
         return ScreenRect::Outside;
     }
-    let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY);
-    let mut nearest = f32::INFINITY;
-    for c in aabb.corners() {
-        match project_with(view_proj, width, height, c) {
-            Some(s) if s.z >= 0.0 && s.is_finite() => {
-                lo_x = lo_x.min(s.x);
-                lo_y = lo_y.min(s.y);
-                hi_x = hi_x.max(s.x);
-                hi_y = hi_y.max(s.y);
-                nearest = nearest.min(s.z);
-            }
-            // Behind the eye (w <= 0) or closer than the near plane (z < 0).
-            _ => return ScreenRect::CrossesNear,
-        }
+    match project_corner_lanes(aabb, view_proj, width, height) {
+        Some(c) => rect_of_corners(&c, width, height),
+        // Behind the eye (w <= 0) or closer than the near plane (z < 0).
+        None => ScreenRect::CrossesNear,
     }
+}
+
+/// The [`ScreenRect`] of corners from [`project_corner_lanes`] (all in front of the near plane).
+#[inline]
+pub fn rect_of_corners(c: &CornerLanes, width: u32, height: u32) -> ScreenRect {
+    let (lo_x, hi_x) = (c.x[0].min(c.x[1]).min_element(), c.x[0].max(c.x[1]).max_element());
+    let (lo_y, hi_y) = (c.y[0].min(c.y[1]).min_element(), c.y[0].max(c.y[1]).max_element());
+    let nearest = c.z[0].min(c.z[1]).min_element();
     if nearest > 1.0 {
         return ScreenRect::Outside;
     }
     let (w, h) = (width as f32, height as f32);
-    // Pixel x covers [x, x + 1): the box touches columns floor(lo) ..= ceil(hi) - 1.
-    let x0 = (lo_x - PIXEL_SLACK).floor().max(0.0);
-    let y0 = (lo_y - PIXEL_SLACK).floor().max(0.0);
-    let x1 = (hi_x + PIXEL_SLACK).ceil().min(w);
-    let y1 = (hi_y + PIXEL_SLACK).ceil().min(h);
+    // Pixel x covers [x, x + 1): the box touches columns floor(lo) ..= ceil(hi) - 1. Clamping
+    // to the image before rounding gives the same bounds as rounding first (the clamp limits
+    // are integers) and keeps the fast rounding in its exact range.
+    let x0 = ffloor((lo_x - PIXEL_SLACK).clamp(0.0, w));
+    let y0 = ffloor((lo_y - PIXEL_SLACK).clamp(0.0, h));
+    let x1 = fceil((hi_x + PIXEL_SLACK).clamp(0.0, w));
+    let y1 = fceil((hi_y + PIXEL_SLACK).clamp(0.0, h));
     if x0 >= x1 || y0 >= y1 {
         return ScreenRect::Outside;
     }
@@ -127,13 +218,13 @@ pub fn screen_hull_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) 
     if aabb.is_empty() || !aabb.min.is_finite() || !aabb.max.is_finite() {
         return None;
     }
-    let mut pts = [Vec2::ZERO; 8];
-    for (p, c) in pts.iter_mut().zip(aabb.corners()) {
-        match project_with(view_proj, width, height, c) {
-            Some(s) if s.z >= 0.0 && s.is_finite() => *p = s.truncate(),
-            _ => return None,
-        }
-    }
+    project_corner_lanes(aabb, view_proj, width, height).map(|c| hull_of_corners(&c.points()))
+}
+
+/// The convex hull (counter-clockwise, at most 8 vertices, see [`screen_hull_with`]) of
+/// projected corners from [`project_corners`].
+pub fn hull_of_corners(corners: &[Vec3; 8]) -> ([Vec2; 8], usize) {
+    let mut pts = corners.map(|c| c.truncate());
     // Andrew's monotone chain.
     pts.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
@@ -157,7 +248,7 @@ pub fn screen_hull_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) 
     let n = (k - 1).max(1);
     let mut out = [Vec2::ZERO; 8];
     out[..n.min(8)].copy_from_slice(&hull[..n.min(8)]);
-    Some((out, n.min(8)))
+    (out, n.min(8))
 }
 
 /// Whether the closed pixel square `[x, x + 1] x [y, y + 1]`, grown by `slack` pixels, meets
@@ -261,6 +352,48 @@ mod tests {
         let b = Aabb::new(Vec3::new(-1.0, -1.0, -200.0), Vec3::new(1.0, 1.0, -150.0));
         assert_eq!(screen_rect(&b, &c), ScreenRect::Outside);
         assert_eq!(screen_rect(&Aabb::EMPTY, &c), ScreenRect::Outside);
+    }
+
+    #[test]
+    fn lane_projection_is_bit_identical_to_project_with() {
+        let c = Camera::perspective(Vec3::new(1.0, 2.0, 10.0), Vec3::ZERO, Vec3::Y, 1.2, 0.1, 100.0, 37, 23).unwrap();
+        let vp = c.view_proj();
+        let mut seed = 99u32;
+        let mut rnd = |lo: f32, hi: f32| {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            lo + (hi - lo) * (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let (mut some, mut none) = (0, 0);
+        for _ in 0..5000 {
+            let ctr = Vec3::new(rnd(-30.0, 30.0), rnd(-30.0, 30.0), rnd(-60.0, 15.0));
+            let e = Vec3::new(rnd(0.0, 4.0), rnd(0.0, 4.0), rnd(0.0, 4.0));
+            let b = Aabb::new(ctr - e, ctr + e);
+            let scalar: Option<Vec<Vec3>> = b
+                .corners()
+                .iter()
+                .map(|&p| zwarp_core::camera::project_with(&vp, 37, 23, p).filter(|s| s.z >= 0.0 && s.is_finite()))
+                .collect();
+            let lanes = project_corners(&b, &vp, 37, 23);
+            match (scalar, lanes) {
+                (Some(s), Some(l)) => {
+                    some += 1;
+                    for (p, q) in s.iter().zip(&l) {
+                        assert_eq!(p.to_array().map(f32::to_bits), q.to_array().map(f32::to_bits), "{b:?}");
+                    }
+                }
+                (None, None) => none += 1,
+                (s, l) => panic!("{b:?}: {s:?} vs {l:?}"),
+            }
+        }
+        assert!(some > 1000 && none > 200, "{some} {none}");
+    }
+
+    #[test]
+    fn fast_rounding_matches_floor_and_ceil() {
+        for v in [-3.5f32, -3.0, -0.5, -0.0, 0.0, 0.25, 1.0, 1.5, 959.999, 960.0, 1e6 + 0.5, -1e6 - 0.5] {
+            assert_eq!(ffloor(v), v.floor(), "{v}");
+            assert_eq!(fceil(v), v.ceil(), "{v}");
+        }
     }
 
     #[test]

@@ -10,10 +10,12 @@ use serde::Serialize;
 use zwarp_core::{Camera, Error, Result, Scene};
 use zwarp_raster::{render_frame, Frame, FrameOptions};
 
+use crate::bounds::ObjectBounds;
 use crate::diagnose::{culled_visible, CulledVisible};
+use crate::maxdepth::MaxDepthKind;
 use crate::woc::{
-    accuracy, ideal_screen_space, lastframe, nocull, twophase, vfc_cull, visible_from_items, woc, CullAccuracy,
-    CullResult, CullStats, CullTimings, PrevFrame, WocParams,
+    accuracy, cull_against_depth_with, nocull, twophase_with, vfc_cull_with, visible_from_items, woc_with,
+    CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, WocParams,
 };
 
 /// The culling methods compared in seed 000 Table 5 / Table 7 and thesis Table 3.
@@ -149,6 +151,9 @@ pub fn run_sequence(
         ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
     };
     let full_triangles = scene.triangle_count();
+    // The objects' boxes, kept across frames as an engine keeps them (static ones stored once),
+    // shared by every method.
+    let bounds = ObjectBounds::new(scene);
     let mut prev: Option<(Frame, Vec<u32>)> = None;
     let mut out = Vec::with_capacity(frames.len());
     for (k, (t, cam)) in frames.iter().enumerate() {
@@ -163,7 +168,7 @@ pub fn run_sequence(
         let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
         let bootstrap = history && prev.is_none();
         let (visible, cull, stats, drawn, draw_ms, occ) = if bootstrap && method != Method::TwoPhase {
-            let r = vfc_cull(scene, cam, t)?;
+            let r = vfc_cull_with(scene, &bounds, cam, t)?;
             let (f, d) = draw(scene, cam, t, &r.visible)?;
             (r.visible, r.timings, r.stats, f, d, None)
         } else {
@@ -171,7 +176,7 @@ pub fn run_sequence(
                 Method::TwoPhase => {
                     let pv = prev.as_ref().map(|(_, v)| v.as_slice()).unwrap_or(&[]);
                     // For two-phase, `prev`'s set is the re-tested `next_visible` (see below).
-                    let r = twophase(scene, pv, cam, t, params.max_depth)?;
+                    let r = twophase_with(scene, &bounds, pv, cam, t, params.max_depth)?;
                     // The items of the final frame are not needed by two-phase; re-rendering
                     // them would distort the timing, so the drawn frame is rebuilt from depth.
                     let drawn = Frame { depth: r.depth, items: full.items.clone(), color: None };
@@ -186,8 +191,10 @@ pub fn run_sequence(
                 _ => {
                     let r = match method {
                         Method::NoCull => nocull(scene),
-                        Method::Vfc => vfc_cull(scene, cam, t)?,
-                        Method::Ideal => ideal_screen_space(scene, &full.depth, cam, t)?,
+                        Method::Vfc => vfc_cull_with(scene, &bounds, cam, t)?,
+                        Method::Ideal => {
+                            cull_against_depth_with(scene, &bounds, &full.depth, cam, t, MaxDepthKind::NBuffer, None)?
+                        }
                         Method::Ref => CullResult {
                             visible: reference.clone(),
                             timings: CullTimings::default(),
@@ -197,13 +204,20 @@ pub fn run_sequence(
                         },
                         Method::LastFrame => {
                             let (pf, _) = prev.as_ref().expect("not bootstrap");
-                            lastframe(scene, &pf.depth, cam, t, params.max_depth)?
+                            cull_against_depth_with(scene, &bounds, &pf.depth, cam, t, params.max_depth, None)?
                         }
                         Method::Woc | Method::Awoc => {
                             let (pf, _) = prev.as_ref().expect("not bootstrap");
                             let (_, pcam) = &frames[k - 1];
                             let p = PrevFrame { depth: &pf.depth, items: &pf.items, cam: pcam, t: frames[k - 1].0 };
-                            woc(scene, &p, cam, t, &WocParams { awoc: method == Method::Awoc, ..*params })?
+                            woc_with(
+                                scene,
+                                &bounds,
+                                &p,
+                                cam,
+                                t,
+                                &WocParams { awoc: method == Method::Awoc, ..*params },
+                            )?
                         }
                         Method::TwoPhase => unreachable!("handled above"),
                     };

@@ -27,9 +27,10 @@ use zwarp_core::{Aabb, Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM
 use zwarp_raster::{any_fragment_visible, draw_into, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, HolePolicy, PixelState, Sampling, SourcePos, WarpLayer, WarpParams};
 
+use crate::bounds::ObjectBounds;
 use crate::frustum::Frustum;
 use crate::maxdepth::{erode_max, MaxDepthKind, MaxDepthMap, MaxDepthQuery};
-use crate::screen::{screen_rect_with, ScreenRect};
+use crate::screen::{screen_rect_with, PixelRect, ScreenRect};
 
 /// The previous frame: its rendered depth and item buffers, camera and scene time. In a real
 /// engine these are the side products of drawing the previous frame's visible set.
@@ -293,6 +294,15 @@ pub fn instance_aabbs(scene: &Scene, t: f32) -> Vec<Aabb> {
 }
 
 fn check_camera_depth(depth: &Image<f32>, cam: &Camera, what: &str) -> Result<()> {
+    check_camera_size(depth, cam, what)?;
+    if depth.data().par_iter().any(|d| d.is_nan()) {
+        return Err(Error::invalid(format!("{what} holds NaN")));
+    }
+    Ok(())
+}
+
+/// [`check_camera_depth`] without the NaN scan (done by the caller's own pass over the data).
+fn check_camera_size(depth: &Image<f32>, cam: &Camera, what: &str) -> Result<()> {
     depth.check_nonempty(what)?;
     if depth.size() != (cam.width, cam.height) {
         return Err(Error::invalid(format!(
@@ -302,9 +312,6 @@ fn check_camera_depth(depth: &Image<f32>, cam: &Camera, what: &str) -> Result<()
             cam.width,
             cam.height
         )));
-    }
-    if depth.data().par_iter().any(|d| d.is_nan()) {
-        return Err(Error::invalid(format!("{what} holds NaN")));
     }
     Ok(())
 }
@@ -385,55 +392,67 @@ fn test_objects_in(
 /// cost more than drawing most of them).
 pub const HULL_TEST_MAX_AREA: u64 = 16_384;
 
-/// Second screen-space test (see [`WocParams::hull_test`]): an object the rectangle test keeps
-/// is culled when no pixel of its rectangle that could show it (predicted depth not nearer
-/// than its nearest corner, [`DEPTH_TOLERANCE`] included) touches the box's projected
-/// silhouette (the convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`]):
-/// at full resolution the pixel centre must lie in it (the renderer's coverage rule), at a
-/// coarse resolution any part of the coarse pixel (so every fine pixel centre under it counts).
-fn refine_by_hull(aabbs: &[Aabb], classes: &mut [Class], cam: &Camera, predicted: &Image<f32>, centres: bool) {
+/// Second screen-space test (see [`WocParams::hull_test`]): `true` when an object whose box
+/// `b` has the screen rectangle `rect` (which the rectangle test kept) is hidden after all: no
+/// pixel of its rectangle that could show it (`predicted` depth not nearer than `limit`, its
+/// nearest corner depth minus [`DEPTH_TOLERANCE`]) touches the box's projected silhouette (the
+/// convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`]): at full
+/// resolution the pixel centre must lie in it (the renderer's coverage rule), at a coarse
+/// resolution any part of the coarse pixel (so every fine pixel centre under it counts).
+/// Rectangles above [`HULL_TEST_MAX_AREA`] and boxes crossing the near plane are kept.
+#[allow(clippy::too_many_arguments)]
+fn hull_hides(
+    b: &Aabb,
+    rect: PixelRect,
+    limit: f32,
+    vp: &glam::Mat4,
+    (w, h): (u32, u32),
+    predicted: &[f32],
+    centres: bool,
+) -> bool {
+    use crate::screen::{fceil, ffloor};
     // Full resolution: the rasterizer covers pixel centres, so the silhouette must contain the
     // centre (a 0.02 px square around it, against f32 rounding). Coarse: the whole square.
     let slack = if centres { -0.49 } else { 0.01 };
-    let vp = cam.view_proj();
-    let (w, h) = (cam.width, cam.height);
-    let d = predicted.data();
-    classes.par_iter_mut().enumerate().for_each(|(id, c)| {
-        if *c != Class::Visible {
-            return;
+    if rect.area() > HULL_TEST_MAX_AREA {
+        return false;
+    }
+    let row_visible = |y: u32, row: &[f32], hull: &[Vec2; 8], n: usize| -> bool {
+        if n < 3 {
+            // Degenerate silhouette (a segment or a point): per-pixel test.
+            return (rect.x0..rect.x1).any(|x| {
+                row[x as usize] >= limit && crate::screen::square_meets_hull(x as f32, y as f32, slack, hull, n)
+            });
         }
-        let b = &aabbs[id];
-        let ScreenRect::Rect { rect, nearest } = screen_rect_with(b, &vp, w, h) else { return };
-        if rect.area() > HULL_TEST_MAX_AREA {
-            return;
-        }
-        let Some((hull, n)) = crate::screen::screen_hull_with(b, &vp, w, h) else { return };
-        let limit = nearest - DEPTH_TOLERANCE;
-        let row_visible = |y: u32| -> bool {
-            let row = &d[y as usize * w as usize..(y as usize + 1) * w as usize];
-            if n < 3 {
-                // Degenerate silhouette (a segment or a point): per-pixel test.
-                return (rect.x0..rect.x1).any(|x| {
-                    row[x as usize] >= limit && crate::screen::square_meets_hull(x as f32, y as f32, slack, &hull, n)
-                });
-            }
-            // Pixel squares of this row span the strip [y - slack, y + 1 + slack]; the ones
-            // meeting the silhouette are those whose x-interval overlaps its extent there.
-            let Some((xa, xb)) =
-                crate::screen::hull_x_range_in_strip(&hull, n, y as f32 - slack, y as f32 + 1.0 + slack)
-            else {
-                return false;
-            };
-            // x - slack <= xb and x + 1 + slack >= xa.
-            let first = (xa - 1.0 - slack).ceil().clamp(rect.x0 as f32, rect.x1 as f32) as u32;
-            let last = ((xb + slack).floor() + 1.0).min(rect.x1 as f32).max(first as f32) as u32;
-            row[first as usize..last as usize].iter().any(|&p| p >= limit)
+        // Pixel squares of this row span the strip [y - slack, y + 1 + slack]; the ones
+        // meeting the silhouette are those whose x-interval overlaps its extent there.
+        let Some((xa, xb)) = crate::screen::hull_x_range_in_strip(hull, n, y as f32 - slack, y as f32 + 1.0 + slack)
+        else {
+            return false;
         };
-        let seen = (rect.y0..rect.y1).any(row_visible);
-        if !seen {
-            *c = Class::Occluded;
+        // x - slack <= xb and x + 1 + slack >= xa. Clamped before rounding (integer limits:
+        // same bounds as rounding first, and the fast rounding stays in its exact range).
+        let (x0, x1) = (rect.x0 as f32, rect.x1 as f32);
+        let first = fceil((xa - 1.0 - slack).clamp(x0, x1)) as u32;
+        let last = (ffloor((xb + slack).clamp(x0 - 1.0, x1)) + 1.0).min(x1).max(first as f32) as u32;
+        row[first as usize..last as usize].iter().any(|&p| p >= limit)
+    };
+    // The silhouette is built only once a row of the rectangle has a pixel that could show
+    // the object (rectangles the max-depth structure kept conservatively often have none).
+    let mut hull = None;
+    for y in rect.y0..rect.y1 {
+        let row = &predicted[y as usize * w as usize..(y as usize + 1) * w as usize];
+        if !row[rect.x0 as usize..rect.x1 as usize].iter().any(|&p| p >= limit) {
+            continue;
         }
-    });
+        let Some((hull, n)) = hull.get_or_insert_with(|| crate::screen::screen_hull_with(b, vp, w, h)) else {
+            return false;
+        };
+        if row_visible(y, row, hull, *n) {
+            return false;
+        }
+    }
+    true
 }
 
 /// Hybrid object-space query (thesis Sec. IV.2, a CPU analogue of the HOQ variant of Kubisch &
@@ -554,6 +573,20 @@ pub fn cull_against_depth(
     kind: MaxDepthKind,
     forced: Option<&[bool]>,
 ) -> Result<CullResult> {
+    cull_against_depth_with(scene, &ObjectBounds::new(scene), depth, cam, t, kind, forced)
+}
+
+/// [`cull_against_depth`] with the object boxes kept across frames (as [`woc_with`]).
+pub fn cull_against_depth_with(
+    scene: &Scene,
+    bounds: &ObjectBounds,
+    depth: &Image<f32>,
+    cam: &Camera,
+    t: f32,
+    kind: MaxDepthKind,
+    forced: Option<&[bool]>,
+) -> Result<CullResult> {
+    bounds.check(scene)?;
     check_time(t)?;
     check_camera_depth(depth, cam, "occlusion depth")?;
     if let Some(f) = forced {
@@ -569,7 +602,7 @@ pub fn cull_against_depth(
     let map = MaxDepthMap::build(kind, depth)?;
     let build_ms = ms(t0);
     let t1 = Instant::now();
-    let aabbs = instance_aabbs(scene, t);
+    let aabbs = bounds.all_at(scene, t);
     let classes = test_objects(&aabbs, cam, &map, forced);
     let (visible, stats) = collect(&classes, None);
     let test_ms = ms(t1);
@@ -611,27 +644,118 @@ pub fn downsample_max(
     if width == 0 || height == 0 || width > depth.width() || height > depth.height() {
         return Err(Error::invalid(format!("cannot reduce {}x{} to {width}x{height}", depth.width(), depth.height())));
     }
+    let r = reduce_prev(depth, items, (width, height), None);
+    Ok((r.depth, r.items))
+}
+
+/// A fine pixel of a coarse footprint: depth, item, x, y.
+type Px = (f32, u32, u32, u32);
+
+/// The previous frame at the culling resolution ([`reduce_prev`]).
+struct CoarsePrev {
+    /// [`downsample_max`]'s depth.
+    depth: Image<f32>,
+    /// [`downsample_max`]'s items.
+    items: Image<u32>,
+    /// Per coarse texel, its nearest and farthest non-empty fine pixel when they belong to two
+    /// different objects (ids below the object count given), the nearer strictly nearer
+    /// (input of [`coarse_internal_openings`]); empty unless asked for.
+    pairs: Vec<Option<(Px, Px)>>,
+    /// A fine depth was NaN.
+    nan: bool,
+}
+
+/// One pass over the fine previous buffers for the coarse culling resolution (seed 002
+/// Sec. VI): [`downsample_max`]'s conservative reduction, the near/far object pairs of
+/// [`coarse_internal_openings`] when `pairs_below` gives the object count, and the NaN check,
+/// reading each fine pixel once (separate passes cost ~1.5 ms per 0.5 Mpx frame, more than the
+/// coarse warp itself). Ties keep the first pixel in row-major order.
+fn reduce_prev(depth: &Image<f32>, items: &Image<u32>, (cw, ch): (u32, u32), pairs_below: Option<usize>) -> CoarsePrev {
     let (fw, fh) = depth.size();
-    let pairs: Vec<(f32, u32)> = (0..width as usize * height as usize)
-        .into_par_iter()
-        .map(|i| {
-            let (cx, cy) = (i as u32 % width, i as u32 / width);
-            let (x0, x1) = footprint(cx, fw, width);
-            let (y0, y1) = footprint(cy, fh, height);
-            let mut best = (f32::NEG_INFINITY, NO_ITEM);
-            for y in y0..y1 {
+    let xs: Vec<(u32, u32)> = (0..cw).map(|cx| footprint(cx, fw, cw)).collect();
+    let (cwu, n) = (cw as usize, cw as usize * ch as usize);
+    let mut out_d = vec![0.0f32; n];
+    let mut out_i = vec![NO_ITEM; n];
+    let mut out_p: Vec<Option<(Px, Px)>> = if pairs_below.is_some() { vec![None; n] } else { Vec::new() };
+    let limit = pairs_below.unwrap_or(0);
+    // Per coarse column of one coarse row: farthest pixel (depth, item) and, for the pairs,
+    // the nearest and farthest valid pixel (depth, fine x, fine y). The fine rows are walked
+    // whole, so consecutive pixels update different columns' accumulators: no loop-carried
+    // dependency through one running max (the per-texel loop was latency-bound, ~7 cycles per
+    // fine pixel). Ties keep the first pixel in row-major order (strict comparisons).
+    #[derive(Clone, Copy)]
+    struct Acc {
+        best: (f32, u32),
+        near: (f32, u32, u32),
+        far: (f32, u32, u32),
+    }
+    const EMPTY_ACC: Acc =
+        Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
+    let row = |cy: usize, od: &mut [f32], oi: &mut [u32], op: Option<&mut [Option<(Px, Px)>]>| -> bool {
+        let (y0, y1) = footprint(cy as u32, fh, ch);
+        let mut acc = vec![EMPTY_ACC; xs.len()];
+        let mut nan = false;
+        for y in y0..y1 {
+            let (ds, is) = (depth.row(y), items.row(y));
+            for (a, &(x0, x1)) in acc.iter_mut().zip(&xs) {
                 for x in x0..x1 {
-                    let d = *depth.get(x, y);
-                    if d > best.0 {
-                        best = (d, *items.get(x, y));
+                    let (d, id) = (ds[x as usize], is[x as usize]);
+                    nan |= d.is_nan();
+                    if d > a.best.0 {
+                        a.best = (d, id);
+                    }
+                    // `NO_ITEM` is never below the object count.
+                    if d < EMPTY_DEPTH && (id as usize) < limit {
+                        if d < a.near.0 {
+                            a.near = (d, x, y);
+                        }
+                        if d > a.far.0 {
+                            a.far = (d, x, y);
+                        }
                     }
                 }
             }
-            best
-        })
-        .collect();
-    let (d, it): (Vec<f32>, Vec<u32>) = pairs.into_iter().unzip();
-    Ok((Image::from_vec(width, height, d)?, Image::from_vec(width, height, it)?))
+        }
+        for (cx, a) in acc.iter().enumerate() {
+            od[cx] = a.best.0;
+            oi[cx] = a.best.1;
+        }
+        if let Some(p) = op {
+            for (o, a) in p.iter_mut().zip(&acc) {
+                *o = (a.near.0 < a.far.0).then(|| {
+                    let near = (a.near.0, *items.get(a.near.1, a.near.2), a.near.1, a.near.2);
+                    let far = (a.far.0, *items.get(a.far.1, a.far.2), a.far.1, a.far.2);
+                    (near, far)
+                });
+                if o.is_some_and(|(n, f)| n.1 == f.1) {
+                    *o = None;
+                }
+            }
+        }
+        nan
+    };
+    let nan = if pairs_below.is_some() {
+        out_d
+            .par_chunks_mut(cwu)
+            .zip(out_i.par_chunks_mut(cwu))
+            .zip(out_p.par_chunks_mut(cwu))
+            .enumerate()
+            .map(|(cy, ((od, oi), op))| row(cy, od, oi, Some(op)))
+            .reduce(|| false, |a, b| a || b)
+    } else {
+        out_d
+            .par_chunks_mut(cwu)
+            .zip(out_i.par_chunks_mut(cwu))
+            .enumerate()
+            .map(|(cy, (od, oi))| row(cy, od, oi, None))
+            .reduce(|| false, |a, b| a || b)
+    };
+    CoarsePrev {
+        depth: Image::from_vec(cw, ch, out_d).expect("cw x ch values"),
+        items: Image::from_vec(cw, ch, out_i).expect("cw x ch values"),
+        pairs: out_p,
+        nan,
+    }
 }
 
 /// The motion buffer of [`zwarp_core::motion_field`] (seed 000 Sec. 3.1, camera motion plus
@@ -651,34 +775,57 @@ pub fn woc_motion_field(
     t_a: f32,
     t_b: f32,
 ) -> Result<Image<zwarp_core::Motion>> {
-    use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
-    zwarp_core::motion::check_motion_inputs(depth, Some(items), cam_a)?;
     let n = scene.instances.len();
     let animated = |id: u32| (id as usize) < n && scene.instances[id as usize].animation.is_animated();
-    let present: Vec<AtomicBool> = (0..n).into_par_iter().map(|_| AtomicBool::new(false)).collect();
-    items.data().par_iter().zip(depth.data().par_iter()).for_each(|(&id, &d)| {
-        // Empty pixels (depth 1) move with the camera, whatever their id (as motion_field).
-        if d < 1.0 && animated(id) && !present[id as usize].load(Relaxed) {
-            present[id as usize].store(true, Relaxed);
-        }
-    });
-    let ids: Vec<u32> = (0..n as u32).into_par_iter().filter(|&i| present[i as usize].load(Relaxed)).collect();
+    motion_field_animated(scene, animated, depth, items, (cam_a, cam_b), (t_a, t_b))
+}
+
+/// [`woc_motion_field`] with the animation flags given by `animated` (from [`ObjectBounds`]
+/// in [`woc_with`], so a frame reads no instance of a static object). The animated ids on
+/// screen are gathered from the item buffer itself (sorted, deduplicated: a few per frame),
+/// with no per-frame array over all objects (at 1M objects those were 5 MB to allocate, clear
+/// and scan every frame).
+fn motion_field_animated(
+    scene: &Scene,
+    animated: impl Fn(u32) -> bool + Sync,
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    (cam_a, cam_b): (&Camera, &Camera),
+    (t_a, t_b): (f32, f32),
+) -> Result<Image<zwarp_core::Motion>> {
+    zwarp_core::motion::check_motion_inputs(depth, Some(items), cam_a)?;
+    let (w, h) = depth.size();
+    let wu = w as usize;
+    // Empty pixels (depth 1) move with the camera, whatever their id (as motion_field).
+    let mut ids: Vec<u32> = items
+        .data()
+        .par_chunks(wu)
+        .zip(depth.data().par_chunks(wu))
+        .flat_map_iter(|(ir, dr)| {
+            let mut last = NO_ITEM;
+            let mut seen = Vec::new();
+            for (&id, &d) in ir.iter().zip(dr) {
+                if id != last && d < 1.0 && animated(id) {
+                    seen.push(id);
+                    last = id;
+                }
+            }
+            seen
+        })
+        .collect();
+    ids.sort_unstable();
+    ids.dedup();
     let vp_b = cam_b.view_proj();
     let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * scene.instances[id as usize].delta(t_a, t_b)).collect();
-    let mut slot = vec![u32::MAX; n];
-    for (k, &id) in ids.iter().enumerate() {
-        slot[id as usize] = k as u32;
-    }
     let inv_a = cam_a.view_proj().inverse();
-    let (w, h) = depth.size();
     let mut out = Image::new(w, h, zwarp_core::Motion::default());
-    out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+    out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
         for (x, o) in row.iter_mut().enumerate() {
-            let i = y * w as usize + x;
+            let i = y * wu + x;
             let (d, id) = (depth.data()[i], items.data()[i]);
-            let m = match slot.get(id as usize) {
-                Some(&k) if d < 1.0 && k != u32::MAX => &mats[k as usize],
-                _ => &vp_b,
+            let m = match d < 1.0 && !ids.is_empty() && animated(id) {
+                true => ids.binary_search(&id).map_or(&vp_b, |k| &mats[k]),
+                false => &vp_b,
             };
             *o = zwarp_core::motion::reproject_pixel(
                 &inv_a,
@@ -707,48 +854,19 @@ pub fn woc_motion_field(
 /// the coarse opening-rim test never sees the boundary (it is inside one texel). Blanking these
 /// texels is the coarse analogue of [`RimMode::Source`]. The separation direction is taken from
 /// the far pixel to the near one; any relative motion within 120 degrees of it counts, so a
-/// boundary running obliquely through the footprint is still caught.
+/// boundary running obliquely through the footprint is still caught. `pairs` comes from
+/// [`reduce_prev`] (fine pixel coordinates in a `fw x fh` image).
 #[allow(clippy::too_many_arguments)]
 fn coarse_internal_openings(
     scene: &Scene,
-    depth: &Image<f32>,
-    items: &Image<u32>,
+    pairs: &[Option<(Px, Px)>],
+    (fw, fh): (u32, u32),
     prev_cam: &Camera,
     cam: &Camera,
     t_a: f32,
     t_b: f32,
-    (cw, ch): (u32, u32),
     min_separation: f32,
 ) -> Vec<bool> {
-    let (fw, fh) = depth.size();
-    let n = scene.instances.len();
-    // Per coarse texel: nearest and farthest non-empty fine pixel of different objects.
-    type Px = (f32, u32, u32, u32); // depth, item, x, y
-    let pairs: Vec<Option<(Px, Px)>> = (0..cw as usize * ch as usize)
-        .into_par_iter()
-        .map(|i| {
-            let (cx, cy) = (i as u32 % cw, i as u32 / cw);
-            let (x0, x1) = footprint(cx, fw, cw);
-            let (y0, y1) = footprint(cy, fh, ch);
-            let mut near: Px = (f32::INFINITY, NO_ITEM, 0, 0);
-            let mut far: Px = (f32::NEG_INFINITY, NO_ITEM, 0, 0);
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let (d, id) = (*depth.get(x, y), *items.get(x, y));
-                    if d >= EMPTY_DEPTH || id == NO_ITEM || id as usize >= n {
-                        continue;
-                    }
-                    if d < near.0 {
-                        near = (d, id, x, y);
-                    }
-                    if d > far.0 {
-                        far = (d, id, x, y);
-                    }
-                }
-            }
-            (near.1 != NO_ITEM && far.1 != NO_ITEM && near.1 != far.1 && near.0 < far.0).then_some((near, far))
-        })
-        .collect();
     // Object matrices of the items involved, computed once each.
     let mut ids: Vec<u32> = pairs.iter().flatten().flat_map(|(a, b)| [a.1, b.1]).collect();
     ids.sort_unstable();
@@ -779,10 +897,32 @@ fn coarse_internal_openings(
 /// Errors: invalid parameters, non-finite times, buffer sizes that differ from the cameras',
 /// NaN depths.
 pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &WocParams) -> Result<CullResult> {
+    woc_with(scene, &ObjectBounds::new(scene), prev, cam, t, params)
+}
+
+/// [`woc`] with the object boxes kept across frames ([`ObjectBounds`], built once for `scene`):
+/// what an engine calls every frame ([`crate::run_sequence`] does).
+///
+/// Errors: as [`woc`], and bounds built for a different number of objects.
+pub fn woc_with(
+    scene: &Scene,
+    bounds: &ObjectBounds,
+    prev: &PrevFrame<'_>,
+    cam: &Camera,
+    t: f32,
+    params: &WocParams,
+) -> Result<CullResult> {
+    bounds.check(scene)?;
     params.validate()?;
     check_time(t)?;
     check_time(prev.t)?;
-    check_camera_depth(prev.depth, prev.cam, "previous depth buffer")?;
+    let f = params.downsample;
+    // At a coarse resolution the NaN scan is part of the reduction's single pass (below).
+    if f > 1 {
+        check_camera_size(prev.depth, prev.cam, "previous depth buffer")?;
+    } else {
+        check_camera_depth(prev.depth, prev.cam, "previous depth buffer")?;
+    }
     prev.depth.check_same_size(prev.items, "previous depth vs item buffer")?;
     if (prev.cam.width, prev.cam.height) != (cam.width, cam.height) {
         return Err(Error::invalid(format!(
@@ -794,14 +934,20 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let mut tm = CullTimings::default();
 
     // 0. Optional coarse resolution: the whole pipeline runs on the coarse grid (the rapid-
-    //    motion speed stays in full-resolution pixels).
+    //    motion speed stays in full-resolution pixels). One pass over the fine buffers gives
+    //    the reduced depth + items and the near/far pairs of the internal openings.
     let t0 = Instant::now();
     let (full_prev_cam, full_cam) = (prev.cam, cam);
-    let f = params.downsample;
+    let n = scene.instances.len();
+    let mut pairs = Vec::new();
     let coarse = if f > 1 {
         let (ca, cb) = (coarse_camera(prev.cam, f), coarse_camera(cam, f));
-        let (d, it) = downsample_max(prev.depth, prev.items, ca.width, ca.height)?;
-        Some((ca, cb, d, it))
+        let r = reduce_prev(prev.depth, prev.items, (ca.width, ca.height), params.open_rims.map(|_| n));
+        if r.nan {
+            return Err(Error::invalid("previous depth buffer holds NaN"));
+        }
+        pairs = r.pairs;
+        Some((ca, cb, r.depth, r.items))
     } else {
         None
     };
@@ -811,7 +957,9 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     };
 
     // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
-    let motion = woc_motion_field(scene, prev_depth, prev_items, prev_cam, cam, prev.t, t)?;
+    let n_obj = bounds.len();
+    let animated = |id: u32| (id as usize) < n_obj && bounds.is_animated(id);
+    let motion = motion_field_animated(scene, animated, prev_depth, prev_items, (prev_cam, cam), (prev.t, t))?;
     tm.motion_ms = ms(t0);
 
     // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
@@ -834,20 +982,13 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         _ => prev_depth,
     };
     // Coarse culling: openings inside one coarse texel are invisible to the coarse rim test.
-    let mut inner_open = None;
-    if let (Some(sep), true) = (params.open_rims, f > 1) {
-        inner_open = Some(coarse_internal_openings(
-            scene,
-            prev.depth,
-            prev.items,
-            full_prev_cam,
-            full_cam,
-            prev.t,
-            t,
-            (prev_cam.width, prev_cam.height),
-            sep,
-        ));
-    }
+    let inner_open = match (params.open_rims, f > 1) {
+        (Some(sep), true) => {
+            Some(coarse_internal_openings(scene, &pairs, prev.depth.size(), full_prev_cam, full_cam, prev.t, t, sep))
+        }
+        _ => None,
+    };
+    drop(pairs);
     let warped = warp_depth(&[WarpLayer { depth: src_depth, motion: &motion }], &wp)?;
     tm.warp_ms = ms(t0);
 
@@ -860,35 +1001,16 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
         if params.erosion && !erode_late { erode_n(warped_depth, params.erosion_radius) } else { warped_depth };
     tm.erosion_ms = ms(t0);
 
-    // 4. Rapid-motion objects: drawn exactly into the predicted depth, after the erosion
+    // 4. One pass over the objects (bounds at `t`, VFC, rapid-motion speed, screen rectangle
+    //    at the culling resolution), keeping only those in the frustum: the tests after the
+    //    occlusion map is built then read a compact list instead of every instance again.
+    //    Rapid-motion objects are drawn exactly into the predicted depth, after the erosion
     //    (rasterized depth needs no safety margin), and kept visible.
     let t0 = Instant::now();
-    // One pass over the objects: bounds at `t` and VFC (reused by the screen-space test).
-    let frustum = Frustum::from_camera(cam);
-    let (aabbs, inside): (Vec<Aabb>, Vec<bool>) = (0..scene.instances.len() as u32)
-        .into_par_iter()
-        .map(|id| {
-            let b = scene.instance_aabb_at(id, t);
-            let i = frustum.intersects(&b);
-            (b, i)
-        })
-        .unzip();
-    let n = scene.instances.len();
-    let mut forced = Vec::new();
-    let mut predrawn = Vec::new();
-    // Threshold from the full-resolution width: the same fraction of the view at any
-    // resolution and downsampling factor.
-    if let Some(thr) = params.rapid_threshold_px(full_cam.width) {
-        let cam_a = if params.rapid_includes_camera { full_prev_cam } else { full_cam };
-        let flags: Vec<bool> = (0..n as u32)
-            .into_par_iter()
-            .map(|id| inside[id as usize] && screen_speed(scene, id, cam_a, prev.t, full_cam, t) > thr)
-            .collect();
-        predrawn = (0..n as u32).filter(|&id| flags[id as usize]).collect();
-        forced = flags;
-        if !predrawn.is_empty() {
-            draw_into(&mut predicted, None, scene, cam, t, &predrawn)?;
-        }
+    let objects = prepass(scene, bounds, t, cam, &Rapid::of(params, full_prev_cam, full_cam, prev.t));
+    let predrawn: Vec<u32> = objects.iter().filter(|o| o.test == Test::Forced).map(|o| o.id).collect();
+    if !predrawn.is_empty() {
+        draw_into(&mut predicted, None, scene, cam, t, &predrawn)?;
     }
     tm.draw_ms = ms(t0);
     if params.erosion && erode_late {
@@ -936,31 +1058,154 @@ pub fn woc(scene: &Scene, prev: &PrevFrame<'_>, cam: &Camera, t: f32, params: &W
     let map = MaxDepthMap::build(params.max_depth, &predicted)?;
     tm.build_ms = ms(t0);
 
-    // 6. VFC + screen-space test.
+    // 6. Screen-space tests of the objects in the frustum: rectangle against the max-depth
+    //    structure, then the silhouette of the survivors.
     let t0 = Instant::now();
-    let forced = (!forced.is_empty()).then_some(forced.as_slice());
-    let mut classes = test_objects_in(&aabbs, Some(&inside), cam, &map, forced);
-    if params.hull_test {
-        refine_by_hull(&aabbs, &mut classes, cam, &predicted, f == 1);
-    }
+    let hull = params.hull_test.then_some((predicted.data(), f == 1));
+    let kept = test_prepassed(&objects, cam, &map, hull);
     tm.test_ms = ms(t0);
 
-    // 7. Hybrid object-space query of the heaviest survivors.
+    // 7. Hybrid object-space query of the heaviest survivors (not the predrawn ones).
     let t0 = Instant::now();
     let k = if f > 1 { 0 } else { params.hybrid_objects };
-    let before = (k > 0).then(|| classes.clone());
-    let candidates: Vec<u32> =
-        (0..n).filter(|&id| matches!(classes[id], Class::Visible | Class::CrossesNear)).map(|id| id as u32).collect();
-    let (hidden, tested) = hybrid_cull(scene, &predicted, cam, t, &candidates, k, params.hybrid_min_triangles)?;
-    for id in hidden {
-        classes[id as usize] = Class::Occluded;
-    }
+    let (hidden, tested) = if k > 0 {
+        let candidates: Vec<u32> = kept.iter().copied().filter(|id| predrawn.binary_search(id).is_err()).collect();
+        hybrid_cull(scene, &predicted, cam, t, &candidates, k, params.hybrid_min_triangles)?
+    } else {
+        (Vec::new(), 0)
+    };
+    let visible: Vec<u32> = if hidden.is_empty() {
+        kept
+    } else {
+        kept.into_iter().filter(|id| hidden.binary_search(id).is_err()).collect()
+    };
     tm.hybrid_ms = ms(t0);
 
-    let (visible, mut stats) = collect(&classes, before.as_deref());
-    stats.hybrid_tested = tested;
+    let crosses_near = objects.iter().filter(|o| o.test == Test::Keep).count();
+    let stats = CullStats {
+        objects: n,
+        frustum_culled: n - objects.len(),
+        occlusion_culled: objects.len() - visible.len() - hidden.len(),
+        hybrid_culled: hidden.len(),
+        hybrid_tested: tested,
+        crosses_near,
+        rapid: predrawn.len(),
+    };
     tm.total_ms = ms(start);
     Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
+}
+
+/// What the screen-space stage still has to decide for an object in the frustum ([`prepass`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Test {
+    /// Rapid-motion object: drawn into the occlusion map and kept.
+    Forced,
+    /// Its box crosses the near plane: kept.
+    Keep,
+    /// Test this screen rectangle (culling resolution) and nearest corner depth.
+    Rect(PixelRect, f32),
+}
+
+/// An object of the frustum, after [`prepass`].
+#[derive(Clone, Copy, Debug)]
+struct Prepassed {
+    id: u32,
+    aabb: Aabb,
+    test: Test,
+}
+
+/// Rapid-motion classification of [`WocParams::rapid_motion`] for one frame pair.
+struct Rapid<'a> {
+    /// Threshold in full-resolution pixels per frame (`None`: path disabled).
+    threshold: Option<f32>,
+    /// Camera of the speed's first view (the current one unless the camera motion counts).
+    cam_a: &'a Camera,
+    /// Current full-resolution camera.
+    cam_b: &'a Camera,
+    t_a: f32,
+    includes_camera: bool,
+}
+
+impl<'a> Rapid<'a> {
+    fn of(params: &WocParams, full_prev_cam: &'a Camera, full_cam: &'a Camera, t_a: f32) -> Self {
+        Rapid {
+            threshold: params.rapid_threshold_px(full_cam.width),
+            cam_a: if params.rapid_includes_camera { full_prev_cam } else { full_cam },
+            cam_b: full_cam,
+            t_a,
+            includes_camera: params.rapid_includes_camera,
+        }
+    }
+}
+
+/// Objects handed to the parallel per-object loops in runs of at least this many (one rayon
+/// task per object costs more than the test of a culled one).
+const OBJECT_CHUNK: usize = 512;
+
+/// The per-object pass of [`woc`] before the occlusion map exists: bounds at `t`, VFC, the
+/// rapid-motion speed (thesis Sec. IV.1) and the box's screen rectangle for `cam` (the culling
+/// resolution), in one read of each instance. Returns the objects in the frustum (whose
+/// rectangle is not outside the image), increasing ids. Static objects skip the speed unless the
+/// camera's motion counts (their own speed is 0).
+fn prepass(scene: &Scene, bounds: &ObjectBounds, t: f32, cam: &Camera, rapid: &Rapid<'_>) -> Vec<Prepassed> {
+    let frustum = Frustum::from_camera(cam);
+    let vp = cam.view_proj();
+    (0..scene.instances.len() as u32)
+        .into_par_iter()
+        .with_min_len(OBJECT_CHUNK)
+        .filter_map(|id| {
+            let aabb = bounds.at(scene, id, t);
+            if !frustum.intersects(&aabb) {
+                return None;
+            }
+            if let Some(thr) = rapid.threshold {
+                let moving = rapid.includes_camera || bounds.is_animated(id);
+                if moving && screen_speed(scene, id, rapid.cam_a, rapid.t_a, rapid.cam_b, t) > thr {
+                    return Some(Prepassed { id, aabb, test: Test::Forced });
+                }
+            }
+            let test = match screen_rect_with(&aabb, &vp, cam.width, cam.height) {
+                ScreenRect::Outside => return None,
+                ScreenRect::CrossesNear => Test::Keep,
+                ScreenRect::Rect { rect, nearest } => Test::Rect(rect, nearest),
+            };
+            Some(Prepassed { id, aabb, test })
+        })
+        .collect()
+}
+
+/// The screen-space stage of [`woc`] over the [`prepass`]ed objects: ids (increasing) of those
+/// kept, i.e. forced, crossing the near plane, or whose rectangle is not occluded in `map`
+/// ([`DEPTH_TOLERANCE`] included) and, with `hull = Some((predicted depth, pixel centres))`,
+/// whose silhouette still meets a pixel that could show them ([`WocParams::hull_test`]).
+fn test_prepassed(
+    objects: &[Prepassed],
+    cam: &Camera,
+    map: &impl MaxDepthQuery,
+    hull: Option<(&[f32], bool)>,
+) -> Vec<u32> {
+    let vp = cam.view_proj();
+    objects
+        .par_iter()
+        .with_min_len(OBJECT_CHUNK / 2)
+        .filter_map(|o| match o.test {
+            Test::Forced | Test::Keep => Some(o.id),
+            Test::Rect(rect, nearest) => {
+                let limit = nearest - DEPTH_TOLERANCE;
+                if map.is_occluded(rect, limit) {
+                    return None;
+                }
+                match hull {
+                    Some((depth, centres))
+                        if hull_hides(&o.aabb, rect, limit, &vp, (cam.width, cam.height), depth, centres) =>
+                    {
+                        None
+                    }
+                    _ => Some(o.id),
+                }
+            }
+        })
+        .collect()
 }
 
 /// The 8 neighbour offsets `(dx, dy)` of [`opening_rim_dirs`]; bit `k` of a direction mask
@@ -1172,13 +1417,22 @@ pub fn nocull(scene: &Scene) -> CullResult {
 
 /// Baseline VFC: view-frustum culling only.
 pub fn vfc_cull(scene: &Scene, cam: &Camera, t: f32) -> Result<CullResult> {
+    vfc_cull_with(scene, &ObjectBounds::new(scene), cam, t)
+}
+
+/// [`vfc_cull`] with the object boxes kept across frames (as [`woc_with`]).
+pub fn vfc_cull_with(scene: &Scene, bounds: &ObjectBounds, cam: &Camera, t: f32) -> Result<CullResult> {
+    bounds.check(scene)?;
     check_time(t)?;
     let t0 = Instant::now();
-    let aabbs = instance_aabbs(scene, t);
     let frustum = Frustum::from_camera(cam);
-    let classes: Vec<Class> =
-        aabbs.par_iter().map(|b| if frustum.intersects(b) { Class::Visible } else { Class::Frustum }).collect();
-    let (visible, stats) = collect(&classes, None);
+    let n = scene.instances.len();
+    let visible: Vec<u32> = (0..n as u32)
+        .into_par_iter()
+        .with_min_len(OBJECT_CHUNK)
+        .filter(|&id| frustum.intersects(&bounds.at(scene, id, t)))
+        .collect();
+    let stats = CullStats { objects: n, frustum_culled: n - visible.len(), ..CullStats::default() };
     let total = ms(t0);
     Ok(CullResult {
         visible,
@@ -1271,6 +1525,19 @@ pub fn twophase(
     t: f32,
     kind: MaxDepthKind,
 ) -> Result<TwoPhaseResult> {
+    twophase_with(scene, &ObjectBounds::new(scene), prev_visible, cam, t, kind)
+}
+
+/// [`twophase`] with the object boxes kept across frames (as [`woc_with`]).
+pub fn twophase_with(
+    scene: &Scene,
+    bounds: &ObjectBounds,
+    prev_visible: &[u32],
+    cam: &Camera,
+    t: f32,
+    kind: MaxDepthKind,
+) -> Result<TwoPhaseResult> {
+    bounds.check(scene)?;
     check_time(t)?;
     let n = scene.instances.len();
     if let Some(&bad) = prev_visible.iter().find(|&&id| id as usize >= n) {
@@ -1278,7 +1545,7 @@ pub fn twophase(
     }
     let start = Instant::now();
     let mut tm = CullTimings::default();
-    let aabbs = instance_aabbs(scene, t);
+    let aabbs = bounds.all_at(scene, t);
     let frustum = Frustum::from_camera(cam);
     let mut in_first = vec![false; n];
     for &id in prev_visible {

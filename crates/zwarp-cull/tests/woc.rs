@@ -757,3 +757,76 @@ fn hull_test_culls_more_and_stays_conservative() {
     }
     assert!(gained > 0, "the silhouette removes some rectangle-only survivors");
 }
+
+/// The boxes kept across frames ([`ObjectBounds`]) give every method exactly the answers of
+/// the per-call path (static boxes stored once, animated ones recomputed at each time), and a
+/// snapshot of another scene is an error, not a silent mismatch.
+#[test]
+fn kept_object_bounds_change_no_decision() {
+    use zwarp_cull::{twophase_with, vfc_cull_with, woc_with, ObjectBounds};
+    let s = random_scene(5);
+    let bounds = ObjectBounds::new(&s);
+    assert_eq!(bounds.len(), s.instances.len());
+    let animated = (0..s.instances.len() as u32).filter(|&id| bounds.is_animated(id)).count();
+    assert!(animated > 3 && animated < s.instances.len() - 3, "{animated}");
+    for t in [0.0, 0.4, 1.7] {
+        for id in 0..s.instances.len() as u32 {
+            assert_eq!(bounds.at(&s, id, t), s.instance_aabb_at(id, t), "object {id} at {t}");
+        }
+    }
+    let cams: Vec<Camera> = (0..3)
+        .map(|k| {
+            let a = 0.5 + k as f32 * 0.05;
+            Camera::perspective(
+                Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin()),
+                Vec3::Y,
+                Vec3::Y,
+                1.0,
+                0.1,
+                100.0,
+                71,
+                43,
+            )
+            .unwrap()
+        })
+        .collect();
+    for k in 1..cams.len() {
+        let (tp, t) = ((k - 1) as f32 * DT * 9.0, k as f32 * DT * 9.0);
+        let prev = render_frame(&s, &cams[k - 1], tp, &FrameOptions::default()).unwrap();
+        let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cams[k - 1], t: tp };
+        for downsample in [1, 2, 3] {
+            let p = WocParams { downsample, hybrid_min_triangles: 0, ..WocParams::default() };
+            let a = woc(&s, &pf, &cams[k], t, &p).unwrap();
+            let b = woc_with(&s, &bounds, &pf, &cams[k], t, &p).unwrap();
+            assert_eq!((a.visible, a.stats, a.predrawn), (b.visible, b.stats, b.predrawn), "/{downsample}");
+        }
+        assert_eq!(
+            vfc_cull(&s, &cams[k], t).unwrap().visible,
+            vfc_cull_with(&s, &bounds, &cams[k], t).unwrap().visible
+        );
+        let prev_vis = visible_from_items(&prev.items, s.instances.len());
+        let a = twophase(&s, &prev_vis, &cams[k], t, MaxDepthKind::Default).unwrap();
+        let b = twophase_with(&s, &bounds, &prev_vis, &cams[k], t, MaxDepthKind::Default).unwrap();
+        assert_eq!((a.visible, a.next_visible), (b.visible, b.next_visible));
+    }
+    let other = random_scene(6);
+    let mut fewer = other.clone();
+    fewer.instances.pop();
+    let e = vfc_cull_with(&fewer, &bounds, &cams[0], 0.0).unwrap_err().to_string();
+    assert!(e.contains("object bounds hold 41 objects but the scene has 40"), "{e}");
+}
+
+/// The coarse pipeline's single pass over the fine buffers checks them for NaN too.
+#[test]
+fn coarse_woc_rejects_a_nan_previous_depth() {
+    let s = wall_scene();
+    let cam = cam_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO);
+    let mut depth = Image::new(W, H, 1.0f32);
+    *depth.get_mut(W - 1, H - 1) = f32::NAN;
+    let items = Image::new(W, H, u32::MAX);
+    let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
+    for downsample in [1, 2, 4] {
+        let e = woc(&s, &pf, &cam, DT, &WocParams { downsample, ..WocParams::default() }).unwrap_err().to_string();
+        assert!(e.contains("previous depth buffer holds NaN"), "/{downsample}: {e}");
+    }
+}

@@ -1,0 +1,37 @@
+//! Prints, per frame, a fingerprint (count and FNV-1a hash) of the object set WOC keeps along a
+//! scene's path, one line per culling resolution: a speed-up of the pipeline that must not
+//! change any decision is checked by diffing this output before and after.
+//!
+//! `cargo run --release -p zwarp-cull --example cull_fingerprint -- [scene] [scale] [width] [height] [frames] [downsample list]`
+
+use zwarp_cull::{run_sequence, Method, WocParams};
+use zwarp_scene::{load_scene, SceneOptions};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
+    let scene_name = arg(0, "cb");
+    let scale: f32 = arg(1, "0.25").parse()?;
+    let (w, h): (u32, u32) = (arg(2, "960").parse()?, arg(3, "540").parse()?);
+    let n_frames: usize = arg(4, "8").parse()?;
+    let downs: Vec<u32> = arg(5, "1,2,4").split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
+    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
+    frames.truncate(n_frames);
+    for f in downs {
+        let p = WocParams { downsample: f, ..WocParams::default() };
+        let reps = run_sequence(&loaded.scene, &frames, Method::Woc, &p)?;
+        let prints: Vec<String> = reps
+            .iter()
+            .map(|r| {
+                let hash = r
+                    .visible_ids
+                    .iter()
+                    .fold(0xcbf2_9ce4_8422_2325u64, |h, &id| (h ^ id as u64).wrapping_mul(0x0100_0000_01b3));
+                format!("{}:{:016x}", r.visible, hash)
+            })
+            .collect();
+        println!("{scene_name} {scale} {w}x{h} /{f}: {}", prints.join(" "));
+    }
+    Ok(())
+}
