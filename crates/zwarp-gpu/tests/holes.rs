@@ -103,3 +103,82 @@ fn bad_input_is_an_error() {
     // FarDepth leaves the buffers as they are.
     assert_eq!(k.fill(&d, &s, HolePolicy::FarDepth).unwrap(), (d, s));
 }
+
+/// A camera-pan-like scene for the background fill: layer 0 = random blobs (some moving on
+/// their own) in front of a ground on the lower rows and sky above; layer 1 = the ground alone
+/// (a separately peeled last layer). Every pixel, sky included, pans by `pan` plus a slow
+/// rotation-like shear; blobs add their own motion.
+fn background_scene(w: u32, h: u32, seed: u64, pan: Vec2) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
+    let (d, _) = random_buffers(w, h, seed);
+    let horizon = h / 2;
+    let ground = |y: u32| if y >= horizon { 0.7 + 0.2 * (y - horizon) as f32 / h as f32 } else { EMPTY_DEPTH };
+    let shear = |x: u32, y: u32| pan + Vec2::new(0.02 * y as f32, -0.015 * x as f32);
+    let d0 = Image::from_fn(w, h, |x, y| {
+        let z = *d.get(x, y);
+        if z < 0.6 && (x + 2 * y) % 5 != 0 {
+            z
+        } else {
+            ground(y)
+        }
+    });
+    let m0 = Image::from_fn(w, h, |x, y| {
+        let z = *d0.get(x, y);
+        let own = if z < 0.6 && z > 0.4 { Vec2::new(2.5, -1.0) } else { Vec2::ZERO };
+        Motion { v: shear(x, y) + own, depth: z }
+    });
+    let d1 = Image::from_fn(w, h, |_, y| ground(y));
+    let m1 = Image::from_fn(w, h, |x, y| Motion { v: shear(x, y), depth: *d1.get(x, y) });
+    (vec![d0, d1], vec![m0, m1])
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+
+    /// zwarp_warp::holes::fill_background and its WGSL twin give the same depth and state on a
+    /// far-hole warp (sky seen through holes, bracketed holes, border strips), for one layer and
+    /// for a separately peeled ground, both search variants.
+    #[test]
+    fn background_fill_equals_the_cpu(
+        w in 8u32..70, h in 6u32..50, seed in 0u64..10_000,
+        px in -4.0f32..4.0, py in -3.0f32..3.0, layers in 1usize..=2, accelerate in proptest::bool::ANY,
+    ) {
+        let Some(ctx) = test_context() else { return Ok(()) };
+        let k = HoleFillKernel::new(&ctx).unwrap();
+        let (ds, ms) = background_scene(w, h, seed, Vec2::new(px, py));
+        let src: Vec<WarpLayer> = ds.iter().zip(&ms).take(layers).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
+        let search = zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate };
+        let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 64, &search).unwrap();
+        let mut cpu = warped.clone();
+        zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
+        prop_assert_eq!(&gs, &cpu.state, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gd, &cpu.depth, "{}x{} seed {}", w, h, seed);
+    }
+}
+
+/// The three steps show on the GPU as on the CPU: a 3-px pan leaves a border strip that takes
+/// the ground's depth on ground rows and stays sky above the horizon.
+#[test]
+fn background_fill_analytic_pan() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let ground = |y: u32| 0.6 + 0.01 * y as f32;
+    let d = Image::from_fn(24, 12, |_, y| if y >= 6 { ground(y) } else { EMPTY_DEPTH });
+    let m = d.map(|&z| Motion { v: Vec2::new(3.0, 0.0), depth: z });
+    let src = [WarpLayer { depth: &d, motion: &m }];
+    let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
+    let search =
+        zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+    let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 4, &search).unwrap();
+    for y in 0..12 {
+        for x in 0..3 {
+            assert_eq!(*gs.get(x, y), PixelState::Filled, "({x},{y})");
+            assert_eq!(*gd.get(x, y), if y >= 6 { ground(y) } else { EMPTY_DEPTH }, "({x},{y})");
+        }
+        assert_eq!(*gs.get(10, y), PixelState::Converged);
+    }
+    let e = k.fill_background(&src, &warped.depth, &warped.state, 0, &search).unwrap_err().to_string();
+    assert!(e.contains("radius"), "{e}");
+    let e = k.fill_background(&[], &warped.depth, &warped.state, 4, &search).unwrap_err().to_string();
+    assert!(e.contains("at least one source layer"), "{e}");
+}

@@ -162,9 +162,8 @@ impl MotionSource for EmptyBackground<'_> {
             return None;
         }
         let i = (q.y as u32).min(self.h - 1) as usize * self.w as usize + (q.x as u32).min(self.w - 1) as usize;
-        let v = self.motion[i].v;
-        (self.layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) && v.is_finite()).then_some(Sample {
-            v,
+        self.layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH).then_some(Sample {
+            v: self.motion[i].v,
             depth: EMPTY_DEPTH,
             tag: 0,
             dv: [Vec2::ZERO; 2],
@@ -172,32 +171,85 @@ impl MotionSource for EmptyBackground<'_> {
     }
 }
 
-/// Seeds of the background search: the pixel itself and the pixel moved back by the motion
-/// found there (the fixed point of a smooth field lies next to `p - v(p)`).
-const BACKGROUND_SEEDS: usize = 2;
+/// How wide the holes of a warp from `layers` can be, for [`fill_background`]'s steps 2 and 3
+/// (and their WGSL twin, which gets them from here).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BackgroundLimits {
+    /// Bracket radius of step 2: the motion range of the source surfaces (largest minus
+    /// smallest motion, per axis, the larger) plus one pixel, at most the caller's radius — no
+    /// disocclusion opens wider than the motions of its two sides differ.
+    pub bracket: u32,
+    /// Reach of step 3: the largest motion of a source surface plus one pixel (at most the
+    /// image size) — no border strip is wider.
+    pub reach: u32,
+}
+
+impl BackgroundLimits {
+    /// Validates the inputs of [`fill_background`] for a `w x h` warped buffer (at least one
+    /// layer, every layer `w x h`, finite motion everywhere, `radius` in 1..=64) and measures the
+    /// limits over the surfaces (source depth `< 1`) of every layer.
+    pub fn of(layers: &[WarpLayer<'_>], w: u32, h: u32, radius: u32) -> Result<Self> {
+        if layers.is_empty() {
+            return Err(Error::invalid("fill_background needs at least one source layer"));
+        }
+        if !(1..=64).contains(&radius) {
+            return Err(Error::invalid(format!("fill_background: radius must be in 1..=64, got {radius}")));
+        }
+        for (k, l) in layers.iter().enumerate() {
+            if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
+                return Err(Error::invalid(format!(
+                    "fill_background: source layer {k} is {}x{} but the warped buffer is {w}x{h}",
+                    l.depth.width(),
+                    l.depth.height()
+                )));
+            }
+            if l.motion.data().par_iter().any(|m| !m.v.is_finite()) {
+                return Err(Error::invalid(format!("fill_background: source layer {k} holds non-finite motion")));
+            }
+        }
+        let (lo, hi) = layers
+            .iter()
+            .flat_map(|l| l.depth.data().iter().zip(l.motion.data()))
+            .filter(|(d, _)| **d < EMPTY_DEPTH)
+            .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), (_, m)| (lo.min(m.v), hi.max(m.v)));
+        let (range, largest) =
+            if lo.x <= hi.x { ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element()) } else { (0.0, 0.0) };
+        let bracket = (range.ceil().min(64.0) as u32 + 1).min(radius);
+        let reach = (largest.ceil().min(u32::MAX as f32 - 1.0) as u32).saturating_add(1).min(w.max(h));
+        Ok(BackgroundLimits { bracket, reach })
+    }
+}
+
+/// Seeds of the background search for target pixel `p`: the pixel itself and the pixel moved
+/// back by the motion found there (`back`; the fixed point of a smooth field lies next to
+/// `p - v(p)`), both clamped into the `w x h` image.
+#[inline]
+pub fn background_seeds(p: Vec2, back: Vec2, w: u32, h: u32) -> [Vec2; 2] {
+    let max_q = Vec2::new(w as f32, h as f32) - Vec2::splat(1e-3);
+    [p.clamp(Vec2::ZERO, max_q), (p - back).clamp(Vec2::ZERO, max_q)]
+}
 
 /// Sec. 4's quality protocol for holes ("filled with the background depth"), made to hold on
 /// open scenes and at the image border; the complete form of [`HolePolicy::Background`] for
 /// callers that have the source layers (`layers`: the depth and motion buffers `out` was warped
-/// from, nearest first; a separately peeled ground counts as a layer). Three steps over the [`PixelState::Hole`] pixels of `out`:
+/// from, nearest first; a separately peeled ground counts as a layer). Three steps over the
+/// [`PixelState::Hole`] pixels of `out`:
 ///
 /// 1. **Background seen through**: a hole whose fixed-point search (the one [`fixed_point_search`],
-///    `search`'s T and threshold) converges on texels where no source layer has a surface shows
-///    the empty background the source shows there — sky: it keeps the far depth and becomes
-///    [`PixelState::Converged`] (it did converge, on an empty sample). Without this step a sky
-///    pixel between two surfaces would be filled with the farther surface.
+///    `search`'s T and threshold; seeds [`background_seeds`]) converges on texels where no
+///    source layer has a surface shows the empty background the source shows there — sky: it
+///    keeps the far depth and becomes [`PixelState::Converged`] (it did converge, on an empty
+///    sample). Without this step a sky pixel between two surfaces would be filled with the
+///    farther surface.
 /// 2. **Bracketed holes**: [`fill_holes`] with [`FillRule::Background`] (disocclusion slivers
-///    take the farther side), bracketed within the motion range of the source surfaces plus one
-///    pixel (no disocclusion opens wider than the motions of its two sides differ), at most
-///    `radius` (1..=64).
+///    take the farther side) within [`BackgroundLimits::bracket`].
 /// 3. **Image border**: a hole whose row (or column) runs to the image border, where the source
 ///    has no pixels (the strip a moving camera uncovers), takes the depth of the nearest
-///    converged pixel inwards along that row or column, within the largest motion of the source
-///    plus one pixel (no strip is wider). Converged background pixels count, so sky at the
-///    border stays sky.
+///    converged pixel inwards along that row or column, within [`BackgroundLimits::reach`].
+///    Converged background pixels count, so sky at the border stays sky.
 ///
 /// Not conservative (a fill may be nearer than the truth): for quality, never for culling.
-/// Errors if there is no layer or a layer's size differs from `out`'s.
+/// Errors as [`BackgroundLimits::of`]. The WGSL twin is `zwarp_gpu::HoleFillKernel::fill_background`.
 pub fn fill_background(
     layers: &[WarpLayer<'_>],
     out: &mut WarpOutput,
@@ -205,25 +257,12 @@ pub fn fill_background(
     search: &SearchParams,
 ) -> Result<()> {
     let (w, h) = out.depth.size();
-    let source = layers.first().ok_or_else(|| Error::invalid("fill_background needs at least one source layer"))?;
-    if !(1..=64).contains(&radius) {
-        return Err(Error::invalid(format!("fill_background: radius must be in 1..=64, got {radius}")));
-    }
-    for (k, l) in layers.iter().enumerate() {
-        if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
-            return Err(Error::invalid(format!(
-                "fill_background: source layer {k} is {}x{} but the warped buffer is {w}x{h}",
-                l.depth.width(),
-                l.depth.height()
-            )));
-        }
-    }
+    let limits = BackgroundLimits::of(layers, w, h, radius)?;
     if w == 0 || h == 0 {
         return Ok(());
     }
     // 1. Holes that see the source's empty background.
-    let bg = EmptyBackground { layers, motion: source.motion.data(), w, h };
-    let max_q = Vec2::new(w as f32, h as f32) - Vec2::splat(1e-3);
+    let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w, h };
     out.depth
         .data_mut()
         .par_chunks_mut(w as usize)
@@ -235,40 +274,26 @@ pub fn fill_background(
                     continue;
                 }
                 let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let back = source.motion.data()[y * w as usize + x].v;
-                let mut seeds = [p, p - back];
-                for s in &mut seeds {
-                    *s = if s.is_finite() { s.clamp(Vec2::ZERO, max_q) } else { p };
-                }
-                if let Some(c) = fixed_point_search(&bg, p, &seeds[..BACKGROUND_SEEDS], search) {
+                let seeds = background_seeds(p, bg.motion[y * w as usize + x].v, w, h);
+                if let Some(c) = fixed_point_search(&bg, p, &seeds, search) {
                     drow[x] = c.depth;
                     srow[x] = PixelState::Converged;
                 }
             }
         });
-    // The motion of the surfaces bounds how wide a hole can open: a disocclusion between two
-    // surfaces is at most as wide as their motions differ (the motion range), a border strip at
-    // most as wide as the largest motion.
-    let (lo, hi) = layers
-        .iter()
-        .flat_map(|l| l.depth.data().iter().zip(l.motion.data()))
-        .filter(|(d, m)| **d < EMPTY_DEPTH && m.v.is_finite())
-        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), (_, m)| (lo.min(m.v), hi.max(m.v)));
-    let (range, largest) =
-        if lo.x <= hi.x { ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element()) } else { (0.0, 0.0) };
-    // 2. Bracketed holes, within the motion range (at most `radius`).
-    let bracket = (range.ceil() as u32 + 1).min(radius);
-    fill_holes(&mut out.depth, &mut out.state, bracket, FillRule::Background);
+    // 2. Bracketed holes.
+    fill_holes(&mut out.depth, &mut out.state, limits.bracket, FillRule::Background);
     // 3. Holes open to the image border.
-    let reach = (largest.ceil() as i64 + 1).min(w.max(h) as i64);
-    fill_border_holes(&mut out.depth, &mut out.state, reach);
+    fill_border_holes(&mut out.depth, &mut out.state, limits.reach);
     Ok(())
 }
 
 /// Step 3 of [`fill_background`]: holes whose row or column reaches the image border within
 /// `reach` pixels take the depth of the nearest converged pixel inwards (within `reach`);
-/// the nearest of up to four such pixels wins (ties: the farther depth).
-fn fill_border_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, reach: i64) {
+/// the nearest of up to four such pixels wins (ties: the farther depth). Only converged pixels
+/// are read, so the result does not depend on the processing order.
+pub fn fill_border_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, reach: u32) {
+    let reach = reach as i64;
     let (w, h) = depth.size();
     let src_depth = depth.data().to_vec();
     let src_state = state.data().to_vec();
@@ -503,6 +528,10 @@ mod tests {
         let layers = [WarpLayer { depth: &d, motion: &m }];
         assert!(fill_background(&layers, &mut out, 0, &search).unwrap_err().to_string().contains("radius"));
         assert!(fill_background(&layers, &mut out, 65, &search).is_err());
+        let mut m_nan = m.clone();
+        m_nan.get_mut(3, 2).v.x = f32::NAN;
+        let err = fill_background(&[WarpLayer { depth: &d, motion: &m_nan }], &mut out, 4, &search).unwrap_err();
+        assert!(err.to_string().contains("non-finite"), "{err}");
     }
 
     #[test]

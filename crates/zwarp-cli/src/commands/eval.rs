@@ -413,8 +413,9 @@ pub fn evaluate(
             let ctx = zwarp_gpu::GpuContext::new()?;
             let renderer = zwarp_gpu::Renderer::new(&ctx)?;
             let kernel = zwarp_gpu::WarpKernel::new(&ctx)?;
+            let fill = zwarp_gpu::HoleFillKernel::new(&ctx)?;
             let uploaded = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
-            Some((ctx, renderer, kernel, uploaded))
+            Some((ctx, renderer, (kernel, fill), uploaded))
         }
     };
     let cores = rayon::current_num_threads() as f64;
@@ -502,8 +503,8 @@ pub fn evaluate(
                                         };
                                         // The background protocol needs the source layers (sky
                                         // seen through holes, border strips): the warp keeps far
-                                        // holes, then `fill_background` (on the CPU for both
-                                        // backends) fills them.
+                                        // holes, then `fill_background` (or its WGSL twin) fills
+                                        // them.
                                         let fill = match params.holes {
                                             HolePolicy::Background { radius } => Some(radius),
                                             _ => None,
@@ -516,11 +517,19 @@ pub fn evaluate(
                                         let search = search_params(&params);
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
                                             let mut o = match &gpu {
-                                                Some((_, _, kernel, _)) => kernel.warp(&layers, &warp_params)?,
+                                                Some((_, _, (kernel, _), _)) => kernel.warp(&layers, &warp_params)?,
                                                 None => zwarp_warp::warp_depth(&layers, &warp_params)?,
                                             };
-                                            if let Some(radius) = fill {
-                                                zwarp_warp::holes::fill_background(&layers, &mut o, radius, &search)?;
+                                            match (fill, &gpu) {
+                                                (Some(radius), Some((_, _, (_, holes), _))) => {
+                                                    (o.depth, o.state) = holes.fill_background(
+                                                        &layers, &o.depth, &o.state, radius, &search,
+                                                    )?;
+                                                }
+                                                (Some(radius), None) => zwarp_warp::holes::fill_background(
+                                                    &layers, &mut o, radius, &search,
+                                                )?,
+                                                (None, _) => {}
                                             }
                                             Ok((o.depth, Some(o.state)))
                                         })?;

@@ -1,60 +1,100 @@
 //! Hole filling as a GPU post-pass over any warped depth + state buffers (seed 000 Sec. 3.5,
 //! Fig. 8 dilation; Sec. 4's background fill): the WGSL twin of [`zwarp_warp::fill_holes`]
-//! (`HolePolicy::Dilate` = [`zwarp_warp::dilate_holes`], `HolePolicy::Background`). With the
-//! far-depth holes of [`crate::WarpKernel`] it gives every CPU hole policy but AWOC on the GPU.
-//! Shader: `holes.wgsl`.
+//! (`HolePolicy::Dilate` = [`zwarp_warp::dilate_holes`], `HolePolicy::Background`) and of
+//! [`zwarp_warp::holes::fill_background`] (sky seen through holes, bracketed holes, image-border
+//! strips). With the far-depth holes of [`crate::WarpKernel`] it gives every CPU hole policy but
+//! AWOC on the GPU. Shader: `holes.wgsl`.
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
-use zwarp_core::{Error, Image, Result};
-use zwarp_warp::{HolePolicy, PixelState};
+use zwarp_core::{Error, Image, Result, EMPTY_DEPTH};
+use zwarp_warp::holes::BackgroundLimits;
+use zwarp_warp::{HolePolicy, PixelState, SearchParams, WarpLayer};
 
+use super::AutoPipelines;
 use crate::{GpuContext, GpuWarpOutput};
 
+/// Mirror of `Params` in holes.wgsl.
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
+#[derive(Clone, Copy, Pod, Zeroable, Default)]
 struct Params {
     width: u32,
     height: u32,
     radius: u32,
     rule: u32,
+    iterations: u32,
+    threshold: f32,
+    reach: u32,
+    accelerate: u32,
 }
 
 /// Largest accepted fill radius (as `zwarp_warp::WarpParams::validate`).
 const MAX_RADIUS: u32 = 64;
 
-/// The hole-fill post-pass.
+/// The hole-fill post-passes.
 pub struct HoleFillKernel {
     ctx: GpuContext,
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
+    fill: wgpu::ComputePipeline,
+    sky: wgpu::ComputePipeline,
+    border: wgpu::ComputePipeline,
 }
 
 impl HoleFillKernel {
     /// Compiles `holes.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let dev = &ctx.device;
-        let module = ctx.catch("compiling holes.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("holes.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("holes.wgsl").into()),
+        let pipelines = AutoPipelines::new(ctx, "holes.wgsl", include_str!("holes.wgsl"), "hole-fill")?;
+        Ok(HoleFillKernel {
+            ctx: ctx.clone(),
+            fill: pipelines.pipeline("fill")?,
+            sky: pipelines.pipeline("sky")?,
+            border: pipelines.pipeline("border")?,
+        })
+    }
+
+    /// Records one `w x h` dispatch of `pipeline` with `params` at binding 0 and `buffers` at
+    /// their bindings.
+    fn dispatch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::ComputePipeline,
+        params: Params,
+        buffers: &[(u32, &wgpu::Buffer)],
+    ) {
+        let dev = &self.ctx.device;
+        let ubuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("zwarp holes params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let entries: Vec<wgpu::BindGroupEntry> = std::iter::once((0, &ubuf))
+            .chain(buffers.iter().copied())
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() })
+            .collect();
+        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp holes"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("zwarp holes"), timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(params.width.div_ceil(8), params.height.div_ceil(8), 1);
+    }
+
+    /// Two new `w x h` storage buffers (depth, state) for a pass's output.
+    fn output_buffers(&self, w: u32, h: u32) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+        let bytes = w as u64 * h as u64 * 4;
+        self.ctx.check_storage_size(bytes, "filled depth")?;
+        let out = |label| {
+            self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
             })
-        })?;
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let (layout, pl) =
-            super::buffer_layouts(dev, "zwarp holes", &[wgpu::BufferBindingType::Uniform, ro, ro, rw, rw]);
-        let pipeline = ctx.catch("building the hole-fill pipeline", || {
-            dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("zwarp holes"),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some("fill"),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        })?;
-        Ok(HoleFillKernel { ctx: ctx.clone(), pipeline, layout })
+        };
+        Ok((out("zwarp filled depth"), out("zwarp filled state")))
     }
 
     /// `(rule, radius)` of a policy; `None` for `FarDepth` (nothing to do).
@@ -85,44 +125,119 @@ impl HoleFillKernel {
         let Some((rule, radius)) = Self::rule(policy)? else {
             return Ok(GpuWarpOutput { depth: warped.depth.clone(), state: warped.state.clone(), width: w, height: h });
         };
+        Self::check_warped(warped)?;
+        let (depth, state) = self.output_buffers(w, h)?;
+        let params = Params { width: w, height: h, radius, rule, ..Params::default() };
+        self.dispatch(encoder, &self.fill, params, &[(1, &warped.depth), (2, &warped.state), (3, &depth), (4, &state)]);
+        Ok(GpuWarpOutput { depth, state, width: w, height: h })
+    }
+
+    fn check_warped(warped: &GpuWarpOutput) -> Result<()> {
+        let (w, h) = (warped.width, warped.height);
         let bytes = w as u64 * h as u64 * 4;
         if w == 0 || h == 0 || warped.depth.size() < bytes || warped.state.size() < bytes {
             return Err(Error::invalid(format!("warped buffers are too small for {w}x{h}")));
         }
-        self.ctx.check_storage_size(bytes, "filled depth")?;
+        Ok(())
+    }
+
+    /// Records [`zwarp_warp::holes::fill_background`] of `warped` (a far-hole warp) into new
+    /// buffers: the sky pass (in place on a copy), the bracketed fill within `limits.bracket`,
+    /// the border pass within `limits.reach`. `empty` holds one `u32` per pixel, 1 where no
+    /// source layer has a surface; `motion` layer 0's motion as `vec2<f32>` per pixel; `limits`
+    /// from [`BackgroundLimits::of`] on the same layers.
+    pub fn encode_background(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        warped: &GpuWarpOutput,
+        empty: &wgpu::Buffer,
+        motion: &wgpu::Buffer,
+        limits: BackgroundLimits,
+        search: &SearchParams,
+    ) -> Result<GpuWarpOutput> {
+        Self::check_warped(warped)?;
+        let (w, h) = (warped.width, warped.height);
+        let n = w as u64 * h as u64;
+        if empty.size() < n * 4 || motion.size() < n * 8 {
+            return Err(Error::invalid(format!("background buffers are too small for {w}x{h}")));
+        }
+        let (depth, state) = self.output_buffers(w, h)?;
+        encoder.copy_buffer_to_buffer(&warped.depth, 0, &depth, 0, n * 4);
+        encoder.copy_buffer_to_buffer(&warped.state, 0, &state, 0, n * 4);
+        let params = Params {
+            width: w,
+            height: h,
+            iterations: search.iterations,
+            threshold: search.threshold,
+            accelerate: search.accelerate as u32,
+            ..Params::default()
+        };
+        self.dispatch(encoder, &self.sky, params, &[(3, &depth), (4, &state), (5, empty), (6, motion)]);
+        let sky = GpuWarpOutput { depth, state, width: w, height: h };
+        let bracketed = self.encode(encoder, &sky, HolePolicy::Background { radius: limits.bracket })?;
+        let (depth, state) = self.output_buffers(w, h)?;
+        let params = Params { width: w, height: h, reach: limits.reach, ..Params::default() };
+        self.dispatch(
+            encoder,
+            &self.border,
+            params,
+            &[(1, &bracketed.depth), (2, &bracketed.state), (3, &depth), (4, &state)],
+        );
+        Ok(GpuWarpOutput { depth, state, width: w, height: h })
+    }
+
+    /// [`zwarp_warp::holes::fill_background`] on the GPU for CPU buffers: `depth` / `state` of
+    /// a far-hole warp of `layers`, filled and read back. Same errors as the CPU function, plus
+    /// size mismatches between `depth` and `state`.
+    pub fn fill_background(
+        &self,
+        layers: &[WarpLayer<'_>],
+        depth: &Image<f32>,
+        state: &Image<PixelState>,
+        radius: u32,
+        search: &SearchParams,
+    ) -> Result<(Image<f32>, Image<PixelState>)> {
+        depth.check_nonempty("warped depth")?;
+        depth.check_same_size(state, "warped depth vs state")?;
+        let (w, h) = depth.size();
+        let limits = BackgroundLimits::of(layers, w, h, radius)?;
+        let n = w as usize * h as usize;
+        let empty: Vec<u32> = (0..n).map(|i| layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) as u32).collect();
+        let motion: Vec<[f32; 2]> = layers[0].motion.data().iter().map(|m| m.v.to_array()).collect();
+        let input = self.upload(depth, state);
         let dev = &self.ctx.device;
-        let out = |label| {
-            dev.create_buffer(&wgpu::BufferDescriptor {
+        let storage = |label, contents: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
-                size: bytes,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        let (depth, state) = (out("zwarp filled depth"), out("zwarp filled state"));
-        let ubuf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("zwarp holes params"),
-            contents: bytemuck::bytes_of(&Params { width: w, height: h, radius, rule }),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let bufs = [&ubuf, &warped.depth, &warped.state, &depth, &state];
-        let entries: Vec<wgpu::BindGroupEntry> = bufs
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-            .collect();
-        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("zwarp holes"),
-            layout: &self.layout,
-            entries: &entries,
-        });
-        let mut pass = encoder
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("zwarp holes"), timestamp_writes: None });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
-        drop(pass);
-        Ok(GpuWarpOutput { depth, state, width: w, height: h })
+        let empty = storage("zwarp holes empty", bytemuck::cast_slice(&empty));
+        let motion = storage("zwarp holes motion", bytemuck::cast_slice(&motion));
+        let mut enc = dev.create_command_encoder(&Default::default());
+        let out = self.encode_background(&mut enc, &input, &empty, &motion, limits, search)?;
+        self.ctx.queue.submit([enc.finish()]);
+        let r = out.read(&self.ctx)?;
+        Ok((r.depth, r.state))
+    }
+
+    /// Uploads CPU depth + state buffers as a [`GpuWarpOutput`].
+    fn upload(&self, depth: &Image<f32>, state: &Image<PixelState>) -> GpuWarpOutput {
+        let init = |label, contents: &[u8]| {
+            self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            })
+        };
+        let states: Vec<u32> = state.data().iter().map(|s| *s as u32).collect();
+        GpuWarpOutput {
+            depth: init("zwarp holes depth in", bytemuck::cast_slice(depth.data())),
+            state: init("zwarp holes state in", bytemuck::cast_slice(&states)),
+            width: depth.width(),
+            height: depth.height(),
+        }
     }
 
     /// Fills CPU buffers on the GPU and reads them back (the twin of
@@ -140,22 +255,8 @@ impl HoleFillKernel {
             return Err(Error::invalid("warped depth holds NaN"));
         }
         Self::rule(policy)?;
-        let dev = &self.ctx.device;
-        let init = |label, contents: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            })
-        };
-        let states: Vec<u32> = state.data().iter().map(|s| *s as u32).collect();
-        let input = GpuWarpOutput {
-            depth: init("zwarp holes depth in", bytemuck::cast_slice(depth.data())),
-            state: init("zwarp holes state in", bytemuck::cast_slice(&states)),
-            width: depth.width(),
-            height: depth.height(),
-        };
-        let mut enc = dev.create_command_encoder(&Default::default());
+        let input = self.upload(depth, state);
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let out = self.encode(&mut enc, &input, policy)?;
         self.ctx.queue.submit([enc.finish()]);
         let r = out.read(&self.ctx)?;

@@ -1,8 +1,10 @@
 // Hole filling of a warped depth buffer as a post-pass (seed 000 Sec. 3.5, Fig. 8; Sec. 4's
 // background fill): the WGSL twin of zwarp_warp::fill_holes with FillRule::Nearest
-// (HolePolicy::Dilate, zwarp_warp::dilate_holes) and FillRule::Background. Only converged
-// pixels are read, so one pass over a copy gives the CPU's order-independent result. Host
-// code: holes.rs.
+// (HolePolicy::Dilate, zwarp_warp::dilate_holes) and FillRule::Background (`fill`), and of
+// zwarp_warp::holes::fill_background's other two steps: holes that see the source's empty
+// background (`sky`) and strips open to the image border (`border`). Only converged pixels are
+// read by `fill` and `border`, so one pass over a copy gives the CPU's order-independent
+// result; `sky` reads only its own pixel and runs in place. Host code: holes.rs.
 
 struct Params {
     width: u32,
@@ -10,6 +12,12 @@ struct Params {
     radius: u32,
     // 0 = Nearest (Fig. 8 dilation), 1 = Background.
     rule: u32,
+    // `sky`: the fixed-point search's T, threshold and Newton flag (zwarp_warp::SearchParams).
+    iterations: u32,
+    threshold: f32,
+    // `border`: BackgroundLimits::reach.
+    reach: u32,
+    accelerate: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -17,6 +25,9 @@ struct Params {
 @group(0) @binding(2) var<storage, read> in_state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out_state: array<u32>;
+// `sky`: 1 where no source layer has a surface; layer 0's motion (pixels).
+@group(0) @binding(5) var<storage, read> empty: array<u32>;
+@group(0) @binding(6) var<storage, read> motion: array<vec2<f32>>;
 
 const CONVERGED: u32 = 0u;
 const FILLED: u32 = 1u;
@@ -105,6 +116,121 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
                 d = farthest;
                 s = FILLED;
             }
+        }
+    }
+    out_depth[i] = d;
+    out_state[i] = s;
+}
+
+// The empty-background sample at q (the CPU's EmptyBackground): (v, 1) on an empty texel, nearest
+// sampled; (0, 0, 0) outside the image or on a surface.
+fn background_sample(q: vec2<f32>) -> vec3<f32> {
+    if (!(q.x >= 0.0 && q.y >= 0.0 && q.x < f32(params.width) && q.y < f32(params.height))) {
+        return vec3<f32>(0.0);
+    }
+    let i = min(u32(q.y), params.height - 1u) * params.width + min(u32(q.x), params.width - 1u);
+    if (empty[i] == 0u) {
+        return vec3<f32>(0.0);
+    }
+    return vec3<f32>(motion[i], 1.0);
+}
+
+// Step 1 of fill_background, in place: a hole whose fixed-point search (zwarp_warp's
+// fixed_point_search on the empty-background samples, whose Jacobian is zero, from the seeds of
+// background_seeds) converges sees the empty background: far depth, converged.
+@compute @workgroup_size(8, 8, 1)
+fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.width || gid.y >= params.height) {
+        return;
+    }
+    let i = gid.y * params.width + gid.x;
+    if (out_state[i] != HOLE) {
+        return;
+    }
+    let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
+    let max_q = vec2<f32>(f32(params.width), f32(params.height)) - vec2<f32>(1e-3);
+    let thr2 = params.threshold * params.threshold;
+    var converged = false;
+    for (var k = 0u; k < 2u; k++) {
+        var q = clamp(select(p, p - motion[i], k == 1u), vec2<f32>(0.0), max_q);
+        for (var t = 0u; t < params.iterations; t++) {
+            let s = background_sample(q);
+            if (s.z == 0.0) {
+                break;
+            }
+            let w = p - s.xy;
+            let step = w - q;
+            if (step.x * step.x + step.y * step.y < thr2) {
+                converged = true;
+                break;
+            }
+            // Plain step, or the Newton step with a zero Jacobian (q + step), as on the CPU.
+            q = select(w, q + step, params.accelerate != 0u);
+        }
+    }
+    if (converged) {
+        out_depth[i] = 1.0;
+        out_state[i] = CONVERGED;
+    }
+}
+
+// Step 3 of fill_background (zwarp_warp::holes::fill_border_holes): a hole whose row or column
+// runs to the image border within `reach` takes the nearest converged depth inwards.
+@compute @workgroup_size(8, 8, 1)
+fn border(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.width || gid.y >= params.height) {
+        return;
+    }
+    let i = gid.y * params.width + gid.x;
+    var d = in_depth[i];
+    var s = in_state[i];
+    if (s == HOLE) {
+        let w = i32(params.width);
+        let h = i32(params.height);
+        let x = i32(gid.x);
+        let y = i32(gid.y);
+        let reach = i32(params.reach);
+        let dirs = array<vec3<i32>, 4>(
+            vec3<i32>(-1, 0, x), vec3<i32>(1, 0, w - 1 - x), vec3<i32>(0, -1, y), vec3<i32>(0, 1, h - 1 - y));
+        var best_k = 0;
+        var best_z = 0.0;
+        for (var j = 0; j < 4; j++) {
+            let dx = dirs[j].x;
+            let dy = dirs[j].y;
+            let to_border = dirs[j].z;
+            if (to_border >= reach) {
+                continue;
+            }
+            var open = true;
+            for (var k = 1; k <= to_border; k++) {
+                if (in_state[u32((y + dy * k) * w + x + dx * k)] == CONVERGED) {
+                    open = false;
+                    break;
+                }
+            }
+            if (!open) {
+                continue;
+            }
+            for (var k = 1; k <= reach; k++) {
+                let xx = x - dx * k;
+                let yy = y - dy * k;
+                if (xx < 0 || yy < 0 || xx >= w || yy >= h) {
+                    break;
+                }
+                let n = u32(yy * w + xx);
+                if (in_state[n] == CONVERGED) {
+                    let z = in_depth[n];
+                    if (best_k == 0 || k < best_k || (k == best_k && z > best_z)) {
+                        best_k = k;
+                        best_z = z;
+                    }
+                    break;
+                }
+            }
+        }
+        if (best_k != 0) {
+            d = best_z;
+            s = FILLED;
         }
     }
     out_depth[i] = d;
