@@ -36,19 +36,13 @@ pub struct HoleFillKernel {
     ctx: GpuContext,
     fill: wgpu::ComputePipeline,
     sky: wgpu::ComputePipeline,
-    border: wgpu::ComputePipeline,
 }
 
 impl HoleFillKernel {
     /// Compiles `holes.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let pipelines = AutoPipelines::new(ctx, "holes.wgsl", include_str!("holes.wgsl"), "hole-fill")?;
-        Ok(HoleFillKernel {
-            ctx: ctx.clone(),
-            fill: pipelines.pipeline("fill")?,
-            sky: pipelines.pipeline("sky")?,
-            border: pipelines.pipeline("border")?,
-        })
+        Ok(HoleFillKernel { ctx: ctx.clone(), fill: pipelines.pipeline("fill")?, sky: pipelines.pipeline("sky")? })
     }
 
     /// Records one `w x h` dispatch of `pipeline` with `params` at binding 0 and `buffers` at
@@ -176,10 +170,10 @@ impl HoleFillKernel {
         let sky = GpuWarpOutput { depth, state, width: w, height: h };
         let bracketed = self.encode(encoder, &sky, HolePolicy::Background { radius: limits.bracket })?;
         let (depth, state) = self.output_buffers(w, h)?;
-        let params = Params { width: w, height: h, reach: limits.reach, ..Params::default() };
+        let params = Params { width: w, height: h, rule: 2, reach: limits.reach, ..Params::default() };
         self.dispatch(
             encoder,
-            &self.border,
+            &self.fill,
             params,
             &[(1, &bracketed.depth), (2, &bracketed.state), (3, &depth), (4, &state)],
         );

@@ -2,20 +2,20 @@
 // background fill): the WGSL twin of zwarp_warp::fill_holes with FillRule::Nearest
 // (HolePolicy::Dilate, zwarp_warp::dilate_holes) and FillRule::Background (`fill`), and of
 // zwarp_warp::holes::fill_background's other two steps: holes that see the source's empty
-// background (`sky`) and strips open to the image border (`border`). Only converged pixels are
-// read by `fill` and `border`, so one pass over a copy gives the CPU's order-independent
-// result; `sky` reads only its own pixel and runs in place. Host code: holes.rs.
+// background (`sky`) and strips open to the image border (`fill` with rule 2). Only converged
+// pixels are read by `fill`, so one pass over a copy gives the CPU's order-independent result;
+// `sky` reads only its own pixel and runs in place. Host code: holes.rs.
 
 struct Params {
     width: u32,
     height: u32,
     radius: u32,
-    // 0 = Nearest (Fig. 8 dilation), 1 = Background.
+    // `fill`: 0 = Nearest (Fig. 8 dilation), 1 = Background, 2 = border strips.
     rule: u32,
     // `sky`: the fixed-point search's T, threshold and Newton flag (zwarp_warp::SearchParams).
     iterations: u32,
     threshold: f32,
-    // `border`: BackgroundLimits::reach.
+    // rule 2: BackgroundLimits::reach.
     reach: u32,
     accelerate: u32,
 };
@@ -32,6 +32,9 @@ struct Params {
 const CONVERGED: u32 = 0u;
 const FILLED: u32 = 1u;
 const HOLE: u32 = 2u;
+
+// Horizontal, vertical, both diagonals (zwarp_warp::FILL_DIRECTIONS), each probed both ways.
+const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
 
 // Nearest converged pixel from (x, y) along (dx, dy) within the radius: (k, depth), k = 0 if
 // none (the image edge or the radius ends the probe).
@@ -52,6 +55,105 @@ fn probe(x: i32, y: i32, dx: i32, dy: i32) -> vec2<f32> {
     return vec2<f32>(0.0, 0.0);
 }
 
+// Fig. 8 dilation (FillRule::Nearest) at hole (x, y): (depth, 1) when surrounded along all
+// four directions, the nearest neighbour winning (ties: the farther depth); (0, 0) otherwise.
+fn nearest_fill(x: i32, y: i32) -> vec2<f32> {
+    var best_d = -1.0;
+    var best_z = 0.0;
+    for (var j = 0; j < 4; j++) {
+        let dir = DIRS[j];
+        let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
+        let a = probe(x, y, dir.x, dir.y);
+        let b = probe(x, y, -dir.x, -dir.y);
+        if (a.x == 0.0 || b.x == 0.0) {
+            return vec2<f32>(0.0, 0.0);
+        }
+        for (var e = 0; e < 2; e++) {
+            let p = select(a, b, e == 1);
+            let dist = p.x * step;
+            let keep = best_d >= 0.0 && (best_d < dist || (best_d == dist && best_z >= p.y));
+            if (!keep) {
+                best_d = dist;
+                best_z = p.y;
+            }
+        }
+    }
+    return vec2<f32>(best_z, select(0.0, 1.0, best_d >= 0.0));
+}
+
+// Sec. 4 background fill (FillRule::Background) at hole (x, y): (depth, 1) when bracketed along
+// at least one direction, the farthest probe result winning; (0, 0) otherwise.
+fn background_fill(x: i32, y: i32) -> vec2<f32> {
+    var found = false;
+    var farthest = 0.0;
+    var bracketed = false;
+    for (var j = 0; j < 4; j++) {
+        let dir = DIRS[j];
+        let a = probe(x, y, dir.x, dir.y);
+        let b = probe(x, y, -dir.x, -dir.y);
+        bracketed = bracketed || (a.x != 0.0 && b.x != 0.0);
+        if (a.x != 0.0) {
+            farthest = select(a.y, max(farthest, a.y), found);
+            found = true;
+        }
+        if (b.x != 0.0) {
+            farthest = select(b.y, max(farthest, b.y), found);
+            found = true;
+        }
+    }
+    return vec2<f32>(farthest, select(0.0, 1.0, found && bracketed));
+}
+
+// Step 3 of fill_background (zwarp_warp::holes::fill_border_holes) at hole (x, y): a hole whose
+// row or column runs to the image border within `reach` takes the nearest converged depth
+// inwards (ties: the farther): (depth, 1); (0, 0) otherwise.
+fn border_fill(x: i32, y: i32) -> vec2<f32> {
+    let w = i32(params.width);
+    let h = i32(params.height);
+    let reach = i32(params.reach);
+    let dirs = array<vec3<i32>, 4>(
+        vec3<i32>(-1, 0, x), vec3<i32>(1, 0, w - 1 - x), vec3<i32>(0, -1, y), vec3<i32>(0, 1, h - 1 - y));
+    var best_k = 0;
+    var best_z = 0.0;
+    for (var j = 0; j < 4; j++) {
+        let dx = dirs[j].x;
+        let dy = dirs[j].y;
+        let to_border = dirs[j].z;
+        if (to_border >= reach) {
+            continue;
+        }
+        var open = true;
+        for (var k = 1; k <= to_border; k++) {
+            if (in_state[u32((y + dy * k) * w + x + dx * k)] == CONVERGED) {
+                open = false;
+                break;
+            }
+        }
+        if (!open) {
+            continue;
+        }
+        for (var k = 1; k <= reach; k++) {
+            let xx = x - dx * k;
+            let yy = y - dy * k;
+            if (xx < 0 || yy < 0 || xx >= w || yy >= h) {
+                break;
+            }
+            let n = u32(yy * w + xx);
+            if (in_state[n] == CONVERGED) {
+                let z = in_depth[n];
+                if (best_k == 0 || k < best_k || (k == best_k && z > best_z)) {
+                    best_k = k;
+                    best_z = z;
+                }
+                break;
+            }
+        }
+    }
+    return vec2<f32>(best_z, select(0.0, 1.0, best_k != 0));
+}
+
+// One pass over a copy: every hole gets the fill of `params.rule` (0 Fig. 8 dilation,
+// 1 background fill, 2 border strips) when that rule finds one.
 @compute @workgroup_size(8, 8, 1)
 fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.width || gid.y >= params.height) {
@@ -63,59 +165,17 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (s == HOLE) {
         let x = i32(gid.x);
         let y = i32(gid.y);
-        // Horizontal, vertical, both diagonals (zwarp_warp's DIRS order), each probed both ways.
-        let dirs = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
+        var f = vec2<f32>(0.0, 0.0);
         if (params.rule == 0u) {
-            // Surrounded along all four directions; nearest neighbour wins, ties the farther.
-            var best_d = -1.0;
-            var best_z = 0.0;
-            var surrounded = true;
-            for (var j = 0; j < 4; j++) {
-                let dir = dirs[j];
-                let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
-                let a = probe(x, y, dir.x, dir.y);
-                let b = probe(x, y, -dir.x, -dir.y);
-                if (a.x == 0.0 || b.x == 0.0) {
-                    surrounded = false;
-                    break;
-                }
-                for (var e = 0; e < 2; e++) {
-                    let p = select(a, b, e == 1);
-                    let dist = p.x * step;
-                    let keep = best_d >= 0.0 && (best_d < dist || (best_d == dist && best_z >= p.y));
-                    if (!keep) {
-                        best_d = dist;
-                        best_z = p.y;
-                    }
-                }
-            }
-            if (surrounded && best_d >= 0.0) {
-                d = best_z;
-                s = FILLED;
-            }
+            f = nearest_fill(x, y);
+        } else if (params.rule == 1u) {
+            f = background_fill(x, y);
         } else {
-            // Bracketed along at least one direction; the farthest probe result wins.
-            var found = false;
-            var farthest = 0.0;
-            var bracketed = false;
-            for (var j = 0; j < 4; j++) {
-                let dir = dirs[j];
-                let a = probe(x, y, dir.x, dir.y);
-                let b = probe(x, y, -dir.x, -dir.y);
-                bracketed = bracketed || (a.x != 0.0 && b.x != 0.0);
-                if (a.x != 0.0) {
-                    farthest = select(a.y, max(farthest, a.y), found);
-                    found = true;
-                }
-                if (b.x != 0.0) {
-                    farthest = select(b.y, max(farthest, b.y), found);
-                    found = true;
-                }
-            }
-            if (found && bracketed) {
-                d = farthest;
-                s = FILLED;
-            }
+            f = border_fill(x, y);
+        }
+        if (f.y != 0.0) {
+            d = f.x;
+            s = FILLED;
         }
     }
     out_depth[i] = d;
@@ -172,67 +232,4 @@ fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
         out_depth[i] = 1.0;
         out_state[i] = CONVERGED;
     }
-}
-
-// Step 3 of fill_background (zwarp_warp::holes::fill_border_holes): a hole whose row or column
-// runs to the image border within `reach` takes the nearest converged depth inwards.
-@compute @workgroup_size(8, 8, 1)
-fn border(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.width || gid.y >= params.height) {
-        return;
-    }
-    let i = gid.y * params.width + gid.x;
-    var d = in_depth[i];
-    var s = in_state[i];
-    if (s == HOLE) {
-        let w = i32(params.width);
-        let h = i32(params.height);
-        let x = i32(gid.x);
-        let y = i32(gid.y);
-        let reach = i32(params.reach);
-        let dirs = array<vec3<i32>, 4>(
-            vec3<i32>(-1, 0, x), vec3<i32>(1, 0, w - 1 - x), vec3<i32>(0, -1, y), vec3<i32>(0, 1, h - 1 - y));
-        var best_k = 0;
-        var best_z = 0.0;
-        for (var j = 0; j < 4; j++) {
-            let dx = dirs[j].x;
-            let dy = dirs[j].y;
-            let to_border = dirs[j].z;
-            if (to_border >= reach) {
-                continue;
-            }
-            var open = true;
-            for (var k = 1; k <= to_border; k++) {
-                if (in_state[u32((y + dy * k) * w + x + dx * k)] == CONVERGED) {
-                    open = false;
-                    break;
-                }
-            }
-            if (!open) {
-                continue;
-            }
-            for (var k = 1; k <= reach; k++) {
-                let xx = x - dx * k;
-                let yy = y - dy * k;
-                if (xx < 0 || yy < 0 || xx >= w || yy >= h) {
-                    break;
-                }
-                let n = u32(yy * w + xx);
-                if (in_state[n] == CONVERGED) {
-                    let z = in_depth[n];
-                    if (best_k == 0 || k < best_k || (k == best_k && z > best_z)) {
-                        best_k = k;
-                        best_z = z;
-                    }
-                    break;
-                }
-            }
-        }
-        if (best_k != 0) {
-            d = best_z;
-            s = FILLED;
-        }
-    }
-    out_depth[i] = d;
-    out_state[i] = s;
 }
