@@ -49,17 +49,22 @@ struct Rendered {
     adapter: Option<String>,
 }
 
-/// The CPU backend: zwarp-raster and the CPU motion field.
-#[allow(clippy::too_many_arguments)]
-fn render_cpu(
-    scene: &zwarp_core::Scene,
-    cam: &zwarp_core::Camera,
+/// What one `zwarp render` draws: the frame at `t` seen by `cam`, its motion towards `cam_next`
+/// at `t_next`, and `layers` peeled layers (the ground separate when the scene has one).
+#[derive(Clone, Copy)]
+struct RenderJob<'a> {
+    scene: &'a zwarp_core::Scene,
+    cam: &'a zwarp_core::Camera,
     t: f32,
-    cam_next: &zwarp_core::Camera,
+    cam_next: &'a zwarp_core::Camera,
     t_next: f32,
     layers: usize,
     has_ground: bool,
-) -> Result<Rendered> {
+}
+
+/// The CPU backend: zwarp-raster and the CPU motion field.
+fn render_cpu(job: &RenderJob<'_>) -> Result<Rendered> {
+    let RenderJob { scene, cam, t, cam_next, t_next, layers, has_ground } = *job;
     let (_, depth_samples) = report::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, cam, t)?))?;
     let frame = render_frame(scene, cam, t, &FrameOptions { color: true, objects: None })?;
     let motion =
@@ -85,16 +90,8 @@ fn render_cpu(
 
 /// The GPU backend: the wgpu renderer (depth-only time fenced on the device), the WGSL motion
 /// kernel and GPU depth peeling.
-#[allow(clippy::too_many_arguments)]
-fn render_gpu(
-    scene: &zwarp_core::Scene,
-    cam: &zwarp_core::Camera,
-    t: f32,
-    cam_next: &zwarp_core::Camera,
-    t_next: f32,
-    layers: usize,
-    has_ground: bool,
-) -> Result<Rendered> {
+fn render_gpu(job: &RenderJob<'_>) -> Result<Rendered> {
+    let RenderJob { scene, cam, t, cam_next, t_next, layers, has_ground } = *job;
     let ctx = zwarp_gpu::GpuContext::new()?;
     let r = zwarp_gpu::Renderer::new(&ctx)?;
     let gs = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
@@ -168,9 +165,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let mut note = |p: &Path| files.push(p.display().to_string());
 
     let has_ground = scene.instances.iter().any(|i| i.is_ground);
+    let job = RenderJob { scene, cam: &cam, t, cam_next: &cam_next, t_next, layers: args.layers, has_ground };
     let rendered = match args.backend {
-        Backend::Cpu => render_cpu(scene, &cam, t, &cam_next, t_next, args.layers, has_ground)?,
-        Backend::Gpu => render_gpu(scene, &cam, t, &cam_next, t_next, args.layers, has_ground)?,
+        Backend::Cpu => render_cpu(&job)?,
+        Backend::Gpu => render_gpu(&job)?,
     };
     let (frame, motion) = (&rendered, &rendered.motion);
 
