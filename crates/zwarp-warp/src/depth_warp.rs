@@ -20,6 +20,7 @@
 
 use glam::Vec2;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid, TightBound};
@@ -111,13 +112,18 @@ impl PreparedLayer {
         };
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
-        // Zeroed allocation (calloc): pages are mapped on first write, no memset pass.
-        let mut samples = vec![Motion::default(); wu * h as usize];
-        let mut aab = vec![[0.0f32; 4]; lw * lh];
-        let mut obd = if need_ob { vec![[0.0f32; 4]; lw * lh] } else { Vec::new() };
+        // Huge-page backed buffers (`pages`): the samples are written below, every one.
+        let mut samples = crate::pages::uninit::<Motion>(wu * h as usize);
+        let empty = Bound::EMPTY.to_texel_pub();
+        let mut aab = crate::pages::filled(lw * lh, empty);
+        let mut obd = if need_ob { crate::pages::filled(lw * lh, empty) } else { Vec::new() };
         let mut zmin = vec![0.0f32; lw * lh];
         // One level-1 row (two image rows): returns error flags (1: bad depth, 2: NaN motion).
-        let row = |ty: usize, s: &mut [Motion], a: &mut [[f32; 4]], mut o: Option<&mut [[f32; 4]]>, z: &mut [f32]| {
+        let row = |ty: usize,
+                   s: &mut [MaybeUninit<Motion>],
+                   a: &mut [[f32; 4]],
+                   mut o: Option<&mut [[f32; 4]]>,
+                   z: &mut [f32]| {
             let mut flags = 0u8;
             a.fill(Bound::EMPTY.to_texel_pub());
             if let Some(o) = o.as_deref_mut() {
@@ -131,10 +137,10 @@ impl PreparedLayer {
                     let (d, m) = (depth[i], motion[i]);
                     flags |= (!d.is_finite()) as u8 | ((m.v.is_nan() || m.depth.is_nan()) as u8) << 1;
                     if !valid(i) {
-                        *out = Motion { v: Vec2::ZERO, depth: f32::INFINITY };
+                        out.write(Motion { v: Vec2::ZERO, depth: f32::INFINITY });
                         continue;
                     }
-                    *out = m;
+                    out.write(m);
                     if earlier.iter().any(|e| e[i] == d) {
                         continue;
                     }
@@ -150,8 +156,9 @@ impl PreparedLayer {
             }
             flags
         };
+        let n = wu * h as usize;
         let flags = if need_ob {
-            samples
+            samples.spare_capacity_mut()[..n]
                 .par_chunks_mut(2 * wu)
                 .zip(aab.par_chunks_mut(lw))
                 .zip(obd.par_chunks_mut(lw))
@@ -160,7 +167,7 @@ impl PreparedLayer {
                 .map(|(ty, (((s, a), o), z))| row(ty, s, a, Some(o), z))
                 .reduce(|| 0, |a, b| a | b)
         } else {
-            samples
+            samples.spare_capacity_mut()[..n]
                 .par_chunks_mut(2 * wu)
                 .zip(aab.par_chunks_mut(lw))
                 .zip(zmin.par_chunks_mut(lw))
@@ -168,6 +175,9 @@ impl PreparedLayer {
                 .map(|(ty, ((s, a), z))| row(ty, s, a, None, z))
                 .reduce(|| 0, |a, b| a | b)
         };
+        // SAFETY: the pass above wrote every one of the `n` samples (each row writes every
+        // pixel, valid or not, and the chunks cover `0..n`).
+        unsafe { samples.set_len(n) };
         if flags & 1 != 0 {
             return Err(Error::invalid("layer depth holds NaN or infinite values"));
         }
@@ -301,8 +311,8 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     let kernel = Kernel { layers, samplers: &samplers, params, w, h };
 
     let n = w as usize * h as usize;
-    let mut depth = vec![EMPTY_DEPTH; n];
-    let mut state = vec![PixelState::Hole; n];
+    let mut depth = crate::pages::filled(n, EMPTY_DEPTH);
+    let mut state = crate::pages::filled(n, PixelState::Hole);
     let mut source = if params.record_source { vec![SourcePos::default(); n] } else { Vec::new() };
     // Bands of TILE rows: tiles of TILE x TILE pixels share a first tightening stage.
     let band = (w * TILE) as usize;

@@ -26,6 +26,7 @@ pub mod baselines;
 pub mod bounds;
 pub mod depth_warp;
 pub mod holes;
+mod pages;
 pub mod search;
 pub mod stats;
 pub mod synth;
