@@ -111,8 +111,9 @@ pub struct WocParams {
     /// [`HULL_TEST_MAX_AREA`] pixels) against their box's exact screen silhouette instead of
     /// its bounding rectangle (the rectangle of a box seen obliquely is up to twice its
     /// silhouette): a far pixel in a rectangle's corner (an opening rim, a disocclusion sliver
-    /// beside the object) no longer keeps it. Works at any culling resolution (pixel squares,
-    /// not centres). Default on. A zwarp addition between the thesis' rectangle test and its
+    /// beside the object) no longer keeps it. Works at any culling resolution (full-resolution
+    /// pixel centres; at `1/f`, the part of each coarse pixel that holds fine pixel centres).
+    /// Default on. A zwarp addition between the thesis' rectangle test and its
     /// object-space hybrid query.
     pub hull_test: bool,
     /// K: how many of the heaviest still-visible objects get the hybrid object-space query
@@ -392,13 +393,32 @@ fn test_objects_in(
 /// cost more than drawing most of them).
 pub const HULL_TEST_MAX_AREA: u64 = 16_384;
 
+/// Pixel-square slack of the silhouette test ([`hull_hides`]) when testing at the resolution of
+/// `cam` for a frame rendered at the resolution of `full_cam` (same view volume): `0.01 - 0.5 /
+/// f` coarse pixels for a divisor `f` that divides both image sides (-0.49 at full resolution):
+/// the coarse squares shrink to the fine pixel centres they hold, so a silhouette that only
+/// grazes a coarse pixel's border strip, where it covers none of its fine centres, no longer
+/// keeps the object. When `f` does not divide a side the coarse borders fall anywhere between
+/// fine pixels (even on a fine centre), and the whole square counts (`0.01`).
+pub(crate) fn hull_slack(cam: &Camera, full_cam: &Camera) -> f32 {
+    let exact = |c: u32, fine: u32| c > 0 && fine % c == 0 && fine / c == full_cam.width / cam.width.max(1);
+    if exact(cam.width, full_cam.width) && exact(cam.height, full_cam.height) {
+        0.01 - 0.5 * cam.width as f32 / full_cam.width as f32
+    } else {
+        0.01
+    }
+}
+
 /// Second screen-space test (see [`WocParams::hull_test`]): `true` when an object whose box
 /// `b` has the screen rectangle `rect` (which the rectangle test kept) is hidden after all: no
 /// pixel of its rectangle that could show it (`predicted` depth not nearer than `limit`, its
 /// nearest corner depth minus [`DEPTH_TOLERANCE`]) touches the box's projected silhouette (the
-/// convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`]): at full
-/// resolution the pixel centre must lie in it (the renderer's coverage rule), at a coarse
-/// resolution any part of the coarse pixel (so every fine pixel centre under it counts).
+/// convex hull of its 8 projected corners, [`crate::screen::screen_hull_with`]). The renderer
+/// covers (full-resolution) pixel centres, so a pixel counts when the silhouette meets its
+/// square grown by `slack` on each side: at full resolution -0.49 (the centre, within 0.01 px
+/// against f32 rounding); at `1/f` of the resolution a coarse pixel bounds every fine pixel
+/// whose centre lies in it, and those centres lie at least `0.5 / f` coarse px inside its
+/// square, so `0.01 - 0.5 / f` (see [`hull_slack`]).
 /// Rectangles above [`HULL_TEST_MAX_AREA`] and boxes crossing the near plane are kept.
 #[allow(clippy::too_many_arguments)]
 fn hull_hides(
@@ -408,12 +428,9 @@ fn hull_hides(
     vp: &glam::Mat4,
     (w, h): (u32, u32),
     predicted: &[f32],
-    centres: bool,
+    slack: f32,
 ) -> bool {
     use crate::screen::{fceil, ffloor};
-    // Full resolution: the rasterizer covers pixel centres, so the silhouette must contain the
-    // centre (a 0.02 px square around it, against f32 rounding). Coarse: the whole square.
-    let slack = if centres { -0.49 } else { 0.01 };
     if rect.area() > HULL_TEST_MAX_AREA {
         return false;
     }
@@ -1061,7 +1078,7 @@ pub fn woc_with(
     // 6. Screen-space tests of the objects in the frustum: rectangle against the max-depth
     //    structure, then the silhouette of the survivors.
     let t0 = Instant::now();
-    let hull = params.hull_test.then_some((predicted.data(), f == 1));
+    let hull = params.hull_test.then_some((predicted.data(), hull_slack(cam, full_cam)));
     let kept = test_prepassed(&objects, cam, &map, hull);
     tm.test_ms = ms(t0);
 
@@ -1176,13 +1193,13 @@ fn prepass(scene: &Scene, bounds: &ObjectBounds, t: f32, cam: &Camera, rapid: &R
 
 /// The screen-space stage of [`woc`] over the [`prepass`]ed objects: ids (increasing) of those
 /// kept, i.e. forced, crossing the near plane, or whose rectangle is not occluded in `map`
-/// ([`DEPTH_TOLERANCE`] included) and, with `hull = Some((predicted depth, pixel centres))`,
+/// ([`DEPTH_TOLERANCE`] included) and, with `hull = Some((predicted depth, slack))`,
 /// whose silhouette still meets a pixel that could show them ([`WocParams::hull_test`]).
 fn test_prepassed(
     objects: &[Prepassed],
     cam: &Camera,
     map: &impl MaxDepthQuery,
-    hull: Option<(&[f32], bool)>,
+    hull: Option<(&[f32], f32)>,
 ) -> Vec<u32> {
     let vp = cam.view_proj();
     objects
@@ -1196,8 +1213,8 @@ fn test_prepassed(
                     return None;
                 }
                 match hull {
-                    Some((depth, centres))
-                        if hull_hides(&o.aabb, rect, limit, &vp, (cam.width, cam.height), depth, centres) =>
+                    Some((depth, slack))
+                        if hull_hides(&o.aabb, rect, limit, &vp, (cam.width, cam.height), depth, slack) =>
                     {
                         None
                     }
@@ -1651,5 +1668,22 @@ pub fn accuracy(visible: &[u32], reference: &[u32], n_objects: usize) -> CullAcc
         false_positives: fpos,
         object_error: if n_objects == 0 { 0.0 } else { fneg as f64 / n_objects as f64 },
         culling_ratio: if ref_culled == 0 { 1.0 } else { (n_objects - nv) as f64 / ref_culled as f64 },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hull_slack_shrinks_to_fine_centres_only_at_exact_divisors() {
+        let cam = Camera::perspective(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0, 0.1, 50.0, 960, 540).unwrap();
+        assert_eq!(hull_slack(&cam, &cam), 0.01 - 0.5);
+        assert_eq!(hull_slack(&coarse_camera(&cam, 4), &cam), 0.01 - 0.125);
+        assert_eq!(hull_slack(&coarse_camera(&cam, 6), &cam), 0.01 - 0.5 / 6.0);
+        // 540 / 8 = 67.5: the coarse rows straddle fine rows, the whole square counts.
+        assert_eq!(hull_slack(&coarse_camera(&cam, 8), &cam), 0.01);
+        let odd = cam.with_size(97, 61).unwrap();
+        assert_eq!(hull_slack(&coarse_camera(&odd, 2), &odd), 0.01);
     }
 }

@@ -830,3 +830,28 @@ fn coarse_woc_rejects_a_nan_previous_depth() {
         assert!(e.contains("previous depth buffer holds NaN"), "/{downsample}: {e}");
     }
 }
+
+/// At a divisor that divides both image sides the coarse silhouette test counts only the part
+/// of each coarse pixel that holds fine pixel centres (`0.5 / f` inside its border): still no
+/// visible object culled along paths at 96x60 (exact at /2, /3, /4) and at odd sizes.
+#[test]
+fn coarse_silhouette_test_at_exact_divisors_stays_conservative() {
+    for seed in [4u64, 9, 13] {
+        let s = random_scene(seed);
+        for (w, h) in [(96u32, 60u32), (97, 61)] {
+            let frames: Vec<(f32, Camera)> = (0..5)
+                .map(|k| {
+                    let e = Vec3::new(-3.0 + 0.4 * k as f32, 2.0 + 0.05 * k as f32, 16.0 - 0.3 * k as f32);
+                    let c = Camera::perspective(e, Vec3::new(0.5 * k as f32, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, w, h);
+                    (k as f32 * DT, c.unwrap())
+                })
+                .collect();
+            for downsample in [2, 3, 4] {
+                let p = WocParams { downsample, ..WocParams::default() };
+                for r in run_sequence(&s, &frames, Method::Woc, &p).unwrap() {
+                    assert_eq!(r.accuracy.false_negatives, 0, "seed {seed} {w}x{h} /{downsample} frame {}", r.frame);
+                }
+            }
+        }
+    }
+}
