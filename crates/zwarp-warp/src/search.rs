@@ -277,10 +277,6 @@ pub enum SeedStrategy {
     Offset(Vec2),
 }
 
-/// Residual (pixels) below which a converged seed was not polished by earlier versions of
-/// [`fixed_point_search`]. The search no longer polishes (see there); kept for API stability.
-pub const POLISH_MIN_RESIDUAL: f32 = 0.05;
-
 /// Parameters of one fixed-point search.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SearchParams {
