@@ -401,7 +401,7 @@ pub const HULL_TEST_MAX_AREA: u64 = 16_384;
 /// keeps the object. When `f` does not divide a side the coarse borders fall anywhere between
 /// fine pixels (even on a fine centre), and the whole square counts (`0.01`).
 pub(crate) fn hull_slack(cam: &Camera, full_cam: &Camera) -> f32 {
-    let exact = |c: u32, fine: u32| c > 0 && fine % c == 0 && fine / c == full_cam.width / cam.width.max(1);
+    let exact = |c: u32, fine: u32| c > 0 && fine.is_multiple_of(c) && fine / c == full_cam.width / cam.width.max(1);
     if exact(cam.width, full_cam.width) && exact(cam.height, full_cam.height) {
         0.01 - 0.5 * cam.width as f32 / full_cam.width as f32
     } else {
