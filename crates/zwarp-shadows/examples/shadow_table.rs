@@ -56,14 +56,7 @@ fn main() -> zwarp_core::Result<()> {
         },
     };
     let rows = evaluate(&loaded.scene, &cam, t, &light, &cfg, |row, res, reference| {
-        eprintln!(
-            "  {:<9} S={:<4} sm={:<5} {:>9.1} ms  ssim {:.4}",
-            row.method.name(),
-            row.samples,
-            row.sm,
-            row.ms,
-            row.ssim
-        );
+        eprintln!("{}", row.progress_line());
         if let Some(dir) = &out {
             std::fs::create_dir_all(dir).ok();
             let stem = format!("{dir}/{spec}_{}_s{}_sm{}", row.method.name(), row.samples, row.sm);

@@ -59,6 +59,20 @@ pub struct EvalRow {
     pub warped_texels: usize,
 }
 
+impl EvalRow {
+    /// One progress line for a person watching a run: method, S, map size, median ms, SSIM.
+    pub fn progress_line(&self) -> String {
+        format!(
+            "  {:<9} S={:<4} sm={:<5} {:>9.1} ms  ssim {:.4}",
+            self.method.name(),
+            self.samples,
+            self.sm,
+            self.ms,
+            self.ssim
+        )
+    }
+}
+
 /// Timings of the repetitions of one configuration.
 #[derive(Clone)]
 struct Timed {

@@ -262,17 +262,22 @@ impl SparseMap {
         }
     }
 
-    /// Collects the texels the receivers read in the map of the sample with pixel shift `shift`
-    /// (exactly the texels [`Receivers::accumulate`] reads, [`crate::shade::texel_xy`];
-    /// receivers outside the map read nothing). Returns how many distinct texels that is. The
-    /// slot of every receiver is kept for [`SparseMap::accumulate`].
-    pub fn collect(&mut self, recv: &HotReceivers, shift: Vec2) -> usize {
+    /// Empties the texel sets and lists before collecting the texels of the next sample.
+    fn clear_lists(&mut self) {
         self.wanted.clear();
         self.extra.clear();
         self.list.clear();
         self.list_slots.clear();
         self.extra_list.clear();
         self.extra_slots.clear();
+    }
+
+    /// Collects the texels the receivers read in the map of the sample with pixel shift `shift`
+    /// (exactly the texels [`Receivers::accumulate`] reads, [`crate::shade::texel_xy`];
+    /// receivers outside the map read nothing). Returns how many distinct texels that is. The
+    /// slot of every receiver is kept for [`SparseMap::accumulate`].
+    pub fn collect(&mut self, recv: &HotReceivers, shift: Vec2) -> usize {
+        self.clear_lists();
         let (w, h) = (self.w, self.h);
         self.per_receiver.resize(recv.hot.len(), OFF_MAP);
         let set = &self.wanted;
@@ -656,12 +661,7 @@ impl SparseMap {
     /// [`GROUP_MAX_BOX`]: its receivers' texels). A superset of the texels the receivers read;
     /// returns how many distinct texels that is.
     pub fn collect_groups(&mut self, groups: &ReceiverGroups, shift: Vec2) -> usize {
-        self.wanted.clear();
-        self.extra.clear();
-        self.list.clear();
-        self.list_slots.clear();
-        self.extra_list.clear();
-        self.extra_slots.clear();
+        self.clear_lists();
         let (w, h) = (self.w, self.h);
         for g in &groups.groups {
             match g.texel_box(shift, w, h) {

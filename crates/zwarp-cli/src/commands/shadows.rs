@@ -185,14 +185,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
         a.size.height
     );
     let mut on_result = |row: &EvalRow, res: &ShadowResult, reference: &ShadowResult| -> zwarp_core::Result<()> {
-        eprintln!(
-            "  {:<9} S={:<4} sm={:<5} {:>9.1} ms  ssim {:.4}",
-            row.method.name(),
-            row.samples,
-            row.sm,
-            row.ms,
-            row.ssim
-        );
+        eprintln!("{}", row.progress_line());
         if let Some(dir) = &a.images {
             let stem = dir.join(format!("{tag}_{}_s{}_sm{}", row.method.name(), row.samples, row.sm));
             let path = |suffix: &str| PathBuf::from(format!("{}{suffix}.png", stem.display()));
