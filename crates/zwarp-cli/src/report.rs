@@ -88,9 +88,9 @@ impl Table {
         }
         let line = |cells: &[String]| {
             let mut s = String::from("|");
-            for i in 0..n {
+            for (i, width) in w.iter().enumerate() {
                 let c = cells.get(i).map(String::as_str).unwrap_or("");
-                s.push_str(&format!(" {:<width$} |", c, width = w[i]));
+                s.push_str(&format!(" {c:<width$} |"));
             }
             s
         };
@@ -117,6 +117,20 @@ pub fn fmt(x: f64, d: usize) -> String {
     }
 }
 
+/// Serializes an `f64` as a JSON number, or as the string `"inf"` / `"-inf"` / `"nan"` when it is
+/// not finite (JSON has no infinity; PSNR of identical images is `inf`).
+pub fn ser_f64<S: serde::Serializer>(x: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
+    if x.is_finite() {
+        s.serialize_f64(*x)
+    } else if x.is_nan() {
+        s.serialize_str("nan")
+    } else if *x > 0.0 {
+        s.serialize_str("inf")
+    } else {
+        s.serialize_str("-inf")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,19 +147,5 @@ mod tests {
         let mut t = Table::new(&["a", "bb"]);
         t.row(vec!["xxx".into(), "y".into()]);
         assert_eq!(t.render(), "| a   | bb |\n|-----|----|\n| xxx | y  |");
-    }
-}
-
-/// Serializes an `f64` as a JSON number, or as the string `"inf"` / `"-inf"` / `"nan"` when it is
-/// not finite (JSON has no infinity; PSNR of identical images is `inf`).
-pub fn ser_f64<S: serde::Serializer>(x: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
-    if x.is_finite() {
-        s.serialize_f64(*x)
-    } else if x.is_nan() {
-        s.serialize_str("nan")
-    } else if *x > 0.0 {
-        s.serialize_str("inf")
-    } else {
-        s.serialize_str("-inf")
     }
 }

@@ -66,7 +66,7 @@ fn tmp(name: &str) -> PathBuf {
 /// The error is the last stderr line (lavapipe may print noise before it), starts with
 /// `error:` and is a single line.
 fn error_line(stderr: &str) -> String {
-    let line = stderr.lines().filter(|l| l.starts_with("error")).last().unwrap_or("").to_string();
+    let line = stderr.lines().rfind(|l| l.starts_with("error")).unwrap_or("").to_string();
     assert!(line.starts_with("error: "), "no error line in: {stderr}");
     line
 }

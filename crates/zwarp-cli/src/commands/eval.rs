@@ -177,6 +177,9 @@ fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy
     Ok(out.depth)
 }
 
+/// A predicted depth buffer and, for our warp, its per-pixel states.
+type Predicted = (Image<f32>, Option<Image<zwarp_warp::PixelState>>);
+
 /// The fixed-point search settings of `p` (for the background fill's search).
 fn search_params(p: &WarpParams) -> zwarp_warp::SearchParams {
     zwarp_warp::SearchParams {
@@ -459,7 +462,7 @@ pub fn evaluate(
             motion_samples.push(motion_ms);
             bar.inc(1);
             let mut run = |key: (String, usize, u32, u32, Option<BoundKind>),
-                           f: &mut dyn FnMut() -> Result<(Image<f32>, Option<Image<zwarp_warp::PixelState>>)>|
+                           f: &mut dyn FnMut() -> Result<Predicted>|
              -> Result<()> {
                 let (out, samples) = report::time_repeated(plan.reps, &mut *f)?;
                 let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
