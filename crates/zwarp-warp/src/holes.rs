@@ -195,6 +195,8 @@ impl BackgroundLimits {
         if !(1..=64).contains(&radius) {
             return Err(Error::invalid(format!("fill_background: radius must be in 1..=64, got {radius}")));
         }
+        // One parallel pass per layer: every motion finite, and the motion range of the surfaces.
+        let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
         for (k, l) in layers.iter().enumerate() {
             if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
                 return Err(Error::invalid(format!(
@@ -203,15 +205,23 @@ impl BackgroundLimits {
                     l.depth.height()
                 )));
             }
-            if l.motion.data().par_iter().any(|m| !m.v.is_finite()) {
+            let empty = || (true, Vec2::INFINITY, Vec2::NEG_INFINITY);
+            let (finite, l_lo, l_hi) = l
+                .depth
+                .data()
+                .par_iter()
+                .zip(l.motion.data())
+                .fold(empty, |(ok, lo, hi), (d, m)| match (m.v.is_finite(), *d < EMPTY_DEPTH) {
+                    (false, _) => (false, lo, hi),
+                    (true, true) => (ok, lo.min(m.v), hi.max(m.v)),
+                    (true, false) => (ok, lo, hi),
+                })
+                .reduce(empty, |a, b| (a.0 && b.0, a.1.min(b.1), a.2.max(b.2)));
+            if !finite {
                 return Err(Error::invalid(format!("fill_background: source layer {k} holds non-finite motion")));
             }
+            (lo, hi) = (lo.min(l_lo), hi.max(l_hi));
         }
-        let (lo, hi) = layers
-            .iter()
-            .flat_map(|l| l.depth.data().iter().zip(l.motion.data()))
-            .filter(|(d, _)| **d < EMPTY_DEPTH)
-            .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), (_, m)| (lo.min(m.v), hi.max(m.v)));
         let (range, largest) =
             if lo.x <= hi.x { ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element()) } else { (0.0, 0.0) };
         let bracket = (range.ceil().min(64.0) as u32 + 1).min(radius);
