@@ -26,8 +26,7 @@ use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid, TightBound};
 use crate::holes::{awoc_depth, fill_holes, FillRule, HolePolicy};
 use crate::search::{
-    effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SearchParams,
-    SeedStrategy,
+    effective_seeds, fixed_point_search, seed_key, stratified_seeds, LayerSampler, MotionSource, Sample, SeedStrategy,
 };
 use crate::{BoundKind, PixelState, SourcePos, WarpOutput, WarpParams, MAX_SEEDS};
 
@@ -510,12 +509,7 @@ impl Kernel<'_> {
         let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let expand = params.sampling.footprint();
         let scale = params.motion_scale;
-        let search = SearchParams {
-            iterations: params.iterations,
-            threshold: params.threshold,
-            choice: params.choice,
-            accelerate: params.accelerate,
-        };
+        let search = params.search();
         let max_q = Vec2::new(self.w as f32, self.h as f32) * (1.0 - f32::EPSILON) - Vec2::splat(1e-3);
         let mut best: Option<crate::Candidate> = None;
         let mut prev_q: Option<Vec2> = None;

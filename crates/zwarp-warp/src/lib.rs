@@ -157,6 +157,17 @@ impl Default for WarpParams {
 }
 
 impl WarpParams {
+    /// The settings of the fixed-point search these parameters run (T, threshold, candidate
+    /// choice, Newton steps), for callers of [`fixed_point_search`] such as the background fill.
+    pub fn search(&self) -> SearchParams {
+        SearchParams {
+            iterations: self.iterations,
+            threshold: self.threshold,
+            choice: self.choice,
+            accelerate: self.accelerate,
+        }
+    }
+
     /// Checks the parameters, returning a one-line [`Error::Invalid`] for bad values.
     pub fn validate(&self) -> Result<()> {
         if self.n_seeds == 0 || self.n_seeds > MAX_SEEDS {

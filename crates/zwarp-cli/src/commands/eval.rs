@@ -52,8 +52,9 @@ pub struct EvalArgs {
     /// deep depth buffers, and employ our inpainting", Fig. 8's dilation disabled: `background`
     /// at every L), `far` (far depth everywhere: the conservative culling setting), `dilate`
     /// (Fig. 8), `awoc` (Sec. 5.3) or `background` (`zwarp_warp::holes::fill_background`: holes
-    /// that see the source's empty background stay far, holes bracketed within 4 px take the
-    /// farther neighbour's depth, strips open to the image border take the nearest depth inwards).
+    /// that see the source's empty background stay far, holes bracketed within the motion range
+    /// (at most 64 px) take the farther neighbour's depth, strips open to the image border take the
+    /// nearest depth inwards).
     #[arg(long, default_value = "paper")]
     pub holes: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
@@ -141,7 +142,7 @@ pub struct EvalPlan {
     pub ts: Vec<u32>,
     pub bounds: Vec<BoundKind>,
     pub methods: Vec<String>,
-    /// `None` = the paper's protocol per L (see [`EvalPlan::holes_for`]).
+    /// `None` = the paper's protocol (see [`EvalPlan::holes`]).
     pub holes: Option<HolePolicy>,
     pub umbra: bool,
     pub reps: usize,
@@ -152,9 +153,9 @@ pub struct EvalPlan {
 }
 
 impl EvalPlan {
-    /// The hole policy of our warp with `l` layers: the explicit `--holes`, or the paper's Sec. 4
-    /// protocol (holes filled with the background depth, at every L; see `EvalArgs::holes`).
-    pub fn holes_for(&self, _l: usize) -> HolePolicy {
+    /// The hole policy of every warp: the explicit `--holes`, or the paper's Sec. 4 protocol
+    /// (holes filled with the background depth, at every L; see `EvalArgs::holes`).
+    pub fn holes(&self) -> HolePolicy {
         self.holes.unwrap_or(HolePolicy::Background { radius: 64 })
     }
 }
@@ -171,7 +172,7 @@ fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy
             zwarp_warp::PixelState::Converged
         }
     });
-    let search = search_params(&WarpParams::default());
+    let search = WarpParams::default().search();
     let mut out = zwarp_warp::WarpOutput { depth, state, source: None };
     zwarp_warp::holes::fill_background(layers, &mut out, radius, &search)?;
     Ok(out.depth)
@@ -179,16 +180,6 @@ fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy
 
 /// A predicted depth buffer and, for our warp, its per-pixel states.
 type Predicted = (Image<f32>, Option<Image<zwarp_warp::PixelState>>);
-
-/// The fixed-point search settings of `p` (for the background fill's search).
-fn search_params(p: &WarpParams) -> zwarp_warp::SearchParams {
-    zwarp_warp::SearchParams {
-        iterations: p.iterations,
-        threshold: p.threshold,
-        choice: p.choice,
-        accelerate: p.accelerate,
-    }
-}
 
 fn bound_name(b: BoundKind) -> &'static str {
     match b {
@@ -501,7 +492,7 @@ pub fn evaluate(
                                             n_seeds: n,
                                             iterations: t,
                                             bound,
-                                            holes: plan.holes_for(l),
+                                            holes: plan.holes(),
                                             ..WarpParams::default()
                                         };
                                         // The background protocol needs the source layers (sky
@@ -517,7 +508,7 @@ pub fn evaluate(
                                         } else {
                                             params
                                         };
-                                        let search = search_params(&params);
+                                        let search = params.search();
                                         run(("ours".into(), l, n, t, Some(bound)), &mut || {
                                             let mut o = match &gpu {
                                                 Some((_, _, (kernel, _), _)) => kernel.warp(&layers, &warp_params)?,
@@ -541,10 +532,10 @@ pub fn evaluate(
                             }
                         }
                         "vfw" => run(("vfw".into(), l, 0, 0, None), &mut || {
-                            Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes_for(l))?, None))
+                            Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?, None))
                         })?,
                         _ => run(("afw".into(), l, 0, 0, None), &mut || {
-                            Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes_for(l))?, None))
+                            Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?, None))
                         })?,
                     }
                 }
@@ -562,7 +553,7 @@ pub fn evaluate(
                 l: key.1,
                 t: key.3,
                 bound: key.4.map_or("-", bound_name).to_string(),
-                holes: match (key.4, plan.holes_for(key.1)) {
+                holes: match (key.4, plan.holes()) {
                     (Some(_), h) => hole_name(h),
                     (None, h @ HolePolicy::Background { .. }) => hole_name(h),
                     (None, _) => "far",
