@@ -127,13 +127,61 @@ fn bad_camera_paths_are_rejected() {
 fn bad_eval_parameters_are_rejected() {
     let d = tmp("evalbad");
     let j = d.join("e.json");
-    for (flag, value) in [("--n", "0"), ("--l", "0"), ("--bound", "loose"), ("--speed", "-1"), ("--holes", "magic")] {
+    for (flag, value) in [
+        ("--n", "0"),
+        ("--l", "0"),
+        ("--bound", "loose"),
+        ("--speed", "-1"),
+        ("--holes", "magic"),
+        ("--multisample", "0"),
+        ("--multisample", "9"),
+    ] {
         let (ok, _, err) =
             zwarp(&["eval", "--scene", "mo", "--scale", "0.01", flag, value, "--json", j.to_str().unwrap()]);
         assert!(!ok, "{flag} {value} accepted");
         error_line(&err);
     }
+    // The GPU warp takes one sample per pixel: said before any adapter is looked for.
+    let (ok, _, err) = zwarp(&[
+        "eval",
+        "--scene",
+        "mo",
+        "--scale",
+        "0.01",
+        "--multisample",
+        "2",
+        "--backend",
+        "gpu",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(error_line(&err).contains("--backend cpu"), "{err}");
     assert!(!j.exists(), "no JSON is written on bad input");
+}
+
+/// `--multisample 1,2`: our warp from a 2x2-sampled source next to the one-sample rows (the
+/// forward baselines only at m = 1), same scene, frames and reference; `multisample` in JSON.
+#[test]
+fn eval_multisample_rows_are_ours_only() {
+    let d = tmp("evalms");
+    let j = d.join("e.json");
+    let (ok, out, err) = eval_small(&["--multisample", "1,2"], &j);
+    assert!(ok, "{err}");
+    let rows = json_rows(&j);
+    let key = |r: &serde_json::Value| (r["method"].as_str().unwrap().to_string(), r["multisample"].as_u64().unwrap());
+    let mut keys: Vec<_> = rows.iter().map(key).collect();
+    keys.sort();
+    keys.dedup_by(|a, b| a == b);
+    let want: Vec<(String, u64)> = vec![("afw".into(), 1), ("ours".into(), 1), ("ours".into(), 2), ("vfw".into(), 1)];
+    assert_eq!(keys, want);
+    // ours at L = 1, 2 for each m, the baselines at L = 1, 2.
+    assert_eq!(rows.len(), 8);
+    let r1 = rows.iter().find(|r| key(r) == ("ours".into(), 1)).unwrap();
+    let r2 = rows.iter().find(|r| key(r) == ("ours".into(), 2)).unwrap();
+    assert_eq!(r1["ref_ms"], r2["ref_ms"], "one reference per run");
+    assert!(r2["ssim"].as_f64().unwrap() > 0.9, "{r2}");
+    assert!(out.contains("| m "), "the table shows m");
 }
 
 #[test]

@@ -306,8 +306,10 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
         return Err(Error::invalid("too many layers"));
     }
     check_motion_scale(layers, params)?;
+    let (tw, th) = target_size(w, h, params.multisample)?;
     let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
-    let kernel = Kernel { layers, samplers: &samplers, params, w, h };
+    let kernel = Kernel::new(layers, &samplers, params, (w, h), (tw, th));
+    let (w, h) = (tw, th);
 
     let n = w as usize * h as usize;
     let mut depth = crate::pages::filled(n, EMPTY_DEPTH);
@@ -363,12 +365,14 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
         return Err(Error::invalid(format!("layer {i} is {}x{} but layer 0 is {w}x{h}", l.size().0, l.size().1)));
     }
     check_motion_scale(layers, params)?;
-    let n = w as u64 * h as u64;
+    let (tw, th) = target_size(w, h, params.multisample)?;
+    let n = tw as u64 * th as u64;
     if let Some(&bad) = pixels.iter().find(|&&i| i as u64 >= n) {
-        return Err(Error::invalid(format!("pixel index {bad} is outside the {w}x{h} image")));
+        return Err(Error::invalid(format!("pixel index {bad} is outside the {tw}x{th} image")));
     }
     let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
-    let kernel = Kernel { layers, samplers: &samplers, params, w, h };
+    let kernel = Kernel::new(layers, &samplers, params, (w, h), (tw, th));
+    let w = tw;
     // Chunks of a few tiles' worth of pixels: large enough to amortise the tile stage when the
     // list is sorted, small enough to balance sparse, unevenly costly lists.
     const CHUNK: usize = 256;
@@ -393,6 +397,17 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
                 .collect::<Vec<_>>()
         })
         .collect())
+}
+
+/// The target image of a warp from `w x h` source layers with [`WarpParams::multisample`] = `m`:
+/// `(w / m, h / m)`; the source must hold exactly `m x m` samples per target pixel.
+pub(crate) fn target_size(w: u32, h: u32, m: u32) -> Result<(u32, u32)> {
+    if m == 0 || w % m != 0 || h % m != 0 {
+        return Err(Error::invalid(format!(
+            "multisample {m}: the {w}x{h} source layers must hold {m}x{m} samples per target pixel (sizes divisible by {m})"
+        )));
+    }
+    Ok((w / m, h / m))
 }
 
 /// A non-uniform [`WarpParams::motion_scale`] does not commute with the rotation of an
@@ -422,14 +437,37 @@ struct Kernel<'a> {
     layers: &'a [PreparedLayer],
     samplers: &'a [LayerSampler<'a>],
     params: &'a WarpParams,
+    /// Source layer size (the space of `q`, the motion and the mipmaps).
     w: u32,
     h: u32,
+    /// Target image size: the source size divided by [`WarpParams::multisample`].
+    tw: u32,
+    th: u32,
+    /// Source samples per target pixel and axis, as a float: target pixel `(x, y)` is the
+    /// source position `m * (x + 0.5, y + 0.5)` (exact for `m = 1`).
+    m: f32,
 }
 
 /// Tile size of the two-stage bound tightening (pixels per side).
 const TILE: u32 = 4;
 
-impl Kernel<'_> {
+impl<'a> Kernel<'a> {
+    fn new(
+        layers: &'a [PreparedLayer],
+        samplers: &'a [LayerSampler<'a>],
+        params: &'a WarpParams,
+        (w, h): (u32, u32),
+        (tw, th): (u32, u32),
+    ) -> Self {
+        Kernel { layers, samplers, params, w, h, tw, th, m: params.multisample as f32 }
+    }
+
+    /// The source position of target pixel `(x, y)`'s centre.
+    #[inline(always)]
+    fn target_pos(&self, x: u32, y: u32) -> Vec2 {
+        Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * self.m
+    }
+
     /// Number of tightening steps (0 for the global bound).
     fn bound_iterations(&self) -> u32 {
         if self.params.bound == BoundKind::Global {
@@ -442,10 +480,9 @@ impl Kernel<'_> {
     /// The first tightening stage (Fig. 5 on the union of the tile's search regions) of every
     /// layer for the tile whose top-left pixel is `(x0, y0)`, clipped to the image.
     fn tile_bounds(&self, x0: u32, y0: u32, out: &mut [Option<TileBound>]) {
-        let x1 = (x0 + TILE).min(self.w) - 1;
-        let y1 = (y0 + TILE).min(self.h) - 1;
-        let p_lo = Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5);
-        let p_hi = Vec2::new(x1 as f32 + 0.5, y1 as f32 + 0.5);
+        let x1 = (x0 + TILE).min(self.tw) - 1;
+        let y1 = (y0 + TILE).min(self.th) - 1;
+        let (p_lo, p_hi) = (self.target_pos(x0, y0), self.target_pos(x1, y1));
         let iters = self.bound_iterations();
         let expand = self.params.sampling.footprint();
         let scale = self.params.motion_scale;
@@ -469,13 +506,13 @@ impl Kernel<'_> {
     /// (see [`MotionPyramid::tight_bound_box`]), a fraction of the look-ups; layers whose tile
     /// region holds no valid sample are skipped for all 16 pixels at once.
     fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
-        let w = self.w as usize;
+        let w = self.tw as usize;
         let rows = (depth.len() / w) as u32;
         let y0 = ty * TILE;
         let mut tile_bounds: Vec<Option<TileBound>> = vec![None; self.layers.len()];
         let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
-        for x0 in (0..self.w).step_by(TILE as usize) {
-            let x1 = (x0 + TILE).min(self.w) - 1;
+        for x0 in (0..self.tw).step_by(TILE as usize) {
+            let x1 = (x0 + TILE).min(self.tw) - 1;
             let y1 = y0 + rows - 1;
             self.tile_bounds(x0, y0, &mut tile_bounds);
             for y in y0..=y1 {
@@ -506,7 +543,7 @@ impl Kernel<'_> {
         seeds: &mut [Vec2; MAX_SEEDS as usize],
     ) -> (f32, PixelState, SourcePos) {
         let params = self.params;
-        let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        let p = self.target_pos(x, y);
         let expand = params.sampling.footprint();
         let scale = params.motion_scale;
         let search = params.search();

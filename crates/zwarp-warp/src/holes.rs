@@ -189,6 +189,13 @@ impl BackgroundLimits {
     /// layer, every layer `w x h`, finite motion everywhere, `radius` in 1..=64) and measures the
     /// limits over the surfaces (source depth `< 1`) of every layer.
     pub fn of(layers: &[WarpLayer<'_>], w: u32, h: u32, radius: u32) -> Result<Self> {
+        Self::of_multisampled(layers, w, h, 1, radius)
+    }
+
+    /// [`Self::of`] for source layers that hold `m x m` samples per pixel of the `w x h` warped
+    /// buffer ([`crate::WarpParams::multisample`]): every layer is `m w x m h`, and the limits,
+    /// measured in source samples, are converted to target pixels (rounded up).
+    pub fn of_multisampled(layers: &[WarpLayer<'_>], w: u32, h: u32, m: u32, radius: u32) -> Result<Self> {
         if layers.is_empty() {
             return Err(Error::invalid("fill_background needs at least one source layer"));
         }
@@ -197,12 +204,14 @@ impl BackgroundLimits {
         }
         // One parallel pass per layer: every motion finite, and the motion range of the surfaces.
         let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
+        let (sw, sh) = (w as u64 * m as u64, h as u64 * m as u64);
         for (k, l) in layers.iter().enumerate() {
-            if l.depth.size() != (w, h) || l.motion.size() != (w, h) {
+            let (dw, dh) = l.depth.size();
+            let (mw, mh) = l.motion.size();
+            if (dw as u64, dh as u64) != (sw, sh) || (mw, mh) != (dw, dh) {
+                let per = if m == 1 { String::new() } else { format!(" with {m}x{m} samples per pixel") };
                 return Err(Error::invalid(format!(
-                    "fill_background: source layer {k} is {}x{} but the warped buffer is {w}x{h}",
-                    l.depth.width(),
-                    l.depth.height()
+                    "fill_background: source layer {k} is {dw}x{dh} but the warped buffer is {w}x{h}{per}"
                 )));
             }
             let empty = || (true, Vec2::INFINITY, Vec2::NEG_INFINITY);
@@ -222,8 +231,12 @@ impl BackgroundLimits {
             }
             (lo, hi) = (lo.min(l_lo), hi.max(l_hi));
         }
-        let (range, largest) =
-            if lo.x <= hi.x { ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element()) } else { (0.0, 0.0) };
+        // Source samples -> target pixels (m = 1: unchanged).
+        let (range, largest) = if lo.x <= hi.x {
+            ((hi - lo).max_element() / m as f32, lo.abs().max(hi.abs()).max_element() / m as f32)
+        } else {
+            (0.0, 0.0)
+        };
         let bracket = (range.ceil().min(64.0) as u32 + 1).min(radius);
         let reach = (largest.ceil().min(u32::MAX as f32 - 1.0) as u32).saturating_add(1).min(w.max(h));
         Ok(BackgroundLimits { bracket, reach })
@@ -242,8 +255,9 @@ pub fn background_seeds(p: Vec2, back: Vec2, w: u32, h: u32) -> [Vec2; 2] {
 /// Sec. 4's quality protocol for holes ("filled with the background depth"), made to hold on
 /// open scenes and at the image border; the complete form of [`HolePolicy::Background`] for
 /// callers that have the source layers (`layers`: the depth and motion buffers `out` was warped
-/// from, nearest first; a separately peeled ground counts as a layer). Three steps over the
-/// [`PixelState::Hole`] pixels of `out`:
+/// from, nearest first; a separately peeled ground counts as a layer; a multisampled source,
+/// [`crate::WarpParams::multisample`] = m, is `m` times `out`'s size on both axes, and the
+/// ratio gives m). Three steps over the [`PixelState::Hole`] pixels of `out`:
 ///
 /// 1. **Background seen through**: a hole whose fixed-point search (the one [`fixed_point_search`],
 ///    `search`'s T and threshold; seeds [`background_seeds`]) converges on texels where no
@@ -267,12 +281,17 @@ pub fn fill_background(
     search: &SearchParams,
 ) -> Result<()> {
     let (w, h) = out.depth.size();
-    let limits = BackgroundLimits::of(layers, w, h, radius)?;
+    // A multisampled source ([`crate::WarpParams::multisample`]) is an integer multiple of the
+    // warped buffer; anything else is rejected by the size check of the limits.
+    let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
+    let m = if w > 0 && sw % w == 0 { (sw / w).max(1) } else { 1 };
+    let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
     if w == 0 || h == 0 {
         return Ok(());
     }
     // 1. Holes that see the source's empty background.
-    let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w, h };
+    let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w: sw, h: sh };
+    let mf = m as f32;
     out.depth
         .data_mut()
         .par_chunks_mut(w as usize)
@@ -283,8 +302,10 @@ pub fn fill_background(
                 if srow[x] != PixelState::Hole {
                     continue;
                 }
-                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let seeds = background_seeds(p, bg.motion[y * w as usize + x].v, w, h);
+                // The target pixel's centre in source samples, and the sample it falls in.
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * mf;
+                let (qx, qy) = (p.x as usize, p.y as usize);
+                let seeds = background_seeds(p, bg.motion[qy * sw as usize + qx].v, sw, sh);
                 if let Some(c) = fixed_point_search(&bg, p, &seeds, search) {
                     drow[x] = c.depth;
                     srow[x] = PixelState::Converged;
@@ -531,6 +552,58 @@ mod tests {
         }
     }
 
+    /// A source sampled on a 3x3 grid per pixel ([`crate::WarpParams::multisample`]) of the same
+    /// pixel-aligned scenes (each pixel's value repeated on its 9 samples, motion in samples)
+    /// gives the same warp and the same background fill as one sample per pixel: sky kept,
+    /// border strips extended (reach converted from samples to pixels). On the disocclusion
+    /// scene it gives the analytic answer in every row; with one sample per pixel, B's leading
+    /// column sits on the border of its search region and some rows' seeds miss it.
+    #[test]
+    fn background_fill_of_a_multisampled_source_equals_one_sample_per_pixel() {
+        let scenes: [(u32, u32, Box<dyn Fn(u32, u32) -> (f32, f32)>); 3] = [
+            (24, 12, Box::new(|_, y| (if y >= 6 { 0.6 + 0.01 * y as f32 } else { EMPTY_DEPTH }, 3.0))),
+            (
+                24,
+                6,
+                Box::new(|x, _| match x {
+                    2..8 => (0.3, 0.0),
+                    10..16 => (0.5, 2.0),
+                    16..24 => (0.8, 0.0),
+                    _ => (EMPTY_DEPTH, 0.0),
+                }),
+            ),
+            (24, 6, Box::new(|x, _| if (8..14).contains(&x) { (0.5, -2.0) } else { (0.8, 0.0) })),
+        ];
+        let ms = 3u32;
+        for (i, (w, h, f)) in scenes.iter().enumerate() {
+            let (d, m) = shifted_layer(*w, *h, f);
+            let want = background_fill(&d, &m);
+            let (dm, mm) = shifted_layer(w * ms, h * ms, |x, y| {
+                let (z, vx) = f(x / ms, y / ms);
+                (z, vx * ms as f32)
+            });
+            let layers = [WarpLayer { depth: &dm, motion: &mm }];
+            let params = crate::WarpParams { multisample: ms, ..Default::default() };
+            let mut got = crate::warp_depth(&layers, &params).unwrap();
+            let limits = BackgroundLimits::of_multisampled(&layers, *w, *h, ms, 4).unwrap();
+            assert_eq!(limits, BackgroundLimits::of(&[WarpLayer { depth: &d, motion: &m }], *w, *h, 4).unwrap());
+            let search = SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+            fill_background(&layers, &mut got, 4, &search).unwrap();
+            if i < 2 {
+                assert_eq!(got, want, "scene {i}");
+                continue;
+            }
+            // B moved to 6..12; the ground it uncovers on 12..14 is bracketed: the farther side.
+            for y in 0..*h {
+                for x in 0..*w {
+                    let z = if (6..12).contains(&x) { 0.5 } else { 0.8 };
+                    let st = if (12..14).contains(&x) { PixelState::Filled } else { PixelState::Converged };
+                    assert_eq!((*got.depth.get(x, y), *got.state.get(x, y)), (z, st), "({x},{y})");
+                }
+            }
+        }
+    }
+
     #[test]
     fn background_fill_rejects_mismatched_layers() {
         let (d, m) = shifted_layer(8, 4, |_, _| (0.5, 0.0));
@@ -539,6 +612,10 @@ mod tests {
         let search = SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
         let err = fill_background(&[WarpLayer { depth: &d2, motion: &m2 }], &mut out, 4, &search).unwrap_err();
         assert!(err.to_string().contains("7x4"), "{err}");
+        // A multiple of the width but not of the height is no multisampled source.
+        let (d3, m3) = shifted_layer(16, 4, |_, _| (0.5, 0.0));
+        let err = fill_background(&[WarpLayer { depth: &d3, motion: &m3 }], &mut out, 4, &search).unwrap_err();
+        assert!(err.to_string().contains("16x4 but the warped buffer is 8x4 with 2x2 samples"), "{err}");
         assert!(fill_background(&[], &mut out, 4, &search).is_err());
         let layers = [WarpLayer { depth: &d, motion: &m }];
         assert!(fill_background(&layers, &mut out, 0, &search).unwrap_err().to_string().contains("radius"));

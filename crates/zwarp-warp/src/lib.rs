@@ -46,6 +46,9 @@ use zwarp_core::{Error, Image, Result};
 /// stack buffer so the per-pixel kernel never allocates).
 pub const MAX_SEEDS: u32 = 64;
 
+/// Largest [`WarpParams::multisample`] (an 8 x 8 grid: 64 source samples per target pixel).
+pub const MAX_MULTISAMPLE: u32 = 8;
+
 /// Which search-region bound seeds are placed in (Sec. 3.3, Table 2/3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum BoundKind {
@@ -127,6 +130,16 @@ pub struct WarpParams {
     /// the identity (AAB) frame — use [`BoundKind::Tight`] — and is rejected otherwise; a
     /// uniform one works in any frame. Default `Vec2::ONE`.
     pub motion_scale: glam::Vec2,
+    /// Multisampled source (seed 000 Sec. 7: "a potential improvement can be made using the
+    /// multisampling of the depth buffers, yet at higher cost"): the source layers hold an
+    /// ordered `m x m` grid of depth / motion samples per target pixel (rendered at `m` times
+    /// the target's width and height, motion in source-sample units), and target pixel `(x, y)`
+    /// is searched at the source position `m * (x + 0.5, y + 0.5)`. The output is
+    /// `(w / m) x (h / m)`. A converged search then returns the sample nearest its fixed point
+    /// on a grid `m` times finer, so silhouettes land within `1 / (2m)` of a target pixel
+    /// instead of half a pixel. The threshold and the bounds stay in source samples. Default 1
+    /// (one sample per pixel: the source and target grids coincide); the WGSL twin supports 1.
+    pub multisample: u32,
 }
 
 impl Default for WarpParams {
@@ -152,6 +165,7 @@ impl Default for WarpParams {
             record_source: false,
             accelerate: true,
             motion_scale: glam::Vec2::ONE,
+            multisample: 1,
         }
     }
 }
@@ -178,6 +192,12 @@ impl WarpParams {
         }
         if !(self.threshold.is_finite() && self.threshold > 0.0) {
             return Err(Error::invalid(format!("convergence threshold must be > 0, got {}", self.threshold)));
+        }
+        if !(1..=MAX_MULTISAMPLE).contains(&self.multisample) {
+            return Err(Error::invalid(format!(
+                "multisample must be in 1..={MAX_MULTISAMPLE} source samples per pixel and axis, got {}",
+                self.multisample
+            )));
         }
         if !self.motion_scale.is_finite() {
             return Err(Error::invalid(format!("motion_scale must be finite, got {}", self.motion_scale)));

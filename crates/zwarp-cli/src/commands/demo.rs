@@ -60,9 +60,10 @@ pub fn run(args: DemoArgs) -> Result<()> {
         ns: vec![8],
         ls: vec![1, 3],
         ts: vec![3],
+        multisamples: vec![1],
         bounds: vec![BoundKind::Oriented],
         methods: vec!["ours".into(), "vfw".into(), "afw".into()],
-        holes: None, // the paper's protocol: background fill at L = 1, holes kept at L > 1
+        holes: None, // the paper's protocol: background fill at every L
         umbra: true,
         reps: 3,
         backend: args.backend,

@@ -57,6 +57,13 @@ pub struct EvalArgs {
     /// nearest depth inwards).
     #[arg(long, default_value = "paper")]
     pub holes: String,
+    /// Multisampled source depth for our warp (comma list; seed 000 Sec. 7's remedy for
+    /// sub-pixel silhouette error): `m` renders the source layers on an ordered m x m sample grid
+    /// per pixel (m times the width and height) and warps them to the target's pixel centres
+    /// (`WarpParams::multisample`); 1 = one sample per pixel. Rows with m > 1 are `ours` only;
+    /// their warp time includes the preparation of the m^2-times larger source.
+    #[arg(long, default_value = "1")]
+    pub multisample: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
     #[arg(long, default_value = "umbra")]
     pub peel: String,
@@ -92,6 +99,8 @@ pub struct EvalRow {
     pub bound: String,
     /// Hole policy of our warp: `far`, `dilate`, `awoc` (`-` for the forward warps).
     pub holes: String,
+    /// Source depth samples per pixel and axis (`WarpParams::multisample`; 1 = none).
+    pub multisample: u32,
     /// Motion-speed factor.
     pub speed: f32,
     /// Frame pairs evaluated.
@@ -140,6 +149,8 @@ pub struct EvalPlan {
     pub ns: Vec<u32>,
     pub ls: Vec<usize>,
     pub ts: Vec<u32>,
+    /// Source multisampling factors m (`--multisample`).
+    pub multisamples: Vec<u32>,
     pub bounds: Vec<BoundKind>,
     pub methods: Vec<String>,
     /// `None` = the paper's protocol (see [`EvalPlan::holes`]).
@@ -181,6 +192,9 @@ fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy
 /// A predicted depth buffer and, for our warp, its per-pixel states.
 type Predicted = (Image<f32>, Option<Image<zwarp_warp::PixelState>>);
 
+/// One configuration: method, L, N, T, bound (ours only), source multisampling m.
+type Key = (String, usize, u32, u32, Option<BoundKind>, u32);
+
 fn bound_name(b: BoundKind) -> &'static str {
     match b {
         BoundKind::Global => "global",
@@ -215,6 +229,15 @@ impl EvalArgs {
             bail!("--l values must be at least 1");
         }
         let ts: Vec<u32> = parse_list(&self.t, "--t")?;
+        let multisamples: Vec<u32> = parse_list(&self.multisample, "--multisample")?;
+        for &m in &multisamples {
+            WarpParams { multisample: m, ..WarpParams::default() }
+                .validate()
+                .with_context(|| format!("--multisample {m}"))?;
+            if m > 1 && self.backend == Backend::Gpu {
+                bail!("--multisample {m}: the GPU warp takes one source sample per pixel (use --backend cpu)");
+            }
+        }
         let bounds = parse_list::<String>(&self.bound, "--bound")?
             .iter()
             .map(|b| match b.as_str() {
@@ -255,6 +278,7 @@ impl EvalArgs {
             ns,
             ls,
             ts,
+            multisamples,
             bounds,
             methods,
             holes,
@@ -419,16 +443,16 @@ pub fn evaluate(
         .iter()
         .map(|m| {
             if m == "ours" {
-                plan.ns.len() * plan.ts.len() * plan.bounds.len() * plan.ls.len()
+                plan.ns.len() * plan.ts.len() * plan.bounds.len() * plan.ls.len() * plan.multisamples.len()
             } else {
-                plan.ls.len()
+                plan.ls.len() * plan.multisamples.contains(&1) as usize
             }
         })
         .sum::<usize>();
     for &speed in &plan.speeds {
         let pairs = frame_pairs(path, plan.frames, speed, plan.width, plan.height)?;
         let bar = if progress {
-            let b = indicatif::ProgressBar::new((pairs.len() * (configs_per_pair + 1)) as u64);
+            let b = indicatif::ProgressBar::new((pairs.len() * (configs_per_pair + plan.multisamples.len())) as u64);
             b.set_style(
                 indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
                     .unwrap()
@@ -439,113 +463,129 @@ pub fn evaluate(
         } else {
             indicatif::ProgressBar::hidden()
         };
-        let mut keys: Vec<(String, usize, u32, u32, Option<BoundKind>)> = Vec::new();
+        let mut keys: Vec<Key> = Vec::new();
         let mut accs: Vec<Acc> = Vec::new();
         let mut ref_samples = Vec::new();
-        let mut motion_samples = Vec::new();
+        // Motion-field time per multisampling factor m.
+        let mut motion_samples: Vec<(u32, f64)> = Vec::new();
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
             let (reference, samples) = report::time_repeated(plan.reps, || match &gpu {
                 Some((_, renderer, _, uploaded)) => Ok(renderer.render_depth(uploaded, cb, *tb)?),
                 None => Ok(render_depth(scene, cb, *tb)?),
             })?;
             ref_samples.extend(samples);
-            let (bufs, motion_ms) = source_buffers(scene, ca, *ta, cb, *tb, max_l, plan.umbra)?;
-            motion_samples.push(motion_ms);
-            bar.inc(1);
-            let mut run = |key: (String, usize, u32, u32, Option<BoundKind>),
-                           f: &mut dyn FnMut() -> Result<Predicted>|
-             -> Result<()> {
-                let (out, samples) = report::time_repeated(plan.reps, &mut *f)?;
-                let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
-                let idx = match keys.iter().position(|k| *k == key) {
-                    Some(i) => i,
-                    None => {
-                        keys.push(key.clone());
-                        accs.push(Acc::default());
-                        keys.len() - 1
-                    }
+            for &ms in &plan.multisamples {
+                // The source (and the motion's target space) on the m x m sample grid: the same
+                // views at m times the resolution, so target pixel centres sit at m (x + 0.5).
+                let (ca, cb_grid) = if ms == 1 {
+                    (ca.clone(), cb.clone())
+                } else {
+                    let (mw, mh) = (plan.width * ms, plan.height * ms);
+                    (path.camera_at(*ta, mw, mh)?, path.camera_at(*tb, mw, mh)?)
                 };
-                let a = &mut accs[idx];
-                a.psnr.push(q.psnr);
-                a.ssim.push(q.ssim);
-                a.psnr_buffer.push(q.psnr_buffer);
-                a.ssim_buffer.push(q.ssim_buffer);
-                a.converged.push(coverage(&out.0, &reference, out.1.as_ref()));
-                a.warp_ms.extend(samples);
-                if pi == 0 {
-                    if let Some(dir) = &plan.images {
-                        write_images(dir, scene_name, speed, &key, &bufs.single.0, &out.0, &reference, ca, cb)?;
-                    }
-                }
+                let (bufs, motion_ms) = source_buffers(scene, &ca, *ta, &cb_grid, *tb, max_l, plan.umbra)?;
+                motion_samples.push((ms, motion_ms));
                 bar.inc(1);
-                Ok(())
-            };
-            for method in &plan.methods {
-                for &l in &plan.ls {
-                    let layers = bufs.prefix(l);
-                    match method.as_str() {
-                        "ours" => {
-                            for &n in &plan.ns {
-                                for &t in &plan.ts {
-                                    for &bound in &plan.bounds {
-                                        let params = WarpParams {
-                                            n_seeds: n,
-                                            iterations: t,
-                                            bound,
-                                            holes: plan.holes(),
-                                            ..WarpParams::default()
-                                        };
-                                        // The background protocol needs the source layers (sky
-                                        // seen through holes, border strips): the warp keeps far
-                                        // holes, then `fill_background` (or its WGSL twin) fills
-                                        // them.
-                                        let fill = match params.holes {
-                                            HolePolicy::Background { radius } => Some(radius),
-                                            _ => None,
-                                        };
-                                        let warp_params = if fill.is_some() {
-                                            WarpParams { holes: HolePolicy::FarDepth, ..params }
-                                        } else {
-                                            params
-                                        };
-                                        let search = params.search();
-                                        run(("ours".into(), l, n, t, Some(bound)), &mut || {
-                                            let mut o = match &gpu {
-                                                Some((_, _, (kernel, _), _)) => kernel.warp(&layers, &warp_params)?,
-                                                None => zwarp_warp::warp_depth(&layers, &warp_params)?,
+                let mut run = |key: Key, f: &mut dyn FnMut() -> Result<Predicted>| -> Result<()> {
+                    let (out, samples) = report::time_repeated(plan.reps, &mut *f)?;
+                    let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
+                    let idx = match keys.iter().position(|k| *k == key) {
+                        Some(i) => i,
+                        None => {
+                            keys.push(key.clone());
+                            accs.push(Acc::default());
+                            keys.len() - 1
+                        }
+                    };
+                    let a = &mut accs[idx];
+                    a.psnr.push(q.psnr);
+                    a.ssim.push(q.ssim);
+                    a.psnr_buffer.push(q.psnr_buffer);
+                    a.ssim_buffer.push(q.ssim_buffer);
+                    a.converged.push(coverage(&out.0, &reference, out.1.as_ref()));
+                    a.warp_ms.extend(samples);
+                    if pi == 0 {
+                        if let Some(dir) = &plan.images {
+                            write_images(dir, scene_name, speed, &key, &bufs.single.0, &out.0, &reference, &ca, cb)?;
+                        }
+                    }
+                    bar.inc(1);
+                    Ok(())
+                };
+                for method in &plan.methods {
+                    if ms > 1 && method != "ours" {
+                        continue; // the forward baselines splat one sample per pixel
+                    }
+                    for &l in &plan.ls {
+                        let layers = bufs.prefix(l);
+                        match method.as_str() {
+                            "ours" => {
+                                for &n in &plan.ns {
+                                    for &t in &plan.ts {
+                                        for &bound in &plan.bounds {
+                                            let params = WarpParams {
+                                                n_seeds: n,
+                                                iterations: t,
+                                                bound,
+                                                holes: plan.holes(),
+                                                multisample: ms,
+                                                ..WarpParams::default()
                                             };
-                                            match (fill, &gpu) {
-                                                (Some(radius), Some((_, _, (_, holes), _))) => {
-                                                    (o.depth, o.state) = holes.fill_background(
-                                                        &layers, &o.depth, &o.state, radius, &search,
-                                                    )?;
+                                            // The background protocol needs the source layers (sky
+                                            // seen through holes, border strips): the warp keeps far
+                                            // holes, then `fill_background` (or its WGSL twin) fills
+                                            // them.
+                                            let fill = match params.holes {
+                                                HolePolicy::Background { radius } => Some(radius),
+                                                _ => None,
+                                            };
+                                            let warp_params = if fill.is_some() {
+                                                WarpParams { holes: HolePolicy::FarDepth, ..params }
+                                            } else {
+                                                params
+                                            };
+                                            let search = params.search();
+                                            run(("ours".into(), l, n, t, Some(bound), ms), &mut || {
+                                                let mut o = match &gpu {
+                                                    Some((_, _, (kernel, _), _)) => {
+                                                        kernel.warp(&layers, &warp_params)?
+                                                    }
+                                                    None => zwarp_warp::warp_depth(&layers, &warp_params)?,
+                                                };
+                                                match (fill, &gpu) {
+                                                    (Some(radius), Some((_, _, (_, holes), _))) => {
+                                                        (o.depth, o.state) = holes.fill_background(
+                                                            &layers, &o.depth, &o.state, radius, &search,
+                                                        )?;
+                                                    }
+                                                    (Some(radius), None) => zwarp_warp::holes::fill_background(
+                                                        &layers, &mut o, radius, &search,
+                                                    )?,
+                                                    (None, _) => {}
                                                 }
-                                                (Some(radius), None) => zwarp_warp::holes::fill_background(
-                                                    &layers, &mut o, radius, &search,
-                                                )?,
-                                                (None, _) => {}
-                                            }
-                                            Ok((o.depth, Some(o.state)))
-                                        })?;
+                                                Ok((o.depth, Some(o.state)))
+                                            })?;
+                                        }
                                     }
                                 }
                             }
+                            "vfw" => run(("vfw".into(), l, 0, 0, None, 1), &mut || {
+                                Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?, None))
+                            })?,
+                            _ => run(("afw".into(), l, 0, 0, None, 1), &mut || {
+                                Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?, None))
+                            })?,
                         }
-                        "vfw" => run(("vfw".into(), l, 0, 0, None), &mut || {
-                            Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?, None))
-                        })?,
-                        _ => run(("afw".into(), l, 0, 0, None), &mut || {
-                            Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?, None))
-                        })?,
                     }
                 }
             }
         }
         bar.finish_and_clear();
         let ref_t = Timing::of(&ref_samples);
-        let motion_t = Timing::of(&motion_samples);
         for (key, a) in keys.into_iter().zip(accs) {
             let wt = Timing::of(&a.warp_ms);
+            let motion: Vec<f64> = motion_samples.iter().filter(|(m, _)| *m == key.5).map(|s| s.1).collect();
+            let motion_t = Timing::of(&motion);
             rows.push(EvalRow {
                 method: key.0,
                 scene: scene_name.to_string(),
@@ -559,6 +599,7 @@ pub fn evaluate(
                     (None, _) => "far",
                 }
                 .to_string(),
+                multisample: key.5,
                 speed,
                 frames: pairs.len(),
                 width: plan.width,
@@ -590,7 +631,7 @@ fn write_images(
     dir: &std::path::Path,
     scene: &str,
     speed: f32,
-    key: &(String, usize, u32, u32, Option<BoundKind>),
+    key: &Key,
     source: &Image<f32>,
     warped: &Image<f32>,
     reference: &Image<f32>,
@@ -610,10 +651,13 @@ fn write_images(
         // Heat-map legend: red = predicted nearer than the reference, blue = farther,
         // full intensity at 5% of the reference's depth range.
     }
-    let cfg = match key.4 {
+    let mut cfg = match key.4 {
         Some(b) => format!("{}_l{}_n{}_t{}_{}", key.0, key.1, key.2, key.3, bound_name(b)),
         None => format!("{}_l{}", key.0, key.1),
     };
+    if key.5 > 1 {
+        cfg.push_str(&format!("_m{}", key.5));
+    }
     // The warped panel uses the reference's colour range so the two compare pixel for pixel.
     let shown = zwarp_viz::depth_range(reference, Some(cb)).unwrap_or((cb.near, cb.far));
     zwarp_viz::write_png(
@@ -633,7 +677,7 @@ fn write_images(
 /// Prints the rows as a table.
 pub fn table(rows: &[EvalRow]) -> String {
     let mut t = Table::new(&[
-        "method", "L", "N", "T", "bound", "speed", "PSNR", "SSIM", "conv", "warp ms", "ref ms", "speedup",
+        "method", "L", "N", "T", "bound", "m", "speed", "PSNR", "SSIM", "conv", "warp ms", "ref ms", "speedup",
     ]);
     for r in rows {
         t.row(vec![
@@ -642,6 +686,7 @@ pub fn table(rows: &[EvalRow]) -> String {
             if r.n > 0 { r.n.to_string() } else { "-".into() },
             if r.t > 0 { r.t.to_string() } else { "-".into() },
             r.bound.clone(),
+            r.multisample.to_string(),
             format!("{}x", r.speed),
             fmt(r.psnr, 2),
             fmt(r.ssim, 4),

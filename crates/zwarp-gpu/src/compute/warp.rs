@@ -186,6 +186,12 @@ impl WarpKernel {
         if params.record_source {
             return Err(Error::invalid("GPU warp does not record source positions (record_source must be false)"));
         }
+        if params.multisample != 1 {
+            return Err(Error::invalid(format!(
+                "GPU warp takes one source sample per pixel (multisample {} is CPU-only)",
+                params.multisample
+            )));
+        }
         Ok(())
     }
 
