@@ -182,3 +182,64 @@ fn background_fill_analytic_pan() {
     let e = k.fill_background(&[], &warped.depth, &warped.state, 4, &search).unwrap_err().to_string();
     assert!(e.contains("at least one source layer"), "{e}");
 }
+
+/// `zwarp_warp::holes::fill_background` of a multisampled warp (`WarpParams::multisample` = 2:
+/// source layers twice the warped buffer's size, m inferred from the ratio) and its WGSL twin
+/// give the same depth and state, bit for bit, on the pan scenes (one layer and a separate
+/// ground, both search variants), for the CPU warp and for the GPU warp of the same source;
+/// the sky pass, the bracketed fill and the border strips all act. A source that is a multiple
+/// of the width only is rejected with the CPU's error.
+#[test]
+fn background_fill_of_a_multisampled_source_equals_the_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let wk = WarpKernel::new(&ctx).unwrap();
+    let m = 2u32;
+    for (w, h, seed, pan) in [(31u32, 22u32, 5u64, Vec2::new(3.0, -1.5)), (24, 17, 42, Vec2::new(-2.5, 2.0))] {
+        // The scene at the source resolution, motion in source samples.
+        let (ds, ms) = background_scene(w * m, h * m, seed, pan * m as f32);
+        for layers in [1usize, 2] {
+            let src: Vec<WarpLayer> =
+                ds.iter().zip(&ms).take(layers).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+            let params = WarpParams { multisample: m, ..WarpParams::default() };
+            let warped = zwarp_warp::warp_depth(&src, &params).unwrap();
+            assert_eq!(warped.depth.size(), (w, h));
+            assert_eq!(wk.warp(&src, &params).unwrap(), warped, "GPU warp {w}x{h} L={layers}");
+            for accelerate in [false, true] {
+                let search =
+                    zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate };
+                let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 64, &search).unwrap();
+                let mut cpu = warped.clone();
+                zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
+                let what = format!("{w}x{h} seed {seed} L={layers} accelerate {accelerate}");
+                assert_eq!(gs, cpu.state, "{what}");
+                let bits = |d: &Image<f32>| d.data().iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&gd), bits(&cpu.depth), "{what}");
+                // Every step acted: holes were left far (sky), filled (bracket / border).
+                let holes = warped.state.data().iter().filter(|s| **s == PixelState::Hole).count();
+                let filled = gs.data().iter().filter(|s| **s == PixelState::Filled).count();
+                let sky = gs
+                    .data()
+                    .iter()
+                    .zip(warped.state.data())
+                    .filter(|(a, b)| **a == PixelState::Converged && **b == PixelState::Hole)
+                    .count();
+                assert!(holes > 0 && filled > 0 && sky > 0, "{what}: holes {holes} filled {filled} sky {sky}");
+            }
+        }
+    }
+    // Twice the width but not the height: no multisampled source, the CPU's error.
+    let (ds, ms) = background_scene(16, 6, 1, Vec2::ZERO);
+    let src = [WarpLayer { depth: &ds[0], motion: &ms[0] }];
+    let out = zwarp_warp::WarpOutput {
+        depth: Image::new(8, 6, EMPTY_DEPTH),
+        state: Image::new(8, 6, PixelState::Hole),
+        source: None,
+    };
+    let search =
+        zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+    let gpu = k.fill_background(&src, &out.depth, &out.state, 4, &search).unwrap_err().to_string();
+    let mut cpu_out = out.clone();
+    let cpu = zwarp_warp::holes::fill_background(&src, &mut cpu_out, 4, &search).unwrap_err().to_string();
+    assert_eq!(gpu, cpu);
+}

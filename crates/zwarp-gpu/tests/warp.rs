@@ -327,3 +327,158 @@ fn awoc_matches_cpu() {
         }
     }
 }
+
+/// A synthetic source of `sw x sh` samples for the multisample tests: layer 0 = random boxes
+/// (some with their own motion) in front of a ground below the horizon and sky above; layer 1
+/// = the ground alone (a separately peeled last layer). Every sample pans by `pan` plus a small
+/// shear (motion in source samples).
+fn synth_source(sw: u32, sh: u32, seed: u64, pan: Vec2) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    // (x0, y0, x1, y1, depth, own motion)
+    let boxes: Vec<(f32, f32, f32, f32, f32, Vec2)> = (0..7)
+        .map(|_| {
+            let (x, y) = (next() * sw as f32, next() * sh as f32);
+            let (bw, bh) = (3.0 + next() * sw as f32 / 4.0, 3.0 + next() * sh as f32 / 4.0);
+            let own = if next() < 0.4 { Vec2::new(6.0 * next() - 3.0, 4.0 * next() - 2.0) } else { Vec2::ZERO };
+            (x, y, x + bw, y + bh, 0.15 + 0.4 * next(), own)
+        })
+        .collect();
+    let horizon = sh as f32 * 0.45;
+    let ground = |y: u32| if y as f32 >= horizon { 0.65 + 0.3 * (y as f32 - horizon) / sh as f32 } else { 1.0 };
+    let shear = |x: u32, y: u32| pan + Vec2::new(0.01 * y as f32, -0.008 * x as f32);
+    let hit = |x: u32, y: u32| {
+        let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+        boxes
+            .iter()
+            .filter(|b| fx >= b.0 && fx < b.2 && fy >= b.1 && fy < b.3)
+            .min_by(|a, b| a.4.total_cmp(&b.4))
+            .map(|b| (b.4 + 0.001 * (x % 5) as f32, b.5))
+    };
+    let d0 = Image::from_fn(sw, sh, |x, y| hit(x, y).map_or(ground(y), |b| b.0));
+    let m0 = Image::from_fn(sw, sh, |x, y| {
+        let own = hit(x, y).map_or(Vec2::ZERO, |b| b.1);
+        Motion { v: shear(x, y) + own, depth: *d0.get(x, y) }
+    });
+    let d1 = Image::from_fn(sw, sh, |_, y| ground(y));
+    let m1 = Image::from_fn(sw, sh, |x, y| Motion { v: shear(x, y), depth: *d1.get(x, y) });
+    (vec![d0, d1], vec![m0, m1])
+}
+
+/// Bit-for-bit equality of two warps: depth bits and states of every pixel.
+fn assert_bits(gpu: &WarpOutput, cpu: &WarpOutput, what: &str) {
+    assert_eq!(gpu.depth.size(), cpu.depth.size(), "{what}: size");
+    let bad = gpu
+        .depth
+        .data()
+        .iter()
+        .zip(cpu.depth.data())
+        .zip(gpu.state.data().iter().zip(cpu.state.data()))
+        .position(|((a, b), (s, t))| a.to_bits() != b.to_bits() || s != t);
+    if let Some(i) = bad {
+        let w = gpu.depth.width() as usize;
+        panic!(
+            "{what}: pixel ({}, {}) GPU {} {:?} vs CPU {} {:?}",
+            i % w,
+            i / w,
+            gpu.depth.data()[i],
+            gpu.state.data()[i],
+            cpu.depth.data()[i],
+            cpu.state.data()[i]
+        );
+    }
+}
+
+/// `WarpParams::multisample` m = 2, 3 (seed 000 Sec. 7): the GPU warp of an m x m-sampled
+/// source equals `zwarp_warp::warp_depth` bit for bit (depth bits and states) on synthetic
+/// scenes (odd target sizes, so tiles are clipped), one layer and a separate ground layer,
+/// every hole policy, axis-aligned and oriented bounds, both sampling modes; the output is the
+/// target size; a source not divisible by m is rejected with the CPU's error.
+#[test]
+fn multisample_matches_cpu_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (tw, th) = (29u32, 19u32);
+    let policies = [
+        HolePolicy::FarDepth,
+        HolePolicy::Dilate { radius: 3 },
+        HolePolicy::Background { radius: 4 },
+        HolePolicy::Awoc,
+    ];
+    for m in [2u32, 3] {
+        for (seed, pan) in [(1u64, Vec2::new(2.5, -1.25)), (7, Vec2::new(-3.0, 0.75))] {
+            let (d, mo) = synth_source(tw * m, th * m, seed, pan * m as f32);
+            for nl in [1usize, 2] {
+                let layers = layers_of(&d[..nl], &mo[..nl]);
+                for holes in policies {
+                    for (bound, sampling) in [
+                        (BoundKind::Tight, Sampling::Adaptive),
+                        (BoundKind::Oriented, Sampling::Adaptive),
+                        (BoundKind::Tight, Sampling::Nearest),
+                    ] {
+                        let p = WarpParams { multisample: m, holes, bound, sampling, ..base() };
+                        let what = format!("m={m} seed {seed} L={nl} {holes:?} {bound:?} {sampling:?}");
+                        let cpu = warp_depth(&layers, &p).unwrap();
+                        let gpu = k.warp(&layers, &p).unwrap();
+                        assert_eq!(gpu.depth.size(), (tw, th), "{what}");
+                        assert_bits(&gpu, &cpu, &what);
+                        let (conv, filled, _) = cpu.counts();
+                        // The ground and boxes converge (the sky above the horizon stays a hole).
+                        assert!(conv > cpu.depth.len() / 3, "{what}: converged {conv}");
+                        if holes != HolePolicy::FarDepth && nl == 1 {
+                            assert!(filled > 0, "{what}: the hole policy filled nothing");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // m = 1 on the same source warps to the source size.
+    let (d, mo) = synth_source(tw * 3, th * 3, 3, Vec2::new(4.0, -2.0));
+    let layers = layers_of(&d[..1], &mo[..1]);
+    let one = k.warp(&layers, &base()).unwrap();
+    assert_eq!(one.depth.size(), (tw * 3, th * 3));
+    // The CPU's divisibility rule and error text.
+    let p = WarpParams { multisample: 2, ..base() };
+    let cpu = warp_depth(&layers, &p).unwrap_err().to_string();
+    let gpu = k.warp(&layers, &p).unwrap_err().to_string();
+    assert_eq!(gpu, cpu);
+    assert!(gpu.contains("divisible by 2"), "{gpu}");
+}
+
+/// The engine path with multisample: `encode_prepare` on the source size, `encode_prepared`
+/// with two motion scales, each equal to the CPU warp with that scale, target-sized outputs.
+#[test]
+fn multisample_prepared_warps_match_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let m = 2u32;
+    let (tw, th) = (33u32, 18u32);
+    let (d, mo) = synth_source(tw * m, th * m, 11, Vec2::new(3.0, 1.0));
+    let layers = layers_of(&d, &mo);
+    let p = WarpParams { multisample: m, bound: BoundKind::Tight, holes: HolePolicy::Dilate { radius: 2 }, ..base() };
+    let gpu_layers = k.upload(&layers, &p).unwrap();
+    let views: Vec<zwarp_gpu::GpuWarpLayer> =
+        gpu_layers.iter().map(|(d, m)| zwarp_gpu::GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let prepared = k.encode_prepare(&mut enc, &views, tw * m, th * m, &p).unwrap();
+    assert_eq!((prepared.size(), prepared.target_size()), ((tw * m, th * m), (tw, th)));
+    let scales = [Vec2::ONE, Vec2::new(0.5, -0.75)];
+    let outs: Vec<zwarp_gpu::GpuWarpOutput> =
+        scales.iter().map(|&s| k.encode_prepared(&mut enc, &prepared, s).unwrap()).collect();
+    ctx.queue.submit([enc.finish()]);
+    for (out, &s) in outs.iter().zip(&scales) {
+        assert_eq!((out.width, out.height), (tw, th));
+        let cpu = warp_depth(&layers, &WarpParams { motion_scale: s, ..p }).unwrap();
+        assert_bits(&out.read(&ctx).unwrap(), &cpu, &format!("prepared m={m} scale {s}"));
+    }
+    // A source size not divisible by m.
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let e = k.encode(&mut enc, &views, tw * m - 1, th * m, &p).unwrap_err().to_string();
+    assert!(e.contains("divisible by 2"), "{e}");
+}

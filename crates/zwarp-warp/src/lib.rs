@@ -138,7 +138,8 @@ pub struct WarpParams {
     /// `(w / m) x (h / m)`. A converged search then returns the sample nearest its fixed point
     /// on a grid `m` times finer, so silhouettes land within `1 / (2m)` of a target pixel
     /// instead of half a pixel. The threshold and the bounds stay in source samples. Default 1
-    /// (one sample per pixel: the source and target grids coincide); the WGSL twin supports 1.
+    /// (one sample per pixel: the source and target grids coincide). The WGSL twin
+    /// (`zwarp_gpu::WarpKernel`) supports every m.
     pub multisample: u32,
 }
 

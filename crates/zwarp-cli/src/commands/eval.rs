@@ -60,8 +60,9 @@ pub struct EvalArgs {
     /// Multisampled source depth for our warp (comma list; seed 000 Sec. 7's remedy for
     /// sub-pixel silhouette error): `m` renders the source layers on an ordered m x m sample grid
     /// per pixel (m times the width and height) and warps them to the target's pixel centres
-    /// (`WarpParams::multisample`); 1 = one sample per pixel. Rows with m > 1 are `ours` only;
-    /// their warp time includes the preparation of the m^2-times larger source.
+    /// (`WarpParams::multisample`); 1 = one sample per pixel. Rows with m > 1 are `ours` only
+    /// (either backend: the WGSL twin warps multisampled sources too); their warp time includes
+    /// the preparation of the m^2-times larger source.
     #[arg(long, default_value = "1")]
     pub multisample: String,
     /// Peeling: `umbra` (generalized umbra culling, eq. 1) or `standard`.
@@ -234,9 +235,6 @@ impl EvalArgs {
             WarpParams { multisample: m, ..WarpParams::default() }
                 .validate()
                 .with_context(|| format!("--multisample {m}"))?;
-            if m > 1 && self.backend == Backend::Gpu {
-                bail!("--multisample {m}: the GPU warp takes one source sample per pixel (use --backend cpu)");
-            }
         }
         let bounds = parse_list::<String>(&self.bound, "--bound")?
             .iter()

@@ -26,6 +26,13 @@ struct Params {
     threshold: f32,
     reach: u32,
     accelerate: u32,
+    /// `sky`: the source layers' size, `multisample` times `width x height`.
+    src_width: u32,
+    src_height: u32,
+    /// `sky`: source samples per pixel and axis (`zwarp_warp::WarpParams::multisample`), as a
+    /// float.
+    multisample: f32,
+    _pad: u32,
 }
 
 /// Largest accepted fill radius (as `zwarp_warp::WarpParams::validate`).
@@ -149,11 +156,36 @@ impl HoleFillKernel {
         limits: BackgroundLimits,
         search: &SearchParams,
     ) -> Result<GpuWarpOutput> {
+        self.encode_background_multisampled(encoder, warped, empty, motion, 1, limits, search)
+    }
+
+    /// [`Self::encode_background`] for a warp from a multisampled source
+    /// (`zwarp_warp::WarpParams::multisample` = `multisample`): `empty` and `motion` hold one
+    /// entry per source sample, `multisample` times `warped`'s size on both axes, and `limits`
+    /// come from [`BackgroundLimits::of_multisampled`]. The sky pass searches target pixel
+    /// `(x, y)` at the source position `multisample * (x + 0.5, y + 0.5)`, as the CPU does.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_background_multisampled(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        warped: &GpuWarpOutput,
+        empty: &wgpu::Buffer,
+        motion: &wgpu::Buffer,
+        multisample: u32,
+        limits: BackgroundLimits,
+        search: &SearchParams,
+    ) -> Result<GpuWarpOutput> {
         Self::check_warped(warped)?;
         let (w, h) = (warped.width, warped.height);
+        let m = multisample;
         let n = w as u64 * h as u64;
-        if empty.size() < n * 4 || motion.size() < n * 8 {
-            return Err(Error::invalid(format!("background buffers are too small for {w}x{h}")));
+        let (sw, sh) = (w as u64 * m as u64, h as u64 * m as u64);
+        if m == 0 || sw > u32::MAX as u64 || sh > u32::MAX as u64 {
+            return Err(Error::invalid(format!("multisample {m} is not a valid source for {w}x{h}")));
+        }
+        let sn = sw * sh;
+        if empty.size() < sn * 4 || motion.size() < sn * 8 {
+            return Err(Error::invalid(format!("background buffers are too small for {sw}x{sh}")));
         }
         let (depth, state) = self.output_buffers(w, h)?;
         encoder.copy_buffer_to_buffer(&warped.depth, 0, &depth, 0, n * 4);
@@ -164,6 +196,9 @@ impl HoleFillKernel {
             iterations: search.iterations,
             threshold: search.threshold,
             accelerate: search.accelerate as u32,
+            src_width: sw as u32,
+            src_height: sh as u32,
+            multisample: m as f32,
             ..Params::default()
         };
         self.dispatch(encoder, &self.sky, params, &[(3, &depth), (4, &state), (5, empty), (6, motion)]);
@@ -181,8 +216,10 @@ impl HoleFillKernel {
     }
 
     /// [`zwarp_warp::holes::fill_background`] on the GPU for CPU buffers: `depth` / `state` of
-    /// a far-hole warp of `layers`, filled and read back. Same errors as the CPU function, plus
-    /// size mismatches between `depth` and `state`.
+    /// a far-hole warp of `layers`, filled and read back. Like the CPU, source layers that are
+    /// `m` times `depth`'s size on both axes are a multisampled source
+    /// (`zwarp_warp::WarpParams::multisample` = m, inferred from the size ratio). Same errors
+    /// as the CPU function, plus size mismatches between `depth` and `state`.
     pub fn fill_background(
         &self,
         layers: &[WarpLayer<'_>],
@@ -194,8 +231,11 @@ impl HoleFillKernel {
         depth.check_nonempty("warped depth")?;
         depth.check_same_size(state, "warped depth vs state")?;
         let (w, h) = depth.size();
-        let limits = BackgroundLimits::of(layers, w, h, radius)?;
-        let n = w as usize * h as usize;
+        // zwarp_warp::holes::fill_background's inference of m; other sizes fail the limits.
+        let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
+        let m = if w > 0 && sw % w == 0 { (sw / w).max(1) } else { 1 };
+        let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
+        let n = sw as usize * sh as usize;
         let empty: Vec<u32> = (0..n).map(|i| layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) as u32).collect();
         let motion: Vec<[f32; 2]> = layers[0].motion.data().iter().map(|m| m.v.to_array()).collect();
         let input = self.upload(depth, state);
@@ -210,7 +250,7 @@ impl HoleFillKernel {
         let empty = storage("zwarp holes empty", bytemuck::cast_slice(&empty));
         let motion = storage("zwarp holes motion", bytemuck::cast_slice(&motion));
         let mut enc = dev.create_command_encoder(&Default::default());
-        let out = self.encode_background(&mut enc, &input, &empty, &motion, limits, search)?;
+        let out = self.encode_background_multisampled(&mut enc, &input, &empty, &motion, m, limits, search)?;
         self.ctx.queue.submit([enc.finish()]);
         let r = out.read(&self.ctx)?;
         Ok((r.depth, r.state))

@@ -18,6 +18,12 @@ struct Params {
     // rule 2: BackgroundLimits::reach.
     reach: u32,
     accelerate: u32,
+    // `sky`: the source layers' size (multisample * (width, height)) and the samples per pixel
+    // and axis as a float (zwarp_warp::WarpParams::multisample).
+    src_width: u32,
+    src_height: u32,
+    multisample: f32,
+    pad: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -25,7 +31,7 @@ struct Params {
 @group(0) @binding(2) var<storage, read> in_state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out_state: array<u32>;
-// `sky`: 1 where no source layer has a surface; layer 0's motion (pixels).
+// `sky`: per source sample, 1 where no source layer has a surface; layer 0's motion (samples).
 @group(0) @binding(5) var<storage, read> empty: array<u32>;
 @group(0) @binding(6) var<storage, read> motion: array<vec2<f32>>;
 
@@ -185,10 +191,12 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
 // The empty-background sample at q (the CPU's EmptyBackground): (v, 1) on an empty texel, nearest
 // sampled; (0, 0, 0) outside the image or on a surface.
 fn background_sample(q: vec2<f32>) -> vec3<f32> {
-    if (!(q.x >= 0.0 && q.y >= 0.0 && q.x < f32(params.width) && q.y < f32(params.height))) {
+    let sw = params.src_width;
+    let sh = params.src_height;
+    if (!(q.x >= 0.0 && q.y >= 0.0 && q.x < f32(sw) && q.y < f32(sh))) {
         return vec3<f32>(0.0);
     }
-    let i = min(u32(q.y), params.height - 1u) * params.width + min(u32(q.x), params.width - 1u);
+    let i = min(u32(q.y), sh - 1u) * sw + min(u32(q.x), sw - 1u);
     if (empty[i] == 0u) {
         return vec3<f32>(0.0);
     }
@@ -197,7 +205,9 @@ fn background_sample(q: vec2<f32>) -> vec3<f32> {
 
 // Step 1 of fill_background, in place: a hole whose fixed-point search (zwarp_warp's
 // fixed_point_search on the empty-background samples, whose Jacobian is zero, from the seeds of
-// background_seeds) converges sees the empty background: far depth, converged.
+// background_seeds) converges sees the empty background: far depth, converged. The search runs
+// in source samples from p = multisample * (x + 0.5, y + 0.5), the second seed displaced by the
+// motion of the source sample p falls in.
 @compute @workgroup_size(8, 8, 1)
 fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.width || gid.y >= params.height) {
@@ -207,12 +217,13 @@ fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (out_state[i] != HOLE) {
         return;
     }
-    let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
-    let max_q = vec2<f32>(f32(params.width), f32(params.height)) - vec2<f32>(1e-3);
+    let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5) * params.multisample;
+    let back = motion[u32(p.y) * params.src_width + u32(p.x)];
+    let max_q = vec2<f32>(f32(params.src_width), f32(params.src_height)) - vec2<f32>(1e-3);
     let thr2 = params.threshold * params.threshold;
     var converged = false;
     for (var k = 0u; k < 2u; k++) {
-        var q = clamp(select(p, p - motion[i], k == 1u), vec2<f32>(0.0), max_q);
+        var q = clamp(select(p, p - back, k == 1u), vec2<f32>(0.0), max_q);
         for (var t = 0u; t < params.iterations; t++) {
             let s = background_sample(q);
             if (s.z == 0.0) {

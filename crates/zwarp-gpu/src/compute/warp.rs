@@ -11,8 +11,11 @@
 //! cross-layer seeding and borrowing (Fig. 6), the 4x4-tile then per-pixel bound tightening
 //! (Fig. 5, recomputed per pixel from the same tile), the single-seed shortcut for sub-pixel
 //! tile bounds, the min-depth mipmap pruning of later layers, and the ground-layer de-duplication
-//! of `PreparedLayer::prepare_stack`, and `WarpParams::motion_scale` (scaled texel fetches and
-//! mipmap look-ups, rejected when non-uniform under an oriented frame), and the AWOC fill
+//! of `PreparedLayer::prepare_stack`, `WarpParams::motion_scale` (scaled texel fetches and
+//! mipmap look-ups, rejected when non-uniform under an oriented frame),
+//! `WarpParams::multisample` = m (source layers of m x m samples per target pixel: target
+//! pixel `(x, y)` and the 4x4 target tiles are searched at the source position
+//! `m * (x + 0.5, y + 0.5)`, the output is the source size divided by m), and the AWOC fill
 //! (Sec. 5.3: nearest sample over all layers at the corners of the first searched layer's tight
 //! region). `record_source` returns [`Error::Invalid`]; [`WarpKernel::gpu_params`] turns any CPU
 //! configuration into the one the GPU reproduces.
@@ -66,6 +69,12 @@ struct Params {
     level_total: u32,
     inf: [f32; 2],
     motion_scale: [f32; 2],
+    /// Target image size: `size / multisample` (`WarpParams::multisample`).
+    target: [u32; 2],
+    /// `WarpParams::multisample` as a float: target pixel `(x, y)` is searched at the source
+    /// position `multisample * (x + 0.5, y + 0.5)`.
+    multisample: f32,
+    _pad: u32,
     levels: [[u32; 4]; MAX_LEVELS],
     axes: [[f32; 4]; MAX_GPU_LAYERS],
 }
@@ -100,12 +109,13 @@ pub struct GpuWarpLayer<'a> {
 #[derive(Debug)]
 pub struct GpuWarpOutput {
     /// Warped depth, `width * height` `f32` (1 = hole under `FarDepth`); `STORAGE | COPY_SRC`.
+    /// The size is the target's: the source size divided by `WarpParams::multisample`.
     pub depth: wgpu::Buffer,
     /// Per-pixel [`PixelState`] as `u32` (0 converged, 1 filled, 2 hole); `STORAGE | COPY_SRC`.
     pub state: wgpu::Buffer,
-    /// Image width.
+    /// Target image width.
     pub width: u32,
-    /// Image height.
+    /// Target image height.
     pub height: u32,
 }
 
@@ -143,9 +153,15 @@ pub struct GpuPreparedWarp {
 }
 
 impl GpuPreparedWarp {
-    /// `(width, height)` of the prepared layers (and of every warp from them).
+    /// `(width, height)` of the prepared source layers.
     pub fn size(&self) -> (u32, u32) {
         (self.base.size[0], self.base.size[1])
+    }
+
+    /// `(width, height)` of every warp from the prepared layers: [`Self::size`] divided by
+    /// `WarpParams::multisample` (equal to it for one sample per pixel).
+    pub fn target_size(&self) -> (u32, u32) {
+        (self.base.target[0], self.base.target[1])
     }
 }
 
@@ -186,13 +202,19 @@ impl WarpKernel {
         if params.record_source {
             return Err(Error::invalid("GPU warp does not record source positions (record_source must be false)"));
         }
-        if params.multisample != 1 {
+        Ok(())
+    }
+
+    /// The target image of a warp from `width x height` source layers with
+    /// `WarpParams::multisample` = `m`: `(width / m, height / m)`, the same rule and error as
+    /// `zwarp_warp::warp_depth` (the source must hold exactly `m x m` samples per target pixel).
+    pub fn target_size(width: u32, height: u32, m: u32) -> Result<(u32, u32)> {
+        if m == 0 || width % m != 0 || height % m != 0 {
             return Err(Error::invalid(format!(
-                "GPU warp takes one source sample per pixel (multisample {} is CPU-only)",
-                params.multisample
+                "multisample {m}: the {width}x{height} source layers must hold {m}x{m} samples per target pixel (sizes divisible by {m})"
             )));
         }
-        Ok(())
+        Ok((width / m, height / m))
     }
 
     fn uniform(&self, p: &Params) -> wgpu::Buffer {
@@ -237,8 +259,10 @@ impl WarpKernel {
     }
 
     /// Records the warp of GPU-resident `layers` (nearest first, ground last if separate) of
-    /// `width x height` into `encoder`; the output stays on the GPU. Errors ([`Error::Invalid`])
-    /// on an empty or too long layer list, zero size, buffers too small, unsupported params.
+    /// `width x height` source samples into `encoder`; the output (of
+    /// [`Self::target_size`]`(width, height, params.multisample)`) stays on the GPU. Errors
+    /// ([`Error::Invalid`]) on an empty or too long layer list, zero size, a source size not
+    /// divisible by `params.multisample`, buffers too small, unsupported params.
     /// NaN inputs are not checked here (the CPU-input [`Self::warp`] rejects them).
     pub fn encode(
         &self,
@@ -278,6 +302,7 @@ impl WarpKernel {
         if width == 0 || height == 0 {
             return Err(Error::invalid(format!("warp target is a zero-size image ({width}x{height})")));
         }
+        let (tw, th) = Self::target_size(width, height, params.multisample)?;
         let wh = width as u64 * height as u64;
         let mut axes = [[1.0f32, 0.0, 0.0, 0.0]; MAX_GPU_LAYERS];
         for (k, l) in layers.iter().enumerate() {
@@ -366,6 +391,9 @@ impl WarpKernel {
             level_total: total,
             inf: [f32::INFINITY, f32::NEG_INFINITY],
             motion_scale: params.motion_scale.to_array(),
+            target: [tw, th],
+            multisample: params.multisample as f32,
+            _pad: 0,
             levels,
             axes,
         };
@@ -423,7 +451,8 @@ impl WarpKernel {
                 )));
             }
         }
-        let [width, height] = base.size;
+        // The warp and its hole pass run over the target pixels.
+        let [width, height] = base.target;
         let wh = width as u64 * height as u64;
         let (samples, mip, zmin) = (&prepared.samples, &prepared.mip, &prepared.zmin);
         let out_depth = self.storage(wh * 4, "zwarp warp depth")?;

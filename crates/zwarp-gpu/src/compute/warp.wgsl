@@ -3,14 +3,17 @@
 // below mirrors a CPU function of crates/zwarp-warp (named in its comment) operation by
 // operation, so that both backends compute the same function. Host code: warp.rs.
 //
-// Buffers (L layers of w x h pixels, wh = w * h):
+// Buffers (L layers of w x h source samples, wh = w * h; the target is (w / m) x (h / m) pixels
+// for WarpParams::multisample = m, target pixel (x, y) searched at m * (x + 0.5, y + 0.5)):
 // - samples: L * wh texels (v.x, v.y, target depth or 2.0 if invalid, raw source depth),
 //   the CPU's `validated_samples` (invalid samples have target depth outside [0, 1)).
 // - mip / zmin: per layer `level_total` texels, levels 1..=top packed at params.levels[l-1].x;
 //   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin = min target depth.
-// - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole).
+// - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole),
+//   one per target pixel.
 
 struct Params {
+    // Source layer size (the space of q, the motion and the mipmaps).
     size: vec2<u32>,
     layers: u32,
     top: u32,
@@ -31,6 +34,11 @@ struct Params {
     inf: vec2<f32>,
     // WarpParams::motion_scale: factor on every fetched motion and every mipmap bound.
     motion_scale: vec2<f32>,
+    // Target image size (size / multisample): the pixels of `warp` and `dilate`.
+    target_size: vec2<u32>,
+    // WarpParams::multisample as a float (depth_warp::Kernel::m).
+    multisample: f32,
+    pad: u32,
     // Per level l - 1: (offset within a layer's block, width, height, 0).
     levels: array<vec4<u32>, 16>,
     // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
@@ -526,8 +534,12 @@ var<workgroup> tile_zmin: array<f32, 32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    // Source size (clamping) and target size (pixels, tiles).
     let w = params.size.x;
     let h = params.size.y;
+    let tw = params.target_size.x;
+    let th = params.target_size.y;
+    let ms = params.multisample;
     let expand = params.expand;
     let iters = params.bound_iterations;
     let task = lid.y * 8u + lid.x;
@@ -539,11 +551,12 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         var ok = 0u;
         var motion = vec4<f32>(0.0);
         var tz = params.inf.y;
-        if (tx0 < w && ty0 < h) {
-            let tx1 = min(tx0 + 4u, w) - 1u;
-            let ty1 = min(ty0 + 4u, h) - 1u;
-            let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5);
-            let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5);
+        if (tx0 < tw && ty0 < th) {
+            let tx1 = min(tx0 + 4u, tw) - 1u;
+            let ty1 = min(ty0 + 4u, th) - 1u;
+            // depth_warp::Kernel::target_pos of the tile's corner pixels.
+            let p_lo = vec2<f32>(f32(tx0) + 0.5, f32(ty0) + 0.5) * ms;
+            let p_hi = vec2<f32>(f32(tx1) + 0.5, f32(ty1) + 0.5) * ms;
             let top = params.levels[params.top - 1u];
             let gb = scale_bound(mip_ro[kt * params.level_total + top.x]);
             let tile = tight_bound_box(kt, p_lo, p_hi, gb, iters, expand);
@@ -562,11 +575,12 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     workgroupBarrier();
     let x = gid.x;
     let y = gid.y;
-    if (x >= w || y >= h) {
+    if (x >= tw || y >= th) {
         return;
     }
     let tile_index = (lid.x / 4u) + 2u * (lid.y / 4u);
-    let p = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
+    // depth_warp::Kernel::target_pos: the target pixel's centre in source samples (exact).
+    let p = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5) * ms;
     let max_q = vec2<f32>(f32(w), f32(h)) * (1.0 - EPS) - vec2<f32>(1e-3);
     let thr2 = params.threshold * params.threshold;
 
@@ -691,7 +705,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
         }
     }
-    let i = y * w + x;
+    let i = y * tw + x;
     if (best.ok) {
         out_depth[i] = best.depth;
         out_state[i] = 0u;
@@ -730,11 +744,11 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
 // holes::fill_holes. Fig. 8 (FillRule::Nearest): a hole with a converged pixel within the radius
 // on both sides along all four directions takes the depth of the nearest one (ties: the farther
 // depth). FLAG_BACKGROUND (FillRule::Background): a hole bracketed along at least one direction
-// takes the farthest of the nearest converged pixels along the eight probes.
+// takes the farthest of the nearest converged pixels along the eight probes. On the target grid.
 @compute @workgroup_size(8, 8, 1)
 fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let w = params.size.x;
-    let h = params.size.y;
+    let w = params.target_size.x;
+    let h = params.target_size.y;
     if (gid.x >= w || gid.y >= h) {
         return;
     }
