@@ -190,36 +190,31 @@ impl CameraPath {
             .collect()
     }
 
-    /// A sensible default path for any scene: a 10 s, 30 Hz half-ellipse flight around the
-    /// centre of the bounds, about 1/3 of the largest extent above the ground level (the
-    /// lowest point along `scene.up`), looking at a point a quarter up the scene's height
-    /// above the centre of the ground; near/far are derived from the bounds diagonal.
+    /// A sensible default path for any scene: a 10 s, 30 Hz half orbit around the centre of
+    /// the bounds, **outside** them — horizontal radius one bounds diagonal `d`, eye `d / 4`
+    /// above the centre along `scene.up` — looking at the centre. The bounding sphere (radius
+    /// `d / 2`) then fits the 60 degree field of view from every eye, and the camera never starts
+    /// inside a closed model (an orbit inside the bounds put it in the walls of a building such
+    /// as Sponza, whose depth buffers then showed one wall from a few centimetres). Near is
+    /// `d / 20` (no geometry is nearer than `d / 2`), far `2 d`.
     pub fn default_for(scene: &Scene) -> CameraPath {
         let b = scene.bounds();
         let (b_min, b_max) = if b.is_empty() { (Vec3::splat(-1.0), Vec3::splat(1.0)) } else { (b.min, b.max) };
         let up = scene.up.normalize_or(Vec3::Z);
         let centre = (b_min + b_max) * 0.5;
-        let ext = b_max - b_min;
-        // Horizontal frame (u, v) perpendicular to up; the ellipse radii are the box's
-        // half-extents along them.
+        let diag = (b_max - b_min).length().max(1e-3);
+        // Horizontal frame (u, v) perpendicular to up.
         let u = up.any_orthonormal_vector();
         let v = up.cross(u);
-        let half = |axis: Vec3| 0.5 * (ext.x * axis.x.abs() + ext.y * axis.y.abs() + ext.z * axis.z.abs());
-        let (ru, rv) = (half(u).max(1e-3) * 0.8, half(v).max(1e-3) * 0.8);
-        let height = ext.dot(up.abs()).max(1e-3);
-        let diag = ext.length().max(1e-3);
-        let ground = centre - up * (0.5 * height);
-        let eye_h = ground + up * (diag / 3.0);
-        let target = ground + up * (0.25 * height);
         let fps = 30.0;
         let keys = (0..=10)
             .map(|i| {
                 let a = std::f32::consts::PI * i as f32 / 10.0;
-                let eye = eye_h + u * (ru * a.cos()) + v * (rv * a.sin());
-                PathKey { t: i as f32, eye, target }
+                let eye = centre + up * (0.25 * diag) + (u * a.cos() + v * a.sin()) * diag;
+                PathKey { t: i as f32, eye, target: centre }
             })
             .collect();
-        CameraPath { fov_y_deg: 60.0, near: diag * 2e-3, far: diag * 2.0, up, fps, keys }
+        CameraPath { fov_y_deg: 60.0, near: diag * 0.05, far: diag * 2.0, up, fps, keys }
     }
 }
 
@@ -654,12 +649,17 @@ mod tests {
         assert_eq!(p.frame_count(), 301);
         let b = s.bounds();
         for (_, cam) in p.frames(64, 48, 1.0).unwrap() {
-            // Eye above the ground, scene centre in front of the camera and inside far.
+            // Eye above the ground and outside the bounds, scene centre in front of the
+            // camera, every corner in view between near and far.
             assert!(cam.eye().z > b.min.z + 1.0);
+            let e = cam.eye();
+            assert!(e.cmplt(b.min).any() || e.cmpgt(b.max).any(), "eye {e} inside the bounds");
             let c = cam.project(b.center()).unwrap();
             assert!(c.x >= 0.0 && c.x <= 64.0 && c.y >= 0.0 && c.y <= 48.0 && c.z < 1.0, "{c}");
             for corner in b.corners() {
                 assert!((corner - cam.eye()).length() < p.far);
+                let q = cam.project(corner).unwrap();
+                assert!(q.x >= 0.0 && q.x <= 64.0 && q.y >= 0.0 && q.y <= 48.0 && q.z > 0.0 && q.z < 1.0, "{q}");
             }
         }
     }
