@@ -312,49 +312,32 @@ fn shadows_writes_the_documented_fields() {
     assert_eq!(reference["ssim"].as_f64().unwrap(), 1.0);
 }
 
-/// `--backend gpu` runs the WGSL twin of the warp: same quality as the CPU on the same frames.
-/// Runs where an adapter exists (lavapipe in CI, which sets `ZWARP_REQUIRE_GPU=1` so that a
-/// missing adapter fails here instead of skipping).
+/// `--backend gpu` runs the WGSL twin of the warp: same quality as the CPU on the same frames,
+/// with one source sample per pixel and with a 2x2-sampled source (`--multisample 2`, holes
+/// filled by `--holes background` on the device). Runs where an adapter exists (lavapipe in CI,
+/// which sets `ZWARP_REQUIRE_GPU=1` so that a missing adapter fails here instead of skipping).
 #[test]
 fn eval_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
     let d = tmp("evalgpu");
-    let mut ssim = Vec::new();
-    for backend in ["cpu", "gpu"] {
-        let j = d.join(format!("{backend}.json"));
-        let (ok, _, err) = eval_small(&["--methods", "ours", "--backend", backend], &j);
-        assert!(ok, "{backend}: {err}");
-        ssim.push(json_rows(&j).iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
-    }
-    assert_eq!(ssim[0].len(), 2);
-    for (c, g) in ssim[0].iter().zip(&ssim[1]) {
-        assert!((c - g).abs() < 2e-3, "cpu {c} vs gpu {g}");
-    }
-}
-
-/// `--multisample 2 --backend gpu`: the WGSL twin warps the 2x2-sampled source (and fills its
-/// holes with `--holes background`) like the CPU: same rows, same quality on the same frames.
-#[test]
-fn eval_gpu_backend_multisample_matches_cpu() {
-    if !gpu_available() {
-        return;
-    }
-    let d = tmp("evalgpums");
-    let mut ssim = Vec::new();
-    for backend in ["cpu", "gpu"] {
-        let j = d.join(format!("{backend}.json"));
-        let (ok, _, err) =
-            eval_small(&["--methods", "ours", "--multisample", "2", "--holes", "background", "--backend", backend], &j);
-        assert!(ok, "{backend}: {err}");
-        let rows = json_rows(&j);
-        assert!(rows.iter().all(|r| r["multisample"].as_u64() == Some(2)), "{backend}");
-        ssim.push(rows.iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
-    }
-    assert_eq!(ssim[0].len(), 2);
-    for (c, g) in ssim[0].iter().zip(&ssim[1]) {
-        assert!((c - g).abs() < 2e-3, "cpu {c} vs gpu {g}");
+    for (m, extra) in [("1", &[][..]), ("2", &["--multisample", "2", "--holes", "background"][..])] {
+        let mut ssim = Vec::new();
+        for backend in ["cpu", "gpu"] {
+            let j = d.join(format!("{backend}_m{m}.json"));
+            let mut args = vec!["--methods", "ours", "--backend", backend];
+            args.extend_from_slice(extra);
+            let (ok, _, err) = eval_small(&args, &j);
+            assert!(ok, "{backend} m = {m}: {err}");
+            let rows = json_rows(&j);
+            assert!(rows.iter().all(|r| r["multisample"].as_u64() == m.parse().ok()), "{backend} m = {m}");
+            ssim.push(rows.iter().map(|r| r["ssim"].as_f64().unwrap()).collect::<Vec<_>>());
+        }
+        assert_eq!(ssim[0].len(), 2);
+        for (c, g) in ssim[0].iter().zip(&ssim[1]) {
+            assert!((c - g).abs() < 2e-3, "m = {m}: cpu {c} vs gpu {g}");
+        }
     }
 }
 
