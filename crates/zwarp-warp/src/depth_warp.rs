@@ -400,9 +400,10 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
 }
 
 /// The target image of a warp from `w x h` source layers with [`WarpParams::multisample`] = `m`:
-/// `(w / m, h / m)`; the source must hold exactly `m x m` samples per target pixel.
-pub(crate) fn target_size(w: u32, h: u32, m: u32) -> Result<(u32, u32)> {
-    if m == 0 || w % m != 0 || h % m != 0 {
+/// `(w / m, h / m)`; the source must hold exactly `m x m` samples per target pixel, else a
+/// one-line [`Error::Invalid`]. The one rule of both twins (the WGSL warp's host code calls it).
+pub fn target_size(w: u32, h: u32, m: u32) -> Result<(u32, u32)> {
+    if m == 0 || !w.is_multiple_of(m) || !h.is_multiple_of(m) {
         return Err(Error::invalid(format!(
             "multisample {m}: the {w}x{h} source layers must hold {m}x{m} samples per target pixel (sizes divisible by {m})"
         )));

@@ -560,7 +560,8 @@ mod tests {
     /// column sits on the border of its search region and some rows' seeds miss it.
     #[test]
     fn background_fill_of_a_multisampled_source_equals_one_sample_per_pixel() {
-        let scenes: [(u32, u32, Box<dyn Fn(u32, u32) -> (f32, f32)>); 3] = [
+        type PixelFn = Box<dyn Fn(u32, u32) -> (f32, f32)>;
+        let scenes: [(u32, u32, PixelFn); 3] = [
             (24, 12, Box::new(|_, y| (if y >= 6 { 0.6 + 0.01 * y as f32 } else { EMPTY_DEPTH }, 3.0))),
             (
                 24,

@@ -476,7 +476,7 @@ pub fn evaluate(
                 // The source (and the motion's target space) on the m x m sample grid: the same
                 // views at m times the resolution, so target pixel centres sit at m (x + 0.5).
                 let (ca, cb_grid) = if ms == 1 {
-                    (ca.clone(), cb.clone())
+                    (*ca, *cb)
                 } else {
                     let (mw, mh) = (plan.width * ms, plan.height * ms);
                     (path.camera_at(*ta, mw, mh)?, path.camera_at(*tb, mw, mh)?)

@@ -206,15 +206,10 @@ impl WarpKernel {
     }
 
     /// The target image of a warp from `width x height` source layers with
-    /// `WarpParams::multisample` = `m`: `(width / m, height / m)`, the same rule and error as
-    /// `zwarp_warp::warp_depth` (the source must hold exactly `m x m` samples per target pixel).
+    /// `WarpParams::multisample` = `m`: [`zwarp_warp::target_size`], the CPU warp's rule and
+    /// error (the source must hold exactly `m x m` samples per target pixel).
     pub fn target_size(width: u32, height: u32, m: u32) -> Result<(u32, u32)> {
-        if m == 0 || width % m != 0 || height % m != 0 {
-            return Err(Error::invalid(format!(
-                "multisample {m}: the {width}x{height} source layers must hold {m}x{m} samples per target pixel (sizes divisible by {m})"
-            )));
-        }
-        Ok((width / m, height / m))
+        zwarp_warp::target_size(width, height, m)
     }
 
     fn uniform(&self, p: &Params) -> wgpu::Buffer {
