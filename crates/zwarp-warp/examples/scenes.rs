@@ -3,7 +3,10 @@
 //! layer, the paper's hole protocol), without the CLI: a fast loop for optimising the warp.
 //!
 //! `cargo run --release -p zwarp-warp --example scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
-//! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3]`
+//! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3] [ms=1]`
+//!
+//! `ms=m` warps from sources rendered on an m x m sample grid per pixel
+//! (`WarpParams::multisample`); the render and the quality are at `w x h`.
 //!
 //! Times are the minimum over `reps` runs of the on-CPU time of the process' threads
 //! (`/proc/self/task/*/schedstat`, ns), so a loaded machine inflates them far less than wall
@@ -65,6 +68,7 @@ fn main() {
     let ns = list("n", "4,16");
     let threads: usize = get("threads", "1").parse().unwrap();
     let reps: usize = get("reps", "3").parse().unwrap();
+    let ms: u32 = get("ms", "1").parse().unwrap();
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
     let max_l = *ls.iter().max().unwrap() as usize;
     println!(
@@ -86,7 +90,10 @@ fn main() {
         for i in 0..count {
             let k = if count == 1 { 0 } else { i * last / (count - 1) };
             let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
-            let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
+            let cb = path.camera_at(tb, w, h).unwrap();
+            // The source views (and the motion's target space) on the ms x ms sample grid.
+            let (ca, cb_src) =
+                (path.camera_at(ta, w * ms, h * ms).unwrap(), path.camera_at(tb, w * ms, h * ms).unwrap());
             let (reference, render_ms, _) = time(reps, || render_depth(&scene, &cb, tb).unwrap());
             let deltas = scene.object_deltas(ta, tb);
             let has_ground = scene.instances.iter().any(|i| i.is_ground);
@@ -99,10 +106,10 @@ fn main() {
             };
             let peeled = if max_l > 1 { render_layers(&scene, &ca, ta, &peel).unwrap() } else { Vec::new() };
             let single =
-                (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb, &deltas).unwrap());
+                (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb_src, &deltas).unwrap());
             let mut bufs: Vec<(Image<f32>, Image<Motion>)> = peeled
                 .iter()
-                .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb, &deltas).unwrap()))
+                .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb_src, &deltas).unwrap()))
                 .collect();
             let ground = if has_ground && max_l > 1 { bufs.pop() } else { None };
             for &l in &ls {
@@ -120,7 +127,7 @@ fn main() {
                     time(reps, || PreparedLayer::prepare_stack(&layers, BoundKind::Oriented).unwrap());
                 for &n in &ns {
                     let holes = if l == 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth };
-                    let params = WarpParams { n_seeds: n, holes, ..Default::default() };
+                    let params = WarpParams { n_seeds: n, holes, multisample: ms, ..Default::default() };
                     let (out, warp_ms, _) = time(reps, || warp_prepared(&prepared, &params).unwrap());
                     // One more run for the counters (`--features stats`): bytes touched / pixel.
                     stats::take();

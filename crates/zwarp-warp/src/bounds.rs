@@ -257,6 +257,14 @@ impl MotionPyramid {
         Self::from_level1(w, h, frame, data, zmin)
     }
 
+    /// Level 1's buffers (min-max texels and min depths), for reuse by the next preparation.
+    pub(crate) fn into_level1(self) -> (Vec<[f32; 4]>, Vec<f32>) {
+        match self.levels.into_iter().next() {
+            Some(l) => (l.data, l.zmin),
+            None => (Vec::new(), Vec::new()),
+        }
+    }
+
     /// Builds levels `2..=top` over a given level 1 (`ceil(w / 2) x ceil(h / 2)` min-max texels
     /// in `frame` and their min depths), e.g. from the fused pass of
     /// `PreparedLayer::prepare_stack` that validates the samples and reduces them at once.

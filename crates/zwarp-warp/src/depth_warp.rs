@@ -57,7 +57,7 @@ impl PreparedLayer {
     /// smaller). A sample is valid iff its source depth is `< 1` and its target depth is in
     /// `[0, 1)` (see [`crate::bounds`]).
     pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
-        Self::prepare(layer, &[], bound)
+        Self::prepare(layer, &[], bound, Spare::default())
     }
 
     /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
@@ -68,6 +68,21 @@ impl PreparedLayer {
     /// layer is searched only where it holds something new — the hidden ground. Any solution on
     /// a repeated sample is also a solution of the earlier layer, which searches it itself.
     pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
+        Self::prepare_stack_recycling(layers, bound, Vec::new())
+    }
+
+    /// [`Self::prepare_stack`] into the buffers of `recycled` (an earlier frame's stack, layer
+    /// k's buffers for layer k): an engine's steady state. The result is the same bit for bit;
+    /// what it saves is the kernel faulting in and zeroing fresh pages for the samples and the
+    /// level-1 mipmap every frame, which profiled at a fifth of a multisampled preparation
+    /// (`WarpParams::multisample`: m^2 times the samples). Buffers too small for this frame's
+    /// layers are replaced.
+    pub fn prepare_stack_recycling(
+        layers: &[WarpLayer<'_>],
+        bound: BoundKind,
+        recycled: Vec<PreparedLayer>,
+    ) -> Result<Vec<Self>> {
+        let mut spares = recycled.into_iter().map(PreparedLayer::into_spare);
         let mut out: Vec<PreparedLayer> = Vec::with_capacity(layers.len());
         for (k, layer) in layers.iter().enumerate() {
             if k > 0 {
@@ -80,7 +95,7 @@ impl PreparedLayer {
                 }
             }
             let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
-            out.push(Self::prepare(layer, &earlier, bound)?);
+            out.push(Self::prepare(layer, &earlier, bound, spares.next().unwrap_or_default())?);
         }
         Ok(out)
     }
@@ -94,7 +109,7 @@ impl PreparedLayer {
     /// samples, frame and mipmap of separate passes (min / max are exact), at a fraction of the
     /// memory traffic: the separate passes read the motion buffer five times and allocated
     /// three copies of it (their page faults were a visible part of the preparation).
-    fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind) -> Result<Self> {
+    fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind, spare: Spare) -> Result<Self> {
         layer.depth.check_nonempty("layer depth")?;
         layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
         let (w, h) = layer.depth.size();
@@ -111,12 +126,28 @@ impl PreparedLayer {
         };
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
-        // Huge-page backed buffers (`pages`): the samples are written below, every one.
-        let mut samples = crate::pages::uninit::<Motion>(wu * h as usize);
+        // Huge-page backed buffers (`pages`), or the recycled ones: the samples are written
+        // below, every one, and so is every level-1 texel (each row starts with a fill).
+        let n = wu * h as usize;
+        let mut samples = spare.samples;
+        if samples.capacity() >= n {
+            samples.clear();
+        } else {
+            samples = crate::pages::uninit::<Motion>(n);
+        }
         let empty = Bound::EMPTY.to_texel_pub();
-        let mut aab = crate::pages::filled(lw * lh, empty);
+        let reuse = |mut v: Vec<[f32; 4]>| {
+            if v.len() >= lw * lh {
+                v.truncate(lw * lh);
+                v
+            } else {
+                crate::pages::filled(lw * lh, empty)
+            }
+        };
+        let mut aab = reuse(spare.level1);
         let mut obd = if need_ob { crate::pages::filled(lw * lh, empty) } else { Vec::new() };
-        let mut zmin = vec![0.0f32; lw * lh];
+        let mut zmin = spare.zmin;
+        zmin.resize(lw * lh, 0.0);
         // One level-1 row (two image rows): returns error flags (1: bad depth, 2: NaN motion).
         let row = |ty: usize,
                    s: &mut [MaybeUninit<Motion>],
@@ -155,7 +186,6 @@ impl PreparedLayer {
             }
             flags
         };
-        let n = wu * h as usize;
         let flags = if need_ob {
             samples.spare_capacity_mut()[..n]
                 .par_chunks_mut(2 * wu)
@@ -203,6 +233,12 @@ impl PreparedLayer {
     pub fn size(&self) -> (u32, u32) {
         (self.w, self.h)
     }
+
+    /// The large buffers, for [`Self::prepare_stack_recycling`].
+    fn into_spare(self) -> Spare {
+        let (level1, zmin) = self.pyramid.into_level1();
+        Spare { samples: self.samples, level1, zmin }
+    }
     /// The layer's motion mipmap.
     pub fn pyramid(&self) -> &MotionPyramid {
         &self.pyramid
@@ -218,6 +254,14 @@ impl PreparedLayer {
     fn sampler(&self, params: &WarpParams, tag: u32) -> LayerSampler<'_> {
         LayerSampler::new(&self.samples, self.w, self.h, params.sampling, tag).with_scale(params.motion_scale)
     }
+}
+
+/// Buffers of an earlier preparation handed back for reuse (empty: allocate).
+#[derive(Default)]
+struct Spare {
+    samples: Vec<Motion>,
+    level1: Vec<[f32; 4]>,
+    zmin: Vec<f32>,
 }
 
 /// Validates a layer and returns its samples with empty ones (source depth `>= 1`, target
@@ -721,6 +765,73 @@ mod tests {
                 for (x0, y0, x1, y1) in [(0, 0, 0, 0), (3, 4, 9, 6), (0, 0, w - 1, h - 1), (30, 20, 36, 21)] {
                     assert_eq!(got.pyramid().lookup_min_depth(x0, y0, x1, y1), want.lookup_min_depth(x0, y0, x1, y1));
                 }
+            }
+        }
+    }
+
+    /// A stack prepared into recycled buffers equals a fresh one bit for bit (samples, frame,
+    /// every mipmap texel and min-depth look-up), whether the recycled buffers are larger or
+    /// smaller than needed, hold stale data from another scene, or are fewer than the layers.
+    #[test]
+    fn recycled_preparation_equals_a_fresh_one() {
+        let stack = |w: u32, h: u32, seed: u32| {
+            let d: Vec<Image<f32>> = (0..3)
+                .map(|k| {
+                    Image::from_fn(w, h, |x, y| {
+                        if (x * 7 + y * 3 + seed + k) % 9 == 0 {
+                            1.0
+                        } else {
+                            0.2 + 0.2 * k as f32 + 0.001 * ((x + seed) % 13) as f32
+                        }
+                    })
+                })
+                .collect();
+            let m: Vec<Image<Motion>> = d
+                .iter()
+                .map(|dk| {
+                    Image::from_fn(w, h, |x, y| {
+                        let t = 0.25 * x as f32 - 0.15 * y as f32 + seed as f32;
+                        Motion { v: Vec2::new(t, 0.8 * t - 1.0), depth: *dk.get(x, y) }
+                    })
+                })
+                .collect();
+            (d, m)
+        };
+        let same = |a: &[PreparedLayer], b: &[PreparedLayer]| {
+            assert_eq!(a.len(), b.len());
+            for (x, y) in a.iter().zip(b) {
+                let bits = |v: &[Motion]| {
+                    v.iter().map(|m| (m.v.x.to_bits(), m.v.y.to_bits(), m.depth.to_bits())).collect::<Vec<_>>()
+                };
+                assert_eq!(x.size(), y.size());
+                assert_eq!(bits(x.samples()), bits(y.samples()));
+                let (px, py) = (x.pyramid(), y.pyramid());
+                assert_eq!((px.frame(), px.top_level()), (py.frame(), py.top_level()));
+                for level in 1..=px.top_level() {
+                    let (lw, lh) = px.level_size(level);
+                    for ty in 0..lh {
+                        for tx in 0..lw {
+                            assert_eq!(px.texel(level, tx, ty), py.texel(level, tx, ty));
+                        }
+                    }
+                }
+                let (w, h) = x.size();
+                for (x0, y0, x1, y1) in [(0, 0, 0, 0), (1, 2, 5, 4), (0, 0, w - 1, h - 1)] {
+                    assert_eq!(px.lookup_min_depth(x0, y0, x1, y1), py.lookup_min_depth(x0, y0, x1, y1));
+                }
+            }
+        };
+        let mut recycled = Vec::new();
+        for (i, &(w, h, n)) in [(37u32, 22u32, 3usize), (20, 11, 3), (41, 30, 2), (41, 30, 3)].iter().enumerate() {
+            let (d, m) = stack(w, h, i as u32);
+            let layers: Vec<WarpLayer> =
+                d.iter().zip(&m).take(n).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+            for bound in [BoundKind::Tight, BoundKind::Oriented] {
+                let fresh = PreparedLayer::prepare_stack(&layers, bound).unwrap();
+                let got =
+                    PreparedLayer::prepare_stack_recycling(&layers, bound, std::mem::take(&mut recycled)).unwrap();
+                same(&got, &fresh);
+                recycled = got;
             }
         }
     }
