@@ -62,9 +62,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if verbose {
             for r in &reps {
                 println!(
-                    "    frame {:>3} t {:.3}: visible {:>6} CR {:5.1}% FN {:>3} stats {:?}",
+                    "    frame {:>3} t {:.3}: cull {:6.2} ms visible {:>6} CR {:5.1}% FN {:>3} stats {:?}",
                     r.frame,
                     r.t,
+                    r.cull.total_ms,
                     r.visible,
                     100.0 * r.accuracy.culling_ratio,
                     r.accuracy.false_negatives,
