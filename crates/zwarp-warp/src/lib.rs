@@ -137,7 +137,9 @@ pub struct WarpParams {
     /// is searched at the source position `m * (x + 0.5, y + 0.5)`. The output is
     /// `(w / m) x (h / m)`. A converged search then returns the sample nearest its fixed point
     /// on a grid `m` times finer, so silhouettes land within `1 / (2m)` of a target pixel
-    /// instead of half a pixel. The threshold and the bounds stay in source samples. Default 1
+    /// instead of half a pixel. Odd m put a sample at every pixel centre (where the motion
+    /// vanishes the warp returns exactly what a render samples); even m do not, and pick a sample
+    /// up to `1 / (2m)` px off even there. The threshold and the bounds stay in source samples. Default 1
     /// (one sample per pixel: the source and target grids coincide). The WGSL twin
     /// (`zwarp_gpu::WarpKernel`) supports every m.
     pub multisample: u32,
