@@ -2,6 +2,8 @@
 //! `zwarp_warp::fill_holes` on random depth/state images of odd sizes, for both rules and
 //! several radii; the post-pass over a far-hole GPU warp equals the warp's own dilation; errors.
 
+mod common;
+
 use glam::Vec2;
 use proptest::prelude::*;
 use zwarp_core::{Image, Motion, EMPTY_DEPTH};
@@ -10,13 +12,7 @@ use zwarp_warp::{fill_holes, FillRule, HolePolicy, PixelState, WarpLayer, WarpPa
 
 /// Random states in blobs (so holes have converged neighbours at various distances).
 fn random_buffers(w: u32, h: u32, seed: u64) -> (Image<f32>, Image<PixelState>) {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = common::rng(seed);
     let cells: Vec<(f32, f32)> = (0..(w.div_ceil(3) * h.div_ceil(2))).map(|_| (next(), next())).collect();
     let mut depth = Image::new(w, h, EMPTY_DEPTH);
     let mut state = Image::new(w, h, PixelState::Hole);

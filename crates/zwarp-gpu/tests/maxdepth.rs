@@ -2,6 +2,8 @@
 //! the max mipmap, N-buffer and Y-map bit-identical, and every query answer equal, on random
 //! depth buffers of power-of-two, odd and prime sizes; error paths.
 
+mod common;
+
 use proptest::prelude::*;
 use zwarp_core::{Image, EMPTY_DEPTH};
 use zwarp_cull::{MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, PixelRect, YMap};
@@ -9,12 +11,9 @@ use zwarp_gpu::{test_context, GpuContext, MaxDepthKernel};
 
 /// A deterministic pseudo-random depth buffer: surfaces in `[0.05, 0.95)`, ~15% far holes.
 pub fn random_depth(w: u32, h: u32, seed: u64) -> Image<f32> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = common::rng(seed);
     Image::from_fn(w, h, |_, _| {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        let u = (s >> 40) as f32 / (1u64 << 24) as f32;
+        let u = next();
         if u < 0.15 {
             EMPTY_DEPTH
         } else {

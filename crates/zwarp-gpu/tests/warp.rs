@@ -333,13 +333,7 @@ fn awoc_matches_cpu() {
 /// = the ground alone (a separately peeled last layer). Every sample pans by `pan` plus a small
 /// shear (motion in source samples).
 fn synth_source(sw: u32, sh: u32, seed: u64, pan: Vec2) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut next = common::rng(seed);
     // (x0, y0, x1, y1, depth, own motion)
     let boxes: Vec<(f32, f32, f32, f32, f32, Vec2)> = (0..7)
         .map(|_| {

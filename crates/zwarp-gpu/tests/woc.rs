@@ -3,6 +3,8 @@
 //! started from the same GPU-rendered previous frame; its per-pixel stages (opening rims,
 //! erosion) vs their CPU twins on random inputs; error paths.
 
+mod common;
+
 use glam::Vec2;
 use zwarp_core::{Camera, Image, Motion, Scene, EMPTY_DEPTH, NO_ITEM};
 use zwarp_cull::{erode_max, opening_rims, woc, PrevFrame, WocParams};
@@ -14,15 +16,7 @@ use zwarp_gpu::{
 const W: u32 = 157;
 const H: u32 = 93;
 
-fn rng(seed: u64) -> impl FnMut() -> f32 {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
+use common::rng;
 
 #[test]
 fn erosion_and_rims_equal_their_cpu_twins() {

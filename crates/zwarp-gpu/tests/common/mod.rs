@@ -9,6 +9,18 @@ use glam::{Mat4, Quat, Vec3, Vec4};
 use zwarp_core::{Animation, Camera, Image, Mesh, Scene, EMPTY_DEPTH, NO_ITEM};
 
 pub const W: u32 = 128;
+
+/// Deterministic uniform numbers in `[0, 1)` (xorshift64, 24-bit mantissa) for the tests'
+/// random inputs: reproducible without a dependency, the same sequence on every platform.
+pub fn rng(seed: u64) -> impl FnMut() -> f32 {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
 pub const H: u32 = 96;
 
 pub fn box_mesh() -> Mesh {
