@@ -778,7 +778,7 @@ mod tests {
             let d: Vec<Image<f32>> = (0..3)
                 .map(|k| {
                     Image::from_fn(w, h, |x, y| {
-                        if (x * 7 + y * 3 + seed + k) % 9 == 0 {
+                        if (x * 7 + y * 3 + seed + k).is_multiple_of(9) {
                             1.0
                         } else {
                             0.2 + 0.2 * k as f32 + 0.001 * ((x + seed) % 13) as f32

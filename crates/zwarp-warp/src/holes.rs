@@ -243,6 +243,19 @@ impl BackgroundLimits {
     }
 }
 
+/// The multisampling factor m of `layers` for a warped buffer `w` pixels wide, as
+/// [`fill_background`] and its WGSL twin read it: the width ratio when it is a whole number,
+/// else 1. A height that does not match (`m h`) is then rejected by
+/// [`BackgroundLimits::of_multisampled`].
+pub fn source_multisample(layers: &[WarpLayer<'_>], w: u32) -> u32 {
+    let sw = layers.first().map_or(w, |l| l.depth.width());
+    if w > 0 && sw.is_multiple_of(w) {
+        (sw / w).max(1)
+    } else {
+        1
+    }
+}
+
 /// Seeds of the background search for target pixel `p`: the pixel itself and the pixel moved
 /// back by the motion found there (`back`; the fixed point of a smooth field lies next to
 /// `p - v(p)`), both clamped into the `w x h` image.
@@ -281,10 +294,8 @@ pub fn fill_background(
     search: &SearchParams,
 ) -> Result<()> {
     let (w, h) = out.depth.size();
-    // A multisampled source ([`crate::WarpParams::multisample`]) is an integer multiple of the
-    // warped buffer; anything else is rejected by the size check of the limits.
     let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
-    let m = if w > 0 && sw % w == 0 { (sw / w).max(1) } else { 1 };
+    let m = source_multisample(layers, w);
     let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
     if w == 0 || h == 0 {
         return Ok(());

@@ -231,9 +231,8 @@ impl HoleFillKernel {
         depth.check_nonempty("warped depth")?;
         depth.check_same_size(state, "warped depth vs state")?;
         let (w, h) = depth.size();
-        // zwarp_warp::holes::fill_background's inference of m; other sizes fail the limits.
         let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
-        let m = if w > 0 && sw % w == 0 { (sw / w).max(1) } else { 1 };
+        let m = zwarp_warp::holes::source_multisample(layers, w);
         let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
         let n = sw as usize * sh as usize;
         let empty: Vec<u32> = (0..n).map(|i| layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) as u32).collect();
