@@ -107,6 +107,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for &f in &downs {
             let p = WocParams { downsample: f, ..base };
             let mut best = [f64::INFINITY; 8];
+            let mut totals = Vec::with_capacity(k);
             for _ in 0..k {
                 let r = zwarp_cull::woc_with(scene, &bounds, &pf, &frames[1].1, frames[1].0, &p)?;
                 let c = r.timings;
@@ -115,7 +116,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 for (b, x) in best.iter_mut().zip(v) {
                     *b = b.min(x);
                 }
+                totals.push(c.total_ms);
             }
+            // The same frame k times: any spread of the total is the machine's, not the path's.
+            let windows: Vec<f64> =
+                totals.chunks_exact(24).map(|w| w.iter().cloned().fold(0.0, f64::max) / median(w.to_vec())).collect();
+            println!(
+                "woc /{f} total over {k} runs of the same frame: median {:.2} ms, worst {:.2}; windows of 24 with worst/median > 1.5: {} of {}",
+                median(totals.clone()),
+                totals.iter().cloned().fold(0.0, f64::max),
+                windows.iter().filter(|&&r| r > 1.5).count(),
+                windows.len()
+            );
             println!(
                 "woc /{f} min of {k}: motion {:.2} warp {:.2} erode {:.2} draw1 {:.2} build {:.2} test {:.2} hybrid {:.2} total {:.2}",
                 best[0], best[1], best[2], best[3], best[4], best[5], best[6], best[7]

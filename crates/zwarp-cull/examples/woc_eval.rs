@@ -62,10 +62,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if verbose {
             for r in &reps {
                 println!(
-                    "    frame {:>3} t {:.3}: cull {:6.2} ms visible {:>6} CR {:5.1}% FN {:>3} stats {:?}",
+                    "    frame {:>3} t {:.3}: cull {:6.2} ms (motion {:.2} warp {:.2} erosion {:.2} draw {:.2} build {:.2} test {:.2}) visible {:>6} CR {:5.1}% FN {:>3} stats {:?}",
                     r.frame,
                     r.t,
                     r.cull.total_ms,
+                    r.cull.motion_ms,
+                    r.cull.warp_ms,
+                    r.cull.erosion_ms,
+                    r.cull.draw_ms,
+                    r.cull.build_ms,
+                    r.cull.test_ms,
                     r.visible,
                     100.0 * r.accuracy.culling_ratio,
                     r.accuracy.false_negatives,

@@ -362,6 +362,35 @@ fn sequence_driver_measures_every_method_side_by_side() {
 }
 
 #[test]
+fn sequence_woc_is_the_engine_loop() {
+    // `run_sequence` times its own loop first and evaluates afterwards (with a discarded
+    // warm-up): its kept sets must be exactly those of culling frame by frame by hand, each
+    // frame's previous frame being the drawing of the previous kept set.
+    let s = random_scene(11);
+    let frames: Vec<(f32, Camera)> = (0..4)
+        .map(|k| {
+            let a = 0.7 + k as f32 * 0.06;
+            let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
+            (
+                k as f32 * DT,
+                Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 80, 45).unwrap(),
+            )
+        })
+        .collect();
+    let params = WocParams::default();
+    let reps = run_sequence(&s, &frames, Method::Woc, &params).unwrap();
+    let mut visible = vfc_cull(&s, &frames[0].1, frames[0].0).unwrap().visible;
+    assert_eq!(reps[0].visible_ids, visible);
+    for k in 1..frames.len() {
+        let (t0, c0) = &frames[k - 1];
+        let prev = render_frame(&s, c0, *t0, &FrameOptions { color: false, objects: Some(&visible) }).unwrap();
+        let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: c0, t: *t0 };
+        visible = woc(&s, &pf, &frames[k].1, frames[k].0, &params).unwrap().visible;
+        assert_eq!(reps[k].visible_ids, visible, "frame {k}");
+    }
+}
+
+#[test]
 fn rapid_motion_counts_object_motion_not_camera_motion() {
     // Static wall scene, camera turning fast: nothing is rapid by default; counting camera
     // motion makes the on-screen objects rapid (and drawn directly).
