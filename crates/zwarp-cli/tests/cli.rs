@@ -274,6 +274,54 @@ fn cull_reference_and_nocull_are_exact() {
     assert!(cr(&reference) >= cr(&woc) - 1e-12 && cr(&woc) >= cr(&vfc) - 1e-12, "{rows:?}");
 }
 
+/// `--repeat 3` culls every frame three times and keeps the median-cost repetition: the same
+/// decisions as one run (the cull is deterministic), `repeat` recorded in the JSON; 0 and the
+/// GPU backend are rejected with one line.
+#[test]
+fn cull_repeat_keeps_the_decisions() {
+    let d = tmp("cullrepeat");
+    let run = |repeat: &str, name: &str| {
+        let j = d.join(name);
+        let (ok, _, err) = zwarp(&[
+            "cull",
+            "--scene",
+            "bl",
+            "--scale",
+            "0.01",
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--frames",
+            "4",
+            "--method",
+            "vfc,twophase,woc",
+            "--no-psnr",
+            "--repeat",
+            repeat,
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        (ok, err, j)
+    };
+    let read = |j: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(j).unwrap()).unwrap()
+    };
+    let (ok1, err1, j1) = run("1", "r1.json");
+    let (ok3, err3, j3) = run("3", "r3.json");
+    assert!(ok1 && ok3, "{err1}{err3}");
+    let (v1, v3) = (read(&j1), read(&j3));
+    assert_eq!(v3["repeat"], 3, "{v3}");
+    for (a, b) in v1["rows"].as_array().unwrap().iter().zip(v3["rows"].as_array().unwrap()) {
+        for k in ["method", "culling_ratio", "culled_visible", "pixel_error", "triangle_fraction"] {
+            assert_eq!(a[k], b[k], "{k}: {a} vs {b}");
+        }
+    }
+    let (ok, err, _) = run("0", "r0.json");
+    assert!(!ok);
+    assert!(error_line(&err).contains("--repeat"), "{err}");
+}
+
 #[test]
 fn shadows_writes_the_documented_fields() {
     let d = tmp("shadows");

@@ -137,6 +137,20 @@ pub fn run_sequence(
     method: Method,
     params: &WocParams,
 ) -> Result<Vec<FrameReport>> {
+    run_sequence_repeated(scene, frames, method, params, 1)
+}
+
+/// [`run_sequence`] with every frame culled `repeat` times (at least once) from the same
+/// inputs and the repetition of median cost kept (its decision is the same every time):
+/// the per-frame cost along the path without the machine's one-off hiccups, for the
+/// stable-cost measurement (`zwarp cull --repeat`).
+pub fn run_sequence_repeated(
+    scene: &Scene,
+    frames: &[(f32, Camera)],
+    method: Method,
+    params: &WocParams,
+    repeat: usize,
+) -> Result<Vec<FrameReport>> {
     scene.check_nonempty()?;
     params.validate()?;
     let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
@@ -156,8 +170,8 @@ pub fn run_sequence(
     // Warm-up: the same loop over frame 0 twice, untimed and discarded, so that the first
     // timed frame is not charged for first-touch page faults and cold caches (CB 960x540:
     // WOC's first frame took 1.4-1.6x the median of the others without it).
-    run_timed(scene, &[frames[0], frames[0]], method, params)?;
-    let timed = run_timed(scene, frames, method, params)?;
+    run_timed(scene, &[frames[0], frames[0]], method, params, 1)?;
+    let timed = run_timed(scene, frames, method, params, repeat)?;
 
     // Pass 2, the evaluation: the full render of every frame (REF / NOCULL, timed as the
     // comparison), the kept set drawn again (the renderer is deterministic: the same depth and
@@ -216,14 +230,33 @@ struct TimedFrame {
     bootstrap: bool,
 }
 
+/// One culling decision of [`run_timed`] (before the kept set is drawn).
+struct CullStep {
+    visible: Vec<u32>,
+    cull: CullTimings,
+    stats: CullStats,
+    /// Two-phase draws as part of culling: its final depth, the time of its draws and the set
+    /// the next frame draws first.
+    twophase: Option<(Image<f32>, f64, Vec<u32>)>,
+    occ: Option<Image<f32>>,
+}
+
 /// Pass 1 of [`run_sequence`], the engine's loop and the only timed one: each frame is culled
 /// and its kept set drawn, and that drawing is the next frame's previous frame. Nothing else
 /// runs in between: the full render of every object (evaluation only) used to come right
-/// before each cull, and its after-effects on this 2-core VM (measured on CB, 960x540: WOC's
-/// worst/median cull time 1.6-2.1 with it right before, 1.2-1.4 with a 30 ms pause after it)
-/// were charged to the cull. The oracles (`ideal`, `ref`) render the frame in full here because
-/// that render is their input.
-fn run_timed(scene: &Scene, frames: &[(f32, Camera)], method: Method, params: &WocParams) -> Result<Vec<TimedFrame>> {
+/// before each cull, and its after-effects on this 2-core VM were charged to the cull (CB,
+/// 960x540: WOC's worst/median cull time 1.5-1.8 with it, 1.1-1.65 without, on the same
+/// machine; `results/woc_stability_s5.txt`). The oracles (`ideal`, `ref`) render the frame in
+/// full here because that render is their input. With `repeat > 1` every frame is culled
+/// `repeat` times from the same inputs (the decision is deterministic) and the repetition with
+/// the median total time is kept: the cost of that frame, free of one-off machine hiccups.
+fn run_timed(
+    scene: &Scene,
+    frames: &[(f32, Camera)],
+    method: Method,
+    params: &WocParams,
+    repeat: usize,
+) -> Result<Vec<TimedFrame>> {
     let n = scene.instances.len();
     // The objects' boxes, kept across frames as an engine keeps them (static ones stored once),
     // shared by every method.
@@ -236,74 +269,84 @@ fn run_timed(scene: &Scene, frames: &[(f32, Camera)], method: Method, params: &W
             Method::Ideal | Method::Ref => Some(render_frame(scene, cam, t, &FrameOptions::default())?),
             _ => None,
         };
-        let mut next_first: Option<Vec<u32>> = None;
         let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame | Method::TwoPhase);
         let bootstrap = history && prev.is_none();
-        let (visible, cull, stats, drawn, draw_ms, occ) = if bootstrap && method != Method::TwoPhase {
-            let r = vfc_cull_with(scene, &bounds, cam, t)?;
-            let (f, d) = draw(scene, cam, t, &r.visible)?;
-            (r.visible, r.timings, r.stats, f, d, None)
-        } else {
-            match method {
+        let cull_once = || -> Result<CullStep> {
+            let plain = |r: CullResult| CullStep {
+                visible: r.visible,
+                cull: r.timings,
+                stats: r.stats,
+                twophase: None,
+                occ: r.occlusion_map,
+            };
+            if bootstrap && method != Method::TwoPhase {
+                return Ok(plain(vfc_cull_with(scene, &bounds, cam, t)?));
+            }
+            Ok(match method {
                 Method::TwoPhase => {
-                    let pv = prev.as_ref().map(|(_, v)| v.as_slice()).unwrap_or(&[]);
                     // For two-phase, `prev`'s set is the re-tested `next_visible` (see below).
+                    let pv = prev.as_ref().map(|(_, v)| v.as_slice()).unwrap_or(&[]);
                     let r = twophase_with(scene, &bounds, pv, cam, t, params.max_depth)?;
-                    // Two-phase reads no previous frame, only the previous visible set: its
-                    // final depth stands for the drawn frame (no items needed).
-                    let items = Image::new(cam.width, cam.height, NO_ITEM);
-                    let drawn = Frame { depth: r.depth, items, color: None };
                     let mut cull = r.timings;
                     let draw_ms = cull.draw_ms;
                     cull.draw_ms = 0.0;
                     cull.total_ms -= draw_ms;
                     let stats = CullStats { objects: n, ..CullStats::default() };
-                    next_first = Some(r.next_visible);
-                    (r.visible, cull, stats, drawn, draw_ms, None)
+                    CullStep {
+                        visible: r.visible,
+                        cull,
+                        stats,
+                        twophase: Some((r.depth, draw_ms, r.next_visible)),
+                        occ: None,
+                    }
                 }
-                _ => {
-                    let r = match method {
-                        Method::NoCull => nocull(scene),
-                        Method::Vfc => vfc_cull_with(scene, &bounds, cam, t)?,
-                        Method::Ideal => {
-                            let full = oracle.as_ref().expect("oracle rendered");
-                            cull_against_depth_with(scene, &bounds, &full.depth, cam, t, MaxDepthKind::NBuffer, None)?
-                        }
-                        Method::Ref => CullResult {
-                            visible: visible_from_items(&oracle.as_ref().expect("oracle rendered").items, n),
-                            timings: CullTimings::default(),
-                            stats: CullStats { objects: n, ..CullStats::default() },
-                            predrawn: Vec::new(),
-                            occlusion_map: None,
-                        },
-                        Method::LastFrame => {
-                            let (pf, _) = prev.as_ref().expect("not bootstrap");
-                            cull_against_depth_with(scene, &bounds, &pf.depth, cam, t, params.max_depth, None)?
-                        }
-                        Method::Woc | Method::Awoc => {
-                            let (pf, _) = prev.as_ref().expect("not bootstrap");
-                            let (_, pcam) = &frames[k - 1];
-                            let p = PrevFrame { depth: &pf.depth, items: &pf.items, cam: pcam, t: frames[k - 1].0 };
-                            woc_with(
-                                scene,
-                                &bounds,
-                                &p,
-                                cam,
-                                t,
-                                &WocParams { awoc: method == Method::Awoc, ..*params },
-                            )?
-                        }
-                        Method::TwoPhase => unreachable!("handled above"),
-                    };
-                    let (f, d) = draw(scene, cam, t, &r.visible)?;
-                    (r.visible, r.timings, r.stats, f, d, r.occlusion_map)
+                Method::NoCull => plain(nocull(scene)),
+                Method::Vfc => plain(vfc_cull_with(scene, &bounds, cam, t)?),
+                Method::Ideal => {
+                    let full = oracle.as_ref().expect("oracle rendered");
+                    plain(cull_against_depth_with(scene, &bounds, &full.depth, cam, t, MaxDepthKind::NBuffer, None)?)
                 }
+                Method::Ref => plain(CullResult {
+                    visible: visible_from_items(&oracle.as_ref().expect("oracle rendered").items, n),
+                    timings: CullTimings::default(),
+                    stats: CullStats { objects: n, ..CullStats::default() },
+                    predrawn: Vec::new(),
+                    occlusion_map: None,
+                }),
+                Method::LastFrame => {
+                    let (pf, _) = prev.as_ref().expect("not bootstrap");
+                    plain(cull_against_depth_with(scene, &bounds, &pf.depth, cam, t, params.max_depth, None)?)
+                }
+                Method::Woc | Method::Awoc => {
+                    let (pf, _) = prev.as_ref().expect("not bootstrap");
+                    let (t_prev, pcam) = &frames[k - 1];
+                    let p = PrevFrame { depth: &pf.depth, items: &pf.items, cam: pcam, t: *t_prev };
+                    let wp = WocParams { awoc: method == Method::Awoc, ..*params };
+                    plain(woc_with(scene, &bounds, &p, cam, t, &wp)?)
+                }
+            })
+        };
+        let mut steps = (0..repeat.max(1)).map(|_| cull_once()).collect::<Result<Vec<_>>>()?;
+        debug_assert!(steps.iter().all(|s| s.visible == steps[0].visible), "repeated culls disagree");
+        steps.sort_by(|a, b| a.cull.total_ms.total_cmp(&b.cull.total_ms));
+        let step = steps.swap_remove(steps.len() / 2);
+        drop(steps);
+        drop(oracle);
+        let (drawn, draw_ms, next_first) = match step.twophase {
+            // Two-phase reads no previous frame, only the previous visible set: its final depth
+            // stands for the drawn frame (no items needed).
+            Some((depth, draw_ms, next)) => {
+                let items = Image::new(cam.width, cam.height, NO_ITEM);
+                (Frame { depth, items, color: None }, draw_ms, Some(next))
+            }
+            None => {
+                let (f, d) = draw(scene, cam, t, &step.visible)?;
+                (f, d, None)
             }
         };
-        drop(oracle);
-        let occ = occ.filter(|m| m.size() == (cam.width, cam.height));
-        prev = Some((drawn, next_first.unwrap_or_else(|| visible.clone())));
-        out.push(TimedFrame { visible, cull, stats, draw_ms, occ, bootstrap });
+        let occ = step.occ.filter(|m| m.size() == (cam.width, cam.height));
+        prev = Some((drawn, next_first.unwrap_or_else(|| step.visible.clone())));
+        out.push(TimedFrame { visible: step.visible, cull: step.cull, stats: step.stats, draw_ms, occ, bootstrap });
     }
     Ok(out)
 }

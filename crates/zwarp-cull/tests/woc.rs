@@ -6,8 +6,8 @@ use zwarp_core::{motion_field, Aabb, Animation, Camera, Image, Mesh, Scene};
 use zwarp_cull::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, culled_visible, downsample_max, hybrid_cull,
     ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
-    run_sequence, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items, woc, woc_motion_field,
-    MaxDepthKind, Method, PrevFrame, RimMode, ScreenRect, WocParams,
+    run_sequence, run_sequence_repeated, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items,
+    woc, woc_motion_field, MaxDepthKind, Method, PrevFrame, RimMode, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, WarpLayer, WarpParams};
@@ -387,6 +387,18 @@ fn sequence_woc_is_the_engine_loop() {
         let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: c0, t: *t0 };
         visible = woc(&s, &pf, &frames[k].1, frames[k].0, &params).unwrap().visible;
         assert_eq!(reps[k].visible_ids, visible, "frame {k}");
+    }
+    // Repeating each frame's cull keeps every decision (and report) but the timings.
+    for m in [Method::Woc, Method::TwoPhase, Method::Vfc] {
+        let once = run_sequence(&s, &frames, m, &params).unwrap();
+        let thrice = run_sequence_repeated(&s, &frames, m, &params, 3).unwrap();
+        for (a, b) in once.iter().zip(&thrice) {
+            assert_eq!(
+                (&a.visible_ids, a.accuracy, a.pixel_error, a.stats),
+                (&b.visible_ids, b.accuracy, b.pixel_error, b.stats),
+                "{m:?}"
+            );
+        }
     }
 }
 

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 use serde::Serialize;
-use zwarp_cull::{run_sequence, Method, WocParams};
+use zwarp_cull::{run_sequence_repeated, Method, WocParams};
 use zwarp_raster::{render_frame, FrameOptions};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
@@ -43,6 +43,11 @@ pub struct CullArgs {
     /// costs more than drawing what it saves on this CPU).
     #[arg(long)]
     pub downsample: Option<u32>,
+    /// Cull every frame this many times from the same inputs and keep the repetition of median
+    /// cost (the decision is the same each time): `cull_ms` and `cull_ms_p99` then describe
+    /// the cost along the path rather than the machine's one-off hiccups. CPU backend only.
+    #[arg(long, default_value_t = 1)]
+    pub repeat: usize,
     /// Skip the colour renders used for `psnr_mean` / `psnr_worst` (faster).
     #[arg(long)]
     pub no_psnr: bool,
@@ -131,6 +136,12 @@ pub fn run(args: CullArgs) -> Result<()> {
             bail!("none of the requested culling methods runs on the GPU backend");
         }
     }
+    if args.repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    if gpu.is_some() && args.repeat != 1 {
+        bail!("--repeat is CPU-only (the GPU backend culls each frame once)");
+    }
     let downsample = args.downsample.unwrap_or(if gpu.is_some() { 1 } else { CPU_DOWNSAMPLE });
     if downsample == 0 {
         bail!("--downsample must be at least 1");
@@ -179,7 +190,7 @@ pub fn run(args: CullArgs) -> Result<()> {
         for &method in &methods {
             let reports = match &gpu {
                 Some(ctx) => zwarp_gpu::run_gpu_sequence(ctx, scene, &frames, method, &params)?,
-                None => run_sequence(scene, &frames, method, &params)?,
+                None => run_sequence_repeated(scene, &frames, method, &params, args.repeat)?,
             };
             let steady: Vec<_> = reports.iter().filter(|r| !r.bootstrap).collect();
             let rs = if steady.is_empty() { reports.iter().collect() } else { steady };
@@ -297,6 +308,7 @@ pub fn run(args: CullArgs) -> Result<()> {
             "width": args.size.width,
             "height": args.size.height,
             "downsample": downsample,
+            "repeat": args.repeat,
         }),
     )?;
     println!("wrote {}", args.json.display());
