@@ -2,7 +2,7 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample]`
+//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample] [speed]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
@@ -16,7 +16,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n_frames: usize = arg(4, "24").parse()?;
     let method = Method::parse(&arg(5, "woc"))?;
     let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
-    let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
+    // Optional 9th argument: motion-speed factor (default 1).
+    let speed: f32 = arg(8, "1").parse()?;
+    let mut frames = loaded.path_or_default().frames(w, h, speed)?;
     frames.truncate(n_frames);
     // Optional 7th argument: `norims` (WOC without the opening-rim holes, the old behaviour) or
     // the rim separation threshold in pixels.

@@ -125,8 +125,8 @@ pub struct WocParams {
     /// [`MAX_DOWNSAMPLE`]). The thesis (Sec. VI) and Kasyan et al. 2011 cull at a coarse
     /// resolution for speed. The previous depth is reduced conservatively (each coarse pixel
     /// takes the max over every fine pixel its footprint touches, with the item of that
-    /// farthest pixel), erosion runs after the rapid-motion objects are drawn (so their
-    /// coarse-raster edges get the 1-coarse-pixel margin too), and the hybrid query is skipped
+    /// farthest pixel), rapid-motion objects are drawn at full resolution and reduced the same
+    /// way (see `draw_exact`), and the hybrid query is skipped
     /// (coarse pixel-centre coverage can miss small objects). With `open_rims`, coarse texels
     /// whose footprint straddles two separating objects also open (see
     /// `coarse_internal_openings`): without that, BL at 1/4 culled a visible 2-pixel balloon in
@@ -1012,31 +1012,11 @@ pub fn woc_with(
     // 3. Erosion: occluder silhouettes pulled back by a pixel (warping is off by 1-2 px at
     //    boundaries, thesis Fig. 4).
     let t0 = Instant::now();
-    let erode_late = f > 1;
     let (warped_depth, warped_state, warped_source) = (warped.depth, warped.state, warped.source);
-    let mut predicted =
-        if params.erosion && !erode_late { erode_n(warped_depth, params.erosion_radius) } else { warped_depth };
+    let mut predicted = if params.erosion { erode_n(warped_depth, params.erosion_radius) } else { warped_depth };
     tm.erosion_ms = ms(t0);
 
-    // 4. One pass over the objects (bounds at `t`, VFC, rapid-motion speed, screen rectangle
-    //    at the culling resolution), keeping only those in the frustum: the tests after the
-    //    occlusion map is built then read a compact list instead of every instance again.
-    //    Rapid-motion objects are drawn exactly into the predicted depth, after the erosion
-    //    (rasterized depth needs no safety margin), and kept visible.
-    let t0 = Instant::now();
-    let objects = prepass(scene, bounds, t, cam, &Rapid::of(params, full_prev_cam, full_cam, prev.t));
-    let predrawn: Vec<u32> = objects.iter().filter(|o| o.test == Test::Forced).map(|o| o.id).collect();
-    if !predrawn.is_empty() {
-        draw_into(&mut predicted, None, scene, cam, t, &predrawn)?;
-    }
-    tm.draw_ms = ms(t0);
-    if params.erosion && erode_late {
-        let t0 = Instant::now();
-        predicted = erode_n(predicted, params.erosion_radius);
-        tm.erosion_ms += ms(t0);
-    }
-
-    // 4a. Coarse internal openings, after the erosion: every pixel that took its depth from
+    // 3a. Coarse internal openings, after the erosion: every pixel that took its depth from
     //     such a texel becomes far.
     if let (Some(inner), Some(src)) = (inner_open.as_ref(), warped_source.as_ref()) {
         let t0 = Instant::now();
@@ -1053,13 +1033,26 @@ pub fn woc_with(
         tm.warp_ms += ms(t0);
     }
 
-    // 4b. Opening rims in the target, after the erosion: these pixels are exactly where a
+    // 3b. Opening rims in the target, after the erosion: these pixels are exactly where a
     //     disocclusion can show through, so they need no further margin.
     if let (Some(dirs), Some(src)) = (target_rims, warped_source.as_ref()) {
         let t0 = Instant::now();
         open_rims_in_target(&mut predicted, src, &warped_state, &motion, dirs)?;
         tm.warp_ms += ms(t0);
     }
+
+    // 4. One pass over the objects (bounds at `t`, VFC, rapid-motion speed, screen rectangle
+    //    at the culling resolution), keeping only those in the frustum: the tests after the
+    //    occlusion map is built then read a compact list instead of every instance again.
+    //    Rapid-motion objects are drawn exactly into the predicted depth, last (their
+    //    rasterized depth needs no margin and no rim can hide a gap in it), and kept visible.
+    let t0 = Instant::now();
+    let objects = prepass(scene, bounds, t, cam, &Rapid::of(params, full_prev_cam, full_cam, prev.t));
+    let predrawn: Vec<u32> = objects.iter().filter(|o| o.test == Test::Forced).map(|o| o.id).collect();
+    if !predrawn.is_empty() {
+        draw_exact(&mut predicted, scene, full_cam, t, &predrawn)?;
+    }
+    tm.draw_ms = ms(t0);
 
     // 4c. Far pixels near surfaces: bounded by static surfaces their ray crosses.
     if params.hole_bound && f == 1 {
@@ -1110,6 +1103,37 @@ pub fn woc_with(
     };
     tm.total_ms = ms(start);
     Ok(CullResult { visible, timings: tm, stats, predrawn, occlusion_map: Some(predicted) })
+}
+
+/// Draws `objects` at time `t` exactly into `predicted`, which has the size of the culling
+/// resolution and bounds the depth `full_cam` renders: at full resolution directly; at a coarse
+/// one into a far full-resolution buffer that is then reduced by max over each coarse pixel's
+/// footprint (as the previous depth is, [`downsample_max`]) and merged by min, so every coarse
+/// value stays an upper bound of the depth of the fine pixels under it. (Rasterizing at the
+/// coarse resolution would give a covered coarse pixel the depth at its centre, which bounds
+/// neither its uncovered fine pixels nor a sloped surface's far corner.)
+fn draw_exact(predicted: &mut Image<f32>, scene: &Scene, full_cam: &Camera, t: f32, objects: &[u32]) -> Result<()> {
+    if predicted.size() == (full_cam.width, full_cam.height) {
+        return draw_into(predicted, None, scene, full_cam, t, objects);
+    }
+    let mut fine = Image::new(full_cam.width, full_cam.height, EMPTY_DEPTH);
+    draw_into(&mut fine, None, scene, full_cam, t, objects)?;
+    let (cw, ch) = predicted.size();
+    let (fw, fh) = fine.size();
+    let xs: Vec<(u32, u32)> = (0..cw).map(|cx| footprint(cx, fw, cw)).collect();
+    predicted.data_mut().par_chunks_mut(cw as usize).enumerate().for_each(|(cy, row)| {
+        let (y0, y1) = footprint(cy as u32, fh, ch);
+        for (p, &(x0, x1)) in row.iter_mut().zip(&xs) {
+            let mut m = f32::NEG_INFINITY;
+            for y in y0..y1 {
+                for &d in &fine.row(y)[x0 as usize..x1 as usize] {
+                    m = m.max(d);
+                }
+            }
+            *p = p.min(m);
+        }
+    });
+    Ok(())
 }
 
 /// What the screen-space stage still has to decide for an object in the frustum ([`prepass`]).
@@ -1674,6 +1698,61 @@ pub fn accuracy(visible: &[u32], reference: &[u32], n_objects: usize) -> CullAcc
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exact_draw_at_a_coarse_resolution_is_the_max_reduction_of_the_fine_draw() {
+        // A sloped quad and a small box in front of a far prediction, at 1/3 of an odd size
+        // (97x61: the footprints straddle fine pixels): every coarse value must be the max of
+        // the full-resolution drawing over its footprint (far where any fine pixel is
+        // uncovered), min with what was predicted there.
+        use zwarp_core::{Animation, Mesh};
+        let mut s = Scene { name: "exact".into(), ..Default::default() };
+        let quad = Mesh::new(
+            vec![
+                Vec3::new(-2.0, -1.0, -1.0),
+                Vec3::new(2.0, -1.0, 1.0),
+                Vec3::new(2.0, 1.0, 1.0),
+                Vec3::new(-2.0, 1.0, -1.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+        .unwrap();
+        let q = s.add_mesh(quad);
+        s.add_instance(q, glam::Mat4::IDENTITY, Vec3::ONE, Animation::Static, false);
+        s.add_instance(
+            q,
+            glam::Mat4::from_scale_rotation_translation(
+                Vec3::splat(0.2),
+                glam::Quat::IDENTITY,
+                Vec3::new(0.5, 0.3, 1.5),
+            ),
+            Vec3::ONE,
+            Animation::Static,
+            false,
+        );
+        let cam = Camera::perspective(Vec3::new(0.3, 0.2, 6.0), Vec3::ZERO, Vec3::Y, 0.9, 0.5, 50.0, 97, 61).unwrap();
+        let coarse = coarse_camera(&cam, 3);
+        let mut predicted = Image::new(coarse.width, coarse.height, 0.999f32);
+        *predicted.get_mut(16, 10) = 0.5; // a near prediction the draw must not raise
+        let before = predicted.clone();
+        draw_exact(&mut predicted, &s, &cam, 0.0, &[0, 1]).unwrap();
+        let mut fine = Image::new(cam.width, cam.height, EMPTY_DEPTH);
+        draw_into(&mut fine, None, &s, &cam, 0.0, &[0, 1]).unwrap();
+        let items = Image::new(cam.width, cam.height, 0u32);
+        let (reduced, _) = downsample_max(&fine, &items, coarse.width, coarse.height).unwrap();
+        let mut lowered = 0;
+        for i in 0..predicted.len() {
+            assert_eq!(predicted.data()[i], before.data()[i].min(reduced.data()[i]), "texel {i}");
+            lowered += usize::from(predicted.data()[i] < before.data()[i]);
+        }
+        assert!(lowered > 50, "the quad covers ~15 % of the view: {lowered} texels lowered");
+        // At full resolution it is the plain depth-tested draw.
+        let mut full = Image::new(cam.width, cam.height, 0.999f32);
+        draw_exact(&mut full, &s, &cam, 0.0, &[0, 1]).unwrap();
+        let mut direct = Image::new(cam.width, cam.height, 0.999f32);
+        draw_into(&mut direct, None, &s, &cam, 0.0, &[0, 1]).unwrap();
+        assert_eq!(full, direct);
+    }
 
     #[test]
     fn hull_slack_shrinks_to_fine_centres_only_at_exact_divisors() {
