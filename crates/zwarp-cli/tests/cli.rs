@@ -239,27 +239,21 @@ fn eval_writes_the_documented_fields() {
     }
 }
 
+/// `zwarp cull` on a tiny scene (scale 0.01, 96x64, 4 frames) with `extra` flags, JSON to
+/// `json`: (success, stderr).
+fn cull_small(scene: &str, extra: &[&str], json: &std::path::Path) -> (bool, String) {
+    let mut args =
+        vec!["cull", "--scene", scene, "--scale", "0.01", "--width", "96", "--height", "64", "--frames", "4"];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--json", json.to_str().unwrap()]);
+    let (ok, _, err) = zwarp(&args);
+    (ok, err)
+}
+
 #[test]
 fn cull_reference_and_nocull_are_exact() {
-    let d = tmp("cull");
-    let j = d.join("c.json");
-    let (ok, _, err) = zwarp(&[
-        "cull",
-        "--scene",
-        "cb",
-        "--scale",
-        "0.01",
-        "--width",
-        "96",
-        "--height",
-        "64",
-        "--frames",
-        "4",
-        "--method",
-        "nocull,vfc,woc,ref",
-        "--json",
-        j.to_str().unwrap(),
-    ]);
+    let j = tmp("cull").join("c.json");
+    let (ok, err) = cull_small("cb", &["--method", "nocull,vfc,woc,ref"], &j);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
     let rows = v["rows"].as_array().unwrap();
@@ -282,26 +276,7 @@ fn cull_repeat_keeps_the_decisions() {
     let d = tmp("cullrepeat");
     let run = |repeat: &str, name: &str| {
         let j = d.join(name);
-        let (ok, _, err) = zwarp(&[
-            "cull",
-            "--scene",
-            "bl",
-            "--scale",
-            "0.01",
-            "--width",
-            "96",
-            "--height",
-            "64",
-            "--frames",
-            "4",
-            "--method",
-            "vfc,twophase,woc",
-            "--no-psnr",
-            "--repeat",
-            repeat,
-            "--json",
-            j.to_str().unwrap(),
-        ]);
+        let (ok, err) = cull_small("bl", &["--method", "vfc,twophase,woc", "--no-psnr", "--repeat", repeat], &j);
         (ok, err, j)
     };
     let read = |j: &std::path::Path| -> serde_json::Value {

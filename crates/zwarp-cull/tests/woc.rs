@@ -324,19 +324,25 @@ fn bad_inputs_are_errors() {
     assert!(lastframe(&s, &nan, &cam, 0.0, MaxDepthKind::Mipmap).is_err());
 }
 
-#[test]
-fn sequence_driver_measures_every_method_side_by_side() {
-    let s = random_scene(7);
-    let frames: Vec<(f32, Camera)> = (0..5)
+/// `n` 80x45 frames DT apart on a circle of radius 18 around `random_scene`, starting at angle
+/// `a0` and turning by `da` per frame.
+fn orbit_frames(n: usize, a0: f32, da: f32) -> Vec<(f32, Camera)> {
+    (0..n)
         .map(|k| {
-            let a = 0.9 + k as f32 * 0.05;
+            let a = a0 + k as f32 * da;
             let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
             (
                 k as f32 * DT,
                 Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 80, 45).unwrap(),
             )
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn sequence_driver_measures_every_method_side_by_side() {
+    let s = random_scene(7);
+    let frames = orbit_frames(5, 0.9, 0.05);
     let params = WocParams::default();
     let mut ratio = std::collections::HashMap::new();
     for m in Method::ALL {
@@ -367,16 +373,7 @@ fn sequence_woc_is_the_engine_loop() {
     // warm-up): its kept sets must be exactly those of culling frame by frame by hand, each
     // frame's previous frame being the drawing of the previous kept set.
     let s = random_scene(11);
-    let frames: Vec<(f32, Camera)> = (0..4)
-        .map(|k| {
-            let a = 0.7 + k as f32 * 0.06;
-            let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
-            (
-                k as f32 * DT,
-                Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 80, 45).unwrap(),
-            )
-        })
-        .collect();
+    let frames = orbit_frames(4, 0.7, 0.06);
     let params = WocParams::default();
     let reps = run_sequence(&s, &frames, Method::Woc, &params).unwrap();
     let mut visible = vfc_cull(&s, &frames[0].1, frames[0].0).unwrap().visible;
