@@ -1701,7 +1701,7 @@ mod tests {
 
     #[test]
     fn exact_draw_at_a_coarse_resolution_is_the_max_reduction_of_the_fine_draw() {
-        // A sloped quad and a small box in front of a far prediction, at 1/3 of an odd size
+        // A sloped quad and a small copy in front of it over a far prediction, at 1/3 of an odd size
         // (97x61: the footprints straddle fine pixels): every coarse value must be the max of
         // the full-resolution drawing over its footprint (far where any fine pixel is
         // uncovered), min with what was predicted there.
