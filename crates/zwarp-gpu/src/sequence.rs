@@ -1,9 +1,11 @@
 //! Culling methods run along a camera path on the GPU (seed 000 Sec. 5.3, thesis Sec. V): the
 //! GPU twin of [`zwarp_cull::run_sequence`], reporting the same [`FrameReport`]s so that
-//! `zwarp cull --backend gpu` prints the same JSON fields. Per frame, on one device: the full
-//! render (REF, timed), the method's cull (timed: CPU-side AABB/flag uploads + GPU work, fenced
-//! wall clock), the indirect draw of the kept objects (depth + items, timed), which is the next
-//! frame's previous frame. Read-backs for the statistics are not timed.
+//! `zwarp cull --backend gpu` prints the same JSON fields. As on the CPU, the engine's loop runs
+//! first and alone, on one device: per frame the method's cull (timed: CPU-side AABB/flag
+//! uploads + GPU work, fenced wall clock) and the indirect draw of the kept objects (depth +
+//! items, timed), which is the next frame's previous frame; then a second pass renders every
+//! frame in full (REF, timed as the comparison), draws each kept set again and compares.
+//! Read-backs for the statistics are not timed.
 //!
 //! Methods: NOCULL, VFC (cull kernel against an empty map), LASTFRAME (max structure of the
 //! previous drawn depth), WOC and AWOC ([`GpuWoc`]), IDEAL (N-buffer of the true depth) and
@@ -186,11 +188,111 @@ pub fn run_gpu_sequence(
         ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
     };
     let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame);
+
+    // Pass 1, the engine's loop and the only timed one (as `zwarp_cull::run_sequence`): cull,
+    // then draw the kept objects (depth + items), which is the next frame's previous frame. The
+    // oracles (IDEAL, REF) render the frame in full first because that render is their input.
+    struct Timed {
+        visible: Vec<u32>,
+        cull_ms: f64,
+        stats: CullStats,
+        draw_ms: f64,
+        /// WOC's predicted depth (read back, untimed) for the diagnostics.
+        occ: Option<Image<f32>>,
+        bootstrap: bool,
+    }
+    let pass1 = |frames: &[(f32, Camera)]| -> Result<Vec<Timed>> {
+        let mut timed: Vec<Timed> = Vec::with_capacity(frames.len());
+        for (k, (t, cam)) in frames.iter().enumerate() {
+            let t = *t;
+            let bootstrap = history && k == 0;
+            let (cur, prev) = (k % 2, (k + 1) % 2);
+            let oracle = matches!(method, Method::Ideal | Method::Ref);
+            if oracle {
+                let mut enc = run.encoder();
+                let full_opts = PeelOptions { layers: 1, ..Default::default() };
+                run.r.encode_layers(&mut enc, &run.gs, cam, t, &full_opts, &full_targets)?;
+                run.finish(enc)?;
+            }
+            // (visible ids, cull ms, stats, occlusion map, args from the cull kernel?)
+            let (visible, cull_ms, stats, occ, from_kernel) = if bootstrap || method == Method::Vfc {
+                let c = run.cull_against(cam, t, None, &run.empty_map)?;
+                let r = run.out.read(ctx)?;
+                (r.visible, c, stats_of(&r.classes), None, true)
+            } else {
+                match method {
+                    Method::NoCull | Method::Ref => {
+                        let ids: Vec<u32> = if method == Method::Ref {
+                            visible_from_items(&run.r.read_layer(&full_targets, 0)?.items, n)
+                        } else {
+                            (0..n as u32).collect()
+                        };
+                        run.write_set(&ids);
+                        (ids, 0.0, CullStats { objects: n, ..CullStats::default() }, None, false)
+                    }
+                    Method::Ideal | Method::LastFrame => {
+                        let src = if method == Method::Ideal { &full_targets } else { &drawn[prev] };
+                        let c = run.cull_against(cam, t, Some(src), &run.map)?;
+                        let r = run.out.read(ctx)?;
+                        (r.visible, c, stats_of(&r.classes), None, true)
+                    }
+                    Method::Woc | Method::Awoc => {
+                        let woc = run.woc.as_ref().expect("built for WOC");
+                        let (t_prev, cam_prev) = &frames[k - 1];
+                        let t0 = Instant::now();
+                        run.objects.write_scene_aabbs(ctx, scene, t)?;
+                        let flags = rapid_flags(scene, cam_prev, *t_prev, cam, t, params);
+                        run.objects.write_forced(ctx, Some(&flags))?;
+                        let items_view = drawn[prev].items[0].create_view(&Default::default());
+                        let pf = crate::GpuPrevFrame {
+                            depth: &drawn[prev].depth[0].view,
+                            items: &items_view,
+                            cam: cam_prev,
+                            t: *t_prev,
+                        };
+                        let mut enc = run.encoder();
+                        woc.encode(
+                            &mut enc,
+                            &run.gs,
+                            &pf,
+                            &run.gs.object_deltas(*t_prev, t),
+                            cam,
+                            t,
+                            &run.objects,
+                            &run.out,
+                        )?;
+                        run.finish(enc)?;
+                        let c = ms(t0);
+                        let r = run.out.read(ctx)?;
+                        let occ = crate::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
+                        (r.visible, c, stats_of(&r.classes), Some(Image::from_vec(w, h, occ)?), true)
+                    }
+                    Method::Vfc | Method::TwoPhase => unreachable!("handled above / rejected"),
+                }
+            };
+            // Draw the kept objects (depth + items): the frame the engine shows, and the next
+            // frame's history.
+            let t0 = Instant::now();
+            let mut enc = run.encoder();
+            let args = if from_kernel { &run.out.slot_args } else { &run.set_args };
+            run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[cur], args, None)?;
+            run.finish(enc)?;
+            let draw_ms = ms(t0);
+            timed.push(Timed { visible, cull_ms, stats, draw_ms, occ, bootstrap });
+        }
+        Ok(timed)
+    };
+    // Warm-up over frame 0 twice, untimed and discarded (as on the CPU).
+    pass1(&[frames[0], frames[0]])?;
+    let timed = pass1(frames)?;
+
+    // Pass 2, the evaluation: the full render (REF / NOCULL, timed as the comparison), the kept
+    // set drawn again from its ids (the same slots in the same order: the same depth and items)
+    // and everything compared.
     let mut prev_cpu: Option<(Image<f32>, Image<u32>)> = None;
     let mut reports = Vec::with_capacity(frames.len());
-    for (k, (t, cam)) in frames.iter().enumerate() {
+    for (k, ((t, cam), f)) in frames.iter().zip(timed).enumerate() {
         let t = *t;
-        // REF / NOCULL on the same device.
         let t0 = Instant::now();
         let mut enc = run.encoder();
         run.r.encode_layers(
@@ -205,94 +307,35 @@ pub fn run_gpu_sequence(
         let full_draw_ms = ms(t0);
         let full = run.r.read_layer(&full_targets, 0)?;
         let reference = visible_from_items(&full.items, n);
-
-        let bootstrap = history && prev_cpu.is_none();
-        let (cur, prev) = (k % 2, (k + 1) % 2);
-        // (visible ids, cull ms, stats, occlusion map, args from the cull kernel?)
-        let (visible, cull_ms, stats, occ, from_kernel) = if bootstrap || method == Method::Vfc {
-            let c = run.cull_against(cam, t, None, &run.empty_map)?;
-            let r = run.out.read(ctx)?;
-            (r.visible, c, stats_of(&r.classes), None, true)
-        } else {
-            match method {
-                Method::NoCull | Method::Ref => {
-                    let ids: Vec<u32> = if method == Method::Ref { reference.clone() } else { (0..n as u32).collect() };
-                    run.write_set(&ids);
-                    (ids, 0.0, CullStats { objects: n, ..CullStats::default() }, None, false)
-                }
-                Method::Ideal | Method::LastFrame => {
-                    let src = if method == Method::Ideal { &full_targets } else { &drawn[prev] };
-                    let c = run.cull_against(cam, t, Some(src), &run.map)?;
-                    let r = run.out.read(ctx)?;
-                    let occ = if method == Method::Ideal {
-                        full.depth.clone()
-                    } else {
-                        prev_cpu.as_ref().expect("history").0.clone()
-                    };
-                    (r.visible, c, stats_of(&r.classes), Some(occ), true)
-                }
-                Method::Woc | Method::Awoc => {
-                    let woc = run.woc.as_ref().expect("built for WOC");
-                    let (t_prev, cam_prev) = &frames[k - 1];
-                    let t0 = Instant::now();
-                    run.objects.write_scene_aabbs(ctx, scene, t)?;
-                    let flags = rapid_flags(scene, cam_prev, *t_prev, cam, t, params);
-                    run.objects.write_forced(ctx, Some(&flags))?;
-                    let items_view = drawn[prev].items[0].create_view(&Default::default());
-                    let pf = crate::GpuPrevFrame {
-                        depth: &drawn[prev].depth[0].view,
-                        items: &items_view,
-                        cam: cam_prev,
-                        t: *t_prev,
-                    };
-                    let mut enc = run.encoder();
-                    woc.encode(
-                        &mut enc,
-                        &run.gs,
-                        &pf,
-                        &run.gs.object_deltas(*t_prev, t),
-                        cam,
-                        t,
-                        &run.objects,
-                        &run.out,
-                    )?;
-                    run.finish(enc)?;
-                    let c = ms(t0);
-                    let r = run.out.read(ctx)?;
-                    let occ = crate::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
-                    (r.visible, c, stats_of(&r.classes), Some(Image::from_vec(w, h, occ)?), true)
-                }
-                Method::Vfc | Method::TwoPhase => unreachable!("handled above / rejected"),
-            }
-        };
-        // Draw the kept objects (depth + items): the frame the engine shows, and the next
-        // frame's history.
-        let t0 = Instant::now();
+        run.write_set(&f.visible);
         let mut enc = run.encoder();
-        let args = if from_kernel { &run.out.slot_args } else { &run.set_args };
-        run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[cur], args, None)?;
+        run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[0], &run.set_args, None)?;
         run.finish(enc)?;
-        let draw_ms = ms(t0);
-        let shown = run.r.read_layer(&drawn[cur], 0)?;
+        let shown = run.r.read_layer(&drawn[0], 0)?;
         let pixel_error = shown.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
+        let occ = match method {
+            Method::Ideal => Some(full.depth.clone()),
+            Method::LastFrame if !f.bootstrap => prev_cpu.as_ref().map(|(d, _)| d.clone()),
+            _ => f.occ,
+        };
         let pf =
             prev_cpu.as_ref().map(|(d, i)| PrevFrame { depth: d, items: i, cam: &frames[k - 1].1, t: frames[k - 1].0 });
-        let culled = culled_visible(scene, &visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
+        let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
         reports.push(FrameReport {
             frame: k,
             t,
-            visible: visible.len(),
-            accuracy: accuracy(&visible, &reference, n),
-            visible_ids: visible.clone(),
+            visible: f.visible.len(),
+            accuracy: accuracy(&f.visible, &reference, n),
+            triangles: tri_of(&f.visible),
+            visible_ids: f.visible,
             pixel_error,
-            cull: CullTimings { total_ms: cull_ms, ..CullTimings::default() },
-            stats,
-            draw_ms,
+            cull: CullTimings { total_ms: f.cull_ms, ..CullTimings::default() },
+            stats: f.stats,
+            draw_ms: f.draw_ms,
             full_draw_ms,
-            triangles: tri_of(&visible),
             full_triangles: scene.triangle_count(),
             culled_visible: culled,
-            bootstrap,
+            bootstrap: f.bootstrap,
         });
         prev_cpu = Some((shown.depth, shown.items));
     }
