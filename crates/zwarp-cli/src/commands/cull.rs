@@ -153,6 +153,13 @@ pub fn run(args: CullArgs) -> Result<()> {
     let (scene, path) = (&loaded.scene, &loaded.path);
     let device = match &gpu {
         Some(ctx) => format!("GPU {}", ctx.adapter),
+        None if args.repeat > 1 => {
+            format!(
+                "CPU with {} threads, each frame culled {} times (median kept)",
+                rayon::current_num_threads(),
+                args.repeat
+            )
+        }
         None => format!("CPU with {} threads", rayon::current_num_threads()),
     };
     println!(
