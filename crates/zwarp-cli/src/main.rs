@@ -32,6 +32,13 @@ enum Command {
 }
 
 fn main() {
+    // A closed stdout (`zwarp cull ... | head`) ends the process quietly, as it does other Unix
+    // tools, instead of a panic inside `println!` (Rust ignores SIGPIPE by default).
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of one signal before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Demo(a) => commands::demo::run(a),

@@ -98,6 +98,22 @@ fn zero_size_image_is_rejected() {
     assert!(error_line(&err).contains("0x1080"), "{err}");
 }
 
+/// `zwarp ... | head`: a closed stdout ends the process without a panic message.
+#[cfg(unix)]
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_zwarp"))
+        .args(["info"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
 #[test]
 fn bad_camera_paths_are_rejected() {
     let d = tmp("paths");
