@@ -279,6 +279,12 @@ fn cull_reference_and_nocull_are_exact() {
     assert_eq!(nocull["object_error"].as_f64().unwrap(), 0.0);
     assert_eq!(reference["object_error"].as_f64().unwrap(), 0.0);
     assert_eq!(reference["psnr_worst"], "inf");
+    // Occlusion-map accuracy: WOC has a map (fractions in [0, 1]), VFC none ("nan").
+    let frac = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap_or_else(|| panic!("{k}: {r}"));
+    assert!((0.0..=1.0).contains(&frac(&woc, "map_error_fraction")), "{woc}");
+    assert!(frac(&woc, "map_error_fraction_max") >= frac(&woc, "map_error_fraction"), "{woc}");
+    assert!((0.0..=1.0).contains(&frac(&woc, "map_overestimation_fraction")), "{woc}");
+    assert_eq!(vfc["map_error_fraction"], "nan");
     // REF culls at least as much as any safe method; WOC at least as much as VFC.
     let cr = |r: &serde_json::Value| r["culling_ratio"].as_f64().unwrap();
     assert!(cr(&reference) >= cr(&woc) - 1e-12 && cr(&woc) >= cr(&vfc) - 1e-12, "{rows:?}");

@@ -37,7 +37,7 @@ pub use screen::{
     hull_of_corners, hull_x_range_in_strip, project_corner_lanes, project_corners, rect_of_corners, screen_hull_with,
     screen_rect, screen_rect_with, square_meets_hull, CornerLanes, PixelRect, ScreenRect,
 };
-pub use sequence::{run_sequence, run_sequence_repeated, summarize, FrameReport, Method, SequenceSummary};
+pub use sequence::{run_sequence, run_sequence_repeated, summarize, FrameReport, MapAccuracy, Method, SequenceSummary};
 pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, cull_against_depth_with, downsample_max, hybrid_cull,
     ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,

@@ -16,8 +16,8 @@ use crate::bounds::ObjectBounds;
 use crate::diagnose::{culled_visible, CulledVisible};
 use crate::maxdepth::MaxDepthKind;
 use crate::woc::{
-    accuracy, cull_against_depth_with, nocull, twophase_with, vfc_cull_with, visible_from_items, woc_with,
-    CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, WocParams,
+    accuracy, cull_against_depth_with, downsample_max, nocull, twophase_with, vfc_cull_with, visible_from_items,
+    woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, WocParams, DEPTH_TOLERANCE,
 };
 
 /// The culling methods compared in seed 000 Table 5 / Table 7 and thesis Table 3.
@@ -115,6 +115,47 @@ pub struct FrameReport {
     /// `true` for frame 0 of the history-based methods, which has no previous frame and falls
     /// back to VFC.
     pub bootstrap: bool,
+    /// Accuracy of the method's occlusion map against the true depth (WOC / AWOC; `None` for
+    /// methods without one), thesis Sec. V.1 / Fig. 8.
+    pub map_accuracy: Option<MapAccuracy>,
+}
+
+/// Occlusion-map accuracy of one frame (seed 002 thesis Sec. V.1, Fig. 8): the method's map
+/// against the full render's depth, reduced by max to the map's resolution (what each map texel
+/// must bound). A texel *nearer* than that by more than the test's [`DEPTH_TOLERANCE`] is an
+/// **error** (unsafe: it can cull a visible object); one farther is an **over-estimation**
+/// (safe, it only culls less: far holes, erosion). Stored depth in `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MapAccuracy {
+    /// Fraction of texels nearer than the truth (unsafe).
+    pub error_fraction: f64,
+    /// Fraction of texels farther than the truth (safe).
+    pub overestimation_fraction: f64,
+    /// PSNR (dB) of the nearer-than-truth part of the difference (`inf` when none).
+    pub error_psnr: f64,
+    /// PSNR (dB) of the farther-than-truth part.
+    pub overestimation_psnr: f64,
+}
+
+impl MapAccuracy {
+    /// `map` (any size up to the reference's) against the true depth `reference` and its
+    /// `items` (for the reduction).
+    pub fn of(map: &Image<f32>, reference: &Image<f32>, items: &Image<u32>) -> Result<Self> {
+        let reduced;
+        let truth = if map.size() == reference.size() {
+            reference
+        } else {
+            reduced = downsample_max(reference, items, map.width(), map.height())?.0;
+            &reduced
+        };
+        let e = zwarp_metrics::signed_depth_errors(map, truth, DEPTH_TOLERANCE, 1.0)?;
+        Ok(MapAccuracy {
+            error_fraction: e.nearer_fraction(),
+            overestimation_fraction: e.farther_fraction(),
+            error_psnr: e.psnr_nearer,
+            overestimation_psnr: e.psnr_farther,
+        })
+    }
 }
 
 fn ms(since: Instant) -> f64 {
@@ -197,6 +238,7 @@ pub fn run_sequence_repeated(
             t: frames[k - 1].0,
         });
         let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, f.occ.as_ref(), cam, t, pf.as_ref());
+        let map_accuracy = f.occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth, &full.items)).transpose()?;
         out.push(FrameReport {
             frame: k,
             t,
@@ -212,6 +254,7 @@ pub fn run_sequence_repeated(
             full_triangles,
             culled_visible: culled,
             bootstrap: f.bootstrap,
+            map_accuracy,
         });
         prev = Some(drawn);
     }
@@ -224,8 +267,7 @@ struct TimedFrame {
     cull: CullTimings,
     stats: CullStats,
     draw_ms: f64,
-    /// The method's occlusion map, when it has the frame's size (the only case
-    /// [`culled_visible`] reads it).
+    /// The method's occlusion map (at the culling resolution).
     occ: Option<Image<f32>>,
     bootstrap: bool,
 }
@@ -344,7 +386,7 @@ fn run_timed(
                 (f, d, None)
             }
         };
-        let occ = step.occ.filter(|m| m.size() == (cam.width, cam.height));
+        let occ = step.occ;
         prev = Some((drawn, next_first.unwrap_or_else(|| step.visible.clone())));
         out.push(TimedFrame { visible: step.visible, cull: step.cull, stats: step.stats, draw_ms, occ, bootstrap });
     }
@@ -416,6 +458,39 @@ mod tests {
         }
         let e = Method::parse("chc").unwrap_err().to_string();
         assert!(e.contains("unknown culling method 'chc'") && e.contains("woc|awoc"), "{e}");
+    }
+
+    #[test]
+    fn map_accuracy_splits_unsafe_from_safe_texels() {
+        // 4x4 truth, one object: a map equal to it is exact; one texel nearer is one error in
+        // 16, one farther one over-estimation; at 1/2 the truth is max-reduced first, so a map
+        // holding each 2x2 block's max is exact and its min would be an error wherever a block
+        // is not flat.
+        let truth = Image::from_vec(4, 4, (0..16).map(|i| 0.5 + 0.01 * i as f32).collect()).unwrap();
+        let items = Image::new(4, 4, 0u32);
+        let exact = MapAccuracy::of(&truth, &truth, &items).unwrap();
+        assert_eq!((exact.error_fraction, exact.overestimation_fraction), (0.0, 0.0));
+        assert!(exact.error_psnr.is_infinite() && exact.overestimation_psnr.is_infinite());
+        let mut map = truth.clone();
+        *map.get_mut(1, 2) -= 0.1;
+        *map.get_mut(3, 0) += 0.2;
+        let m = MapAccuracy::of(&map, &truth, &items).unwrap();
+        assert_eq!((m.error_fraction, m.overestimation_fraction), (1.0 / 16.0, 1.0 / 16.0));
+        assert!(m.error_psnr.is_finite() && m.error_psnr > m.overestimation_psnr, "{m:?}");
+        let block = |f: fn(f32, f32) -> f32| {
+            let v = |x: u32, y: u32| truth.data()[(y * 4 + x) as usize];
+            let d = (0..4u32)
+                .map(|i| {
+                    let (bx, by) = (2 * (i % 2), 2 * (i / 2));
+                    f(f(v(bx, by), v(bx + 1, by)), f(v(bx, by + 1), v(bx + 1, by + 1)))
+                })
+                .collect();
+            Image::from_vec(2, 2, d).unwrap()
+        };
+        let max = MapAccuracy::of(&block(f32::max), &truth, &items).unwrap();
+        assert_eq!((max.error_fraction, max.overestimation_fraction), (0.0, 0.0));
+        let min = MapAccuracy::of(&block(f32::min), &truth, &items).unwrap();
+        assert_eq!((min.error_fraction, min.overestimation_fraction), (1.0, 0.0));
     }
 
     #[test]

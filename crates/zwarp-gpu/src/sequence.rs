@@ -15,8 +15,8 @@ use std::time::Instant;
 
 use zwarp_core::{Camera, Error, Image, Result, Scene};
 use zwarp_cull::{
-    accuracy, culled_visible, visible_from_items, CullStats, CullTimings, FrameReport, MaxDepthKind, Method, PrevFrame,
-    WocParams,
+    accuracy, culled_visible, visible_from_items, CullStats, CullTimings, FrameReport, MapAccuracy, MaxDepthKind,
+    Method, PrevFrame, WocParams,
 };
 
 use crate::compute::{rapid_flags, CullParams, GpuWoc, GpuWocParams};
@@ -321,6 +321,7 @@ pub fn run_gpu_sequence(
         let pf =
             prev_cpu.as_ref().map(|(d, i)| PrevFrame { depth: d, items: i, cam: &frames[k - 1].1, t: frames[k - 1].0 });
         let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
+        let map_accuracy = occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth, &full.items)).transpose()?;
         reports.push(FrameReport {
             frame: k,
             t,
@@ -336,6 +337,7 @@ pub fn run_gpu_sequence(
             full_triangles: scene.triangle_count(),
             culled_visible: culled,
             bootstrap: f.bootstrap,
+            map_accuracy,
         });
         prev_cpu = Some((shown.depth, shown.items));
     }

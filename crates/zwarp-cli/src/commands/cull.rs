@@ -109,6 +109,21 @@ pub struct CullRow {
     pub triangle_fraction: f64,
     /// `frame_ms` of VFC divided by this method's `frame_ms` (same run).
     pub speedup_vs_vfc: f64,
+    /// Occlusion-map accuracy (thesis Sec. V.1, Fig. 8; methods with a map: woc, awoc,
+    /// lastframe, ideal; `nan` otherwise): mean fraction of map texels nearer than the true
+    /// depth reduced to the map's resolution (unsafe errors).
+    #[serde(serialize_with = "ser_f64")]
+    pub map_error_fraction: f64,
+    /// Worst frame of `map_error_fraction`.
+    #[serde(serialize_with = "ser_f64")]
+    pub map_error_fraction_max: f64,
+    /// Mean fraction of map texels farther than the truth (safe over-estimation: far holes,
+    /// erosion).
+    #[serde(serialize_with = "ser_f64")]
+    pub map_overestimation_fraction: f64,
+    /// Worst-frame PSNR (dB) of the nearer-than-truth part of the map (`inf`: no error).
+    #[serde(serialize_with = "ser_f64")]
+    pub map_error_psnr_worst: f64,
 }
 
 /// `zwarp cull`.
@@ -216,6 +231,18 @@ pub fn run(args: CullArgs) -> Result<()> {
                     psnrs.push(zwarp_metrics::psnr_from_mse(mse, 1.0)?);
                 }
             }
+            // Occlusion-map accuracy over the frames that have a map (none: nan).
+            let maps: Vec<zwarp_cull::MapAccuracy> = rs.iter().filter_map(|r| r.map_accuracy).collect();
+            let map_mean = |f: fn(&zwarp_cull::MapAccuracy) -> f64| -> f64 {
+                if maps.is_empty() {
+                    f64::NAN
+                } else {
+                    maps.iter().map(f).sum::<f64>() / maps.len() as f64
+                }
+            };
+            let map_fold = |f: fn(&zwarp_cull::MapAccuracy) -> f64, g: fn(f64, f64) -> f64| -> f64 {
+                maps.iter().map(f).reduce(g).unwrap_or(f64::NAN)
+            };
             let cull_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms).collect::<Vec<_>>());
             let frame_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms + r.draw_ms).collect::<Vec<_>>());
             speed_rows.push(CullRow {
@@ -258,6 +285,10 @@ pub fn run(args: CullArgs) -> Result<()> {
                 triangle_fraction: rs.iter().map(|r| r.triangles as f64 / r.full_triangles.max(1) as f64).sum::<f64>()
                     / nf,
                 speedup_vs_vfc: f64::NAN,
+                map_error_fraction: map_mean(|m| m.error_fraction),
+                map_error_fraction_max: map_fold(|m| m.error_fraction, f64::max),
+                map_overestimation_fraction: map_mean(|m| m.overestimation_fraction),
+                map_error_psnr_worst: map_fold(|m| m.error_psnr, f64::min),
             });
             bar.inc(1);
         }
@@ -284,6 +315,7 @@ pub fn run(args: CullArgs) -> Result<()> {
         "p99",
         "frame ms",
         "x VFC",
+        "map err %",
     ]);
     for r in &rows {
         t.row(vec![
@@ -301,6 +333,7 @@ pub fn run(args: CullArgs) -> Result<()> {
             fmt(r.cull_ms_p99, 2),
             fmt(r.frame_ms, 2),
             fmt(r.speedup_vs_vfc, 2),
+            fmt(r.map_error_fraction * 100.0, 4),
         ]);
     }
     println!("{}", t.render());
