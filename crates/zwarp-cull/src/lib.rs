@@ -40,8 +40,8 @@ pub use screen::{
 pub use sequence::{run_sequence, run_sequence_repeated, summarize, FrameReport, MapAccuracy, Method, SequenceSummary};
 pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, cull_against_depth_with, downsample_max, hybrid_cull,
-    ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
-    screen_speed, twophase, twophase_with, vfc_cull, vfc_cull_with, visible_from_items, woc, woc_motion_field,
-    woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode, TwoPhaseResult, WocParams,
-    DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
+    ideal_screen_space, lastframe, max_over_footprints, nocull, open_rims_in_target, opening_rim_dirs, opening_rims,
+    reference, screen_speed, twophase, twophase_with, vfc_cull, vfc_cull_with, visible_from_items, woc,
+    woc_motion_field, woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode, TwoPhaseResult,
+    WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
 };

@@ -16,7 +16,7 @@ use crate::bounds::ObjectBounds;
 use crate::diagnose::{culled_visible, CulledVisible};
 use crate::maxdepth::MaxDepthKind;
 use crate::woc::{
-    accuracy, cull_against_depth_with, downsample_max, nocull, twophase_with, vfc_cull_with, visible_from_items,
+    accuracy, cull_against_depth_with, max_over_footprints, nocull, twophase_with, vfc_cull_with, visible_from_items,
     woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, WocParams, DEPTH_TOLERANCE,
 };
 
@@ -115,8 +115,8 @@ pub struct FrameReport {
     /// `true` for frame 0 of the history-based methods, which has no previous frame and falls
     /// back to VFC.
     pub bootstrap: bool,
-    /// Accuracy of the method's occlusion map against the true depth (WOC / AWOC; `None` for
-    /// methods without one), thesis Sec. V.1 / Fig. 8.
+    /// Accuracy of the method's occlusion map against the true depth (WOC, AWOC, last frame,
+    /// ideal; `None` for methods without a map), thesis Sec. V.1 / Fig. 8.
     pub map_accuracy: Option<MapAccuracy>,
 }
 
@@ -138,14 +138,21 @@ pub struct MapAccuracy {
 }
 
 impl MapAccuracy {
-    /// `map` (any size up to the reference's) against the true depth `reference` and its
-    /// `items` (for the reduction).
-    pub fn of(map: &Image<f32>, reference: &Image<f32>, items: &Image<u32>) -> Result<Self> {
+    /// `map` (any non-empty size up to the reference's) against the true depth `reference`.
+    pub fn of(map: &Image<f32>, reference: &Image<f32>) -> Result<Self> {
+        let (w, h) = map.size();
+        if w == 0 || h == 0 || w > reference.width() || h > reference.height() {
+            return Err(Error::invalid(format!(
+                "occlusion map is {w}x{h} but the reference depth {}x{}",
+                reference.width(),
+                reference.height()
+            )));
+        }
         let reduced;
         let truth = if map.size() == reference.size() {
             reference
         } else {
-            reduced = downsample_max(reference, items, map.width(), map.height())?.0;
+            reduced = max_over_footprints(reference, (w, h));
             &reduced
         };
         let e = zwarp_metrics::signed_depth_errors(map, truth, DEPTH_TOLERANCE, 1.0)?;
@@ -238,7 +245,7 @@ pub fn run_sequence_repeated(
             t: frames[k - 1].0,
         });
         let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, f.occ.as_ref(), cam, t, pf.as_ref());
-        let map_accuracy = f.occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth, &full.items)).transpose()?;
+        let map_accuracy = f.occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth)).transpose()?;
         out.push(FrameReport {
             frame: k,
             t,
@@ -467,14 +474,13 @@ mod tests {
         // holding each 2x2 block's max is exact and its min would be an error wherever a block
         // is not flat.
         let truth = Image::from_vec(4, 4, (0..16).map(|i| 0.5 + 0.01 * i as f32).collect()).unwrap();
-        let items = Image::new(4, 4, 0u32);
-        let exact = MapAccuracy::of(&truth, &truth, &items).unwrap();
+        let exact = MapAccuracy::of(&truth, &truth).unwrap();
         assert_eq!((exact.error_fraction, exact.overestimation_fraction), (0.0, 0.0));
         assert!(exact.error_psnr.is_infinite() && exact.overestimation_psnr.is_infinite());
         let mut map = truth.clone();
         *map.get_mut(1, 2) -= 0.1;
         *map.get_mut(3, 0) += 0.2;
-        let m = MapAccuracy::of(&map, &truth, &items).unwrap();
+        let m = MapAccuracy::of(&map, &truth).unwrap();
         assert_eq!((m.error_fraction, m.overestimation_fraction), (1.0 / 16.0, 1.0 / 16.0));
         assert!(m.error_psnr.is_finite() && m.error_psnr > m.overestimation_psnr, "{m:?}");
         let block = |f: fn(f32, f32) -> f32| {
@@ -487,9 +493,9 @@ mod tests {
                 .collect();
             Image::from_vec(2, 2, d).unwrap()
         };
-        let max = MapAccuracy::of(&block(f32::max), &truth, &items).unwrap();
+        let max = MapAccuracy::of(&block(f32::max), &truth).unwrap();
         assert_eq!((max.error_fraction, max.overestimation_fraction), (0.0, 0.0));
-        let min = MapAccuracy::of(&block(f32::min), &truth, &items).unwrap();
+        let min = MapAccuracy::of(&block(f32::min), &truth).unwrap();
         assert_eq!((min.error_fraction, min.overestimation_fraction), (1.0, 0.0));
     }
 

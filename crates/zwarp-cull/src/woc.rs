@@ -1118,22 +1118,29 @@ fn draw_exact(predicted: &mut Image<f32>, scene: &Scene, full_cam: &Camera, t: f
     }
     let mut fine = Image::new(full_cam.width, full_cam.height, EMPTY_DEPTH);
     draw_into(&mut fine, None, scene, full_cam, t, objects)?;
-    let (cw, ch) = predicted.size();
+    let coarse = max_over_footprints(&fine, predicted.size());
+    predicted.data_mut().par_iter_mut().zip(coarse.data().par_iter()).for_each(|(p, &c)| *p = p.min(c));
+    Ok(())
+}
+
+/// Depth-only twin of [`downsample_max`]: each of the `cw x ch` coarse pixels takes the max of
+/// `fine` over every fine pixel its footprint touches (the bound each coarse texel of an
+/// occlusion map must respect). `cw`, `ch` at least 1 and at most `fine`'s size.
+pub fn max_over_footprints(fine: &Image<f32>, (cw, ch): (u32, u32)) -> Image<f32> {
     let (fw, fh) = fine.size();
     let xs: Vec<(u32, u32)> = (0..cw).map(|cx| footprint(cx, fw, cw)).collect();
-    predicted.data_mut().par_chunks_mut(cw as usize).enumerate().for_each(|(cy, row)| {
+    let mut out = Image::new(cw, ch, f32::NEG_INFINITY);
+    out.data_mut().par_chunks_mut(cw as usize).enumerate().for_each(|(cy, row)| {
         let (y0, y1) = footprint(cy as u32, fh, ch);
-        for (p, &(x0, x1)) in row.iter_mut().zip(&xs) {
-            let mut m = f32::NEG_INFINITY;
+        for (o, &(x0, x1)) in row.iter_mut().zip(&xs) {
             for y in y0..y1 {
                 for &d in &fine.row(y)[x0 as usize..x1 as usize] {
-                    m = m.max(d);
+                    *o = o.max(d);
                 }
             }
-            *p = p.min(m);
         }
     });
-    Ok(())
+    out
 }
 
 /// What the screen-space stage still has to decide for an object in the frustum ([`prepass`]).

@@ -321,7 +321,7 @@ pub fn run_gpu_sequence(
         let pf =
             prev_cpu.as_ref().map(|(d, i)| PrevFrame { depth: d, items: i, cam: &frames[k - 1].1, t: frames[k - 1].0 });
         let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
-        let map_accuracy = occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth, &full.items)).transpose()?;
+        let map_accuracy = occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth)).transpose()?;
         reports.push(FrameReport {
             frame: k,
             t,
