@@ -70,7 +70,7 @@ fn traffic_per_pixel(prep: &PreparedLayer, params: &WarpParams) -> (f64, f64) {
     }
     let (w, h) = prep.size();
     let fetches = Cell::new(0u64);
-    let src = Counting(LayerSampler::new(prep.samples(), w, h, params.sampling, 0), &fetches);
+    let src = Counting(prep.sampler(params, 0), &fetches);
     let sp = SearchParams {
         iterations: params.iterations,
         threshold: params.threshold,

@@ -14,7 +14,8 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
-use crate::depth_warp::{validated_samples, WarpLayer};
+use crate::depth_warp::WarpLayer;
+use crate::prepare::validated_samples;
 use crate::search::CONTINUITY_PX;
 
 /// Support expansion of the forward warps, in pixels per side (Sec. 4.1: "by a half-pixel

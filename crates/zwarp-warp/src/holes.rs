@@ -167,6 +167,8 @@ impl MotionSource for EmptyBackground<'_> {
             depth: EMPTY_DEPTH,
             tag: 0,
             dv: [Vec2::ZERO; 2],
+            dz: Vec2::ZERO,
+            smooth: false,
         })
     }
 }

@@ -26,18 +26,21 @@ pub mod baselines;
 pub mod bounds;
 pub mod depth_warp;
 pub mod holes;
+mod kernel;
 mod pages;
+mod prepare;
 pub mod search;
+pub mod simd;
 pub mod stats;
 pub mod synth;
 
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
-pub use depth_warp::{target_size, warp_depth, warp_pixels, warp_prepared, PreparedLayer, WarpLayer};
+pub use depth_warp::{target_size, warp_depth, warp_pixels, warp_prepared, PreparedLayer, SurfaceMotion, WarpLayer};
 pub use holes::{dilate_holes, fill_holes, hole_fill, FillRule, HolePolicy, FILL_DIRECTIONS};
 pub use search::{
-    fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, Sampling, SearchParams,
-    SeedStrategy,
+    fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, SamplePlanes, Sampling,
+    SearchParams, SeedStrategy,
 };
 
 use zwarp_core::{Error, Image, Result};

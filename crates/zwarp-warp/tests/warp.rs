@@ -298,7 +298,7 @@ fn record_source_gives_positions_that_move_to_the_pixel() {
                 continue;
             }
             let s = src.get(x, y);
-            let sampler = LayerSampler::new(prepared[s.layer as usize].samples(), w, h, params.sampling, s.layer);
+            let sampler = prepared[s.layer as usize].sampler(&params, s.layer);
             let smp = sampler.fetch(s.q).unwrap();
             let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
             assert!((s.q + smp.v - p).length() < params.threshold);
@@ -418,7 +418,7 @@ proptest! {
         let layer = [WarpLayer { depth: &d, motion: &m }];
         let out = warp_depth(&layer, &params).unwrap();
         let prepared = PreparedLayer::new(&layer[0], params.bound).unwrap();
-        let sampler = LayerSampler::new(prepared.samples(), w, h, sampling, 0);
+        let sampler = prepared.sampler(&params, 0);
         let src = out.source.as_ref().unwrap();
         for y in 0..h {
             for x in 0..w {

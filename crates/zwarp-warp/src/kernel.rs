@@ -1,0 +1,359 @@
+//! The per-pixel warp over all layers (seed 000 Sec. 3.2-3.4) and the tile stage of the bound
+//! tightening that feeds it (Sec. 3.3, Fig. 5 applied to a box of pixels).
+//!
+//! **Tile stage.** Fig. 5 tightens the bound of one pixel from the global bound. Neighbouring
+//! pixels share most of that work, so it runs per 4x4 *tile* of target pixels first (from the
+//! global bound, over the union of the tile's search regions), and each pixel then tightens
+//! from its tile's bound — or, where the tile's bound is already within one pixel in both axes
+//! ("resolved") and no earlier layer converged, takes one seed at the centre of its region
+//! under the tile's bound without tightening. The tile stage is conservative (a pixel's
+//! solutions lie in the tile's region), so it changes no solution. A tile with no valid sample
+//! in its region removes the layer for its 16 pixels. Layers `k > 0` also get the min target
+//! depth over the tile's final region, the first test of their pruning.
+//!
+//! Tile bounds are pure functions of the tile and the layer, computed on demand ([`TileBounds`]),
+//! so a dense warp, a sparse one ([`crate::warp_pixels`]) and the WGSL twin compute the same.
+
+use glam::Vec2;
+use zwarp_core::EMPTY_DEPTH;
+
+use crate::bounds::{Bound, BoundFrame, TightBound};
+use crate::holes::{awoc_depth, HolePolicy};
+use crate::prepare::PreparedLayer;
+use crate::search::{
+    effective_seeds, fixed_point_search, seed_key, stratified_seeds, Candidate, LayerSampler, MotionSource, Sample,
+    SeedStrategy,
+};
+use crate::{BoundKind, PixelState, SourcePos, WarpParams, MAX_SEEDS};
+
+/// Side of a tile of the tile stage (target pixels).
+pub const TILE: u32 = 4;
+
+/// Samples layer k with the cross-layer fallback of Fig. 6.
+pub(crate) struct StackSampler<'a> {
+    pub layers: &'a [LayerSampler<'a>],
+    pub k: usize,
+    pub cross: bool,
+}
+
+impl MotionSource for StackSampler<'_> {
+    /// Number of empty landings so far.
+    type Walk = u8;
+    #[inline(always)]
+    fn sample(&self, q: Vec2, empties: &mut u8) -> Option<Sample> {
+        let own = &self.layers[self.k];
+        if !own.inside(q) {
+            return None;
+        }
+        if let Some(s) = own.fetch_inside(q) {
+            return Some(s);
+        }
+        if !self.cross || self.k == 0 {
+            return None;
+        }
+        *empties += 1;
+        if *empties >= 2 {
+            return None;
+        }
+        self.layers[..self.k].iter().rev().find_map(|l| l.fetch(q))
+    }
+}
+
+/// The bound one stage gives a box of pixels for one layer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct StageBound {
+    /// Motion bound (frame coordinates) containing every solution of every pixel of the box.
+    pub motion: Bound,
+    /// Layers `k > 0`: min target depth of the valid samples over the box's final region
+    /// (`-inf` for layer 0, where it is not used).
+    pub min_depth: f32,
+}
+
+impl StageBound {
+    /// Within one pixel in both axes: no finer stage is computed below it.
+    #[inline]
+    pub fn resolved(&self) -> bool {
+        let e = self.motion.extent();
+        e.x <= 1.0 && e.y <= 1.0
+    }
+}
+
+/// The tile stage of one tile for every layer, computed on demand (`None`: no valid sample
+/// of the layer can move to any pixel of the tile).
+pub(crate) struct TileBounds {
+    /// Tile origin (target pixels).
+    x0: u32,
+    y0: u32,
+    valid: bool,
+    memo: Vec<Option<Option<StageBound>>>,
+}
+
+impl TileBounds {
+    pub fn new(layers: usize) -> Self {
+        TileBounds { x0: 0, y0: 0, valid: false, memo: vec![None; layers] }
+    }
+    /// Forgets everything and moves to the tile at `(x0, y0)`.
+    pub fn reset(&mut self, x0: u32, y0: u32) {
+        self.x0 = x0;
+        self.y0 = y0;
+        self.valid = true;
+        self.memo.fill(None);
+    }
+    /// `true` if the memo holds the tile containing pixel `(x, y)`.
+    pub fn holds(&self, x: u32, y: u32) -> bool {
+        self.valid && x / TILE * TILE == self.x0 && y / TILE * TILE == self.y0
+    }
+}
+
+/// The warp kernel over prepared layers: the bound hierarchy and the per-pixel search.
+pub(crate) struct Kernel<'a> {
+    pub layers: &'a [PreparedLayer],
+    pub samplers: &'a [LayerSampler<'a>],
+    pub params: &'a WarpParams,
+    /// Source layer size (the space of `q`, the motion and the mipmaps).
+    pub w: u32,
+    pub h: u32,
+    /// Target image size: the source size divided by [`WarpParams::multisample`].
+    pub tw: u32,
+    pub th: u32,
+    /// Source samples per target pixel and axis, as a float: target pixel `(x, y)` is the
+    /// source position `m * (x + 0.5, y + 0.5)` (exact for `m = 1`).
+    pub m: f32,
+}
+
+impl<'a> Kernel<'a> {
+    pub fn new(
+        layers: &'a [PreparedLayer],
+        samplers: &'a [LayerSampler<'a>],
+        params: &'a WarpParams,
+        (w, h): (u32, u32),
+        (tw, th): (u32, u32),
+    ) -> Self {
+        Kernel { layers, samplers, params, w, h, tw, th, m: params.multisample as f32 }
+    }
+
+    /// The source position of target pixel `(x, y)`'s centre.
+    #[inline(always)]
+    pub fn target_pos(&self, x: u32, y: u32) -> Vec2 {
+        Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * self.m
+    }
+
+    /// Number of tightening steps (0 for the global bound).
+    #[inline]
+    pub fn bound_iterations(&self) -> u32 {
+        if self.params.bound == BoundKind::Global {
+            0
+        } else {
+            self.params.bound_iterations
+        }
+    }
+
+    /// The tile stage of layer `k` for the memo's tile: Fig. 5 over the union of the tile's
+    /// search regions (clipped to the image), from the global bound.
+    pub fn start(&self, t: &mut TileBounds, k: usize) -> Option<StageBound> {
+        if let Some(s) = t.memo[k] {
+            return s;
+        }
+        let (x1, y1) = ((t.x0 + TILE).min(self.tw) - 1, (t.y0 + TILE).min(self.th) - 1);
+        let pyr = self.layers[k].pyramid();
+        let (p_lo, p_hi) = (self.target_pos(t.x0, t.y0), self.target_pos(x1, y1));
+        let (iters, expand, scale) =
+            (self.bound_iterations(), self.params.sampling.footprint(), self.params.motion_scale);
+        let start = pyr.global().scaled(scale);
+        let s = if k == 0 {
+            pyr.tight_bound_box_scaled(p_lo, p_hi, start, iters, expand, scale)
+                .map(|t| StageBound { motion: t.motion, min_depth: f32::NEG_INFINITY })
+        } else {
+            pyr.tight_bound_box_with_depth_scaled(p_lo, p_hi, start, iters, expand, scale)
+                .map(|t| StageBound { motion: t.motion, min_depth: t.min_depth })
+        };
+        t.memo[k] = Some(s);
+        s
+    }
+
+    /// The warp of one target pixel over all layers, from layer `k0` on with the state the
+    /// layers before it left (`best`, `prev_q`: the accelerated builds hand over here).
+    ///
+    /// `seeds` is scratch space owned by the caller (zeroing a 64-seed array per pixel is a
+    /// measurable cost).
+    #[allow(clippy::too_many_arguments)]
+    pub fn pixel_from(
+        &self,
+        x: u32,
+        y: u32,
+        b: &mut TileBounds,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+        k0: usize,
+        mut best: Option<Candidate>,
+        mut prev_q: Option<Vec2>,
+    ) -> (f32, PixelState, SourcePos) {
+        let params = self.params;
+        let p = self.target_pos(x, y);
+        let expand = params.sampling.footprint();
+        let scale = params.motion_scale;
+        let max_q = self.max_q();
+        let mut awoc: Option<(BoundFrame, TightBound)> = None;
+        for k in k0..self.layers.len() {
+            let pyr = self.layers[k].pyramid();
+            // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
+            let Some(start) = self.start(b, k) else { continue };
+            let tb = if start.resolved() && best.is_none() {
+                // The tile's bound is already narrower than a pixel: one seed at the centre of
+                // this pixel's region, whatever further tightening would give.
+                TightBound { motion: start.motion, region: pyr.region(p, &start.motion), min_depth: f32::NEG_INFINITY }
+            } else if k > 0 && best.is_some() {
+                // A later layer only matters if it can beat the best candidate so far: skip it
+                // when no sample of its search region is nearer (min-depth mipmap look-ups),
+                // first over the tile's region (computed once per tile), then over the pixel's
+                // region under the tile's bound, before any tightening (exact: the tightened
+                // region lies inside it), then over the tightened region.
+                if best.is_some_and(|b| start.min_depth >= b.depth) {
+                    continue;
+                }
+                let Some(r) = pyr.pixel_range(&pyr.region(p, &start.motion), expand) else { continue };
+                if best.is_some_and(|b| pyr.lookup_min_depth(r.0, r.1, r.2, r.3) >= b.depth) {
+                    continue;
+                }
+                let Some(tb) =
+                    pyr.tight_bound_box_with_depth_scaled(p, p, start.motion, self.bound_iterations(), expand, scale)
+                else {
+                    continue;
+                };
+                if best.is_some_and(|b| tb.min_depth >= b.depth) {
+                    continue;
+                }
+                tb
+            } else {
+                let Some(tb) = pyr.tight_bound_box_scaled(p, p, start.motion, self.bound_iterations(), expand, scale)
+                else {
+                    continue;
+                };
+                tb
+            };
+            if params.holes == HolePolicy::Awoc && awoc.is_none() {
+                awoc = Some((pyr.frame(), tb));
+            }
+            if let Some(c) = self.search_layer(k, x, y, p, &tb, prev_q, seeds) {
+                prev_q = Some(c.q);
+                if best.is_none_or(|b| c.depth < b.depth) {
+                    best = Some(c);
+                }
+            }
+        }
+        if let Some(c) = best {
+            return (c.depth, PixelState::Converged, SourcePos { q: c.q, layer: c.tag });
+        }
+        if let Some((frame, tb)) = awoc {
+            let r = tb.region;
+            let corners = [
+                Vec2::new(r.lo.x, r.lo.y),
+                Vec2::new(r.hi.x, r.lo.y),
+                Vec2::new(r.lo.x, r.hi.y),
+                Vec2::new(r.hi.x, r.hi.y),
+            ]
+            .map(|u| frame.from_frame(u).clamp(Vec2::ZERO, max_q));
+            let fill = awoc_depth(&corners, |q| {
+                self.samplers.iter().filter_map(|s| s.fetch(q)).map(|s| s.depth).reduce(f32::min)
+            });
+            if let Some(z) = fill {
+                return (z, PixelState::Filled, SourcePos { q: Vec2::ZERO, layer: u32::MAX });
+            }
+        }
+        (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+
+    /// Seeds (N in the region `tb`, plus an earlier layer's converged position) and the
+    /// fixed-point search of layer `k` for pixel `(x, y)` at source position `p`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn search_layer(
+        &self,
+        k: usize,
+        x: u32,
+        y: u32,
+        p: Vec2,
+        tb: &TightBound,
+        prev_q: Option<Vec2>,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+    ) -> Option<Candidate> {
+        let params = self.params;
+        let frame = self.layers[k].pyramid().frame();
+        let mut n = match params.seeding {
+            SeedStrategy::Stratified => {
+                let ne = effective_seeds(params.n_seeds, tb.region.extent());
+                // The key only jitters seeds 2.. (one seed sits at the region centre).
+                let key = if ne > 1 { seed_key(x, y, k as u32) } else { 0 };
+                stratified_seeds(&frame, &tb.region, ne, key, seeds)
+            }
+            SeedStrategy::Pixel => {
+                seeds[0] = p;
+                1
+            }
+            SeedStrategy::Offset(d) => {
+                seeds[0] = p + d;
+                1
+            }
+        };
+        if params.cross_layer {
+            if let Some(q) = prev_q {
+                // Fig. 6: an earlier layer's converged position seeds this layer.
+                let u = frame.to_frame(q);
+                if tb.region.contains(u) {
+                    if (n as u32) < params.n_seeds {
+                        n += 1;
+                    }
+                    seeds[n - 1] = q;
+                }
+            }
+        }
+        let max_q = self.max_q();
+        for s in &mut seeds[..n] {
+            *s = s.clamp(Vec2::ZERO, max_q);
+        }
+        let src = StackSampler { layers: self.samplers, k, cross: params.cross_layer };
+        fixed_point_search(&src, p, &seeds[..n], &params.search())
+    }
+
+    /// The largest seed position: seeds are clamped into `[0, max_q]`, just inside the image.
+    #[inline]
+    pub fn max_q(&self) -> Vec2 {
+        Vec2::new(self.w as f32, self.h as f32) * (1.0 - f32::EPSILON) - Vec2::splat(1e-3)
+    }
+
+    /// The warp of one target pixel over all layers (see [`Self::pixel_from`]).
+    #[inline]
+    pub fn pixel(
+        &self,
+        x: u32,
+        y: u32,
+        b: &mut TileBounds,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+    ) -> (f32, PixelState, SourcePos) {
+        self.pixel_from(x, y, b, seeds, 0, None, None)
+    }
+
+    /// Warps the band of tile rows `ty * TILE ..` (the slices hold those rows).
+    pub fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
+        let w = self.tw as usize;
+        let rows = (depth.len() / w) as u32;
+        let y0 = ty * TILE;
+        let mut memo = TileBounds::new(self.layers.len());
+        let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
+        for x0 in (0..self.tw).step_by(TILE as usize) {
+            memo.reset(x0, y0);
+            let x1 = (x0 + TILE).min(self.tw);
+            for y in y0..y0 + rows {
+                for x in x0..x1 {
+                    let (z, st, src) = self.pixel(x, y, &mut memo, &mut seeds);
+                    crate::stats::count(crate::stats::Counter::Pixels, 1);
+                    let i = (y - y0) as usize * w + x as usize;
+                    depth[i] = z;
+                    state[i] = st;
+                    if let Some(s) = source.as_deref_mut() {
+                        s[i] = src;
+                    }
+                }
+            }
+        }
+    }
+}

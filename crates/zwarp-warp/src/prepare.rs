@@ -1,0 +1,630 @@
+//! The preparation of one source layer in one streaming pass (seed 000 Sec. 3.3): validated
+//! samples, the level-1 min-max motion texels (axis-aligned and, when the PCA frame is a
+//! candidate, oriented) with their min target depths, and the motion range of the layer's
+//! surfaces that the background hole fill needs ([`crate::holes::BackgroundLimits`]).
+//!
+//! Why a pass of its own: it is the one place where the whole layer is read, so everything that
+//! needs every sample is reduced here (one read of depth and motion, one write of the samples,
+//! a quarter-size write of level 1). The loop body is branch-free (selects instead of
+//! `continue`), so the compiler vectorizes it; an AVX2 build is chosen at run time on x86-64
+//! (same arithmetic, bit-identical: min / max and selects only).
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Error, Motion, Result, EMPTY_DEPTH};
+
+use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid};
+use crate::search::{LayerSampler, SamplePlanes};
+use crate::{BoundKind, WarpLayer, WarpParams};
+
+/// What one pair of image rows (one row of level-1 texels) reduces to besides its texels.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RowStats {
+    /// Bit 0: a source depth is NaN or infinite; bit 1: a motion vector or target depth is NaN;
+    /// bit 2: a motion vector is infinite.
+    pub flags: u8,
+    /// Component-wise min / max of the motion of the surfaces (source depth `< 1`) of the rows,
+    /// whatever their target depth (the reach of the background fill's border strips).
+    pub surf_lo: Vec2,
+    /// See `surf_lo`.
+    pub surf_hi: Vec2,
+    /// Union of the row's axis-aligned level-1 texels (its part of the global bound).
+    pub aab: Bound,
+    /// Union of the row's oriented level-1 texels (empty when not computed).
+    pub ob: Bound,
+}
+
+impl RowStats {
+    pub(crate) const EMPTY: RowStats = RowStats {
+        flags: 0,
+        surf_lo: Vec2::splat(f32::INFINITY),
+        surf_hi: Vec2::splat(f32::NEG_INFINITY),
+        aab: Bound::EMPTY,
+        ob: Bound::EMPTY,
+    };
+
+    pub(crate) fn merge(self, o: RowStats) -> RowStats {
+        RowStats {
+            flags: self.flags | o.flags,
+            surf_lo: self.surf_lo.min(o.surf_lo),
+            surf_hi: self.surf_hi.max(o.surf_hi),
+            aab: self.aab.union(&o.aab),
+            ob: self.ob.union(&o.ob),
+        }
+    }
+}
+
+/// Inputs of one level-1 row: the layer's buffers, the earlier layers' depths (a sample that
+/// repeats an earlier layer's depth at its pixel stays a sample but does not enter the
+/// mipmap), the image width and the frame of the oriented texels.
+pub(crate) struct RowInput<'a> {
+    pub depth: &'a [f32],
+    pub motion: &'a [Motion],
+    pub earlier: &'a [&'a [f32]],
+    pub w: usize,
+    pub frame: BoundFrame,
+}
+
+/// Outputs of one level-1 row `ty`: the two image rows of samples, the axis-aligned texels, the
+/// oriented ones (when wanted) and the min depths.
+pub(crate) struct RowOutput<'a> {
+    /// Motion x, motion y and target depth of the two image rows.
+    pub vx: &'a mut [f32],
+    pub vy: &'a mut [f32],
+    pub z: &'a mut [f32],
+    pub aab: &'a mut [[f32; 4]],
+    pub ob: Option<&'a mut [[f32; 4]]>,
+    pub zmin: &'a mut [f32],
+}
+
+/// Reduces level-1 row `ty` (image rows `2 ty` and `2 ty + 1`, the second possibly missing).
+#[inline]
+pub(crate) fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowStats {
+    #[cfg(target_arch = "x86_64")]
+    if crate::simd::has_avx2() {
+        // SAFETY: only taken when the CPU reports AVX2.
+        return unsafe { avx2::row(input, ty, out) };
+    }
+    row_impl(input, ty, out, 0)
+}
+
+/// `min` / `max` as compare-selects: no NaN reaches them (NaN input is rejected through the
+/// flags), and they are what `minps` / `maxps` compute.
+#[inline(always)]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The portable reduction of columns `xs..w` of level-1 row `ty` (`xs` even): the whole row,
+/// or the columns right of the AVX2 build's multiple of 8.
+fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> RowStats {
+    let RowOutput { vx, vy, z: zs, aab, mut ob, zmin } = out;
+    let w = input.w;
+    let (inf, ninf) = (f32::INFINITY, f32::NEG_INFINITY);
+    let empty = [inf, inf, ninf, ninf];
+    let ts = xs / 2;
+    aab[ts..].fill(empty);
+    if let Some(o) = ob.as_deref_mut() {
+        o[ts..].fill(empty);
+    }
+    zmin[ts..].fill(inf);
+    let (c, s) = (input.frame.axis.x, input.frame.axis.y);
+    let rows = zs.len() / w;
+    let (mut flags, mut slo, mut shi) = (0u8, [inf; 2], [ninf; 2]);
+    // Per image row: validate and copy the samples, and fold each pixel into its texel
+    // (texel x >> 1) with selects: an invalid or repeated sample contributes +inf / -inf.
+    for dy in 0..rows {
+        let base = (2 * ty + dy) * w;
+        for x in xs..w {
+            let (d, m) = (input.depth[base + x], input.motion[base + x]);
+            let finite_v = m.v.x.is_finite() & m.v.y.is_finite();
+            flags |= (!d.is_finite()) as u8
+                | ((m.v.x.is_nan() | m.v.y.is_nan() | m.depth.is_nan()) as u8) << 1
+                | ((!finite_v) as u8) << 2;
+            let surface = d < EMPTY_DEPTH;
+            // The motion range of the surfaces (for the border fill), finite motion only (an
+            // infinite one is reported through the flags).
+            let sv = surface & finite_v;
+            slo = [fmin(slo[0], if sv { m.v.x } else { inf }), fmin(slo[1], if sv { m.v.y } else { inf })];
+            shi = [fmax(shi[0], if sv { m.v.x } else { ninf }), fmax(shi[1], if sv { m.v.y } else { ninf })];
+            let valid = surface & (m.depth >= 0.0) & (m.depth < 1.0) & finite_v;
+            let o = dy * w + x;
+            vx[o] = if valid { m.v.x } else { 0.0 };
+            vy[o] = if valid { m.v.y } else { 0.0 };
+            zs[o] = if valid { m.depth } else { inf };
+            let repeat = input.earlier.iter().any(|e| e[base + x] == d);
+            let fresh = valid & !repeat;
+            let t = &mut aab[x >> 1];
+            let (lx, ly, hx, hy) = if fresh { (m.v.x, m.v.y, m.v.x, m.v.y) } else { (inf, inf, ninf, ninf) };
+            *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
+            let z = &mut zmin[x >> 1];
+            *z = fmin(*z, if fresh { m.depth } else { inf });
+            if let Some(o) = ob.as_deref_mut() {
+                // `BoundFrame::to_frame`: the same products and sums.
+                let u = Vec2::new(c * m.v.x + s * m.v.y, -s * m.v.x + c * m.v.y);
+                let (lx, ly, hx, hy) = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
+                let t = &mut o[x >> 1];
+                *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
+            }
+        }
+    }
+    let union = |texels: &[[f32; 4]]| {
+        let mut u = empty;
+        for t in texels {
+            u = [fmin(u[0], t[0]), fmin(u[1], t[1]), fmax(u[2], t[2]), fmax(u[3], t[3])];
+        }
+        Bound { lo: Vec2::new(u[0], u[1]), hi: Vec2::new(u[2], u[3]) }
+    };
+    let ob = ob.as_deref().map_or(Bound::EMPTY, |o| union(&o[ts..]));
+    RowStats { flags, surf_lo: Vec2::from(slo), surf_hi: Vec2::from(shi), aab: union(&aab[ts..]), ob }
+}
+
+/// The AVX2 build of [`row`]: eight pixels of both image rows per step (four texels), the
+/// motion deinterleaved from `Motion`'s (x, y, depth) layout with permutes, every operation
+/// the portable one's (compare-select min / max, the same products and sums), so the results
+/// are bit-identical; the columns past the last multiple of 8 go to [`row_impl`].
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    /// Deinterleaves eight `Motion`s starting at `m` into (x, y, depth) vectors.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn load_motion(m: *const Motion) -> (__m256, __m256, __m256) {
+        let p = m as *const f32;
+        let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
+        // a = x0 y0 z0 x1 y1 z1 x2 y2, b = z2 x3 y3 z3 x4 y4 z4 x5, c = y5 z5 x6 y6 z6 x7 y7 z7.
+        let i = |v: [i32; 8]| _mm256_setr_epi32(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]);
+        let pick = |a: __m256, b: __m256, c: __m256, ia: [i32; 8], ib: [i32; 8], ic: [i32; 8], mb: i32, mc: i32| {
+            let pa = _mm256_permutevar8x32_ps(a, i(ia));
+            let pb = _mm256_permutevar8x32_ps(b, i(ib));
+            let pc = _mm256_permutevar8x32_ps(c, i(ic));
+            let mb = _mm256_castsi256_ps(i(std::array::from_fn(|k| if mb >> k & 1 != 0 { -1 } else { 0 })));
+            let mc = _mm256_castsi256_ps(i(std::array::from_fn(|k| if mc >> k & 1 != 0 { -1 } else { 0 })));
+            _mm256_blendv_ps(_mm256_blendv_ps(pa, pb, mb), pc, mc)
+        };
+        let x = pick(
+            a,
+            b,
+            c,
+            [0, 3, 6, 0, 0, 0, 0, 0],
+            [0, 0, 0, 1, 4, 7, 0, 0],
+            [0, 0, 0, 0, 0, 0, 2, 5],
+            0b0011_1000,
+            0b1100_0000,
+        );
+        let y = pick(
+            a,
+            b,
+            c,
+            [1, 4, 7, 0, 0, 0, 0, 0],
+            [0, 0, 0, 2, 5, 0, 0, 0],
+            [0, 0, 0, 0, 0, 0, 3, 6],
+            0b0001_1000,
+            0b1110_0000,
+        );
+        let z = pick(
+            a,
+            b,
+            c,
+            [2, 5, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, 3, 6, 0, 0, 0],
+            [0, 0, 0, 0, 0, 1, 4, 7],
+            0b0001_1100,
+            0b1110_0000,
+        );
+        (x, y, z)
+    }
+
+    /// Compare-select min / max (`a < b ? a : b`), as `minps` / `maxps` compute them.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn vmin(a: __m256, b: __m256) -> __m256 {
+        _mm256_min_ps(a, b)
+    }
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn vmax(a: __m256, b: __m256) -> __m256 {
+        _mm256_max_ps(a, b)
+    }
+
+    /// One image row's eight pixels: the texel contributions (lx, ly, hx, hy, z) of the
+    /// axis-aligned and oriented frames, the plane values written, the flags and surface range.
+    struct Px {
+        aab: [__m256; 4],
+        ob: [__m256; 4],
+        z: __m256,
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowStats {
+        let w = input.w;
+        let w8 = w & !7;
+        if w8 == 0 {
+            return row_impl(input, ty, out, 0);
+        }
+        let RowOutput { vx, vy, z: zs, aab, mut ob, zmin } = out;
+        let rows = zs.len() / w;
+        let inf = _mm256_set1_ps(f32::INFINITY);
+        let ninf = _mm256_set1_ps(f32::NEG_INFINITY);
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
+        let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        let (c, s) = (_mm256_set1_ps(input.frame.axis.x), _mm256_set1_ps(input.frame.axis.y));
+        let ns = _mm256_set1_ps(-input.frame.axis.y);
+        let with_ob = ob.is_some();
+        let (mut flag_bad_d, mut flag_nan, mut flag_inf) = (zero, zero, zero);
+        let (mut slox, mut sloy, mut shix, mut shiy) = (inf, inf, ninf, ninf);
+        let mut gl = [inf, inf, ninf, ninf];
+        let mut go = [inf, inf, ninf, ninf];
+        let empty_px = Px { aab: [inf, inf, ninf, ninf], ob: [inf, inf, ninf, ninf], z: inf };
+        let pixels = |dy: usize,
+                      x: usize,
+                      flag_bad_d: &mut __m256,
+                      flag_nan: &mut __m256,
+                      flag_inf: &mut __m256,
+                      surf: &mut [__m256; 4],
+                      vx: &mut [f32],
+                      vy: &mut [f32],
+                      zs: &mut [f32]|
+         -> Px {
+            let i = (2 * ty + dy) * w + x;
+            let d = _mm256_loadu_ps(input.depth.as_ptr().add(i));
+            let (mx, my, mz) = load_motion(input.motion.as_ptr().add(i));
+            let fin = |v: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_and_ps(v, absmask), inf);
+            let finite_v = _mm256_and_ps(fin(mx), fin(my));
+            *flag_bad_d = _mm256_or_ps(*flag_bad_d, _mm256_cmp_ps::<_CMP_NLT_UQ>(_mm256_and_ps(d, absmask), inf));
+            let nan = _mm256_or_ps(
+                _mm256_or_ps(_mm256_cmp_ps::<_CMP_UNORD_Q>(mx, mx), _mm256_cmp_ps::<_CMP_UNORD_Q>(my, my)),
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(mz, mz),
+            );
+            *flag_nan = _mm256_or_ps(*flag_nan, nan);
+            *flag_inf = _mm256_or_ps(*flag_inf, _mm256_andnot_ps(finite_v, _mm256_castsi256_ps(_mm256_set1_epi32(-1))));
+            let surface = _mm256_cmp_ps::<_CMP_LT_OQ>(d, one);
+            let sv = _mm256_and_ps(surface, finite_v);
+            surf[0] = vmin(surf[0], _mm256_blendv_ps(inf, mx, sv));
+            surf[1] = vmin(surf[1], _mm256_blendv_ps(inf, my, sv));
+            surf[2] = vmax(surf[2], _mm256_blendv_ps(ninf, mx, sv));
+            surf[3] = vmax(surf[3], _mm256_blendv_ps(ninf, my, sv));
+            let valid = _mm256_and_ps(
+                _mm256_and_ps(surface, finite_v),
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(mz, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(mz, one)),
+            );
+            let o = dy * w + x;
+            _mm256_storeu_ps(vx.as_mut_ptr().add(o), _mm256_and_ps(valid, mx));
+            _mm256_storeu_ps(vy.as_mut_ptr().add(o), _mm256_and_ps(valid, my));
+            _mm256_storeu_ps(zs.as_mut_ptr().add(o), _mm256_blendv_ps(inf, mz, valid));
+            let mut repeat = zero;
+            for e in input.earlier {
+                repeat = _mm256_or_ps(repeat, _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_loadu_ps(e.as_ptr().add(i)), d));
+            }
+            let fresh = _mm256_andnot_ps(repeat, valid);
+            let aab = [
+                _mm256_blendv_ps(inf, mx, fresh),
+                _mm256_blendv_ps(inf, my, fresh),
+                _mm256_blendv_ps(ninf, mx, fresh),
+                _mm256_blendv_ps(ninf, my, fresh),
+            ];
+            let obv = if with_ob {
+                let ux = _mm256_add_ps(_mm256_mul_ps(c, mx), _mm256_mul_ps(s, my));
+                let uy = _mm256_add_ps(_mm256_mul_ps(ns, mx), _mm256_mul_ps(c, my));
+                [
+                    _mm256_blendv_ps(inf, ux, fresh),
+                    _mm256_blendv_ps(inf, uy, fresh),
+                    _mm256_blendv_ps(ninf, ux, fresh),
+                    _mm256_blendv_ps(ninf, uy, fresh),
+                ]
+            } else {
+                [inf, inf, ninf, ninf]
+            };
+            Px { aab, ob: obv, z: _mm256_blendv_ps(inf, mz, fresh) }
+        };
+        // The four texels of a pair of rows: min / max over the rows, then over lane pairs
+        // (each pair's value lands in both lanes), then transposed into [lo.x, lo.y, hi.x, hi.y].
+        let pair_min = |v: __m256| vmin(v, _mm256_permute_ps::<0b10_11_00_01>(v));
+        let pair_max = |v: __m256| vmax(v, _mm256_permute_ps::<0b10_11_00_01>(v));
+        let store_texels = |t: [__m256; 4], out: *mut f32| {
+            let a = _mm256_unpacklo_ps(t[0], t[1]); // lx0 ly0 lx0 ly0 | lx2 ly2 ..
+            let b = _mm256_unpacklo_ps(t[2], t[3]);
+            let c = _mm256_unpackhi_ps(t[0], t[1]); // lx1 ly1 .. | lx3 ly3 ..
+            let d = _mm256_unpackhi_ps(t[2], t[3]);
+            let s0 = _mm256_shuffle_ps::<0b01_00_01_00>(a, b); // t0 | t2
+            let s1 = _mm256_shuffle_ps::<0b01_00_01_00>(c, d); // t1 | t3
+            _mm256_storeu_ps(out, _mm256_permute2f128_ps::<0x20>(s0, s1));
+            _mm256_storeu_ps(out.add(8), _mm256_permute2f128_ps::<0x31>(s0, s1));
+        };
+        let even = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
+        let mut surf = [slox, sloy, shix, shiy];
+        for x in (0..w8).step_by(8) {
+            let p0 = pixels(0, x, &mut flag_bad_d, &mut flag_nan, &mut flag_inf, &mut surf, vx, vy, zs);
+            let p1 = if rows > 1 {
+                pixels(1, x, &mut flag_bad_d, &mut flag_nan, &mut flag_inf, &mut surf, vx, vy, zs)
+            } else {
+                Px { ..empty_px }
+            };
+            let t = [
+                pair_min(vmin(p0.aab[0], p1.aab[0])),
+                pair_min(vmin(p0.aab[1], p1.aab[1])),
+                pair_max(vmax(p0.aab[2], p1.aab[2])),
+                pair_max(vmax(p0.aab[3], p1.aab[3])),
+            ];
+            gl = [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])];
+            store_texels(t, aab.as_mut_ptr().add(x / 2) as *mut f32);
+            let zt = pair_min(vmin(p0.z, p1.z));
+            _mm_storeu_ps(zmin.as_mut_ptr().add(x / 2), _mm256_castps256_ps128(_mm256_permutevar8x32_ps(zt, even)));
+            if let Some(o) = ob.as_deref_mut() {
+                let t = [
+                    pair_min(vmin(p0.ob[0], p1.ob[0])),
+                    pair_min(vmin(p0.ob[1], p1.ob[1])),
+                    pair_max(vmax(p0.ob[2], p1.ob[2])),
+                    pair_max(vmax(p0.ob[3], p1.ob[3])),
+                ];
+                go = [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])];
+                store_texels(t, o.as_mut_ptr().add(x / 2) as *mut f32);
+            }
+        }
+        [slox, sloy, shix, shiy] = surf;
+        let hmin = |v: __m256| {
+            let a: [f32; 8] = std::mem::transmute(v);
+            a.into_iter().fold(f32::INFINITY, fmin)
+        };
+        let hmax = |v: __m256| {
+            let a: [f32; 8] = std::mem::transmute(v);
+            a.into_iter().fold(f32::NEG_INFINITY, fmax)
+        };
+        let bits = |v: __m256| _mm256_movemask_ps(v) != 0;
+        let flags = bits(flag_bad_d) as u8 | (bits(flag_nan) as u8) << 1 | (bits(flag_inf) as u8) << 2;
+        let bound =
+            |g: [__m256; 4]| Bound { lo: Vec2::new(hmin(g[0]), hmin(g[1])), hi: Vec2::new(hmax(g[2]), hmax(g[3])) };
+        let mut stats = RowStats {
+            flags,
+            surf_lo: Vec2::new(hmin(slox), hmin(sloy)),
+            surf_hi: Vec2::new(hmax(shix), hmax(shiy)),
+            aab: bound(gl),
+            ob: if with_ob { bound(go) } else { Bound::EMPTY },
+        };
+        if w8 < w {
+            let tail = row_impl(input, ty, RowOutput { vx, vy, z: zs, aab, ob, zmin }, w8);
+            stats = stats.merge(tail);
+        }
+        stats
+    }
+}
+
+/// A layer ready to be warped: its validated samples ([`SamplePlanes`], empty ones with an
+/// infinite target depth) and the min-max motion mipmap in the frame chosen for the bound kind
+/// (seed 000 Sec. 3.3). Build once per source/target pair and reuse across calls with different
+/// N, T, hole policies.
+pub struct PreparedLayer {
+    w: u32,
+    h: u32,
+    planes: SamplePlanes,
+    pyramid: MotionPyramid,
+    bound: BoundKind,
+    /// The level-1 buffer of the frame not chosen (kept for the next preparation).
+    oriented: Vec<[f32; 4]>,
+    surfaces: SurfaceMotion,
+}
+
+/// The motion range of a layer's surfaces (source depth `< 1`, whatever their target depth),
+/// measured by the preparation for the background hole fill's limits
+/// ([`crate::holes::BackgroundLimits`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceMotion {
+    /// Component-wise minimum motion of the surfaces (`+inf` if there are none).
+    pub lo: Vec2,
+    /// Component-wise maximum (`-inf` if there are none).
+    pub hi: Vec2,
+    /// `true` if every motion vector of the layer (surfaces and empty pixels) is finite.
+    pub all_finite: bool,
+}
+
+/// Buffers of an earlier preparation handed back for reuse (empty: allocate).
+#[derive(Default)]
+struct Spare {
+    planes: SamplePlanes,
+    level1: Vec<[f32; 4]>,
+    oriented: Vec<[f32; 4]>,
+    zmin: Vec<f32>,
+}
+
+/// `v` resized to `n` elements, reusing its allocation when it is large enough; new buffers are
+/// advised for huge pages. Every element is overwritten by the caller.
+fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
+    if v.capacity() >= n {
+        v.resize(n, fill);
+        v.truncate(n);
+        v
+    } else {
+        crate::pages::filled(n, fill)
+    }
+}
+
+impl PreparedLayer {
+    /// Validates `layer` (non-zero size, equal sizes, no NaN/infinite depth, no NaN motion) and
+    /// builds its mipmap for `bound` (Oriented: AAB or PCA frame, whichever global bound is
+    /// smaller). A sample is valid iff its source depth is `< 1`, its target depth is in
+    /// `[0, 1)` and its motion is finite (see [`crate::bounds`]).
+    pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
+        Self::prepare(layer, &[], bound, Spare::default())
+    }
+
+    /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
+    /// that the mipmap of layer `k > 0` leaves out samples that repeat an earlier layer's sample
+    /// at the same pixel (same source depth): a separately rendered ground layer (Sec. 3.4)
+    /// repeats every ground pixel that layer 0 already shows. Those samples stay in the layer
+    /// (walks may cross them) but do not widen its bounds or stop the pruning, so the later
+    /// layer is searched only where it holds something new — the hidden ground. Any solution on
+    /// a repeated sample is also a solution of the earlier layer, which searches it itself.
+    pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
+        Self::prepare_stack_recycling(layers, bound, Vec::new())
+    }
+
+    /// [`Self::prepare_stack`] into the buffers of `recycled` (an earlier frame's stack, layer
+    /// k's buffers for layer k): an engine's steady state. The result is the same bit for bit;
+    /// what it saves is faulting in and zeroing fresh pages every frame. Buffers too small for
+    /// this frame's layers are replaced.
+    pub fn prepare_stack_recycling(
+        layers: &[WarpLayer<'_>],
+        bound: BoundKind,
+        recycled: Vec<PreparedLayer>,
+    ) -> Result<Vec<Self>> {
+        let mut spares = recycled.into_iter().map(PreparedLayer::into_spare);
+        let mut out: Vec<PreparedLayer> = Vec::with_capacity(layers.len());
+        for (k, layer) in layers.iter().enumerate() {
+            if k > 0 {
+                let (w, h) = layer.depth.size();
+                if (w, h) != out[0].size() {
+                    return Err(Error::invalid(format!(
+                        "layer {k} is {w}x{h} but layer 0 is {}x{}",
+                        out[0].w, out[0].h
+                    )));
+                }
+            }
+            let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
+            out.push(Self::prepare(layer, &earlier, bound, spares.next().unwrap_or_default())?);
+        }
+        Ok(out)
+    }
+
+    /// Validation, sample planes and mipmap level 1 of one layer in ONE pass over its buffers
+    /// ([`row`] per pair of image rows), then the coarser levels from level 1. The oriented
+    /// frame (when a candidate) is reduced in the same pass and chosen by the global bounds of
+    /// both frames ([`crate::BoundKind::Oriented`]).
+    fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind, spare: Spare) -> Result<Self> {
+        layer.depth.check_nonempty("layer depth")?;
+        layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+        let (w, h) = layer.depth.size();
+        let (depth, motion) = (layer.depth.data(), layer.motion.data());
+        // A sample enters the mipmap if valid and not a repeat of an earlier layer's sample.
+        let fresh = |i: usize| {
+            let (d, m) = (depth[i], &motion[i]);
+            d < EMPTY_DEPTH
+                && m.depth >= 0.0
+                && m.depth < 1.0
+                && m.v.is_finite()
+                && !earlier.iter().any(|e| e[i] == depth[i])
+        };
+        let ob = match bound {
+            BoundKind::Oriented => pca_frame_by(w, h, 64, |i| fresh(i).then_some(motion[i].v)),
+            BoundKind::Global | BoundKind::Tight => BoundFrame::IDENTITY,
+        };
+        let need_ob = !ob.is_identity();
+        let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
+        let n = wu * h as usize;
+        let Spare { planes, level1, oriented, zmin } = spare;
+        let mut vx = reuse(planes.vx, n, 0.0);
+        let mut vy = reuse(planes.vy, n, 0.0);
+        let mut z = reuse(planes.z, n, 0.0);
+        let empty = Bound::EMPTY.to_texel_pub();
+        let mut aab = reuse(level1, lw * lh, empty);
+        let mut obd = if need_ob { reuse(oriented, lw * lh, empty) } else { oriented };
+        let mut zmin = reuse(zmin, lw * lh, 0.0);
+        let input = RowInput { depth, motion, earlier, w: wu, frame: ob };
+        let rows = vx
+            .par_chunks_mut(2 * wu)
+            .zip(vy.par_chunks_mut(2 * wu))
+            .zip(z.par_chunks_mut(2 * wu))
+            .zip(aab.par_chunks_mut(lw))
+            .zip(zmin.par_chunks_mut(lw));
+        let stats = if need_ob {
+            rows.zip(obd[..lw * lh].par_chunks_mut(lw))
+                .enumerate()
+                .map(|(ty, (((((vx, vy), z), aab), zmin), o))| {
+                    row(&input, ty, RowOutput { vx, vy, z, aab, ob: Some(o), zmin })
+                })
+                .reduce(|| RowStats::EMPTY, RowStats::merge)
+        } else {
+            rows.enumerate()
+                .map(|(ty, ((((vx, vy), z), aab), zmin))| row(&input, ty, RowOutput { vx, vy, z, aab, ob: None, zmin }))
+                .reduce(|| RowStats::EMPTY, RowStats::merge)
+        };
+        if stats.flags & 1 != 0 {
+            return Err(Error::invalid("layer depth holds NaN or infinite values"));
+        }
+        if stats.flags & 2 != 0 {
+            return Err(Error::invalid("motion buffer holds NaN values"));
+        }
+        // Oriented: the PCA frame if its global bound has the smaller (ex + 1)(ey + 1), the
+        // global bounds being the unions of the level-1 texels.
+        let use_ob = need_ob && stats.ob.pixel_area() < stats.aab.pixel_area();
+        let (pyramid, oriented) = if use_ob {
+            (MotionPyramid::from_level1(w, h, ob, obd, zmin), aab)
+        } else {
+            (MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin), obd)
+        };
+        let surfaces = SurfaceMotion { lo: stats.surf_lo, hi: stats.surf_hi, all_finite: stats.flags & 4 == 0 };
+        Ok(PreparedLayer { w, h, planes: SamplePlanes { vx, vy, z }, pyramid, bound, oriented, surfaces })
+    }
+
+    /// Image size.
+    pub fn size(&self) -> (u32, u32) {
+        (self.w, self.h)
+    }
+    /// The large buffers, for [`Self::prepare_stack_recycling`].
+    fn into_spare(self) -> Spare {
+        let (level1, zmin) = self.pyramid.into_level1();
+        Spare { planes: self.planes, level1, oriented: self.oriented, zmin }
+    }
+    /// The motion range of the layer's surfaces (see [`SurfaceMotion`]).
+    pub fn surfaces(&self) -> SurfaceMotion {
+        self.surfaces
+    }
+    /// The layer's motion mipmap.
+    pub fn pyramid(&self) -> &MotionPyramid {
+        &self.pyramid
+    }
+    /// The bound kind the mipmap was built for.
+    pub fn bound_kind(&self) -> BoundKind {
+        self.bound
+    }
+    /// The validated samples (empty ones have an infinite depth).
+    pub fn planes(&self) -> &SamplePlanes {
+        &self.planes
+    }
+    /// A sampler of the validated samples with `params`' sampling and motion scale.
+    pub fn sampler(&self, params: &WarpParams, tag: u32) -> LayerSampler<'_> {
+        LayerSampler::new(&self.planes, self.w, self.h, params.sampling, tag).with_scale(params.motion_scale)
+    }
+}
+
+/// Validates a layer and returns its samples with empty ones (source depth `>= 1`, target
+/// depth outside `[0, 1)`, infinite motion) marked by an infinite target depth: the reference
+/// the input of the forward baselines, and the reference the one-pass preparation is tested
+/// against.
+pub(crate) fn validated_samples(layer: &WarpLayer<'_>) -> Result<Vec<Motion>> {
+    layer.depth.check_nonempty("layer depth")?;
+    layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+    if layer.depth.data().iter().any(|d| !d.is_finite()) {
+        return Err(Error::invalid("layer depth holds NaN or infinite values"));
+    }
+    if layer.motion.data().iter().any(|m| m.v.is_nan() || m.depth.is_nan()) {
+        return Err(Error::invalid("motion buffer holds NaN values"));
+    }
+    Ok(layer
+        .depth
+        .data()
+        .iter()
+        .zip(layer.motion.data())
+        .map(|(&d, m)| {
+            if d < EMPTY_DEPTH && m.depth >= 0.0 && m.depth < 1.0 && m.v.is_finite() {
+                *m
+            } else {
+                Motion { v: Vec2::ZERO, depth: f32::INFINITY }
+            }
+        })
+        .collect())
+}
