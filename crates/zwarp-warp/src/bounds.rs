@@ -172,14 +172,12 @@ pub struct TightBound {
     pub min_depth: f32,
 }
 
+/// One mip level: its size and where its texels start in the pyramid's buffers.
+#[derive(Clone, Copy, Debug)]
 struct Level {
     w: u32,
     h: u32,
-    /// Min-max motion per texel.
-    data: Vec<[f32; 4]>,
-    /// Minimal target depth of the valid samples per texel (`+inf` if none). Kept apart: only
-    /// the final look-up of a tightening reads it.
-    zmin: Vec<f32>,
+    off: usize,
 }
 
 /// Min-max motion mipmap (Sec. 3.3) of one motion buffer in a [`BoundFrame`]. Levels `1..=top`
@@ -192,6 +190,12 @@ pub struct MotionPyramid {
     frame: BoundFrame,
     /// `levels[i]` is mip level `i + 1`.
     levels: Vec<Level>,
+    /// Min-max motion per texel, `[lo.x, lo.y, hi.x, hi.y]`, all levels one after the other
+    /// (level 1 first): one buffer, so one preparation's allocation serves the next.
+    data: Vec<[f32; 4]>,
+    /// Minimal target depth of the valid samples per texel (`+inf` if none), same layout. Kept
+    /// apart: only the pruning of later layers reads it.
+    zmin: Vec<f32>,
 }
 
 /// `ceil(log2(n))` for `n >= 1`, 0 for `n <= 1`.
@@ -257,30 +261,42 @@ impl MotionPyramid {
         Self::from_level1(w, h, frame, data, zmin)
     }
 
-    /// Level 1's buffers (min-max texels and min depths), for reuse by the next preparation.
-    pub(crate) fn into_level1(self) -> (Vec<[f32; 4]>, Vec<f32>) {
-        match self.levels.into_iter().next() {
-            Some(l) => (l.data, l.zmin),
-            None => (Vec::new(), Vec::new()),
-        }
+    /// The texel buffers (every level), for reuse by the next preparation.
+    pub(crate) fn into_buffers(self) -> (Vec<[f32; 4]>, Vec<f32>) {
+        (self.data, self.zmin)
     }
 
-    /// Builds levels `2..=top` over a given level 1 (`ceil(w / 2) x ceil(h / 2)` min-max texels
-    /// in `frame` and their min depths), e.g. from the fused pass of
-    /// `PreparedLayer::prepare_stack` that validates the samples and reduces them at once.
-    pub(crate) fn from_level1(w: u32, h: u32, frame: BoundFrame, data: Vec<[f32; 4]>, zmin: Vec<f32>) -> Self {
+    /// Builds levels `2..=top` over a given level 1 (the first `ceil(w / 2) x ceil(h / 2)`
+    /// min-max texels of `data` in `frame`, and their min depths; anything after them is
+    /// overwritten), e.g. from the fused pass of `PreparedLayer::prepare_stack` that validates
+    /// the samples and reduces them at once.
+    pub(crate) fn from_level1(w: u32, h: u32, frame: BoundFrame, mut data: Vec<[f32; 4]>, mut zmin: Vec<f32>) -> Self {
         let top = ceil_log2(w.max(h)).max(1);
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
-        debug_assert_eq!(data.len(), lw as usize * lh as usize);
+        let n1 = lw as usize * lh as usize;
+        debug_assert!(data.len() >= n1 && zmin.len() >= n1);
         let mut levels: Vec<Level> = Vec::with_capacity(top as usize);
-        levels.push(Level { w: lw, h: lh, data, zmin });
+        levels.push(Level { w: lw, h: lh, off: 0 });
+        let mut total = n1;
         for _ in 1..top {
-            let prev = levels.last().expect("level 1 exists");
+            let prev = *levels.last().expect("level 1 exists");
             let (lw, lh) = (prev.w.div_ceil(2), prev.h.div_ceil(2));
-            let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
-            let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
-            data.par_chunks_mut(lw as usize).zip(zmin.par_chunks_mut(lw as usize)).enumerate().for_each(
-                |(ty, (row, zrow))| {
+            levels.push(Level { w: lw, h: lh, off: total });
+            total += lw as usize * lh as usize;
+        }
+        data.resize(total, Bound::EMPTY.to_texel());
+        zmin.resize(total, f32::INFINITY);
+        for k in 1..levels.len() {
+            let (prev, cur) = (levels[k - 1], levels[k]);
+            let (below, above) = data.split_at_mut(cur.off);
+            let (zbelow, zabove) = zmin.split_at_mut(cur.off);
+            let n = cur.w as usize * cur.h as usize;
+            let (pdata, pz) = (&below[prev.off..], &zbelow[prev.off..]);
+            above[..n]
+                .par_chunks_mut(cur.w as usize)
+                .zip(zabove[..n].par_chunks_mut(cur.w as usize))
+                .enumerate()
+                .for_each(|(ty, (row, zrow))| {
                     let y0 = ty * 2;
                     let y1 = (y0 + 2).min(prev.h as usize);
                     for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate() {
@@ -290,7 +306,7 @@ impl MotionPyramid {
                         let mut z = f32::INFINITY;
                         for y in y0..y1 {
                             let r = y * prev.w as usize + x0..y * prev.w as usize + x1;
-                            for (t, pz) in prev.data[r.clone()].iter().zip(&prev.zmin[r]) {
+                            for (t, pz) in pdata[r.clone()].iter().zip(&pz[r]) {
                                 b = b.union(&Bound::from_texel(t));
                                 z = z.min(*pz);
                             }
@@ -298,12 +314,16 @@ impl MotionPyramid {
                         *out = b.to_texel();
                         *zout = z;
                     }
-                },
-            );
-            levels.push(Level { w: lw, h: lh, data, zmin });
+                });
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
-        MotionPyramid { width: w, height: h, frame, levels }
+        MotionPyramid { width: w, height: h, frame, levels, data, zmin }
+    }
+
+    /// The raw layout for the AVX2 tightening: texels, and per level (1..=top) its width,
+    /// height and first texel.
+    pub(crate) fn raw(&self) -> (&[[f32; 4]], &[f32], impl Iterator<Item = (u32, u32, usize)> + '_) {
+        (&self.data, &self.zmin, self.levels.iter().map(|l| (l.w, l.h, l.off)))
     }
 
     /// Image size the pyramid was built for.
@@ -326,7 +346,7 @@ impl MotionPyramid {
     /// The texel `(tx, ty)` of mip level `level` (`1..=top_level`), as a bound.
     pub fn texel(&self, level: u32, tx: u32, ty: u32) -> Bound {
         let l = &self.levels[(level.clamp(1, self.top_level()) - 1) as usize];
-        Bound::from_texel(&l.data[ty as usize * l.w as usize + tx as usize])
+        Bound::from_texel(&self.data[l.off + ty as usize * l.w as usize + tx as usize])
     }
     /// The global bound of all valid motion (top texel, Fig. 5 `texture(vec2(0), MAX_LOD)`);
     /// empty if no sample is valid.
@@ -356,9 +376,10 @@ impl MotionPyramid {
         let (ty0, ty1) = ((iy0 >> level).min(l.h - 1) as usize, (iy1 >> level).min(l.h - 1) as usize);
         debug_assert!(tx1 - tx0 <= 1 && ty1 - ty0 <= 1);
         let lw = l.w as usize;
-        // SAFETY: tx0, tx1 <= l.w - 1 and ty0, ty1 <= l.h - 1 (clamped above), and
-        // `l.data.len() == l.w * l.h` (every level is built with exactly that many texels).
-        let t = |x: usize, y: usize| Vec4::from_array(unsafe { *l.data.get_unchecked(y * lw + x) });
+        let data = &self.data[l.off..l.off + lw * l.h as usize];
+        // SAFETY: tx0, tx1 <= l.w - 1 and ty0, ty1 <= l.h - 1 (clamped above), and `data` is
+        // the level's `l.w * l.h` texels.
+        let t = |x: usize, y: usize| Vec4::from_array(unsafe { *data.get_unchecked(y * lw + x) });
         let (a, b, c, d) = (t(tx0, ty0), t(tx1, ty0), t(tx0, ty1), t(tx1, ty1));
         crate::stats::count(crate::stats::Counter::MipTexels, 4);
         // Four lanes at once: lanes 0-1 (lo) take the min, lanes 2-3 (hi) the max. Texels hold
@@ -379,7 +400,7 @@ impl MotionPyramid {
         let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
         let mut b = Bound::EMPTY;
         for ty in ty0..=ty1 {
-            let row = &l.data[ty as usize * l.w as usize..];
+            let row = &self.data[l.off + ty as usize * l.w as usize..];
             for t in &row[tx0 as usize..=tx1 as usize] {
                 b = b.union(&Bound::from_texel(t));
             }
@@ -398,7 +419,7 @@ impl MotionPyramid {
         let mut z = f32::INFINITY;
         crate::stats::count(crate::stats::Counter::DepthTexels, ((tx1 - tx0 + 1) * (ty1 - ty0 + 1)) as u64);
         for ty in ty0..=ty1 {
-            let row = &l.zmin[ty as usize * l.w as usize..];
+            let row = &self.zmin[l.off + ty as usize * l.w as usize..];
             for t in &row[tx0 as usize..=tx1 as usize] {
                 z = z.min(*t);
             }

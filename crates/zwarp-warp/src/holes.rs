@@ -65,41 +65,68 @@ pub fn dilate_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radiu
 /// of the eight directions within `radius` ([`FillRule`] says which holes and which neighbour).
 /// Only converged pixels are read, so the result does not depend on the processing order.
 pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius: u32, rule: FillRule) {
+    let holes = hole_list(state);
+    fill_holes_listed(depth, state, &holes, radius, rule);
+}
+
+/// The [`PixelState::Hole`] pixels of `state` (row-major indices, ascending).
+pub(crate) fn hole_list(state: &Image<PixelState>) -> Vec<u32> {
+    let w = state.width().max(1) as usize;
+    state
+        .data()
+        .par_chunks(w * 16)
+        .enumerate()
+        .flat_map_iter(|(c, chunk)| {
+            let base = (c * w * 16) as u32;
+            chunk.iter().enumerate().filter(|(_, s)| **s == PixelState::Hole).map(move |(i, _)| base + i as u32)
+        })
+        .collect()
+}
+
+/// [`fill_holes`] of the listed holes (a superset of nothing else: every listed pixel must be a
+/// hole): the fills are decided from the unchanged buffers (only converged pixels are read,
+/// only holes are written, so the order does not matter), then written.
+fn fill_holes_listed(
+    depth: &mut Image<f32>,
+    state: &mut Image<PixelState>,
+    holes: &[u32],
+    radius: u32,
+    rule: FillRule,
+) {
     let (w, h) = depth.size();
-    if w == 0 || h == 0 {
+    if w == 0 || h == 0 || holes.is_empty() {
         return;
     }
-    let src_depth = depth.data().to_vec();
-    let src_state = state.data().to_vec();
     let r = radius as i64;
-    depth.data_mut().par_chunks_mut(w as usize).zip(state.data_mut().par_chunks_mut(w as usize)).enumerate().for_each(
-        |(y, (drow, srow))| {
-            for x in 0..w as usize {
-                if srow[x] != PixelState::Hole {
-                    continue;
-                }
+    let (dd, sd) = (depth.data(), state.data());
+    let fills: Vec<(u32, f32)> = holes
+        .par_chunks(1024)
+        .flat_map_iter(|chunk| {
+            chunk.iter().filter_map(|&i| {
+                let (x, y) = ((i % w) as i64, (i / w) as i64);
                 // Nearest converged pixel along +d and -d within the radius.
                 let probe = |dx: i64, dy: i64| -> Option<(i64, f32)> {
                     for k in 1..=r {
-                        let (xx, yy) = (x as i64 + dx * k, y as i64 + dy * k);
+                        let (xx, yy) = (x + dx * k, y + dy * k);
                         if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
                             return None;
                         }
-                        let i = yy as usize * w as usize + xx as usize;
-                        if src_state[i] == PixelState::Converged {
-                            return Some((k, src_depth[i]));
+                        let j = yy as usize * w as usize + xx as usize;
+                        if sd[j] == PixelState::Converged {
+                            return Some((k, dd[j]));
                         }
                     }
                     None
                 };
-                let fill = hole_fill(rule, probe);
-                if let Some(z) = fill {
-                    drow[x] = z;
-                    srow[x] = PixelState::Filled;
-                }
-            }
-        },
-    );
+                hole_fill(rule, probe).map(|z| (i, z))
+            })
+        })
+        .collect();
+    let (dd, sd) = (depth.data_mut(), state.data_mut());
+    for (i, z) in fills {
+        dd[i as usize] = z;
+        sd[i as usize] = PixelState::Filled;
+    }
 }
 
 /// The four probe directions of [`fill_holes`] (each probed both ways): horizontal, vertical and
@@ -233,6 +260,38 @@ impl BackgroundLimits {
             }
             (lo, hi) = (lo.min(l_lo), hi.max(l_hi));
         }
+        Ok(Self::from_range(lo, hi, w, h, m, radius))
+    }
+
+    /// The limits from the motion range of the surfaces that the layers' preparation measured
+    /// ([`crate::PreparedLayer::surfaces`]): the same values as [`Self::of_multisampled`] on the
+    /// layers `prepared` was built from, without another pass over them.
+    pub fn of_prepared(prepared: &[crate::PreparedLayer], w: u32, h: u32, m: u32, radius: u32) -> Result<Self> {
+        if prepared.is_empty() {
+            return Err(Error::invalid("fill_background needs at least one source layer"));
+        }
+        if !(1..=64).contains(&radius) {
+            return Err(Error::invalid(format!("fill_background: radius must be in 1..=64, got {radius}")));
+        }
+        let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
+        for (k, l) in prepared.iter().enumerate() {
+            let (dw, dh) = l.size();
+            if (dw as u64, dh as u64) != (w as u64 * m as u64, h as u64 * m as u64) {
+                return Err(Error::invalid(format!(
+                    "fill_background: source layer {k} is {dw}x{dh} but the warped buffer is {w}x{h}"
+                )));
+            }
+            let s = l.surfaces();
+            if !s.all_finite {
+                return Err(Error::invalid(format!("fill_background: source layer {k} holds non-finite motion")));
+            }
+            (lo, hi) = (lo.min(s.lo), hi.max(s.hi));
+        }
+        Ok(Self::from_range(lo, hi, w, h, m, radius))
+    }
+
+    /// The limits from the surfaces' motion range `[lo, hi]` (source samples).
+    fn from_range(lo: Vec2, hi: Vec2, w: u32, h: u32, m: u32, radius: u32) -> Self {
         // Source samples -> target pixels (m = 1: unchanged).
         let (range, largest) = if lo.x <= hi.x {
             ((hi - lo).max_element() / m as f32, lo.abs().max(hi.abs()).max_element() / m as f32)
@@ -241,7 +300,7 @@ impl BackgroundLimits {
         };
         let bracket = (range.ceil().min(64.0) as u32 + 1).min(radius);
         let reach = (largest.ceil().min(u32::MAX as f32 - 1.0) as u32).saturating_add(1).min(w.max(h));
-        Ok(BackgroundLimits { bracket, reach })
+        BackgroundLimits { bracket, reach }
     }
 }
 
@@ -296,40 +355,92 @@ pub fn fill_background(
     search: &SearchParams,
 ) -> Result<()> {
     let (w, h) = out.depth.size();
-    let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
     let m = source_multisample(layers, w);
     let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
-    if w == 0 || h == 0 {
+    fill_background_with(layers, out, limits, search)
+}
+
+/// [`fill_background`] with the limits already measured, e.g. by
+/// [`BackgroundLimits::of_prepared`] from the layers' preparation (which read every sample
+/// already): the fill then reads only the holes and their neighbourhoods. `layers` must have
+/// passed [`BackgroundLimits::of_multisampled`]'s checks (sizes, finite motion).
+pub fn fill_background_with(
+    layers: &[WarpLayer<'_>],
+    out: &mut WarpOutput,
+    limits: BackgroundLimits,
+    search: &SearchParams,
+) -> Result<()> {
+    let (w, h) = out.depth.size();
+    if w == 0 || h == 0 || layers.is_empty() {
+        return Ok(());
+    }
+    let (sw, sh) = layers[0].depth.size();
+    let m = source_multisample(layers, w);
+    if (sw, sh) != (w * m, h * m) || layers.iter().any(|l| l.depth.size() != (sw, sh) || l.motion.size() != (sw, sh)) {
+        return Err(Error::invalid(format!(
+            "fill_background: the source layers are not {m} x the {w}x{h} warped buffer on both axes"
+        )));
+    }
+    let holes = hole_list(&out.state);
+    if holes.is_empty() {
         return Ok(());
     }
     // 1. Holes that see the source's empty background.
     let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w: sw, h: sh };
     let mf = m as f32;
-    out.depth
-        .data_mut()
-        .par_chunks_mut(w as usize)
-        .zip(out.state.data_mut().par_chunks_mut(w as usize))
-        .enumerate()
-        .for_each(|(y, (drow, srow))| {
-            for x in 0..w as usize {
-                if srow[x] != PixelState::Hole {
-                    continue;
-                }
-                // The target pixel's centre in source samples, and the sample it falls in.
-                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * mf;
-                let (qx, qy) = (p.x as usize, p.y as usize);
-                let seeds = background_seeds(p, bg.motion[qy * sw as usize + qx].v, sw, sh);
-                if let Some(c) = fixed_point_search(&bg, p, &seeds, search) {
-                    drow[x] = c.depth;
-                    srow[x] = PixelState::Converged;
+    let sky: Vec<bool> = holes
+        .par_chunks(256)
+        .flat_map_iter(|chunk| {
+            let mut seen = vec![false; chunk.len()];
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::has_avx2() && layers.len() <= 8 {
+                let depths: Vec<&[f32]> = layers.iter().map(|l| l.depth.data()).collect();
+                while done + 8 <= chunk.len() {
+                    let idx: [u32; 8] = chunk[done..done + 8].try_into().expect("eight");
+                    // SAFETY: AVX2 checked; the buffers are sw * sh long.
+                    let bits =
+                        unsafe { crate::simd_warp::background8(&depths, bg.motion, sw, sh, w, mf, &idx, search) };
+                    for (k, s) in seen[done..done + 8].iter_mut().enumerate() {
+                        *s = bits >> k & 1 != 0;
+                    }
+                    done += 8;
                 }
             }
-        });
+            for (k, &i) in chunk.iter().enumerate().skip(done) {
+                let (x, y) = (i % w, i / w);
+                seen[k] = background_converges(&bg, x, y, mf, search);
+            }
+            seen
+        })
+        .collect();
+    {
+        let (dd, sd) = (out.depth.data_mut(), out.state.data_mut());
+        for (&i, &s) in holes.iter().zip(&sky) {
+            if s {
+                dd[i as usize] = EMPTY_DEPTH;
+                sd[i as usize] = PixelState::Converged;
+            }
+        }
+    }
+    let holes: Vec<u32> = holes.into_iter().zip(sky).filter(|(_, s)| !s).map(|(i, _)| i).collect();
     // 2. Bracketed holes.
-    fill_holes(&mut out.depth, &mut out.state, limits.bracket, FillRule::Background);
+    fill_holes_listed(&mut out.depth, &mut out.state, &holes, limits.bracket, FillRule::Background);
     // 3. Holes open to the image border.
-    fill_border_holes(&mut out.depth, &mut out.state, limits.reach);
+    let holes: Vec<u32> = holes.into_iter().filter(|&i| out.state.data()[i as usize] == PixelState::Hole).collect();
+    fill_border_listed(&mut out.depth, &mut out.state, &holes, limits.reach);
     Ok(())
+}
+
+/// Step 1 of [`fill_background`] for target pixel `(x, y)`: does the search on the empty
+/// background converge? (Its candidate is always the far depth.)
+#[inline]
+fn background_converges(bg: &EmptyBackground<'_>, x: u32, y: u32, mf: f32, search: &SearchParams) -> bool {
+    // The target pixel's centre in source samples, and the sample it falls in.
+    let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * mf;
+    let (qx, qy) = (p.x as usize, p.y as usize);
+    let seeds = background_seeds(p, bg.motion[qy * bg.w as usize + qx].v, bg.w, bg.h);
+    fixed_point_search(bg, p, &seeds, search).is_some()
 }
 
 /// Step 3 of [`fill_background`]: holes whose row or column reaches the image border within
@@ -337,57 +448,70 @@ pub fn fill_background(
 /// the nearest of up to four such pixels wins (ties: the farther depth). Only converged pixels
 /// are read, so the result does not depend on the processing order.
 pub fn fill_border_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, reach: u32) {
+    let holes = hole_list(state);
+    fill_border_listed(depth, state, &holes, reach);
+}
+
+/// [`fill_border_holes`] of the listed holes: only a hole within `reach` of a border can be
+/// filled, from a converged pixel within `reach` of it, so only the border strips `2 reach`
+/// wide are scanned for each row's and column's first and last converged pixel.
+fn fill_border_listed(depth: &mut Image<f32>, state: &mut Image<PixelState>, holes: &[u32], reach: u32) {
     let (w, h) = depth.size();
     let (wu, hu) = (w as usize, h as usize);
-    let conv = |i: usize| state.data()[i] == PixelState::Converged;
+    let reach = reach as usize;
+    let holes: Vec<u32> = holes
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (x, y) = ((i % w) as usize, (i / w) as usize);
+            x < reach || y < reach || wu - 1 - x < reach || hu - 1 - y < reach
+        })
+        .collect();
+    if holes.is_empty() {
+        return;
+    }
+    let (dd, sd) = (depth.data(), state.data());
+    let conv = |i: usize| sd[i] == PixelState::Converged;
     // The run from a hole to the border holds no converged pixel exactly when the hole lies
     // before the first (after the last) converged pixel of its row or column, and then that
-    // pixel is the nearest converged one inwards: one scan per row and column instead of a
-    // walk per hole (the walk is the WGSL twin's; same result).
-    let rows: Vec<(Option<usize>, Option<usize>)> = (0..hu)
-        .into_par_iter()
-        .map(|y| ((0..wu).find(|&x| conv(y * wu + x)), (0..wu).rev().find(|&x| conv(y * wu + x))))
-        .collect();
-    let cols: Vec<(Option<usize>, Option<usize>)> = (0..wu)
-        .into_par_iter()
-        .map(|x| ((0..hu).find(|&y| conv(y * wu + x)), (0..hu).rev().find(|&y| conv(y * wu + x))))
-        .collect();
-    let src_depth = depth.data().to_vec();
-    let reach = reach as usize;
-    depth.data_mut().par_chunks_mut(wu).zip(state.data_mut().par_chunks_mut(wu)).enumerate().for_each(
-        |(y, (drow, srow))| {
-            for x in 0..wu {
-                if srow[x] != PixelState::Hole {
+    // pixel is the nearest converged one inwards. A usable one lies within 2 reach of the
+    // border; a run that finds none there stands for "none usable".
+    let span = (2 * reach).min(wu.max(hu));
+    let first_in = |n: usize, at: &dyn Fn(usize) -> usize| (0..span.min(n)).find(|&k| conv(at(k)));
+    let last_in = |n: usize, at: &dyn Fn(usize) -> usize| (0..span.min(n)).map(|k| n - 1 - k).find(|&k| conv(at(k)));
+    let fills: Vec<(u32, f32)> = holes
+        .par_iter()
+        .filter_map(|&i| {
+            let (x, y) = ((i % w) as usize, (i / w) as usize);
+            let row = |k: usize| y * wu + k;
+            let col = |k: usize| k * wu + x;
+            // (distance to the border, the converged pixel inwards and its distance) for the
+            // left, right, top and bottom borders.
+            let sides = [
+                (x, first_in(wu, &row).filter(|&c| c > x).map(|c| (c - x, y * wu + c))),
+                (wu - 1 - x, last_in(wu, &row).filter(|&c| c < x).map(|c| (x - c, y * wu + c))),
+                (y, first_in(hu, &col).filter(|&c| c > y).map(|c| (c - y, c * wu + x))),
+                (hu - 1 - y, last_in(hu, &col).filter(|&c| c < y).map(|c| (y - c, c * wu + x))),
+            ];
+            let mut best: Option<(usize, f32)> = None;
+            for (to_border, inward) in sides {
+                let Some((k, j)) = inward else { continue };
+                if to_border >= reach || k > reach {
                     continue;
                 }
-                let (first_x, last_x) = rows[y];
-                let (first_y, last_y) = cols[x];
-                // (distance to the border, the converged pixel inwards and its distance) for
-                // the left, right, top and bottom borders.
-                let sides = [
-                    (x, first_x.filter(|&c| c > x).map(|c| (c - x, y * wu + c))),
-                    (wu - 1 - x, last_x.filter(|&c| c < x).map(|c| (x - c, y * wu + c))),
-                    (y, first_y.filter(|&c| c > y).map(|c| (c - y, c * wu + x))),
-                    (hu - 1 - y, last_y.filter(|&c| c < y).map(|c| (y - c, c * wu + x))),
-                ];
-                let mut best: Option<(usize, f32)> = None;
-                for (to_border, inward) in sides {
-                    let Some((k, i)) = inward else { continue };
-                    if to_border >= reach || k > reach {
-                        continue;
-                    }
-                    let z = src_depth[i];
-                    if best.is_none_or(|(bk, bz)| k < bk || (k == bk && z > bz)) {
-                        best = Some((k, z));
-                    }
-                }
-                if let Some((_, z)) = best {
-                    drow[x] = z;
-                    srow[x] = PixelState::Filled;
+                let z = dd[j];
+                if best.is_none_or(|(bk, bz)| k < bk || (k == bk && z > bz)) {
+                    best = Some((k, z));
                 }
             }
-        },
-    );
+            best.map(|(_, z)| (i, z))
+        })
+        .collect();
+    let (dd, sd) = (depth.data_mut(), state.data_mut());
+    for (i, z) in fills {
+        dd[i as usize] = z;
+        sd[i as usize] = PixelState::Filled;
+    }
 }
 
 /// AWOC fill (Sec. 5.3) for one pixel: the nearest valid target depth among `fetch(q)` at the

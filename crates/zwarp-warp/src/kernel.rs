@@ -105,6 +105,14 @@ impl TileBounds {
     }
 }
 
+/// Two output rows of a band (the second absent at the band's end), for the lanes.
+pub(crate) struct Rows<'a> {
+    pub depth: [&'a mut [f32]; 2],
+    pub state: [&'a mut [PixelState]; 2],
+    pub source: [Option<&'a mut [SourcePos]>; 2],
+    pub two: bool,
+}
+
 /// The warp kernel over prepared layers: the bound hierarchy and the per-pixel search.
 pub(crate) struct Kernel<'a> {
     pub layers: &'a [PreparedLayer],
@@ -332,6 +340,17 @@ impl<'a> Kernel<'a> {
         self.pixel_from(x, y, b, seeds, 0, None, None)
     }
 
+    /// `true` if resolved tiles of layer 0 can take the AVX2 single-seed search
+    /// ([`crate::simd_warp`]): the CPU has AVX2 and the warp uses what that build implements
+    /// (stratified seeds, adaptive sampling, unit motion scale).
+    fn lanes_apply(&self) -> bool {
+        crate::simd::has_avx2()
+            && self.params.seeding == SeedStrategy::Stratified
+            && self.params.sampling == crate::Sampling::Adaptive
+            && self.params.motion_scale == Vec2::ONE
+            && self.params.holes != HolePolicy::Awoc
+    }
+
     /// Warps the band of tile rows `ty * TILE ..` (the slices hold those rows).
     pub fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
         let w = self.tw as usize;
@@ -339,20 +358,269 @@ impl<'a> Kernel<'a> {
         let y0 = ty * TILE;
         let mut memo = TileBounds::new(self.layers.len());
         let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
+        #[cfg(target_arch = "x86_64")]
+        let lanes = if self.lanes_apply() {
+            let views: Option<Vec<_>> =
+                self.layers.iter().map(|l| crate::simd_warp::PyramidView::new(l.pyramid())).collect();
+            views.map(|v| (self.lane_search(), v))
+        } else {
+            None
+        };
+        // The tile stage of every tile of the band and every layer, eight tiles at a time.
+        #[cfg(target_arch = "x86_64")]
+        let stages: Option<Vec<Vec<Option<StageBound>>>> = lanes
+            .as_ref()
+            .map(|(_, pvs)| (0..self.layers.len()).map(|k| self.tile_stages(&pvs[k], k, ty, rows)).collect());
         for x0 in (0..self.tw).step_by(TILE as usize) {
             memo.reset(x0, y0);
+            #[cfg(target_arch = "x86_64")]
+            if let Some(st) = &stages {
+                for (k, s) in st.iter().enumerate() {
+                    memo.memo[k] = Some(s[(x0 / TILE) as usize]);
+                }
+            }
             let x1 = (x0 + TILE).min(self.tw);
+            let mut write = |x: u32, y: u32, (z, st, src): (f32, PixelState, SourcePos)| {
+                crate::stats::count(crate::stats::Counter::Pixels, 1);
+                let i = (y - y0) as usize * w + x as usize;
+                depth[i] = z;
+                state[i] = st;
+                if let Some(s) = source.as_deref_mut() {
+                    s[i] = src;
+                }
+            };
+            #[cfg(target_arch = "x86_64")]
+            if let Some((ls, pvs)) = &lanes {
+                // Two rows of the tile per eight lanes.
+                for yy in (y0..y0 + rows).step_by(2) {
+                    let r = (yy - y0) as usize * w;
+                    let (d0, d1) = depth[r..].split_at_mut(w);
+                    let (s0, s1) = state[r..].split_at_mut(w);
+                    let (src0, src1) = match source.as_deref_mut() {
+                        Some(src) => {
+                            let (a, b) = src[r..].split_at_mut(w);
+                            (Some(a), Some(b))
+                        }
+                        None => (None, None),
+                    };
+                    let two = yy + 1 < y0 + rows;
+                    let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
+                    // SAFETY: `lanes_apply` checked AVX2; the planes are `w * h` long.
+                    unsafe { self.lanes8(ls, pvs, &mut memo, &mut seeds, x0, x1, yy, out) };
+                }
+                continue;
+            }
             for y in y0..y0 + rows {
                 for x in x0..x1 {
-                    let (z, st, src) = self.pixel(x, y, &mut memo, &mut seeds);
-                    crate::stats::count(crate::stats::Counter::Pixels, 1);
-                    let i = (y - y0) as usize * w + x as usize;
-                    depth[i] = z;
-                    state[i] = st;
-                    if let Some(s) = source.as_deref_mut() {
-                        s[i] = src;
+                    let px = self.pixel(x, y, &mut memo, &mut seeds);
+                    write(x, y, px);
+                }
+            }
+        }
+    }
+
+    /// The tile stage ([`Self::start`]) of layer `k` for every tile of band `ty` (`rows` rows),
+    /// with the AVX2 build eight tiles at a time.
+    #[cfg(target_arch = "x86_64")]
+    fn tile_stages(
+        &self,
+        pv: &crate::simd_warp::PyramidView<'_>,
+        k: usize,
+        ty: u32,
+        rows: u32,
+    ) -> Vec<Option<StageBound>> {
+        let y0 = ty * TILE;
+        let y1 = y0 + rows - 1;
+        let n = self.tw.div_ceil(TILE) as usize;
+        let start = self.layers[k].pyramid().global().scaled(self.params.motion_scale);
+        let (ly, hy) = (self.target_pos(0, y0).y, self.target_pos(0, y1).y);
+        let mut out = Vec::with_capacity(n);
+        for t0 in (0..n).step_by(8) {
+            let mut lx = [0f32; 8];
+            let mut hx = [0f32; 8];
+            let mut active = 0u8;
+            for i in 0..8 {
+                let t = t0 + i;
+                if t < n {
+                    let x0 = t as u32 * TILE;
+                    let x1 = (x0 + TILE).min(self.tw) - 1;
+                    lx[i] = self.target_pos(x0, y0).x;
+                    hx[i] = self.target_pos(x1, y0).x;
+                    active |= 1 << i;
+                }
+            }
+            // SAFETY: `lanes_apply` checked AVX2.
+            let r = unsafe {
+                crate::simd_warp::tile_stage8(
+                    pv,
+                    &lx,
+                    &hx,
+                    ly,
+                    hy,
+                    active,
+                    &start,
+                    self.bound_iterations(),
+                    self.params.sampling.footprint(),
+                    k > 0,
+                )
+            };
+            for (i, s) in r.into_iter().enumerate() {
+                if t0 + i < n {
+                    out.push(s.map(|(motion, z)| StageBound {
+                        motion,
+                        min_depth: if k > 0 { z } else { f32::NEG_INFINITY },
+                    }));
+                }
+            }
+        }
+        out
+    }
+
+    /// The inputs of the AVX2 single-seed search.
+    #[cfg(target_arch = "x86_64")]
+    fn lane_search(&self) -> crate::simd_warp::LaneSearch<'_> {
+        let layers = self
+            .samplers
+            .iter()
+            .map(|s| {
+                let (vx, vy, z, _, _) = s.planes();
+                crate::simd_warp::Planes { vx, vy, z }
+            })
+            .collect();
+        crate::simd_warp::LaneSearch {
+            layers,
+            w: self.w,
+            h: self.h,
+            m: self.m,
+            max_q: self.max_q(),
+            thr2: self.params.threshold * self.params.threshold,
+            iterations: self.params.iterations,
+            accelerate: self.params.accelerate,
+            cross: self.params.cross_layer,
+            n_seeds: self.params.n_seeds,
+            first_converged: self.params.choice == crate::CandidateChoice::FirstConverged,
+        }
+    }
+
+    /// The warp of the pixels `x0..x1` of rows `y` and `y + 1` of one tile (eight lanes) in
+    /// lock step over the layers with the AVX2 single-seed search: per layer, lanes that already
+    /// converged take the tile's min-depth pruning test, the others search with one seed in the
+    /// region under the tile's bound (resolved tiles) or their own tightened bound. What the
+    /// lanes cannot do in lock step — more than one seed, a later layer that survives the
+    /// tile's pruning test — goes to [`Self::pixel_from`] from that layer on with the state so
+    /// far, so every pixel gets exactly the scalar kernel's result.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn lanes8(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        pvs: &[crate::simd_warp::PyramidView<'_>],
+        memo: &mut TileBounds,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+        x0: u32,
+        x1: u32,
+        y: u32,
+        out: Rows<'_>,
+    ) {
+        use crate::simd_warp as sw;
+        use std::arch::x86_64::*;
+        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+        let yi = _mm256_add_epi32(_mm256_set1_epi32(y as i32), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
+        let cols = ((1u8 << (x1 - x0)) - 1) & 0xf;
+        let active = cols | if out.two { cols << 4 } else { 0 };
+        let (px, py) = sw::positions(self.m, xi, yi);
+        let expand = self.params.sampling.footprint();
+        let zero = _mm256_setzero_ps();
+        let mut has = zero;
+        let mut bz = _mm256_set1_ps(EMPTY_DEPTH);
+        let (mut bqx, mut bqy) = (zero, zero);
+        let mut btag = _mm256_setzero_si256();
+        let mut cont = [u8::MAX; 8];
+        let mut pending = active;
+        for k in 0..self.layers.len() {
+            if pending == 0 {
+                break;
+            }
+            let Some(sk) = self.start(memo, k) else { continue };
+            let pend = sw::lane_mask(pending);
+            // The tile's pruning test for lanes that converged; survivors continue in the
+            // scalar kernel from this layer.
+            let survive = _mm256_movemask_ps(_mm256_and_ps(
+                _mm256_and_ps(pend, has),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(sk.min_depth), bz),
+            )) as u8;
+            if survive != 0 {
+                for (i, c) in cont.iter_mut().enumerate() {
+                    if survive >> i & 1 != 0 {
+                        *c = k as u8;
                     }
                 }
+                pending &= !survive;
+            }
+            let searching = pending & !(_mm256_movemask_ps(has) as u8);
+            if searching == 0 {
+                continue;
+            }
+            let frame = self.layers[k].pyramid().frame();
+            let (bounded, region) = if sk.resolved() {
+                (searching, sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)))
+            } else {
+                let (ok, _, region) =
+                    sw::tighten8(&pvs[k], px, py, searching, &sk.motion, self.bound_iterations(), expand);
+                (ok, region)
+            };
+            let r = sw::search8(ls, k, frame, px, py, xi, yi, bounded, &region);
+            if r.scalar != 0 {
+                for (i, c) in cont.iter_mut().enumerate() {
+                    if r.scalar >> i & 1 != 0 {
+                        *c = k as u8;
+                    }
+                }
+                pending &= !r.scalar;
+            }
+            // First convergence of these lanes: the candidate.
+            let now = r.converged;
+            bz = _mm256_blendv_ps(bz, r.depth, now);
+            bqx = _mm256_blendv_ps(bqx, r.qx, now);
+            bqy = _mm256_blendv_ps(bqy, r.qy, now);
+            btag = _mm256_blendv_epi8(btag, r.tag, _mm256_castps_si256(now));
+            has = _mm256_or_ps(has, now);
+        }
+        let mut z = [0f32; 8];
+        let (mut qx, mut qy) = ([0f32; 8], [0f32; 8]);
+        let mut tag = [0u32; 8];
+        _mm256_storeu_ps(z.as_mut_ptr(), bz);
+        _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
+        _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
+        _mm256_storeu_si256(tag.as_mut_ptr() as *mut __m256i, btag);
+        let hasb = _mm256_movemask_ps(has) as u8;
+        let Rows { depth, state, mut source, .. } = out;
+        for i in 0..8 {
+            if active >> i & 1 == 0 {
+                continue;
+            }
+            let (row, x) = (i / 4, x0 as usize + i % 4);
+            let px = if cont[i] != u8::MAX {
+                let b = (hasb >> i & 1 != 0).then(|| Candidate {
+                    q: Vec2::new(qx[i], qy[i]),
+                    depth: z[i],
+                    tag: tag[i],
+                    seed: 0,
+                });
+                self.pixel_from(x as u32, y + row as u32, memo, seeds, cont[i] as usize, b, b.map(|c| c.q))
+            } else if hasb >> i & 1 != 0 {
+                (z[i], PixelState::Converged, SourcePos { q: Vec2::new(qx[i], qy[i]), layer: tag[i] })
+            } else {
+                (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+            };
+            depth[row][x] = px.0;
+            state[row][x] = px.1;
+            if let Some(s) = source[row].as_deref_mut() {
+                s[x] = px.2;
             }
         }
     }

@@ -31,6 +31,7 @@ mod pages;
 mod prepare;
 pub mod search;
 pub mod simd;
+mod simd_warp;
 pub mod stats;
 pub mod synth;
 

@@ -453,6 +453,16 @@ fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
     }
 }
 
+/// [`reuse`] for a mipmap buffer: `n` texels of level 1, capacity for `all` (every level).
+fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
+    if v.capacity() < all {
+        v = crate::pages::uninit(all);
+    }
+    v.clear();
+    v.resize(n, fill);
+    v
+}
+
 impl PreparedLayer {
     /// Validates `layer` (non-zero size, equal sizes, no NaN/infinite depth, no NaN motion) and
     /// builds its mipmap for `bound` (Oriented: AAB or PCA frame, whichever global bound is
@@ -530,9 +540,11 @@ impl PreparedLayer {
         let mut vy = reuse(planes.vy, n, 0.0);
         let mut z = reuse(planes.z, n, 0.0);
         let empty = Bound::EMPTY.to_texel_pub();
-        let mut aab = reuse(level1, lw * lh, empty);
-        let mut obd = if need_ob { reuse(oriented, lw * lh, empty) } else { oriented };
-        let mut zmin = reuse(zmin, lw * lh, 0.0);
+        // The mip buffers get room for every level (a third more than level 1).
+        let all = lw * lh + (lw * lh).div_ceil(3) + 64;
+        let mut aab = reuse_mip(level1, lw * lh, all, empty);
+        let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
+        let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
         let input = RowInput { depth, motion, earlier, w: wu, frame: ob };
         let rows = vx
             .par_chunks_mut(2 * wu)
@@ -576,7 +588,7 @@ impl PreparedLayer {
     }
     /// The large buffers, for [`Self::prepare_stack_recycling`].
     fn into_spare(self) -> Spare {
-        let (level1, zmin) = self.pyramid.into_level1();
+        let (level1, zmin) = self.pyramid.into_buffers();
         Spare { planes: self.planes, level1, oriented: self.oriented, zmin }
     }
     /// The motion range of the layer's surfaces (see [`SurfaceMotion`]).

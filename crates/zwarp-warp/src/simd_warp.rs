@@ -1,0 +1,878 @@
+//! The AVX2 build of the single-seed search (x86-64, chosen at run time): eight target pixels
+//! in lock step through [`crate::search::fixed_point_search`] with one seed each, for the pixels
+//! of a resolved tile (seed 000 Sec. 3.3: a bound within one pixel, one seed at the centre of
+//! the pixel's region) — most of the pixels of every warp.
+//!
+//! Every operation is the portable one's, in the same order and without FMA (the region and
+//! seed of `stratified_seeds`, glam's clamp / lerp / dot, the adaptive bilinear-or-nearest
+//! fetch of `LayerSampler`, the Newton step of `newton_step`), so each lane computes bit for bit
+//! what the scalar kernel computes for its pixel; lanes the build does not cover (more than one
+//! seed after rounding) are reported back and go through the scalar kernel. Texels are read
+//! with gathers from the sample planes.
+
+#![cfg(target_arch = "x86_64")]
+
+use std::arch::x86_64::*;
+
+use crate::bounds::{Bound, BoundFrame};
+
+/// One layer's sample planes.
+#[derive(Clone, Copy)]
+pub(crate) struct Planes<'a> {
+    pub vx: &'a [f32],
+    pub vy: &'a [f32],
+    pub z: &'a [f32],
+}
+
+/// What the lane search needs of the layers and the warp's parameters.
+pub(crate) struct LaneSearch<'a> {
+    /// Every layer's planes, nearest first.
+    pub layers: Vec<Planes<'a>>,
+    /// Source size.
+    pub w: u32,
+    pub h: u32,
+    /// Source samples per target pixel and axis.
+    pub m: f32,
+    pub max_q: glam::Vec2,
+    pub thr2: f32,
+    pub iterations: u32,
+    pub accelerate: bool,
+    /// Cross-layer seeding (Fig. 6): an empty landing of layer k borrows once from the layers
+    /// above.
+    pub cross: bool,
+    /// N, the most seeds per pixel.
+    pub n_seeds: u32,
+    /// `CandidateChoice::FirstConverged`: a lane stops at its first converged seed.
+    pub first_converged: bool,
+}
+
+/// Results of eight lanes of one layer's search.
+#[derive(Clone, Copy)]
+pub(crate) struct Lanes {
+    /// Converged lanes (all bits set per lane).
+    pub converged: __m256,
+    /// Lanes whose region needs more than one seed: the scalar kernel decides them (bit i =
+    /// lane i).
+    pub scalar: u8,
+    /// Depth of the converged sample per lane.
+    pub depth: __m256,
+    /// Converged source position per lane.
+    pub qx: __m256,
+    pub qy: __m256,
+    /// Layer of the converged sample (its tag: the layer itself or the one it borrowed from).
+    pub tag: __m256i,
+}
+
+#[inline(always)]
+unsafe fn splat(v: f32) -> __m256 {
+    _mm256_set1_ps(v)
+}
+
+/// The target positions of pixels `(xi[i], yi[i])`: `(x + 0.5, y + 0.5) * m`
+/// (`Kernel::target_pos`).
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn positions(m: f32, xi: __m256i, yi: __m256i) -> (__m256, __m256) {
+    let (half, m) = (splat(0.5), splat(m));
+    (
+        _mm256_mul_ps(_mm256_add_ps(_mm256_cvtepi32_ps(xi), half), m),
+        _mm256_mul_ps(_mm256_add_ps(_mm256_cvtepi32_ps(yi), half), m),
+    )
+}
+
+/// `MotionPyramid::region` per lane: `c = p` (identity frame) or `to_frame(p)`, then
+/// `[c - hi, c - lo]`, for the per-lane bounds `[lo.x, lo.y, hi.x, hi.y]`.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn region8(frame: BoundFrame, px: __m256, py: __m256, b: &[__m256; 4]) -> [__m256; 4] {
+    let (fc, fs, nfs) = (splat(frame.axis.x), splat(frame.axis.y), splat(-frame.axis.y));
+    let (cx, cy) = if frame.is_identity() {
+        (px, py)
+    } else {
+        (
+            _mm256_add_ps(_mm256_mul_ps(fc, px), _mm256_mul_ps(fs, py)),
+            _mm256_add_ps(_mm256_mul_ps(nfs, px), _mm256_mul_ps(fc, py)),
+        )
+    };
+    [_mm256_sub_ps(cx, b[2]), _mm256_sub_ps(cy, b[3]), _mm256_sub_ps(cx, b[0]), _mm256_sub_ps(cy, b[1])]
+}
+
+/// A bound broadcast to eight lanes.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn splat_bound(b: &Bound) -> [__m256; 4] {
+    [splat(b.lo.x), splat(b.lo.y), splat(b.hi.x), splat(b.hi.y)]
+}
+
+/// Eight samples of [`crate::search::LayerSampler`] (adaptive, unit scale): where the lane has
+/// one, its motion, depth and Jacobian (zero for nearest samples).
+struct Smp8 {
+    has: __m256,
+    vx: __m256,
+    vy: __m256,
+    z: __m256,
+    /// Jacobian columns dv/dx, dv/dy.
+    dxx: __m256,
+    dxy: __m256,
+    dyx: __m256,
+    dyy: __m256,
+}
+
+/// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive sampling) for the `live` lanes,
+/// whose `q` lies inside the image.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, qx: __m256, qy: __m256, live: __m256) -> Smp8 {
+    let live_i = _mm256_castps_si256(live);
+    let (half, one, zero) = (splat(0.5), splat(1.0), _mm256_setzero_ps());
+    let wm = _mm256_set1_epi32(w as i32 - 1);
+    let hm = _mm256_set1_epi32(h as i32 - 1);
+    let wv = _mm256_set1_epi32(w as i32);
+    let (ione, izero) = (_mm256_set1_epi32(1), _mm256_setzero_si256());
+    let tx = _mm256_add_ps(qx, half);
+    let ty = _mm256_add_ps(qy, half);
+    let ix = _mm256_and_si256(_mm256_cvttps_epi32(tx), live_i);
+    let iy = _mm256_and_si256(_mm256_cvttps_epi32(ty), live_i);
+    let ax = _mm256_sub_ps(tx, _mm256_cvtepi32_ps(ix));
+    let ay = _mm256_sub_ps(ty, _mm256_cvtepi32_ps(iy));
+    let x0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(ix, ione), izero), wm);
+    let y0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(iy, ione), izero), hm);
+    let x1 = _mm256_min_epi32(ix, wm);
+    let y1 = _mm256_min_epi32(iy, hm);
+    let r0 = _mm256_mullo_epi32(y0, wv);
+    let r1 = _mm256_mullo_epi32(y1, wv);
+    let (i00, i10) = (_mm256_add_epi32(r0, x0), _mm256_add_epi32(r0, x1));
+    let (i01, i11) = (_mm256_add_epi32(r1, x0), _mm256_add_epi32(r1, x1));
+    let g = |p: &[f32], i: __m256i| _mm256_i32gather_ps::<4>(p.as_ptr(), i);
+    let (vx00, vx10, vx01, vx11) = (g(pl.vx, i00), g(pl.vx, i10), g(pl.vx, i01), g(pl.vx, i11));
+    let (vy00, vy10, vy01, vy11) = (g(pl.vy, i00), g(pl.vy, i10), g(pl.vy, i01), g(pl.vy, i11));
+    let (z00, z10, z01, z11) = (g(pl.z, i00), g(pl.z, i10), g(pl.z, i01), g(pl.z, i11));
+    let valid = |z: __m256| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(z, one));
+    let all_valid = _mm256_and_ps(_mm256_and_ps(valid(z00), valid(z10)), _mm256_and_ps(valid(z01), valid(z11)));
+    // Vec2 min / max chains of the portable fetch: s00.min(s10).min(s01.min(s11)).
+    let lo_x = _mm256_min_ps(_mm256_min_ps(vx00, vx10), _mm256_min_ps(vx01, vx11));
+    let lo_y = _mm256_min_ps(_mm256_min_ps(vy00, vy10), _mm256_min_ps(vy01, vy11));
+    let hi_x = _mm256_max_ps(_mm256_max_ps(vx00, vx10), _mm256_max_ps(vx01, vx11));
+    let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
+    // max_element(hi - lo) < CONTINUITY_PX (1 px): `if x > y { x } else { y }` < 1.
+    let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
+    let smooth = _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one));
+    // bilinear(): glam lerp a * (1 - s) + b * s, depths a + (b - a) * s.
+    let lerp =
+        |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
+    let top_vx = lerp(vx00, vx10, ax);
+    let top_vy = lerp(vy00, vy10, ax);
+    let bot_vx = lerp(vx01, vx11, ax);
+    let bot_vy = lerp(vy01, vy11, ax);
+    let top_d = _mm256_add_ps(z00, _mm256_mul_ps(_mm256_sub_ps(z10, z00), ax));
+    let bot_d = _mm256_add_ps(z01, _mm256_mul_ps(_mm256_sub_ps(z11, z01), ax));
+    let dxx = lerp(_mm256_sub_ps(vx10, vx00), _mm256_sub_ps(vx11, vx01), ay);
+    let dxy = lerp(_mm256_sub_ps(vy10, vy00), _mm256_sub_ps(vy11, vy01), ay);
+    let dyx = _mm256_sub_ps(bot_vx, top_vx);
+    let dyy = _mm256_sub_ps(bot_vy, top_vy);
+    let bvx = lerp(top_vx, bot_vx, ay);
+    let bvy = lerp(top_vy, bot_vy, ay);
+    let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
+    // Nearest: the texel floor(q), always one of the four read.
+    let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+    let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+    let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
+    let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
+    let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
+        let t = _mm256_blendv_ps(a10, a00, left);
+        let b = _mm256_blendv_ps(a11, a01, left);
+        _mm256_blendv_ps(b, t, top)
+    };
+    let nz = pick(z00, z10, z01, z11);
+    let has = _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz)));
+    Smp8 {
+        has,
+        vx: _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
+        vy: _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
+        z: _mm256_blendv_ps(nz, bz, smooth),
+        dxx: _mm256_and_ps(smooth, dxx),
+        dxy: _mm256_and_ps(smooth, dxy),
+        dyx: _mm256_and_ps(smooth, dyx),
+        dyy: _mm256_and_ps(smooth, dyy),
+    }
+}
+
+/// `search::hash_u32` per lane (wrapping products, as the portable one).
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn hash8(v: __m256i) -> __m256i {
+    let state = _mm256_add_epi32(
+        _mm256_mullo_epi32(v, _mm256_set1_epi32(747796405u32 as i32)),
+        _mm256_set1_epi32(2891336453u32 as i32),
+    );
+    let shift = _mm256_add_epi32(_mm256_srli_epi32::<28>(state), _mm256_set1_epi32(4));
+    let word =
+        _mm256_mullo_epi32(_mm256_xor_si256(_mm256_srlv_epi32(state, shift), state), _mm256_set1_epi32(277803737));
+    _mm256_xor_si256(_mm256_srli_epi32::<22>(word), word)
+}
+
+/// Searches layer `k` for the `active` lanes at target positions `(px, py)` (target pixels
+/// `(xi, yi)`) with the seeds `stratified_seeds` places in each lane's search region
+/// `[lo.x, lo.y, hi.x, hi.y]` (frame coordinates of `frame`): one at the centre where the
+/// region is within one pixel, else `effective_seeds` of them (corners first, then the
+/// jittered R2 points), the candidate of minimal depth winning in seed order. The walk samples
+/// layer `k` with the cross-layer fallback of `StackSampler` (the first empty landing borrows
+/// the nearest non-empty layer above, the second fails). No earlier layer converged for these
+/// lanes, so no cross-layer seed.
+///
+/// # Safety
+/// The CPU must support AVX2; the planes must be `w * h` long.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn search8(
+    ls: &LaneSearch<'_>,
+    k: usize,
+    frame: BoundFrame,
+    px: __m256,
+    py: __m256,
+    xi: __m256i,
+    yi: __m256i,
+    active: u8,
+    region: &[__m256; 4],
+) -> Lanes {
+    let zero = _mm256_setzero_ps();
+    let one = splat(1.0);
+    let inf = splat(f32::INFINITY);
+    let act = lane_mask(active);
+    let half = splat(0.5);
+    let (fc, fs) = (splat(frame.axis.x), splat(frame.axis.y));
+    let [lox, loy, hix, hiy] = *region;
+    let ex = _mm256_sub_ps(hix, lox);
+    let ey = _mm256_sub_ps(hiy, loy);
+    // effective_seeds: one seed iff both extents <= 1, else min(N, ceil((ex + 1)(ey + 1))).
+    let single = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(ex, one), _mm256_cmp_ps::<_CMP_LE_OQ>(ey, one));
+    let area = _mm256_ceil_ps(_mm256_mul_ps(_mm256_add_ps(ex, one), _mm256_add_ps(ey, one)));
+    let nf = splat(ls.n_seeds as f32);
+    let nsel = _mm256_blendv_ps(nf, area, _mm256_cmp_ps::<_CMP_LT_OQ>(area, nf));
+    let ne = _mm256_blendv_epi8(_mm256_cvttps_epi32(nsel), _mm256_set1_epi32(1), _mm256_castps_si256(single));
+    let ne = _mm256_and_si256(ne, _mm256_castps_si256(act));
+    let mut nes = [0i32; 8];
+    _mm256_storeu_si256(nes.as_mut_ptr() as *mut __m256i, ne);
+    let max_n = nes.iter().copied().max().unwrap_or(0).min(ls.n_seeds as i32);
+    // stratified_seeds for n >= 2: nc = min(n / 2, distinct corners) corners, then R2 points
+    // lo + fract(r + R2 i) e jittered by seed_key(x, y, k); `map` rotates back unless identity.
+    let two = _mm256_set1_epi32(2);
+    let px_pos = _mm256_cmp_ps::<_CMP_GT_OQ>(ex, zero);
+    let py_pos = _mm256_cmp_ps::<_CMP_GT_OQ>(ey, zero);
+    let both = _mm256_castps_si256(_mm256_and_ps(px_pos, py_pos));
+    let none =
+        _mm256_castps_si256(_mm256_andnot_ps(_mm256_or_ps(px_pos, py_pos), _mm256_castsi256_ps(_mm256_set1_epi32(-1))));
+    let distinct = _mm256_blendv_epi8(_mm256_blendv_epi8(two, _mm256_set1_epi32(4), both), _mm256_set1_epi32(1), none);
+    let nc = _mm256_min_epi32(_mm256_srli_epi32::<1>(ne), distinct);
+    let key = hash8(_mm256_xor_si256(xi, hash8(_mm256_xor_si256(yi, hash8(_mm256_set1_epi32(k as i32))))));
+    let inv = splat(1.0 / 65536.0);
+    let rx = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_and_si256(key, _mm256_set1_epi32(0xffff))), inv);
+    let ry = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(key)), inv);
+    let map = |ux: __m256, uy: __m256| {
+        if frame.is_identity() {
+            (ux, uy)
+        } else {
+            (
+                _mm256_sub_ps(_mm256_mul_ps(fc, ux), _mm256_mul_ps(fs, uy)),
+                _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy)),
+            )
+        }
+    };
+    let (mxq, myq) = (splat(ls.max_q.x), splat(ls.max_q.y));
+    let mut has = zero;
+    let mut depth = one;
+    let (mut cqx, mut cqy) = (zero, zero);
+    let mut ctag = _mm256_setzero_si256();
+    for j in 0..max_n {
+        let ji = _mm256_set1_epi32(j);
+        let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ne, ji));
+        let mut live = _mm256_and_ps(act, in_use);
+        if ls.first_converged {
+            live = _mm256_andnot_ps(has, live);
+        }
+        if _mm256_movemask_ps(live) == 0 {
+            continue;
+        }
+        let (mut qx, mut qy) = if max_n == 1 {
+            // One seed: from_frame(lo + 0.5 * e) (stratified_seeds, n == 1).
+            let ux = _mm256_add_ps(lox, _mm256_mul_ps(half, ex));
+            let uy = _mm256_add_ps(loy, _mm256_mul_ps(half, ey));
+            (
+                _mm256_sub_ps(_mm256_mul_ps(fc, ux), _mm256_mul_ps(fs, uy)),
+                _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy)),
+            )
+        } else {
+            let ux = _mm256_add_ps(lox, _mm256_mul_ps(half, ex));
+            let uy = _mm256_add_ps(loy, _mm256_mul_ps(half, ey));
+            let centre = (
+                _mm256_sub_ps(_mm256_mul_ps(fc, ux), _mm256_mul_ps(fs, uy)),
+                _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy)),
+            );
+            // Corner j: lo, hi, (lo.x, hi.y), (hi.x, lo.y).
+            let (cx, cy) = match j {
+                0 => (lox, loy),
+                1 => (hix, hiy),
+                2 => (lox, hiy),
+                _ => (hix, loy),
+            };
+            let corner = map(cx, cy);
+            // R2 point i = j - nc.
+            let i = _mm256_cvtepi32_ps(_mm256_sub_epi32(ji, nc));
+            let sxr = _mm256_add_ps(rx, _mm256_mul_ps(splat(0.754_877_7), i));
+            let syr = _mm256_add_ps(ry, _mm256_mul_ps(splat(0.569_840_3), i));
+            let sx = _mm256_sub_ps(sxr, _mm256_round_ps::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(sxr));
+            let sy = _mm256_sub_ps(syr, _mm256_round_ps::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(syr));
+            let r2p = map(_mm256_add_ps(lox, _mm256_mul_ps(sx, ex)), _mm256_add_ps(loy, _mm256_mul_ps(sy, ey)));
+            let is_corner = _mm256_castsi256_ps(_mm256_cmpgt_epi32(nc, ji));
+            let is_single = _mm256_castsi256_ps(_mm256_cmpeq_epi32(ne, _mm256_set1_epi32(1)));
+            let qx = _mm256_blendv_ps(_mm256_blendv_ps(r2p.0, corner.0, is_corner), centre.0, is_single);
+            let qy = _mm256_blendv_ps(_mm256_blendv_ps(r2p.1, corner.1, is_corner), centre.1, is_single);
+            (qx, qy)
+        };
+        // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
+        qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
+        qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
+        let (now, z, wqx, wqy, wtag) = walk8(ls, k, px, py, qx, qy, live);
+        // MinDepth in seed order: the first candidate, then strictly nearer ones.
+        let take = _mm256_and_ps(
+            now,
+            _mm256_or_ps(_mm256_andnot_ps(has, now), _mm256_cmp_ps::<_CMP_LT_OQ>(z, _mm256_blendv_ps(inf, depth, has))),
+        );
+        depth = _mm256_blendv_ps(depth, z, take);
+        cqx = _mm256_blendv_ps(cqx, wqx, take);
+        cqy = _mm256_blendv_ps(cqy, wqy, take);
+        ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
+        has = _mm256_or_ps(has, now);
+    }
+    Lanes { converged: has, scalar: 0, depth, qx: cqx, qy: cqy, tag: ctag }
+}
+
+/// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
+/// cross-layer fallback): the lanes that converged, and their sample's depth, position and tag.
+#[inline]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::type_complexity)]
+unsafe fn walk8(
+    ls: &LaneSearch<'_>,
+    k: usize,
+    px: __m256,
+    py: __m256,
+    mut qx: __m256,
+    mut qy: __m256,
+    mut live: __m256,
+) -> (__m256, __m256, __m256, __m256, __m256i) {
+    let zero = _mm256_setzero_ps();
+    let one = splat(1.0);
+    let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
+    let thr2 = splat(ls.thr2);
+    let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+    let mut conv = zero;
+    let mut depth = one;
+    let (mut cqx, mut cqy) = (zero, zero);
+    let mut ctag = _mm256_setzero_si256();
+    // Whether the walk already borrowed once (StackSampler's count of empty landings).
+    let mut borrowed = zero;
+    for _ in 0..ls.iterations {
+        // StackSampler: outside the image fails the seed.
+        let inside = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+        );
+        live = _mm256_and_ps(live, inside);
+        if _mm256_movemask_ps(live) == 0 {
+            break;
+        }
+        let mut s = fetch8(&ls.layers[k], ls.w, ls.h, qx, qy, live);
+        let mut tag = _mm256_set1_epi32(k as i32);
+        if ls.cross && k > 0 {
+            // Empty landing: the second one fails; the first borrows the nearest non-empty layer
+            // above at the same position.
+            let empty = _mm256_andnot_ps(s.has, live);
+            live = _mm256_andnot_ps(_mm256_and_ps(empty, borrowed), live);
+            let mut need = _mm256_andnot_ps(borrowed, empty);
+            borrowed = _mm256_or_ps(borrowed, empty);
+            for j in (0..k).rev() {
+                if _mm256_movemask_ps(need) == 0 {
+                    break;
+                }
+                let b = fetch8(&ls.layers[j], ls.w, ls.h, qx, qy, need);
+                let take = b.has;
+                s.vx = _mm256_blendv_ps(s.vx, b.vx, take);
+                s.vy = _mm256_blendv_ps(s.vy, b.vy, take);
+                s.z = _mm256_blendv_ps(s.z, b.z, take);
+                s.dxx = _mm256_blendv_ps(s.dxx, b.dxx, take);
+                s.dxy = _mm256_blendv_ps(s.dxy, b.dxy, take);
+                s.dyx = _mm256_blendv_ps(s.dyx, b.dyx, take);
+                s.dyy = _mm256_blendv_ps(s.dyy, b.dyy, take);
+                s.has = _mm256_or_ps(s.has, take);
+                tag = _mm256_blendv_epi8(tag, _mm256_set1_epi32(j as i32), _mm256_castps_si256(take));
+                need = _mm256_andnot_ps(take, need);
+            }
+        }
+        live = _mm256_and_ps(live, s.has);
+        if _mm256_movemask_ps(live) == 0 {
+            break;
+        }
+        // fixed_point_search: w = p - v, step = w - q, converged if |step|^2 < thr^2.
+        let wx = _mm256_sub_ps(px, s.vx);
+        let wy = _mm256_sub_ps(py, s.vy);
+        let stx = _mm256_sub_ps(wx, qx);
+        let sty = _mm256_sub_ps(wy, qy);
+        let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+        let now = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+        depth = _mm256_blendv_ps(depth, s.z, now);
+        cqx = _mm256_blendv_ps(cqx, qx, now);
+        cqy = _mm256_blendv_ps(cqy, qy, now);
+        ctag = _mm256_blendv_epi8(ctag, tag, _mm256_castps_si256(now));
+        conv = _mm256_or_ps(conv, now);
+        live = _mm256_andnot_ps(now, live);
+        if _mm256_movemask_ps(live) == 0 {
+            break;
+        }
+        // Next iterate: w, or the Newton step where |det(I + Dv)| > 0.05 (newton_step).
+        let (mut nx, mut ny) = (wx, wy);
+        if ls.accelerate {
+            let m00 = _mm256_add_ps(one, s.dxx);
+            let m01 = s.dyx;
+            let m10 = s.dxy;
+            let m11 = _mm256_add_ps(one, s.dyy);
+            let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
+            let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_and_ps(det, absmask), splat(0.05));
+            let neg_m10 = _mm256_xor_ps(m10, splat(-0.0));
+            let dx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
+            let dy = _mm256_div_ps(_mm256_add_ps(_mm256_mul_ps(neg_m10, stx), _mm256_mul_ps(m00, sty)), det);
+            nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, dx), ok);
+            ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, dy), ok);
+        }
+        qx = nx;
+        qy = ny;
+    }
+    (conv, depth, cqx, cqy, ctag)
+}
+
+/// A lane mask (all bits set per active lane) from the low 8 bits of `bits`.
+#[inline(always)]
+pub(crate) unsafe fn lane_mask(bits: u8) -> __m256 {
+    let b = _mm256_set1_epi32(bits as i32);
+    let sel = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(b, sel), sel))
+}
+
+/// The mipmap as the AVX2 tightening reads it.
+pub(crate) struct PyramidView<'a> {
+    /// Texels of every level as floats (`[lo.x, lo.y, hi.x, hi.y]` per texel).
+    data: &'a [f32],
+    /// Min target depth per texel, same layout.
+    zmin: &'a [f32],
+    /// Per level - 1 (up to 16 levels): width - 1, height - 1, first texel.
+    wm: [i32; 16],
+    hm: [i32; 16],
+    off: [i32; 16],
+    top: i32,
+    /// Image size.
+    w: u32,
+    h: u32,
+    frame: BoundFrame,
+}
+
+impl<'a> PyramidView<'a> {
+    /// The view of `pyr`, or `None` if it is too deep or too large for 32-bit gathers.
+    pub fn new(pyr: &'a crate::bounds::MotionPyramid) -> Option<Self> {
+        let (data, zmin, levels) = pyr.raw();
+        if data.len() >= (i32::MAX as usize) / 4 || pyr.top_level() > 16 {
+            return None;
+        }
+        let (mut wm, mut hm, mut off) = ([0i32; 16], [0i32; 16], [0i32; 16]);
+        for (i, (lw, lh, o)) in levels.enumerate() {
+            wm[i] = lw as i32 - 1;
+            hm[i] = lh as i32 - 1;
+            off[i] = o as i32;
+        }
+        // SAFETY: [f32; 4] is four f32s without padding.
+        let data = unsafe { std::slice::from_raw_parts(data.as_ptr() as *const f32, data.len() * 4) };
+        let (w, h) = pyr.size();
+        Some(PyramidView { data, zmin, wm, hm, off, top: pyr.top_level() as i32, w, h, frame: pyr.frame() })
+    }
+}
+
+/// Per-lane table look-up `t[i - 1]` for `i` in `1..=16`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn table(t: &[i32; 16], level: __m256i) -> __m256i {
+    let idx = _mm256_sub_epi32(level, _mm256_set1_epi32(1));
+    let lo = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(t.as_ptr() as *const __m256i), idx);
+    let hi = _mm256_permutevar8x32_epi32(_mm256_loadu_si256(t.as_ptr().add(8) as *const __m256i), idx);
+    let high = _mm256_cmpgt_epi32(idx, _mm256_set1_epi32(7));
+    _mm256_blendv_epi8(lo, hi, high)
+}
+
+/// `MotionPyramid::pixel_range` per lane: the inclusive pixel range `[x0, y0, x1, y1]` of the
+/// regions grown by `expand` and clipped, and the lanes whose region misses the image.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn pixel_range8(pv: &PyramidView<'_>, region: &[__m256; 4], expand: f32) -> ([__m256i; 4], __m256) {
+    let [mut lox, mut loy, mut hix, mut hiy] = *region;
+    if !pv.frame.is_identity() {
+        // The image-space AABB of the rotated box, as `pixel_range` picks its corners.
+        let (c, s) = (pv.frame.axis.x, pv.frame.axis.y);
+        let (xa, xb) = if c >= 0.0 { (lox, hix) } else { (hix, lox) };
+        let (ya, yb) = if s >= 0.0 { (hiy, loy) } else { (loy, hiy) };
+        let (sa, sb) = if s >= 0.0 { (lox, hix) } else { (hix, lox) };
+        let (ca, cb) = if c >= 0.0 { (loy, hiy) } else { (hiy, loy) };
+        let (cv, sv) = (splat(c), splat(s));
+        let nlox = _mm256_sub_ps(_mm256_mul_ps(cv, xa), _mm256_mul_ps(sv, ya));
+        let nloy = _mm256_add_ps(_mm256_mul_ps(sv, sa), _mm256_mul_ps(cv, ca));
+        let nhix = _mm256_sub_ps(_mm256_mul_ps(cv, xb), _mm256_mul_ps(sv, yb));
+        let nhiy = _mm256_add_ps(_mm256_mul_ps(sv, sb), _mm256_mul_ps(cv, cb));
+        (lox, loy, hix, hiy) = (nlox, nloy, nhix, nhiy);
+    }
+    let e = splat(expand);
+    lox = _mm256_sub_ps(lox, e);
+    loy = _mm256_sub_ps(loy, e);
+    hix = _mm256_add_ps(hix, e);
+    hiy = _mm256_add_ps(hiy, e);
+    let (w, h) = (splat(pv.w as f32), splat(pv.h as f32));
+    let zero = _mm256_setzero_ps();
+    let hit = _mm256_and_ps(
+        _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(hix, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(hiy, zero)),
+        _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(lox, w), _mm256_cmp_ps::<_CMP_LT_OQ>(loy, h)),
+    );
+    // cl(v, m) = v < 0 ? 0 : (v > m ? m : v), then truncation and min(size - 1).
+    let (wm1, hm1) = (splat(pv.w as f32 - 1.0), splat(pv.h as f32 - 1.0));
+    let cl = |v: __m256, m: __m256| {
+        let v2 = _mm256_blendv_ps(v, m, _mm256_cmp_ps::<_CMP_GT_OQ>(v, m));
+        _mm256_blendv_ps(v2, zero, _mm256_cmp_ps::<_CMP_LT_OQ>(v, zero))
+    };
+    let hit_i = _mm256_castps_si256(hit);
+    let wmi = _mm256_set1_epi32(pv.w as i32 - 1);
+    let hmi = _mm256_set1_epi32(pv.h as i32 - 1);
+    let u = |v: __m256, m: __m256i| _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(v), hit_i), m);
+    ([u(cl(lox, wm1), wmi), u(cl(loy, hm1), hmi), u(cl(hix, wm1), wmi), u(cl(hiy, hm1), hmi)], hit)
+}
+
+/// The (at most 2x2) texels `level_for_range` picks for each lane's range: their indices
+/// (texel units) in the pyramid's buffers, dead lanes at texel 0.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn texels8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> [__m256i; 4] {
+    let one = _mm256_set1_epi32(1);
+    // level_for_range: ceil_log2(max(x1 - x0, y1 - y0)) clamped to 1..=top; ceil_log2(e) for
+    // e >= 2 is floor_log2(e - 1) + 1, the float exponent of e - 1 (exact below 2^24).
+    let e = _mm256_max_epi32(_mm256_sub_epi32(r[2], r[0]), _mm256_sub_epi32(r[3], r[1]));
+    let n = _mm256_max_epi32(_mm256_sub_epi32(e, one), one);
+    let exp =
+        _mm256_sub_epi32(_mm256_srli_epi32::<23>(_mm256_castps_si256(_mm256_cvtepi32_ps(n))), _mm256_set1_epi32(127));
+    let ceil = _mm256_blendv_epi8(
+        _mm256_add_epi32(exp, one),
+        _mm256_setzero_si256(),
+        _mm256_cmpgt_epi32(_mm256_set1_epi32(2), e),
+    );
+    let level = _mm256_min_epi32(_mm256_max_epi32(ceil, one), _mm256_set1_epi32(pv.top));
+    let level = _mm256_blendv_epi8(one, level, live);
+    let (wm, hm, off) = (table(&pv.wm, level), table(&pv.hm, level), table(&pv.off, level));
+    let tx0 = _mm256_min_epi32(_mm256_srlv_epi32(r[0], level), wm);
+    let tx1 = _mm256_min_epi32(_mm256_srlv_epi32(r[2], level), wm);
+    let ty0 = _mm256_min_epi32(_mm256_srlv_epi32(r[1], level), hm);
+    let ty1 = _mm256_min_epi32(_mm256_srlv_epi32(r[3], level), hm);
+    let lw = _mm256_add_epi32(wm, one);
+    let row0 = _mm256_add_epi32(off, _mm256_mullo_epi32(ty0, lw));
+    let row1 = _mm256_add_epi32(off, _mm256_mullo_epi32(ty1, lw));
+    let f = |row: __m256i, tx: __m256i| _mm256_and_si256(_mm256_add_epi32(row, tx), live);
+    [f(row0, tx0), f(row0, tx1), f(row1, tx0), f(row1, tx1)]
+}
+
+/// `MotionPyramid::lookup_range` per lane: the min-max of the (at most 2x2) texels at
+/// `level_for_range` of each lane's range, as `[lo.x, lo.y, hi.x, hi.y]`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn lookup8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> [__m256; 4] {
+    let t = texels8(pv, r, live);
+    // Float index of component 0 of each texel (4 floats per texel).
+    let [i00, i10, i01, i11] = t.map(|i| _mm256_slli_epi32::<2>(i));
+    let base = pv.data.as_ptr();
+    let g = |i: __m256i, c: i32| _mm256_i32gather_ps::<4>(base, _mm256_add_epi32(i, _mm256_set1_epi32(c)));
+    let minc = |c: i32| _mm256_min_ps(_mm256_min_ps(g(i00, c), g(i10, c)), _mm256_min_ps(g(i01, c), g(i11, c)));
+    let maxc = |c: i32| _mm256_max_ps(_mm256_max_ps(g(i00, c), g(i10, c)), _mm256_max_ps(g(i01, c), g(i11, c)));
+    [minc(0), minc(1), maxc(2), maxc(3)]
+}
+
+/// `MotionPyramid::lookup_min_depth` per lane.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn lookup_min_depth8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> __m256 {
+    let [a, b, c, d] = texels8(pv, r, live);
+    let base = pv.zmin.as_ptr();
+    let g = |i: __m256i| _mm256_i32gather_ps::<4>(base, i);
+    _mm256_min_ps(_mm256_min_ps(g(a), g(b)), _mm256_min_ps(g(c), g(d)))
+}
+
+/// `MotionPyramid::tight_bound_box_scaled` (unit scale) for eight boxes of target positions
+/// given by their frame-coordinate bounds `c = [lo.x, lo.y, hi.x, hi.y]` (a pixel: `lo = hi`),
+/// from the shared `start` bound: per lane the tightened bound and its search region, and the
+/// lanes that have a bound at all (`None` lanes: the region misses the image or the
+/// intersection became empty). Same steps, same early exits per lane.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn tighten8_box(
+    pv: &PyramidView<'_>,
+    c: &[__m256; 4],
+    active: u8,
+    start: &Bound,
+    iterations: u32,
+    expand: f32,
+) -> (u8, [__m256; 4], [__m256; 4]) {
+    let region_of = |b: &[__m256; 4]| {
+        [_mm256_sub_ps(c[0], b[2]), _mm256_sub_ps(c[1], b[3]), _mm256_sub_ps(c[2], b[0]), _mm256_sub_ps(c[3], b[1])]
+    };
+    let mut b = splat_bound(start);
+    let mut region = region_of(&b);
+    let (mut range, hit) = pixel_range8(pv, &region, expand);
+    let mut ok = _mm256_and_ps(lane_mask(active), hit);
+    let mut running = ok;
+    for _ in 0..iterations {
+        if _mm256_movemask_ps(running) == 0 {
+            break;
+        }
+        let run_i = _mm256_castps_si256(running);
+        let m = lookup8(pv, &range, run_i);
+        // Bound::intersect: lo = max(lo), hi = min(hi).
+        let nb = [
+            _mm256_max_ps(b[0], m[0]),
+            _mm256_max_ps(b[1], m[1]),
+            _mm256_min_ps(b[2], m[2]),
+            _mm256_min_ps(b[3], m[3]),
+        ];
+        let nonempty =
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(nb[0], nb[2]), _mm256_cmp_ps::<_CMP_LE_OQ>(nb[1], nb[3]));
+        // Empty: the lane has no bound.
+        ok = _mm256_andnot_ps(_mm256_andnot_ps(nonempty, running), ok);
+        running = _mm256_and_ps(running, nonempty);
+        // nb == b: fixed point, the lane stops with its bound.
+        let same = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(nb[0], b[0]), _mm256_cmp_ps::<_CMP_EQ_OQ>(nb[1], b[1])),
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(nb[2], b[2]), _mm256_cmp_ps::<_CMP_EQ_OQ>(nb[3], b[3])),
+        );
+        running = _mm256_andnot_ps(same, running);
+        for i in 0..4 {
+            b[i] = _mm256_blendv_ps(b[i], nb[i], running);
+        }
+        let nregion = region_of(&b);
+        for i in 0..4 {
+            region[i] = _mm256_blendv_ps(region[i], nregion[i], running);
+        }
+        let (next, hit) = pixel_range8(pv, &region, expand);
+        // The new region misses the image: no bound.
+        ok = _mm256_andnot_ps(_mm256_andnot_ps(hit, running), ok);
+        running = _mm256_and_ps(running, hit);
+        let eq = _mm256_and_si256(
+            _mm256_and_si256(_mm256_cmpeq_epi32(next[0], range[0]), _mm256_cmpeq_epi32(next[1], range[1])),
+            _mm256_and_si256(_mm256_cmpeq_epi32(next[2], range[2]), _mm256_cmpeq_epi32(next[3], range[3])),
+        );
+        running = _mm256_andnot_ps(_mm256_castsi256_ps(eq), running);
+        let run_i = _mm256_castps_si256(running);
+        for i in 0..4 {
+            range[i] = _mm256_blendv_epi8(range[i], next[i], run_i);
+        }
+    }
+    (_mm256_movemask_ps(ok) as u8, b, region)
+}
+
+/// [`tighten8_box`] for single pixels at target positions `(px, py)`.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn tighten8(
+    pv: &PyramidView<'_>,
+    px: __m256,
+    py: __m256,
+    active: u8,
+    start: &Bound,
+    iterations: u32,
+    expand: f32,
+) -> (u8, [__m256; 4], [__m256; 4]) {
+    // The frame coordinates of the pixel (`tight_bound_box_scaled` with p_lo == p_hi).
+    let f = pv.frame;
+    let (cx, cy) = if f.is_identity() {
+        (px, py)
+    } else {
+        let (fc, fs, nfs) = (splat(f.axis.x), splat(f.axis.y), splat(-f.axis.y));
+        (
+            _mm256_add_ps(_mm256_mul_ps(fc, px), _mm256_mul_ps(fs, py)),
+            _mm256_add_ps(_mm256_mul_ps(nfs, px), _mm256_mul_ps(fc, py)),
+        )
+    };
+    tighten8_box(pv, &[cx, cy, cx, cy], active, start, iterations, expand)
+}
+
+/// The tile stage of eight 4x4 tiles (`Kernel::start`): Fig. 5 over the union of each tile's
+/// search regions from `start` (the scaled global bound, unit scale here), with the tiles'
+/// corner target positions `p_lo = (lx[i], ly)`, `p_hi = (hx[i], hy)`; for layers after the first
+/// (`with_depth`) also the min target depth over the final region.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn tile_stage8(
+    pv: &PyramidView<'_>,
+    lx: &[f32; 8],
+    hx: &[f32; 8],
+    ly: f32,
+    hy: f32,
+    active: u8,
+    start: &Bound,
+    iterations: u32,
+    expand: f32,
+    with_depth: bool,
+) -> [Option<(Bound, f32)>; 8] {
+    let (plx, phx) = (_mm256_loadu_ps(lx.as_ptr()), _mm256_loadu_ps(hx.as_ptr()));
+    let (ply, phy) = (splat(ly), splat(hy));
+    let f = pv.frame;
+    let c = if f.is_identity() {
+        [plx, ply, phx, phy]
+    } else {
+        // tight_bound_box_scaled: the four rotated corners, min / max chained c0, c1, c2, c3.
+        let (fc, fs, nfs) = (splat(f.axis.x), splat(f.axis.y), splat(-f.axis.y));
+        let rot = |x: __m256, y: __m256| {
+            (
+                _mm256_add_ps(_mm256_mul_ps(fc, x), _mm256_mul_ps(fs, y)),
+                _mm256_add_ps(_mm256_mul_ps(nfs, x), _mm256_mul_ps(fc, y)),
+            )
+        };
+        let c0 = rot(plx, ply);
+        let c1 = rot(phx, phy);
+        let c2 = rot(plx, phy);
+        let c3 = rot(phx, ply);
+        let mn = |a: __m256, b: __m256, c: __m256, d: __m256| _mm256_min_ps(_mm256_min_ps(_mm256_min_ps(a, b), c), d);
+        let mx = |a: __m256, b: __m256, c: __m256, d: __m256| _mm256_max_ps(_mm256_max_ps(_mm256_max_ps(a, b), c), d);
+        [mn(c0.0, c1.0, c2.0, c3.0), mn(c0.1, c1.1, c2.1, c3.1), mx(c0.0, c1.0, c2.0, c3.0), mx(c0.1, c1.1, c2.1, c3.1)]
+    };
+    if start.is_empty() {
+        return [None; 8];
+    }
+    let (mut ok, b, region) = tighten8_box(pv, &c, active, start, iterations, expand);
+    let zmin = if with_depth {
+        let (r, hit) = pixel_range8(pv, &region, expand);
+        ok &= _mm256_movemask_ps(hit) as u8;
+        lookup_min_depth8(pv, &r, _mm256_castps_si256(lane_mask(ok)))
+    } else {
+        splat(f32::NEG_INFINITY)
+    };
+    let mut lanes = [[0f32; 8]; 5];
+    for (o, v) in lanes.iter_mut().zip([b[0], b[1], b[2], b[3], zmin]) {
+        _mm256_storeu_ps(o.as_mut_ptr(), v);
+    }
+    std::array::from_fn(|i| {
+        (ok >> i & 1 != 0).then(|| {
+            (
+                Bound { lo: glam::Vec2::new(lanes[0][i], lanes[1][i]), hi: glam::Vec2::new(lanes[2][i], lanes[3][i]) },
+                lanes[4][i],
+            )
+        })
+    })
+}
+
+/// Step 1 of `holes::fill_background` (the search on the source's empty background) for the
+/// eight target pixels `holes` (row-major indices in a `tw`-wide image, source samples per
+/// pixel `mf`): bit i is set where pixel i's search converges. The same seeds, samples and
+/// steps as the portable `EmptyBackground` search (nearest sampling, zero Jacobian).
+///
+/// # Safety
+/// The CPU must support AVX2; every depth buffer and `motion` must be `w * h` long.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn background8(
+    depths: &[&[f32]],
+    motion: &[zwarp_core::Motion],
+    w: u32,
+    h: u32,
+    tw: u32,
+    mf: f32,
+    holes: &[u32; 8],
+    search: &crate::search::SearchParams,
+) -> u8 {
+    let xs: [i32; 8] = std::array::from_fn(|k| (holes[k] % tw) as i32);
+    let ys: [i32; 8] = std::array::from_fn(|k| (holes[k] / tw) as i32);
+    let xi = _mm256_loadu_si256(xs.as_ptr() as *const __m256i);
+    let yi = _mm256_loadu_si256(ys.as_ptr() as *const __m256i);
+    let (px, py) = positions(mf, xi, yi);
+    let mp = motion.as_ptr() as *const f32;
+    let wv = _mm256_set1_epi32(w as i32);
+    let (wm, hm) = (_mm256_set1_epi32(w as i32 - 1), _mm256_set1_epi32(h as i32 - 1));
+    let three = _mm256_set1_epi32(3);
+    // back = motion[p.y as usize * w + p.x as usize].v.
+    let pi = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(py), wv), _mm256_cvttps_epi32(px));
+    let pi3 = _mm256_mullo_epi32(pi, three);
+    let bx = _mm256_i32gather_ps::<4>(mp, pi3);
+    let by = _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(pi3, _mm256_set1_epi32(1)));
+    // background_seeds: clamp into [0, (w, h) - 1e-3].
+    let zero = _mm256_setzero_ps();
+    let (mx, my) = (splat(w as f32 - 1e-3), splat(h as f32 - 1e-3));
+    let clampx = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), mx);
+    let clampy = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), my);
+    let seeds = [(clampx(px), clampy(py)), (clampx(_mm256_sub_ps(px, bx)), clampy(_mm256_sub_ps(py, by)))];
+    let (wf, hf) = (splat(w as f32), splat(h as f32));
+    let thr2 = splat(search.threshold * search.threshold);
+    let one = splat(1.0);
+    let (m00, m01, m10, m11) = (one, zero, zero, one);
+    let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
+    let neg_m10 = _mm256_xor_ps(m10, splat(-0.0));
+    let mut conv = zero;
+    for (sx, sy) in seeds {
+        let (mut qx, mut qy) = (sx, sy);
+        let mut live = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        for _ in 0..search.iterations {
+            let inside = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+            );
+            live = _mm256_and_ps(live, inside);
+            if _mm256_movemask_ps(live) == 0 {
+                break;
+            }
+            let live_i = _mm256_castps_si256(live);
+            let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+            let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+            let i = _mm256_add_epi32(_mm256_mullo_epi32(yn, wv), xn);
+            // A sample only where no layer has a surface.
+            for d in depths {
+                let z = _mm256_i32gather_ps::<4>(d.as_ptr(), i);
+                live = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_GE_OQ>(z, one));
+            }
+            if _mm256_movemask_ps(live) == 0 {
+                break;
+            }
+            let i3 = _mm256_and_si256(_mm256_mullo_epi32(i, three), _mm256_castps_si256(live));
+            let vx = _mm256_i32gather_ps::<4>(mp, i3);
+            let vy = _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(i3, _mm256_set1_epi32(1)));
+            let wx = _mm256_sub_ps(px, vx);
+            let wy = _mm256_sub_ps(py, vy);
+            let stx = _mm256_sub_ps(wx, qx);
+            let sty = _mm256_sub_ps(wy, qy);
+            let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+            let now = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+            conv = _mm256_or_ps(conv, now);
+            live = _mm256_andnot_ps(now, live);
+            if _mm256_movemask_ps(live) == 0 {
+                break;
+            }
+            if search.accelerate {
+                // newton_step with a zero Jacobian: q + (I^-1 step), the same products.
+                let dx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
+                let dy = _mm256_div_ps(_mm256_add_ps(_mm256_mul_ps(neg_m10, stx), _mm256_mul_ps(m00, sty)), det);
+                qx = _mm256_add_ps(qx, dx);
+                qy = _mm256_add_ps(qy, dy);
+            } else {
+                qx = wx;
+                qy = wy;
+            }
+        }
+        if _mm256_movemask_ps(conv) == 0xff {
+            break;
+        }
+    }
+    _mm256_movemask_ps(conv) as u8
+}
