@@ -406,7 +406,7 @@ impl<'a> Kernel<'a> {
                     let two = yy + 1 < y0 + rows;
                     let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
                     // SAFETY: `lanes_apply` checked AVX2; the planes are `w * h` long.
-                    unsafe { self.lanes8(ls, pvs, &mut memo, &mut seeds, x0, x1, yy, out) };
+                    unsafe { self.lanes8(ls, pvs, &mut memo, x0, x1, yy, out) };
                 }
                 continue;
             }
@@ -491,7 +491,6 @@ impl<'a> Kernel<'a> {
             layers,
             w: self.w,
             h: self.h,
-            m: self.m,
             max_q: self.max_q(),
             thr2: self.params.threshold * self.params.threshold,
             iterations: self.params.iterations,
@@ -520,7 +519,6 @@ impl<'a> Kernel<'a> {
         ls: &crate::simd_warp::LaneSearch<'_>,
         pvs: &[crate::simd_warp::PyramidView<'_>],
         memo: &mut TileBounds,
-        seeds: &mut [Vec2; MAX_SEEDS as usize],
         x0: u32,
         x1: u32,
         y: u32,
@@ -539,88 +537,99 @@ impl<'a> Kernel<'a> {
         let mut bz = _mm256_set1_ps(EMPTY_DEPTH);
         let (mut bqx, mut bqy) = (zero, zero);
         let mut btag = _mm256_setzero_si256();
-        let mut cont = [u8::MAX; 8];
-        let mut pending = active;
+        // The last converged position (cross-layer seed) and whether there is one.
+        let (mut pqx, mut pqy) = (zero, zero);
+        let act = sw::lane_mask(active);
         for k in 0..self.layers.len() {
-            if pending == 0 {
+            let Some(sk) = self.start(memo, k) else { continue };
+            let frame = self.layers[k].pyramid().frame();
+            let iters = self.bound_iterations();
+            // Lanes with a candidate: the pruning tests of a later layer (min depths over the
+            // tile's region, the pixel's region under the tile's bound, the tightened region),
+            // then the search from the tightened bound with the cross-layer seed.
+            let with_best = _mm256_and_ps(act, has);
+            let mut go = _mm256_and_ps(with_best, _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(sk.min_depth), bz));
+            let mut later: Option<([__m256; 4], u8)> = None;
+            if _mm256_movemask_ps(go) != 0 {
+                let pv = &pvs[k];
+                let (r, hit) = sw::pixel_range8(pv, &sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)), expand);
+                go = _mm256_and_ps(go, hit);
+                let z1 = sw::lookup_min_depth8(pv, &r, _mm256_castps_si256(go));
+                go = _mm256_and_ps(go, _mm256_cmp_ps::<_CMP_LT_OQ>(z1, bz));
+                let bits = _mm256_movemask_ps(go) as u8;
+                if bits != 0 {
+                    let (ok, _, region) = sw::tighten8(pv, px, py, bits, &sk.motion, iters, expand);
+                    let (r, hit) = sw::pixel_range8(pv, &region, expand);
+                    let ok = _mm256_and_ps(sw::lane_mask(ok), hit);
+                    let z2 = sw::lookup_min_depth8(pv, &r, _mm256_castps_si256(ok));
+                    let ok = _mm256_and_ps(ok, _mm256_cmp_ps::<_CMP_LT_OQ>(z2, bz));
+                    later = Some((region, _mm256_movemask_ps(ok) as u8));
+                }
+            }
+            // Lanes without a candidate: the resolved tile's region, or the pixel's tightened
+            // bound.
+            let searching = active & !(_mm256_movemask_ps(has) as u8);
+            let first = if searching == 0 {
+                None
+            } else if sk.resolved() {
+                Some((sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)), searching))
+            } else {
+                let (ok, _, region) = sw::tighten8(&pvs[k], px, py, searching, &sk.motion, iters, expand);
+                Some((region, ok))
+            };
+            for (pass, with_prev) in [(first, false), (later, true)] {
+                let Some((region, bits)) = pass else { continue };
+                if bits == 0 {
+                    continue;
+                }
+                let prev = with_prev.then_some((pqx, pqy, has));
+                let r = sw::search8(ls, k, frame, px, py, xi, yi, bits, &region, prev);
+                let now = r.converged;
+                // Found: the cross-layer seed of later layers; nearer than the candidate (or the
+                // first): the candidate.
+                pqx = _mm256_blendv_ps(pqx, r.qx, now);
+                pqy = _mm256_blendv_ps(pqy, r.qy, now);
+                let better = _mm256_and_ps(now, _mm256_or_ps(_mm256_andnot_ps(has, now), _mm256_cmp_ps::<_CMP_LT_OQ>(r.depth, bz)));
+                bz = _mm256_blendv_ps(bz, r.depth, better);
+                bqx = _mm256_blendv_ps(bqx, r.qx, better);
+                bqy = _mm256_blendv_ps(bqy, r.qy, better);
+                btag = _mm256_blendv_epi8(btag, r.tag, _mm256_castps_si256(better));
+                has = _mm256_or_ps(has, now);
+            }
+        }
+        let Rows { depth, state, source, .. } = out;
+        // Depth: the candidate's, far where none; state: converged or hole.
+        let fz = _mm256_blendv_ps(_mm256_set1_ps(EMPTY_DEPTH), bz, has);
+        let hasb = _mm256_movemask_ps(has) as u8;
+        let n = (x1 - x0) as usize;
+        let x = x0 as usize;
+        let mut zs = [0f32; 8];
+        _mm256_storeu_ps(zs.as_mut_ptr(), fz);
+        for (row, (drow, srow)) in depth.into_iter().zip(state).enumerate() {
+            if row == 1 && !out.two {
                 break;
             }
-            let Some(sk) = self.start(memo, k) else { continue };
-            let pend = sw::lane_mask(pending);
-            // The tile's pruning test for lanes that converged; survivors continue in the
-            // scalar kernel from this layer.
-            let survive = _mm256_movemask_ps(_mm256_and_ps(
-                _mm256_and_ps(pend, has),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(sk.min_depth), bz),
-            )) as u8;
-            if survive != 0 {
-                for (i, c) in cont.iter_mut().enumerate() {
-                    if survive >> i & 1 != 0 {
-                        *c = k as u8;
-                    }
-                }
-                pending &= !survive;
+            drow[x..x + n].copy_from_slice(&zs[4 * row..4 * row + n]);
+            for (i, st) in srow[x..x + n].iter_mut().enumerate() {
+                *st = if hasb >> (4 * row + i) & 1 != 0 { PixelState::Converged } else { PixelState::Hole };
             }
-            let searching = pending & !(_mm256_movemask_ps(has) as u8);
-            if searching == 0 {
-                continue;
-            }
-            let frame = self.layers[k].pyramid().frame();
-            let (bounded, region) = if sk.resolved() {
-                (searching, sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)))
-            } else {
-                let (ok, _, region) =
-                    sw::tighten8(&pvs[k], px, py, searching, &sk.motion, self.bound_iterations(), expand);
-                (ok, region)
-            };
-            let r = sw::search8(ls, k, frame, px, py, xi, yi, bounded, &region);
-            if r.scalar != 0 {
-                for (i, c) in cont.iter_mut().enumerate() {
-                    if r.scalar >> i & 1 != 0 {
-                        *c = k as u8;
-                    }
-                }
-                pending &= !r.scalar;
-            }
-            // First convergence of these lanes: the candidate.
-            let now = r.converged;
-            bz = _mm256_blendv_ps(bz, r.depth, now);
-            bqx = _mm256_blendv_ps(bqx, r.qx, now);
-            bqy = _mm256_blendv_ps(bqy, r.qy, now);
-            btag = _mm256_blendv_epi8(btag, r.tag, _mm256_castps_si256(now));
-            has = _mm256_or_ps(has, now);
         }
-        let mut z = [0f32; 8];
-        let (mut qx, mut qy) = ([0f32; 8], [0f32; 8]);
-        let mut tag = [0u32; 8];
-        _mm256_storeu_ps(z.as_mut_ptr(), bz);
-        _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
-        _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
-        _mm256_storeu_si256(tag.as_mut_ptr() as *mut __m256i, btag);
-        let hasb = _mm256_movemask_ps(has) as u8;
-        let Rows { depth, state, mut source, .. } = out;
-        for i in 0..8 {
-            if active >> i & 1 == 0 {
-                continue;
-            }
-            let (row, x) = (i / 4, x0 as usize + i % 4);
-            let px = if cont[i] != u8::MAX {
-                let b = (hasb >> i & 1 != 0).then(|| Candidate {
-                    q: Vec2::new(qx[i], qy[i]),
-                    depth: z[i],
-                    tag: tag[i],
-                    seed: 0,
-                });
-                self.pixel_from(x as u32, y + row as u32, memo, seeds, cont[i] as usize, b, b.map(|c| c.q))
-            } else if hasb >> i & 1 != 0 {
-                (z[i], PixelState::Converged, SourcePos { q: Vec2::new(qx[i], qy[i]), layer: tag[i] })
-            } else {
-                (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
-            };
-            depth[row][x] = px.0;
-            state[row][x] = px.1;
-            if let Some(s) = source[row].as_deref_mut() {
-                s[x] = px.2;
+        if source.iter().any(|s| s.is_some()) {
+            let (mut qx, mut qy) = ([0f32; 8], [0f32; 8]);
+            let mut tag = [0u32; 8];
+            _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
+            _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
+            _mm256_storeu_si256(tag.as_mut_ptr() as *mut __m256i, btag);
+            for (row, src) in source.into_iter().enumerate() {
+                let Some(src) = src else { continue };
+                for i in 0..n {
+                    let l = 4 * row + i;
+                    src[x + i] = if hasb >> l & 1 != 0 {
+                        SourcePos { q: Vec2::new(qx[l], qy[l]), layer: tag[l] }
+                    } else {
+                        SourcePos { q: Vec2::ZERO, layer: u32::MAX }
+                    };
+                }
             }
         }
     }

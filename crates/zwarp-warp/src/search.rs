@@ -174,22 +174,6 @@ impl<'a> LayerSampler<'a> {
     pub(crate) fn planes(&self) -> (&'a [f32], &'a [f32], &'a [f32], u32, u32) {
         (self.vx, self.vy, self.z, self.w, self.h)
     }
-    /// The per-axis motion scale.
-    #[inline]
-    pub(crate) fn scale(&self) -> Vec2 {
-        self.scale
-    }
-    /// The sampling mode.
-    #[inline]
-    pub(crate) fn sampling(&self) -> Sampling {
-        self.sampling
-    }
-    /// The tag of the samples.
-    #[inline]
-    pub(crate) fn tag(&self) -> u32 {
-        self.tag
-    }
-
     /// `true` if `q` lies inside the image `[0, w) x [0, h)`.
     #[inline]
     pub fn inside(&self, q: Vec2) -> bool {

@@ -31,8 +31,6 @@ pub(crate) struct LaneSearch<'a> {
     /// Source size.
     pub w: u32,
     pub h: u32,
-    /// Source samples per target pixel and axis.
-    pub m: f32,
     pub max_q: glam::Vec2,
     pub thr2: f32,
     pub iterations: u32,
@@ -51,9 +49,6 @@ pub(crate) struct LaneSearch<'a> {
 pub(crate) struct Lanes {
     /// Converged lanes (all bits set per lane).
     pub converged: __m256,
-    /// Lanes whose region needs more than one seed: the scalar kernel decides them (bit i =
-    /// lane i).
-    pub scalar: u8,
     /// Depth of the converged sample per lane.
     pub depth: __m256,
     /// Converged source position per lane.
@@ -215,10 +210,11 @@ unsafe fn hash8(v: __m256i) -> __m256i {
 /// `(xi, yi)`) with the seeds `stratified_seeds` places in each lane's search region
 /// `[lo.x, lo.y, hi.x, hi.y]` (frame coordinates of `frame`): one at the centre where the
 /// region is within one pixel, else `effective_seeds` of them (corners first, then the
-/// jittered R2 points), the candidate of minimal depth winning in seed order. The walk samples
-/// layer `k` with the cross-layer fallback of `StackSampler` (the first empty landing borrows
-/// the nearest non-empty layer above, the second fails). No earlier layer converged for these
-/// lanes, so no cross-layer seed.
+/// jittered R2 points), plus, with cross-layer seeding, an earlier layer's converged position
+/// `prev` where the lane has one (`prev_has`) inside its region (appended, or in place of the
+/// last seed when there are N); the candidate of minimal depth wins in seed order. The walk
+/// samples layer `k` with the cross-layer fallback of `StackSampler` (the first empty landing
+/// borrows the nearest non-empty layer above, the second fails).
 ///
 /// # Safety
 /// The CPU must support AVX2; the planes must be `w * h` long.
@@ -234,6 +230,7 @@ pub(crate) unsafe fn search8(
     yi: __m256i,
     active: u8,
     region: &[__m256; 4],
+    prev: Option<(__m256, __m256, __m256)>,
 ) -> Lanes {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
@@ -251,8 +248,41 @@ pub(crate) unsafe fn search8(
     let nsel = _mm256_blendv_ps(nf, area, _mm256_cmp_ps::<_CMP_LT_OQ>(area, nf));
     let ne = _mm256_blendv_epi8(_mm256_cvttps_epi32(nsel), _mm256_set1_epi32(1), _mm256_castps_si256(single));
     let ne = _mm256_and_si256(ne, _mm256_castps_si256(act));
+    // The cross-layer seed: to_frame(q) inside the region (inclusive).
+    let (pqx, pqy, prev_in) = match prev {
+        Some((pqx, pqy, phas)) if ls.cross => {
+            let ux = _mm256_add_ps(_mm256_mul_ps(fc, pqx), _mm256_mul_ps(fs, pqy));
+            let uy = _mm256_add_ps(_mm256_mul_ps(splat(-frame.axis.y), pqx), _mm256_mul_ps(fc, pqy));
+            let inside = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(ux, lox), _mm256_cmp_ps::<_CMP_LE_OQ>(ux, hix)),
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(uy, loy), _mm256_cmp_ps::<_CMP_LE_OQ>(uy, hiy)),
+            );
+            (pqx, pqy, _mm256_and_ps(_mm256_and_ps(phas, inside), act))
+        }
+        _ => (zero, zero, zero),
+    };
+    let prev_in_i = _mm256_castps_si256(prev_in);
+    // Seeds in use: ne, or ne + 1 with the cross-layer seed when ne < N; that seed's index.
+    let room = _mm256_and_si256(prev_in_i, _mm256_cmpgt_epi32(_mm256_set1_epi32(ls.n_seeds as i32), ne));
+    let ntot = _mm256_sub_epi32(ne, room);
+    let prev_at = _mm256_sub_epi32(ntot, _mm256_set1_epi32(1));
+    let (mxq, myq) = (splat(ls.max_q.x), splat(ls.max_q.y));
+    if _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, _mm256_set1_epi32(1)))) == 0 {
+        // One seed per lane (most pixels): from_frame(lo + 0.5 * e), or the cross-layer seed in
+        // its place when N = 1.
+        let ux = _mm256_add_ps(lox, _mm256_mul_ps(half, ex));
+        let uy = _mm256_add_ps(loy, _mm256_mul_ps(half, ey));
+        let mut qx = _mm256_sub_ps(_mm256_mul_ps(fc, ux), _mm256_mul_ps(fs, uy));
+        let mut qy = _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy));
+        qx = _mm256_blendv_ps(qx, pqx, prev_in);
+        qy = _mm256_blendv_ps(qy, pqy, prev_in);
+        qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
+        qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
+        let (now, depth, qx, qy, tag) = walk8(ls, k, px, py, qx, qy, act);
+        return Lanes { converged: now, depth, qx, qy, tag };
+    }
     let mut nes = [0i32; 8];
-    _mm256_storeu_si256(nes.as_mut_ptr() as *mut __m256i, ne);
+    _mm256_storeu_si256(nes.as_mut_ptr() as *mut __m256i, ntot);
     let max_n = nes.iter().copied().max().unwrap_or(0).min(ls.n_seeds as i32);
     // stratified_seeds for n >= 2: nc = min(n / 2, distinct corners) corners, then R2 points
     // lo + fract(r + R2 i) e jittered by seed_key(x, y, k); `map` rotates back unless identity.
@@ -278,14 +308,13 @@ pub(crate) unsafe fn search8(
             )
         }
     };
-    let (mxq, myq) = (splat(ls.max_q.x), splat(ls.max_q.y));
     let mut has = zero;
     let mut depth = one;
     let (mut cqx, mut cqy) = (zero, zero);
     let mut ctag = _mm256_setzero_si256();
     for j in 0..max_n {
         let ji = _mm256_set1_epi32(j);
-        let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ne, ji));
+        let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, ji));
         let mut live = _mm256_and_ps(act, in_use);
         if ls.first_converged {
             live = _mm256_andnot_ps(has, live);
@@ -329,6 +358,9 @@ pub(crate) unsafe fn search8(
             let qy = _mm256_blendv_ps(_mm256_blendv_ps(r2p.1, corner.1, is_corner), centre.1, is_single);
             (qx, qy)
         };
+        let is_prev = _mm256_castsi256_ps(_mm256_and_si256(prev_in_i, _mm256_cmpeq_epi32(prev_at, ji)));
+        qx = _mm256_blendv_ps(qx, pqx, is_prev);
+        qy = _mm256_blendv_ps(qy, pqy, is_prev);
         // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
@@ -344,7 +376,7 @@ pub(crate) unsafe fn search8(
         ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
         has = _mm256_or_ps(has, now);
     }
-    Lanes { converged: has, scalar: 0, depth, qx: cqx, qy: cqy, tag: ctag }
+    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag }
 }
 
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
@@ -510,7 +542,7 @@ unsafe fn table(t: &[i32; 16], level: __m256i) -> __m256i {
 /// regions grown by `expand` and clipped, and the lanes whose region misses the image.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn pixel_range8(pv: &PyramidView<'_>, region: &[__m256; 4], expand: f32) -> ([__m256i; 4], __m256) {
+pub(crate) unsafe fn pixel_range8(pv: &PyramidView<'_>, region: &[__m256; 4], expand: f32) -> ([__m256i; 4], __m256) {
     let [mut lox, mut loy, mut hix, mut hiy] = *region;
     if !pv.frame.is_identity() {
         // The image-space AABB of the rotated box, as `pixel_range` picks its corners.
@@ -599,7 +631,7 @@ unsafe fn lookup8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> [__m
 /// `MotionPyramid::lookup_min_depth` per lane.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn lookup_min_depth8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> __m256 {
+pub(crate) unsafe fn lookup_min_depth8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> __m256 {
     let [a, b, c, d] = texels8(pv, r, live);
     let base = pv.zmin.as_ptr();
     let g = |i: __m256i| _mm256_i32gather_ps::<4>(base, i);
