@@ -589,7 +589,10 @@ impl<'a> Kernel<'a> {
                 // first): the candidate.
                 pqx = _mm256_blendv_ps(pqx, r.qx, now);
                 pqy = _mm256_blendv_ps(pqy, r.qy, now);
-                let better = _mm256_and_ps(now, _mm256_or_ps(_mm256_andnot_ps(has, now), _mm256_cmp_ps::<_CMP_LT_OQ>(r.depth, bz)));
+                let better = _mm256_and_ps(
+                    now,
+                    _mm256_or_ps(_mm256_andnot_ps(has, now), _mm256_cmp_ps::<_CMP_LT_OQ>(r.depth, bz)),
+                );
                 bz = _mm256_blendv_ps(bz, r.depth, better);
                 bqx = _mm256_blendv_ps(bqx, r.qx, better);
                 bqy = _mm256_blendv_ps(bqy, r.qy, better);
@@ -622,6 +625,9 @@ impl<'a> Kernel<'a> {
             _mm256_storeu_si256(tag.as_mut_ptr() as *mut __m256i, btag);
             for (row, src) in source.into_iter().enumerate() {
                 let Some(src) = src else { continue };
+                if row == 1 && !out.two {
+                    break;
+                }
                 for i in 0..n {
                     let l = 4 * row + i;
                     src[x + i] = if hasb >> l & 1 != 0 {

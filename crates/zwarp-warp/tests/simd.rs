@@ -1,0 +1,145 @@
+//! The AVX2 builds of the preparation, the warp and the background fill compute exactly what the
+//! portable code computes: both builds on the same inputs, compared bit for bit. (Its own test
+//! binary: `simd::set_simd` is process-wide.) Where the CPU has no AVX2 both runs take the
+//! portable code and the test checks nothing new; it says so.
+
+use glam::{Vec2, Vec3};
+use proptest::prelude::*;
+use zwarp_core::{motion_field, Camera, Image, Motion};
+use zwarp_warp::synth::{SynthBox, SynthScene};
+use zwarp_warp::*;
+
+fn bits(out: &WarpOutput) -> (Vec<u32>, Vec<u8>, Option<Vec<(u32, u32, u32)>>) {
+    (
+        out.depth.data().iter().map(|z| z.to_bits()).collect(),
+        out.state.data().iter().map(|s| *s as u8).collect(),
+        out.source.as_ref().map(|s| s.data().iter().map(|p| (p.q.x.to_bits(), p.q.y.to_bits(), p.layer)).collect()),
+    )
+}
+
+/// The warp (and, for the background policy, the complete fill) of `layers` with both builds.
+fn both(layers: &[WarpLayer<'_>], params: &WarpParams) -> (WarpOutput, WarpOutput) {
+    let run = |simd: bool| {
+        simd::set_simd(simd);
+        let prepared = PreparedLayer::prepare_stack(layers, params.bound).unwrap();
+        let wp = WarpParams { holes: HolePolicy::FarDepth, ..*params };
+        let mut out =
+            warp_prepared(&prepared, if matches!(params.holes, HolePolicy::Background { .. }) { &wp } else { params })
+                .unwrap();
+        if let HolePolicy::Background { radius } = params.holes {
+            holes::fill_background(layers, &mut out, radius, &params.search()).unwrap();
+        }
+        out
+    };
+    let fast = run(true);
+    let portable = run(false);
+    simd::set_simd(true);
+    (fast, portable)
+}
+
+fn city(w: u32, h: u32, layers: u32, m: u32) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
+    let mut scene = SynthScene::city(3);
+    scene.boxes.push(SynthBox {
+        aabb: zwarp_core::Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
+        velocity: Vec3::new(4.0, 0.0, 0.0),
+    });
+    let cam =
+        |eye: Vec3, target: Vec3| Camera::perspective(eye, target, Vec3::Y, 1.0, 0.5, 200.0, w * m, h * m).unwrap();
+    let a = cam(Vec3::new(0.0, 9.0, 22.0), Vec3::ZERO);
+    let b = cam(Vec3::new(1.2, 9.4, 20.5), Vec3::new(0.4, 0.2, 0.0));
+    let src = scene.render(&a, 0.0, layers, layers > 1);
+    let deltas = scene.object_deltas(0.0, 0.25);
+    let motions =
+        src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &deltas).unwrap()).collect();
+    (src.depth, motions)
+}
+
+#[test]
+fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
+    if !simd::has_avx2() {
+        eprintln!("note: no AVX2 on this CPU; both runs take the portable code");
+    }
+    let (w, h) = (97, 61);
+    let (depth, motion) = city(w, h, 3, 1);
+    for l in [1usize, 2, 3] {
+        let layers: Vec<WarpLayer> =
+            depth.iter().zip(&motion).take(l).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        for bound in [BoundKind::Global, BoundKind::Tight, BoundKind::Oriented] {
+            for (n, t) in [(1, 3), (4, 1), (4, 3), (16, 3)] {
+                for (cross_layer, choice) in
+                    [(true, CandidateChoice::MinDepth), (false, CandidateChoice::FirstConverged)]
+                {
+                    for holes in [HolePolicy::FarDepth, HolePolicy::Background { radius: 8 }, HolePolicy::Awoc] {
+                        let params = WarpParams {
+                            n_seeds: n,
+                            iterations: t,
+                            bound,
+                            cross_layer,
+                            choice,
+                            holes,
+                            record_source: true,
+                            ..WarpParams::default()
+                        };
+                        let (a, b) = both(&layers, &params);
+                        assert!(bits(&a) == bits(&b), "L={l} {bound:?} N={n} T={t} {cross_layer} {choice:?} {holes:?}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn avx2_warp_equals_the_portable_warp_on_multisampled_sources() {
+    let (w, h) = (45, 29);
+    for m in [2u32, 3] {
+        let (depth, motion) = city(w, h, 2, m);
+        let layers: Vec<WarpLayer> =
+            depth.iter().zip(&motion).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        for n in [1, 8] {
+            let params = WarpParams { n_seeds: n, multisample: m, record_source: true, ..WarpParams::default() };
+            let (a, b) = both(&layers, &params);
+            assert!(bits(&a) == bits(&b), "m={m} N={n}");
+            let params = WarpParams { holes: HolePolicy::Background { radius: 16 }, ..params };
+            let (a, b) = both(&layers, &params);
+            assert!(bits(&a) == bits(&b), "m={m} N={n} background fill");
+        }
+    }
+}
+
+/// A smooth field with a hole and strong rotation-like parts: the PCA frame is used.
+fn field(w: u32, h: u32, c: [f32; 4]) -> (Image<f32>, Image<Motion>) {
+    let depth = Image::from_fn(w, h, |x, y| {
+        let (dx, dy) = (x as f32 - 0.3 * w as f32, y as f32 - 0.6 * h as f32);
+        if dx * dx + dy * dy < 20.0 || (x + 3 * y) % 23 == 0 {
+            1.0
+        } else {
+            0.3 + 0.4 * ((x as f32 * 0.13 + c[0]).sin() * 0.5 + 0.5)
+        }
+    });
+    let motion = Image::from_fn(w, h, |x, y| {
+        let (fx, fy) = (x as f32 / w as f32, y as f32 / h as f32);
+        let t = c[1] * 6.0 * fx + 2.0 * (fy * 3.0 + c[2]).sin();
+        let v = Vec2::new(t + c[3] * 3.0 * (fx * 5.0).cos(), 0.8 * t - 1.0 + 1.5 * (fx * 2.0 + fy).sin());
+        Motion { v, depth: *depth.get(x, y) * 0.98 }
+    });
+    (depth, motion)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Random sizes (odd, not multiples of the tile or of eight), fields, N and T, both bound
+    /// kinds that tighten: bit-identical warps.
+    #[test]
+    fn avx2_warp_equals_the_portable_warp_on_random_fields(
+        w in 9u32..70, h in 5u32..40, a in -1.0f32..1.0, b in -1.5f32..1.5, c in 0.0f32..6.0, d in -1.0f32..1.0,
+        n in 1u32..20, t in 1u32..5, oriented in any::<bool>(), accelerate in any::<bool>(),
+    ) {
+        let (depth, motion) = field(w, h, [a, b, c, d]);
+        let layers = [WarpLayer { depth: &depth, motion: &motion }];
+        let bound = if oriented { BoundKind::Oriented } else { BoundKind::Tight };
+        let params = WarpParams { n_seeds: n, iterations: t, bound, accelerate, record_source: true, ..WarpParams::default() };
+        let (x, y) = both(&layers, &params);
+        prop_assert!(bits(&x) == bits(&y));
+    }
+}
