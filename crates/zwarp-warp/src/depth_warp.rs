@@ -57,6 +57,20 @@ pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpO
 /// OB) is fixed when a layer is prepared; `params.bound == Global` disables the per-pixel
 /// tightening, any other kind tightens in the prepared frame.
 pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<WarpOutput> {
+    let mut out = WarpOutput {
+        depth: Image::new(0, 0, EMPTY_DEPTH),
+        state: Image::new(0, 0, PixelState::Hole),
+        source: None,
+    };
+    warp_prepared_into(layers, params, &mut out)?;
+    Ok(out)
+}
+
+/// [`warp_prepared`] into the buffers of `out` (an earlier warp's output, of any size: buffers
+/// that are too small are replaced), as an engine keeps its output from frame to frame. The
+/// result is the same as [`warp_prepared`]'s; what it saves is allocating and faulting in fresh
+/// output pages every frame.
+pub fn warp_prepared_into(layers: &[PreparedLayer], params: &WarpParams, out: &mut WarpOutput) -> Result<()> {
     params.validate()?;
     let first = layers.first().ok_or_else(|| Error::invalid("warp_depth needs at least one layer"))?;
     let (w, h) = first.size();
@@ -73,9 +87,27 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     let (w, h) = (tw, th);
 
     let n = w as usize * h as usize;
-    let mut depth = crate::pages::filled(n, EMPTY_DEPTH);
-    let mut state = crate::pages::filled(n, PixelState::Hole);
-    let mut source = if params.record_source { vec![SourcePos::default(); n] } else { Vec::new() };
+    // Every pixel is written by the kernel; recycled buffers keep their pages.
+    let take = |img: &mut Image<f32>| std::mem::replace(img, Image::new(0, 0, 0.0)).into_vec();
+    let mut depth = take(&mut out.depth);
+    let mut state = std::mem::replace(&mut out.state, Image::new(0, 0, PixelState::Hole)).into_vec();
+    if depth.capacity() < n {
+        depth = crate::pages::filled(n, EMPTY_DEPTH);
+    } else {
+        depth.resize(n, EMPTY_DEPTH);
+    }
+    if state.capacity() < n {
+        state = crate::pages::filled(n, PixelState::Hole);
+    } else {
+        state.resize(n, PixelState::Hole);
+    }
+    let mut source = if params.record_source {
+        let mut s = out.source.take().map(Image::into_vec).unwrap_or_default();
+        s.resize(n, SourcePos::default());
+        s
+    } else {
+        Vec::new()
+    };
     // Bands of tile rows: the pixels of a tile share its bound stage.
     let band = (w * TILE) as usize;
     if params.record_source {
@@ -92,15 +124,15 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
             .enumerate()
             .for_each(|(ty, (d, s))| kernel.band(ty as u32, d, s, None));
     }
-    let mut depth = Image::from_vec(w, h, depth)?;
-    let mut state = Image::from_vec(w, h, state)?;
+    out.depth = Image::from_vec(w, h, depth)?;
+    out.state = Image::from_vec(w, h, state)?;
     match params.holes {
-        HolePolicy::Dilate { radius } => fill_holes(&mut depth, &mut state, radius, FillRule::Nearest),
-        HolePolicy::Background { radius } => fill_holes(&mut depth, &mut state, radius, FillRule::Background),
+        HolePolicy::Dilate { radius } => fill_holes(&mut out.depth, &mut out.state, radius, FillRule::Nearest),
+        HolePolicy::Background { radius } => fill_holes(&mut out.depth, &mut out.state, radius, FillRule::Background),
         HolePolicy::FarDepth | HolePolicy::Awoc => {}
     }
-    let source = if params.record_source { Some(Image::from_vec(w, h, source)?) } else { None };
-    Ok(WarpOutput { depth, state, source })
+    out.source = if params.record_source { Some(Image::from_vec(w, h, source)?) } else { None };
+    Ok(())
 }
 
 /// The warp of exactly the listed target pixels (row-major indices `y * w + x`): for each one

@@ -353,68 +353,76 @@ impl<'a> Kernel<'a> {
 
     /// Warps the band of tile rows `ty * TILE ..` (the slices hold those rows).
     pub fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes_apply() {
+            let views: Option<Vec<_>> =
+                self.layers.iter().map(|l| crate::simd_warp::PyramidView::new(l.pyramid())).collect();
+            if let Some(pvs) = views {
+                // SAFETY: `lanes_apply` checked AVX2.
+                unsafe { self.band_lanes(&self.lane_search(), &pvs, ty, depth, state, source) };
+                return;
+            }
+        }
         let w = self.tw as usize;
         let rows = (depth.len() / w) as u32;
         let y0 = ty * TILE;
         let mut memo = TileBounds::new(self.layers.len());
         let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
-        #[cfg(target_arch = "x86_64")]
-        let lanes = if self.lanes_apply() {
-            let views: Option<Vec<_>> =
-                self.layers.iter().map(|l| crate::simd_warp::PyramidView::new(l.pyramid())).collect();
-            views.map(|v| (self.lane_search(), v))
-        } else {
-            None
-        };
-        // The tile stage of every tile of the band and every layer, eight tiles at a time.
-        #[cfg(target_arch = "x86_64")]
-        let stages: Option<Vec<Vec<Option<StageBound>>>> = lanes
-            .as_ref()
-            .map(|(_, pvs)| (0..self.layers.len()).map(|k| self.tile_stages(&pvs[k], k, ty, rows)).collect());
         for x0 in (0..self.tw).step_by(TILE as usize) {
             memo.reset(x0, y0);
-            #[cfg(target_arch = "x86_64")]
-            if let Some(st) = &stages {
-                for (k, s) in st.iter().enumerate() {
-                    memo.memo[k] = Some(s[(x0 / TILE) as usize]);
-                }
-            }
             let x1 = (x0 + TILE).min(self.tw);
-            let mut write = |x: u32, y: u32, (z, st, src): (f32, PixelState, SourcePos)| {
-                crate::stats::count(crate::stats::Counter::Pixels, 1);
-                let i = (y - y0) as usize * w + x as usize;
-                depth[i] = z;
-                state[i] = st;
-                if let Some(s) = source.as_deref_mut() {
-                    s[i] = src;
-                }
-            };
-            #[cfg(target_arch = "x86_64")]
-            if let Some((ls, pvs)) = &lanes {
-                // Two rows of the tile per eight lanes.
-                for yy in (y0..y0 + rows).step_by(2) {
-                    let r = (yy - y0) as usize * w;
-                    let (d0, d1) = depth[r..].split_at_mut(w);
-                    let (s0, s1) = state[r..].split_at_mut(w);
-                    let (src0, src1) = match source.as_deref_mut() {
-                        Some(src) => {
-                            let (a, b) = src[r..].split_at_mut(w);
-                            (Some(a), Some(b))
-                        }
-                        None => (None, None),
-                    };
-                    let two = yy + 1 < y0 + rows;
-                    let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
-                    // SAFETY: `lanes_apply` checked AVX2; the planes are `w * h` long.
-                    unsafe { self.lanes8(ls, pvs, &mut memo, x0, x1, yy, out) };
-                }
-                continue;
-            }
             for y in y0..y0 + rows {
                 for x in x0..x1 {
-                    let px = self.pixel(x, y, &mut memo, &mut seeds);
-                    write(x, y, px);
+                    let (z, st, src) = self.pixel(x, y, &mut memo, &mut seeds);
+                    crate::stats::count(crate::stats::Counter::Pixels, 1);
+                    let i = (y - y0) as usize * w + x as usize;
+                    depth[i] = z;
+                    state[i] = st;
+                    if let Some(s) = source.as_deref_mut() {
+                        s[i] = src;
+                    }
                 }
+            }
+        }
+    }
+
+    /// [`Self::band`] with the AVX2 lanes: the tile stage of every tile of the band and layer,
+    /// eight tiles at a time, then per tile two rows of four pixels at a time ([`Self::lanes8`]).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn band_lanes(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        pvs: &[crate::simd_warp::PyramidView<'_>],
+        ty: u32,
+        depth: &mut [f32],
+        state: &mut [PixelState],
+        mut source: Option<&mut [SourcePos]>,
+    ) {
+        let w = self.tw as usize;
+        let rows = (depth.len() / w) as u32;
+        let y0 = ty * TILE;
+        let stages: Vec<Vec<Option<StageBound>>> =
+            (0..self.layers.len()).map(|k| self.tile_stages(&pvs[k], k, ty, rows)).collect();
+        for (t, x0) in (0..self.tw).step_by(TILE as usize).enumerate() {
+            let x1 = (x0 + TILE).min(self.tw);
+            for yy in (y0..y0 + rows).step_by(2) {
+                let r = (yy - y0) as usize * w;
+                let (d0, d1) = depth[r..].split_at_mut(w);
+                let (s0, s1) = state[r..].split_at_mut(w);
+                let (src0, src1) = match source.as_deref_mut() {
+                    Some(src) => {
+                        let (a, b) = src[r..].split_at_mut(w);
+                        (Some(a), Some(b))
+                    }
+                    None => (None, None),
+                };
+                let two = yy + 1 < y0 + rows;
+                let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
+                self.lanes8(ls, pvs, &stages, t, x0, x1, yy, out);
             }
         }
     }
@@ -518,7 +526,8 @@ impl<'a> Kernel<'a> {
         &self,
         ls: &crate::simd_warp::LaneSearch<'_>,
         pvs: &[crate::simd_warp::PyramidView<'_>],
-        memo: &mut TileBounds,
+        stages: &[Vec<Option<StageBound>>],
+        t: usize,
         x0: u32,
         x1: u32,
         y: u32,
@@ -540,8 +549,26 @@ impl<'a> Kernel<'a> {
         // The last converged position (cross-layer seed) and whether there is one.
         let (mut pqx, mut pqy) = (zero, zero);
         let act = sw::lane_mask(active);
+        // The common case in one pass (`simd_warp::fast8`).
+        if let Some(s0) = stages[0][t].filter(StageBound::resolved) {
+            let mut later = [f32::INFINITY; 8];
+            let nl = self.layers.len() - 1;
+            if nl <= later.len() {
+                for (z, s) in later.iter_mut().zip(&stages[1..]) {
+                    *z = s[t].map_or(f32::INFINITY, |s| s.min_depth);
+                }
+                let frame = self.layers[0].pyramid().frame();
+                if let Some((now, z, qx, qy)) = sw::fast8(ls, frame, &s0.motion, &later[..nl], px, py, active) {
+                    has = now;
+                    bz = z;
+                    bqx = qx;
+                    bqy = qy;
+                    return self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag);
+                }
+            }
+        }
         for k in 0..self.layers.len() {
-            let Some(sk) = self.start(memo, k) else { continue };
+            let Some(sk) = stages[k][t] else { continue };
             let frame = self.layers[k].pyramid().frame();
             let iters = self.bound_iterations();
             // Lanes with a candidate: the pruning tests of a later layer (min depths over the
@@ -600,6 +627,27 @@ impl<'a> Kernel<'a> {
                 has = _mm256_or_ps(has, now);
             }
         }
+        self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
+    }
+
+    /// Writes the results of eight lanes (two rows of up to four pixels from `x0`): the
+    /// candidate's depth and the converged state where `has`, the far depth and a hole elsewhere,
+    /// and the source positions when recorded.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn write_lanes(
+        &self,
+        x0: u32,
+        x1: u32,
+        out: Rows<'_>,
+        has: std::arch::x86_64::__m256,
+        bz: std::arch::x86_64::__m256,
+        bqx: std::arch::x86_64::__m256,
+        bqy: std::arch::x86_64::__m256,
+        btag: std::arch::x86_64::__m256i,
+    ) {
+        use std::arch::x86_64::*;
         let Rows { depth, state, source, .. } = out;
         // Depth: the candidate's, far where none; state: converged or hole.
         let fz = _mm256_blendv_ps(_mm256_set1_ps(EMPTY_DEPTH), bz, has);

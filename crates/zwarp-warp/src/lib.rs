@@ -25,6 +25,7 @@
 pub mod baselines;
 pub mod bounds;
 pub mod depth_warp;
+pub mod floor;
 pub mod holes;
 mod kernel;
 mod pages;
@@ -37,7 +38,9 @@ pub mod synth;
 
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
-pub use depth_warp::{target_size, warp_depth, warp_pixels, warp_prepared, PreparedLayer, SurfaceMotion, WarpLayer};
+pub use depth_warp::{
+    target_size, warp_depth, warp_pixels, warp_prepared, warp_prepared_into, PreparedLayer, SurfaceMotion, WarpLayer,
+};
 pub use holes::{dilate_holes, fill_holes, hole_fill, FillRule, HolePolicy, FILL_DIRECTIONS};
 pub use search::{
     fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, SamplePlanes, Sampling,

@@ -278,8 +278,19 @@ pub(crate) unsafe fn search8(
         qy = _mm256_blendv_ps(qy, pqy, prev_in);
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
-        let (now, depth, qx, qy, tag) = walk8(ls, k, px, py, qx, qy, act);
-        return Lanes { converged: now, depth, qx, qy, tag };
+        // The first iteration alone (most lanes converge in it); the others walk again from
+        // their seed with the complete step.
+        let (now, depth, more) = first8(ls, k, px, py, qx, qy, act);
+        let mut out = Lanes { converged: now, depth, qx, qy, tag: _mm256_set1_epi32(k as i32) };
+        if _mm256_movemask_ps(more) != 0 {
+            let (c2, d2, qx2, qy2, t2) = walk8(ls, k, px, py, qx, qy, more);
+            out.converged = _mm256_or_ps(out.converged, c2);
+            out.depth = _mm256_blendv_ps(out.depth, d2, c2);
+            out.qx = _mm256_blendv_ps(out.qx, qx2, c2);
+            out.qy = _mm256_blendv_ps(out.qy, qy2, c2);
+            out.tag = _mm256_blendv_epi8(out.tag, t2, _mm256_castps_si256(c2));
+        }
+        return out;
     }
     let mut nes = [0i32; 8];
     _mm256_storeu_si256(nes.as_mut_ptr() as *mut __m256i, ntot);
@@ -377,6 +388,135 @@ pub(crate) unsafe fn search8(
         has = _mm256_or_ps(has, now);
     }
     Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag }
+}
+
+/// The first iteration of [`walk8`] for one seed per lane (the lanes' own layer only, no
+/// Jacobian): the lanes that converged at their seed and the sample's depth, and the lanes that
+/// have a sample but did not converge (they need the complete walk; lanes without a sample — outside
+/// the image, or an empty texel that layer 0 cannot borrow for — are done). Where the eight
+/// lanes are two rows of four consecutive pixels whose texels are consecutive and inside the
+/// image (the seeds of a resolved tile), the texels are read with row loads instead of gathers.
+#[inline(always)]
+unsafe fn first8(
+    ls: &LaneSearch<'_>,
+    k: usize,
+    px: __m256,
+    py: __m256,
+    qx: __m256,
+    qy: __m256,
+    live: __m256,
+) -> (__m256, __m256, __m256) {
+    let zero = _mm256_setzero_ps();
+    let (half, one) = (splat(0.5), splat(1.0));
+    let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
+    let inside = _mm256_and_ps(
+        _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+        _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+    );
+    let live = _mm256_and_ps(live, inside);
+    if _mm256_movemask_ps(live) == 0 {
+        return (zero, one, zero);
+    }
+    let pl = &ls.layers[k];
+    let live_i = _mm256_castps_si256(live);
+    let wm = _mm256_set1_epi32(ls.w as i32 - 1);
+    let hm = _mm256_set1_epi32(ls.h as i32 - 1);
+    let ione = _mm256_set1_epi32(1);
+    let tx = _mm256_add_ps(qx, half);
+    let ty = _mm256_add_ps(qy, half);
+    let ix = _mm256_and_si256(_mm256_cvttps_epi32(tx), live_i);
+    let iy = _mm256_and_si256(_mm256_cvttps_epi32(ty), live_i);
+    let ax = _mm256_sub_ps(tx, _mm256_cvtepi32_ps(ix));
+    let ay = _mm256_sub_ps(ty, _mm256_cvtepi32_ps(iy));
+    let x0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(ix, ione), _mm256_setzero_si256()), wm);
+    let y0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(iy, ione), _mm256_setzero_si256()), hm);
+    let x1 = _mm256_min_epi32(ix, wm);
+    let y1 = _mm256_min_epi32(iy, hm);
+    // Row loads where every lane is live, x0 runs by one within each row of four, y0 is shared
+    // by each row of four, and no index was clamped (x1 = x0 + 1, y1 = y0 + 1).
+    let mut lanes = [0i32; 16];
+    _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, x0);
+    _mm256_storeu_si256(lanes.as_mut_ptr().add(8) as *mut __m256i, y0);
+    let run = _mm256_add_epi32(
+        _mm256_setr_epi32(lanes[0], lanes[0], lanes[0], lanes[0], lanes[4], lanes[4], lanes[4], lanes[4]),
+        _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3),
+    );
+    let row = _mm256_setr_epi32(lanes[8], lanes[8], lanes[8], lanes[8], lanes[12], lanes[12], lanes[12], lanes[12]);
+    let contiguous = _mm256_movemask_ps(live) == 0xff
+        && _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(
+            _mm256_and_si256(_mm256_cmpeq_epi32(x0, run), _mm256_cmpeq_epi32(y0, row)),
+            _mm256_and_si256(
+                _mm256_cmpeq_epi32(x1, _mm256_add_epi32(x0, ione)),
+                _mm256_cmpeq_epi32(y1, _mm256_add_epi32(y0, ione)),
+            ),
+        ))) == 0xff;
+    let w = ls.w as usize;
+    let tex = |p: &[f32]| -> [__m256; 4] {
+        if contiguous {
+            let (a, b) = (lanes[8] as usize * w + lanes[0] as usize, lanes[12] as usize * w + lanes[4] as usize);
+            let at = |i: usize| p.as_ptr().add(i);
+            [
+                _mm256_loadu2_m128(at(b), at(a)),
+                _mm256_loadu2_m128(at(b + 1), at(a + 1)),
+                _mm256_loadu2_m128(at(b + w), at(a + w)),
+                _mm256_loadu2_m128(at(b + w + 1), at(a + w + 1)),
+            ]
+        } else {
+            let wv = _mm256_set1_epi32(ls.w as i32);
+            let r0 = _mm256_mullo_epi32(y0, wv);
+            let r1 = _mm256_mullo_epi32(y1, wv);
+            let g = |i: __m256i| _mm256_i32gather_ps::<4>(p.as_ptr(), i);
+            [
+                g(_mm256_add_epi32(r0, x0)),
+                g(_mm256_add_epi32(r0, x1)),
+                g(_mm256_add_epi32(r1, x0)),
+                g(_mm256_add_epi32(r1, x1)),
+            ]
+        }
+    };
+    let [vx00, vx10, vx01, vx11] = tex(pl.vx);
+    let [vy00, vy10, vy01, vy11] = tex(pl.vy);
+    let [z00, z10, z01, z11] = tex(pl.z);
+    // From here on the arithmetic of fetch8, without the Jacobian.
+    let valid = |z: __m256| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(z, one));
+    let all_valid = _mm256_and_ps(_mm256_and_ps(valid(z00), valid(z10)), _mm256_and_ps(valid(z01), valid(z11)));
+    let lo_x = _mm256_min_ps(_mm256_min_ps(vx00, vx10), _mm256_min_ps(vx01, vx11));
+    let lo_y = _mm256_min_ps(_mm256_min_ps(vy00, vy10), _mm256_min_ps(vy01, vy11));
+    let hi_x = _mm256_max_ps(_mm256_max_ps(vx00, vx10), _mm256_max_ps(vx01, vx11));
+    let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
+    let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
+    let smooth = _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one));
+    let lerp = |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
+    let bvx = lerp(lerp(vx00, vx10, ax), lerp(vx01, vx11, ax), ay);
+    let bvy = lerp(lerp(vy00, vy10, ax), lerp(vy01, vy11, ax), ay);
+    let top_d = _mm256_add_ps(z00, _mm256_mul_ps(_mm256_sub_ps(z10, z00), ax));
+    let bot_d = _mm256_add_ps(z01, _mm256_mul_ps(_mm256_sub_ps(z11, z01), ax));
+    let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
+    let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+    let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+    let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
+    let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
+    let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
+        let t = _mm256_blendv_ps(a10, a00, left);
+        let b = _mm256_blendv_ps(a11, a01, left);
+        _mm256_blendv_ps(b, t, top)
+    };
+    let nz = pick(z00, z10, z01, z11);
+    let own = _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz)));
+    let vx = _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth);
+    let vy = _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth);
+    let z = _mm256_blendv_ps(nz, bz, smooth);
+    let stx = _mm256_sub_ps(_mm256_sub_ps(px, vx), qx);
+    let sty = _mm256_sub_ps(_mm256_sub_ps(py, vy), qy);
+    let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+    let now = _mm256_and_ps(own, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, splat(ls.thr2)));
+    // More iterations: own sample but not converged; or, on a later layer with cross-layer
+    // seeding, an empty texel (the walk borrows).
+    let mut more = if ls.iterations > 1 { _mm256_andnot_ps(now, own) } else { zero };
+    if ls.cross && k > 0 {
+        more = _mm256_or_ps(more, _mm256_andnot_ps(own, live));
+    }
+    (now, _mm256_blendv_ps(one, z, now), more)
 }
 
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
@@ -907,4 +1047,57 @@ pub(crate) unsafe fn background8(
         }
     }
     _mm256_movemask_ps(conv) as u8
+}
+
+/// The common case of a tile in one pass, without the general machinery: layer 0's tile bound
+/// is resolved, every active lane has a single seed (the centre of its region) and converges at
+/// it, and on every later layer the tile's min-depth test prunes it (or the layer has no bound).
+/// Returns the lanes' depths and converged positions, or `None` where any lane needs more (more
+/// seeds, more iterations, a later layer's search; lanes without a sample at layer 0 count as
+/// decided holes only when there is one layer), and the caller takes the general path.
+///
+/// # Safety
+/// The CPU must support AVX2; the planes must be `w * h` long.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn fast8(
+    ls: &LaneSearch<'_>,
+    frame: BoundFrame,
+    bound: &Bound,
+    later_min_depth: &[f32],
+    px: __m256,
+    py: __m256,
+    active: u8,
+) -> Option<(__m256, __m256, __m256, __m256)> {
+    let act = lane_mask(active);
+    let region = region8(frame, px, py, &splat_bound(bound));
+    let [lox, loy, hix, hiy] = region;
+    let (ex, ey) = (_mm256_sub_ps(hix, lox), _mm256_sub_ps(hiy, loy));
+    let one = splat(1.0);
+    let single = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(ex, one), _mm256_cmp_ps::<_CMP_LE_OQ>(ey, one));
+    if _mm256_movemask_ps(_mm256_andnot_ps(single, act)) != 0 {
+        return None;
+    }
+    let (fc, fs, half, zero) = (splat(frame.axis.x), splat(frame.axis.y), splat(0.5), _mm256_setzero_ps());
+    let ux = _mm256_add_ps(lox, _mm256_mul_ps(half, ex));
+    let uy = _mm256_add_ps(loy, _mm256_mul_ps(half, ey));
+    let qx = _mm256_sub_ps(_mm256_mul_ps(fc, ux), _mm256_mul_ps(fs, uy));
+    let qy = _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy));
+    let qx = _mm256_min_ps(_mm256_max_ps(qx, zero), splat(ls.max_q.x));
+    let qy = _mm256_min_ps(_mm256_max_ps(qy, zero), splat(ls.max_q.y));
+    let (now, depth, more) = first8(ls, 0, px, py, qx, qy, act);
+    if _mm256_movemask_ps(more) != 0 {
+        return None;
+    }
+    if !later_min_depth.is_empty() {
+        if _mm256_movemask_ps(_mm256_andnot_ps(now, act)) != 0 {
+            return None;
+        }
+        for &z in later_min_depth {
+            if _mm256_movemask_ps(_mm256_and_ps(act, _mm256_cmp_ps::<_CMP_LT_OQ>(splat(z), depth))) != 0 {
+                return None;
+            }
+        }
+    }
+    Some((now, depth, qx, qy))
 }
