@@ -453,13 +453,17 @@ fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
     }
 }
 
-/// [`reuse`] for a mipmap buffer: `n` texels of level 1, capacity for `all` (every level).
+/// [`reuse`] for a mipmap buffer: `n` texels of level 1 (their values are overwritten by the
+/// caller), capacity for `all` (every level).
 fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
     if v.capacity() < all {
         v = crate::pages::uninit(all);
     }
-    v.clear();
-    v.resize(n, fill);
+    if v.len() >= n {
+        v.truncate(n);
+    } else {
+        v.resize(n, fill);
+    }
     v
 }
 
@@ -541,7 +545,7 @@ impl PreparedLayer {
         let mut z = reuse(planes.z, n, 0.0);
         let empty = Bound::EMPTY.to_texel_pub();
         // The mip buffers get room for every level (a third more than level 1).
-        let all = lw * lh + (lw * lh).div_ceil(3) + 64;
+        let all = lw * lh + (lw * lh).div_ceil(2) + 64;
         let mut aab = reuse_mip(level1, lw * lh, all, empty);
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);

@@ -396,7 +396,8 @@ pub(crate) unsafe fn search8(
 /// the image, or an empty texel that layer 0 cannot borrow for — are done). Where the eight
 /// lanes are two rows of four consecutive pixels whose texels are consecutive and inside the
 /// image (the seeds of a resolved tile), the texels are read with row loads instead of gathers.
-#[inline(always)]
+#[inline]
+#[target_feature(enable = "avx2")]
 unsafe fn first8(
     ls: &LaneSearch<'_>,
     k: usize,
@@ -451,32 +452,11 @@ unsafe fn first8(
             ),
         ))) == 0xff;
     let w = ls.w as usize;
-    let tex = |p: &[f32]| -> [__m256; 4] {
-        if contiguous {
-            let (a, b) = (lanes[8] as usize * w + lanes[0] as usize, lanes[12] as usize * w + lanes[4] as usize);
-            let at = |i: usize| p.as_ptr().add(i);
-            [
-                _mm256_loadu2_m128(at(b), at(a)),
-                _mm256_loadu2_m128(at(b + 1), at(a + 1)),
-                _mm256_loadu2_m128(at(b + w), at(a + w)),
-                _mm256_loadu2_m128(at(b + w + 1), at(a + w + 1)),
-            ]
-        } else {
-            let wv = _mm256_set1_epi32(ls.w as i32);
-            let r0 = _mm256_mullo_epi32(y0, wv);
-            let r1 = _mm256_mullo_epi32(y1, wv);
-            let g = |i: __m256i| _mm256_i32gather_ps::<4>(p.as_ptr(), i);
-            [
-                g(_mm256_add_epi32(r0, x0)),
-                g(_mm256_add_epi32(r0, x1)),
-                g(_mm256_add_epi32(r1, x0)),
-                g(_mm256_add_epi32(r1, x1)),
-            ]
-        }
-    };
-    let [vx00, vx10, vx01, vx11] = tex(pl.vx);
-    let [vy00, vy10, vy01, vy11] = tex(pl.vy);
-    let [z00, z10, z01, z11] = tex(pl.z);
+    let (a, b) = (lanes[8] as usize * w + lanes[0] as usize, lanes[12] as usize * w + lanes[4] as usize);
+    let at = Texels { contiguous, a, b, w, x0, x1, y0, y1, wv: _mm256_set1_epi32(ls.w as i32) };
+    let [vx00, vx10, vx01, vx11] = at.read(pl.vx);
+    let [vy00, vy10, vy01, vy11] = at.read(pl.vy);
+    let [z00, z10, z01, z11] = at.read(pl.z);
     // From here on the arithmetic of fetch8, without the Jacobian.
     let valid = |z: __m256| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(z, one));
     let all_valid = _mm256_and_ps(_mm256_and_ps(valid(z00), valid(z10)), _mm256_and_ps(valid(z01), valid(z11)));
@@ -517,6 +497,47 @@ unsafe fn first8(
         more = _mm256_or_ps(more, _mm256_andnot_ps(own, live));
     }
     (now, _mm256_blendv_ps(one, z, now), more)
+}
+
+/// Where [`first8`] reads the four texels of its lanes: row loads at `a` (lanes 0-3) and `b`
+/// (lanes 4-7) when `contiguous`, gathers at the per-lane indices otherwise.
+struct Texels {
+    contiguous: bool,
+    a: usize,
+    b: usize,
+    w: usize,
+    x0: __m256i,
+    x1: __m256i,
+    y0: __m256i,
+    y1: __m256i,
+    wv: __m256i,
+}
+
+impl Texels {
+    /// The texels (x0, y0), (x1, y0), (x0, y1), (x1, y1) of plane `p` per lane.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn read(&self, p: &[f32]) -> [__m256; 4] {
+        let ptr = p.as_ptr();
+        if self.contiguous {
+            let (a, b, w) = (self.a, self.b, self.w);
+            [
+                _mm256_loadu2_m128(ptr.add(b), ptr.add(a)),
+                _mm256_loadu2_m128(ptr.add(b + 1), ptr.add(a + 1)),
+                _mm256_loadu2_m128(ptr.add(b + w), ptr.add(a + w)),
+                _mm256_loadu2_m128(ptr.add(b + w + 1), ptr.add(a + w + 1)),
+            ]
+        } else {
+            let r0 = _mm256_mullo_epi32(self.y0, self.wv);
+            let r1 = _mm256_mullo_epi32(self.y1, self.wv);
+            [
+                _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r0, self.x0)),
+                _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r0, self.x1)),
+                _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r1, self.x0)),
+                _mm256_i32gather_ps::<4>(ptr, _mm256_add_epi32(r1, self.x1)),
+            ]
+        }
+    }
 }
 
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
@@ -1058,7 +1079,8 @@ pub(crate) unsafe fn background8(
 ///
 /// # Safety
 /// The CPU must support AVX2; the planes must be `w * h` long.
-#[inline(always)]
+#[inline]
+#[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments)]
 pub(crate) unsafe fn fast8(
     ls: &LaneSearch<'_>,
