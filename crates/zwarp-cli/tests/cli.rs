@@ -244,9 +244,21 @@ fn eval_writes_the_documented_fields() {
             "warp_ms",
             "ref_ms",
             "speedup",
+            "floor_ms",
+            "floor_ratio",
+            "frames_detail",
         ] {
             assert!(!r[k].is_null(), "field {k} missing in {r}");
         }
+        // The floor ratio is the warp's time over the floor's; one detail per frame pair, whose
+        // mean is the row's PSNR.
+        let fr = r["warp_ms"].as_f64().unwrap() / r["floor_ms"].as_f64().unwrap();
+        assert!((r["floor_ratio"].as_f64().unwrap() - fr).abs() < 1e-6 * fr.max(1.0), "{r}");
+        let detail = r["frames_detail"].as_array().unwrap();
+        assert_eq!(detail.len() as u64, r["frames"].as_u64().unwrap(), "{r}");
+        let mean = detail.iter().map(|f| f["psnr"].as_f64().unwrap()).sum::<f64>() / detail.len() as f64;
+        assert!((mean - r["psnr"].as_f64().unwrap()).abs() < 1e-9, "{r}");
+        assert!(detail.iter().all(|f| f["ssim"].as_f64().unwrap() <= 1.0 && f["converged"].as_f64().unwrap() <= 1.0));
         let s = r["ssim"].as_f64().unwrap();
         assert!(s > 0.5 && s <= 1.0, "{r}");
         let sp = r["speedup"].as_f64().unwrap();

@@ -57,11 +57,8 @@ pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpO
 /// OB) is fixed when a layer is prepared; `params.bound == Global` disables the per-pixel
 /// tightening, any other kind tightens in the prepared frame.
 pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<WarpOutput> {
-    let mut out = WarpOutput {
-        depth: Image::new(0, 0, EMPTY_DEPTH),
-        state: Image::new(0, 0, PixelState::Hole),
-        source: None,
-    };
+    let mut out =
+        WarpOutput { depth: Image::new(0, 0, EMPTY_DEPTH), state: Image::new(0, 0, PixelState::Hole), source: None };
     warp_prepared_into(layers, params, &mut out)?;
     Ok(out)
 }

@@ -20,7 +20,10 @@ pub fn floor_pass(layers: &[WarpLayer<'_>], m: u32, w: u32, out: &mut [f32]) -> 
     let first = layers.first().ok_or_else(|| Error::invalid("the floor pass needs at least one layer"))?;
     let (sw, sh) = first.depth.size();
     if m == 0 || w == 0 || sw != w * m || out.len() as u64 * (m as u64 * m as u64) != sw as u64 * sh as u64 {
-        return Err(Error::invalid(format!("floor pass: {}x{} sources do not hold {m}x{m} samples per pixel of a {w}-wide output", sw, sh)));
+        return Err(Error::invalid(format!(
+            "floor pass: {}x{} sources do not hold {m}x{m} samples per pixel of a {w}-wide output",
+            sw, sh
+        )));
     }
     if layers.iter().any(|l| l.depth.size() != (sw, sh) || l.motion.size() != (sw, sh)) {
         return Err(Error::invalid("floor pass: the layers differ in size"));

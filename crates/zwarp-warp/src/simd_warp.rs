@@ -466,7 +466,8 @@ unsafe fn first8(
     let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
     let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
     let smooth = _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one));
-    let lerp = |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
+    let lerp =
+        |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
     let bvx = lerp(lerp(vx00, vx10, ax), lerp(vx01, vx11, ax), ay);
     let bvy = lerp(lerp(vy00, vy10, ax), lerp(vy01, vy11, ax), ay);
     let top_d = _mm256_add_ps(z00, _mm256_mul_ps(_mm256_sub_ps(z10, z00), ax));

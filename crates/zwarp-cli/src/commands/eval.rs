@@ -138,8 +138,29 @@ pub struct EvalRow {
     pub speedup: f64,
     /// Median motion-field time for the L layers (ms), reported apart.
     pub motion_ms: f64,
+    /// Median time (ms) of the streaming floor of this configuration, same run: one parallel
+    /// read of every layer's depth and motion, one write of the output (`zwarp_warp::floor`).
+    pub floor_ms: f64,
+    /// `warp_ms / floor_ms`: how far the prediction is from the speed of memory.
+    pub floor_ratio: f64,
+    /// Per frame pair, in path order: PSNR, SSIM and converged fraction.
+    pub frames_detail: Vec<FrameDetail>,
     /// Warp throughput: output pixels per second per core (millions).
     pub mpix_per_s_per_core: f64,
+}
+
+/// The quality of one frame pair of an [`EvalRow`].
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameDetail {
+    /// Index of the frame pair along the path.
+    pub pair: usize,
+    /// PSNR (dB) on normalised linear depth.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr: f64,
+    /// SSIM on normalised linear depth.
+    pub ssim: f64,
+    /// Converged (ours) or covered (forward warps) fraction of the reference's surfaces.
+    pub converged: f64,
 }
 
 /// The parsed evaluation plan.
@@ -381,6 +402,8 @@ struct Acc {
     ssim_buffer: Vec<f64>,
     converged: Vec<f64>,
     warp_ms: Vec<f64>,
+    floor_ms: Vec<f64>,
+    detail: Vec<FrameDetail>,
 }
 
 fn mean(v: &[f64]) -> f64 {
@@ -484,8 +507,23 @@ pub fn evaluate(
                 let (bufs, motion_ms) = source_buffers(scene, &ca, *ta, &cb_grid, *tb, max_l, plan.umbra)?;
                 motion_samples.push((ms, motion_ms));
                 bar.inc(1);
-                let mut run = |key: Key, f: &mut dyn FnMut() -> Result<Predicted>| -> Result<()> {
-                    let (out, samples) = report::time_repeated(plan.reps, &mut *f)?;
+                // `f` computes a configuration's prediction into the slot, which holds the previous
+                // repetition's output for reuse (one untimed warm-up, then `reps` timed runs).
+                let mut run = |key: Key,
+                               layers: &[WarpLayer<'_>],
+                               f: &mut dyn FnMut(&mut Option<Predicted>) -> Result<()>|
+                 -> Result<()> {
+                    let mut slot = None;
+                    f(&mut slot)?;
+                    let mut samples = Vec::with_capacity(plan.reps.max(1));
+                    for _ in 0..plan.reps.max(1) {
+                        let t0 = std::time::Instant::now();
+                        f(&mut slot)?;
+                        samples.push(t0.elapsed().as_secs_f64() * 1e3);
+                    }
+                    let out = slot.take().expect("the prediction ran");
+                    // The streaming floor of the same inputs, right after (same run, warm).
+                    let (floor, _, _) = zwarp_warp::floor::floor_ms(layers, key.5, plan.reps.max(1))?;
                     let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
                     let idx = match keys.iter().position(|k| *k == key) {
                         Some(i) => i,
@@ -500,8 +538,11 @@ pub fn evaluate(
                     a.ssim.push(q.ssim);
                     a.psnr_buffer.push(q.psnr_buffer);
                     a.ssim_buffer.push(q.ssim_buffer);
-                    a.converged.push(coverage(&out.0, &reference, out.1.as_ref()));
+                    let conv = coverage(&out.0, &reference, out.1.as_ref());
+                    a.converged.push(conv);
                     a.warp_ms.extend(samples);
+                    a.floor_ms.push(floor);
+                    a.detail.push(FrameDetail { pair: pi, psnr: q.psnr, ssim: q.ssim, converged: conv });
                     if pi == 0 {
                         if let Some(dir) = &plan.images {
                             write_images(dir, scene_name, speed, &key, &bufs.single.0, &out.0, &reference, &ca, cb)?;
@@ -547,10 +588,16 @@ pub fn evaluate(
                                             // run to the next, as an engine keeps them across
                                             // frames (the first, untimed run allocates them).
                                             let mut recycled = Vec::new();
-                                            run(("ours".into(), l, n, t, Some(bound), ms), &mut || {
-                                                let mut o = match &gpu {
-                                                    Some((_, _, (kernel, _), _)) => {
-                                                        kernel.warp(&layers, &warp_params)?
+                                            run(("ours".into(), l, n, t, Some(bound), ms), &layers, &mut |slot| {
+                                                let o = match &gpu {
+                                                    Some((_, _, (kernel, holes), _)) => {
+                                                        let mut o = kernel.warp(&layers, &warp_params)?;
+                                                        if let Some(radius) = fill {
+                                                            (o.depth, o.state) = holes.fill_background(
+                                                                &layers, &o.depth, &o.state, radius, &search,
+                                                            )?;
+                                                        }
+                                                        o
                                                     }
                                                     None => {
                                                         warp_params.validate()?;
@@ -559,33 +606,54 @@ pub fn evaluate(
                                                             warp_params.bound,
                                                             std::mem::take(&mut recycled),
                                                         )?;
-                                                        let o = zwarp_warp::warp_prepared(&prepared, &warp_params)?;
+                                                        // The output buffers carry over too (an
+                                                        // engine's steady state).
+                                                        let mut o = match slot.take() {
+                                                            Some((depth, Some(state))) => {
+                                                                zwarp_warp::WarpOutput { depth, state, source: None }
+                                                            }
+                                                            _ => zwarp_warp::WarpOutput {
+                                                                depth: Image::new(0, 0, 1.0),
+                                                                state: Image::new(0, 0, zwarp_warp::PixelState::Hole),
+                                                                source: None,
+                                                            },
+                                                        };
+                                                        zwarp_warp::warp_prepared_into(
+                                                            &prepared,
+                                                            &warp_params,
+                                                            &mut o,
+                                                        )?;
+                                                        if let Some(radius) = fill {
+                                                            // The fill's limits come from the preparation's pass.
+                                                            let (w, h) = o.depth.size();
+                                                            let limits =
+                                                                zwarp_warp::holes::BackgroundLimits::of_prepared(
+                                                                    &prepared, w, h, ms, radius,
+                                                                )?;
+                                                            zwarp_warp::holes::fill_background_with(
+                                                                &layers, &mut o, limits, &search,
+                                                            )?;
+                                                        }
                                                         recycled = prepared;
                                                         o
                                                     }
                                                 };
-                                                match (fill, &gpu) {
-                                                    (Some(radius), Some((_, _, (_, holes), _))) => {
-                                                        (o.depth, o.state) = holes.fill_background(
-                                                            &layers, &o.depth, &o.state, radius, &search,
-                                                        )?;
-                                                    }
-                                                    (Some(radius), None) => zwarp_warp::holes::fill_background(
-                                                        &layers, &mut o, radius, &search,
-                                                    )?,
-                                                    (None, _) => {}
-                                                }
-                                                Ok((o.depth, Some(o.state)))
+                                                *slot = Some((o.depth, Some(o.state)));
+                                                Ok(())
                                             })?;
                                         }
                                     }
                                 }
                             }
-                            "vfw" => run(("vfw".into(), l, 0, 0, None, 1), &mut || {
-                                Ok((baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?, None))
+                            "vfw" => run(("vfw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
+                                let d = baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?;
+                                *slot = Some((d, None));
+                                Ok(())
                             })?,
-                            _ => run(("afw".into(), l, 0, 0, None, 1), &mut || {
-                                Ok((baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?, None))
+                            _ => run(("afw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
+                                let d = baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?;
+                                *slot = Some((d, None));
+                                Ok(())
                             })?,
                         }
                     }
@@ -628,6 +696,9 @@ pub fn evaluate(
                 ref_ms: ref_t.median,
                 speedup: ref_t.median / wt.median.max(1e-9),
                 motion_ms: motion_t.median,
+                floor_ms: Timing::of(&a.floor_ms).median,
+                floor_ratio: wt.median / Timing::of(&a.floor_ms).median.max(1e-9),
+                frames_detail: a.detail,
                 mpix_per_s_per_core: (plan.width as f64 * plan.height as f64)
                     / (wt.median.max(1e-9) * 1e-3)
                     / cores
@@ -689,7 +760,8 @@ fn write_images(
 /// Prints the rows as a table.
 pub fn table(rows: &[EvalRow]) -> String {
     let mut t = Table::new(&[
-        "method", "L", "N", "T", "bound", "m", "speed", "PSNR", "SSIM", "conv", "warp ms", "ref ms", "speedup",
+        "method", "L", "N", "T", "bound", "m", "speed", "PSNR", "SSIM", "conv", "warp ms", "floor ms", "x floor",
+        "ref ms", "speedup",
     ]);
     for r in rows {
         t.row(vec![
@@ -704,6 +776,8 @@ pub fn table(rows: &[EvalRow]) -> String {
             fmt(r.ssim, 4),
             fmt(r.converged, 4),
             fmt(r.warp_ms, 2),
+            fmt(r.floor_ms, 2),
+            fmt(r.floor_ratio, 1),
             fmt(r.ref_ms, 2),
             fmt(r.speedup, 2),
         ]);
