@@ -114,7 +114,7 @@ pub mod shading {
     /// The procedural surface detail of [`zwarp_core::ColorMap::Pattern`]: a deterministic RGB
     /// multiplier (about `[0.35, 1.35]`) of the rest-pose world position `p` (the instance's
     /// `transform` without animation, so the pattern moves with animated objects), its normal
-    /// `n` (any length or sign) and the object id.
+    /// `n` (any non-zero length, any sign; zero or non-finite = equal weights) and the object id.
     ///
     /// Triplanar: the planes x (`(p.y, p.z)`), y (`(p.z, p.x)`) and z (`(p.x, p.y)`) are
     /// blended with weights `|n_i|^4 / sum`; each plane is fine value noise ([`NOISE_FREQ`])
@@ -122,11 +122,15 @@ pub mod shading {
     /// tinted per object ([`tint`]). Fixed world-space scales (metres), not relative to the
     /// scene, so detail has the same size everywhere; planes of weight 0 are skipped.
     pub fn pattern(p: Vec3, n: Vec3, id: u32) -> Vec3 {
-        let a = n.abs();
-        let mut w = a * a;
-        w *= w;
-        let s = w.x + w.y + w.z;
-        let w = if s > 0.0 && s.is_finite() { w / s } else { Vec3::splat(1.0 / 3.0) };
+        let l2 = n.length_squared();
+        let w = if l2 > 0.0 && l2 < 3.0e38 {
+            let a = (n / l2.sqrt()).abs();
+            let mut w = a * a;
+            w *= w;
+            w / (w.x + w.y + w.z)
+        } else {
+            Vec3::splat(1.0 / 3.0)
+        };
         let mut c = Vec3::ZERO;
         if w.x > 0.0 {
             c += w.x * pattern_plane(Vec2::new(p.y, p.z), 0, id);
