@@ -91,7 +91,7 @@ pub mod shading {
         let s1 = stripe(q, STRIPE_DIR[0], STRIPE_FREQ[0]);
         let s2 = stripe(q, STRIPE_DIR[1], STRIPE_FREQ[1]);
         let s3 = stripe(q, STRIPE_DIR[2], STRIPE_FREQ[2]);
-        let g = 0.62 + 0.18 * n1 + 0.1 * n2 + 0.1 * s1;
+        let g = 0.45 + 0.3 * n1 + 0.17 * n2 + 0.08 * s1;
         let ta = tint(id, 0);
         let tb = tint(id, 1);
         let ka = 0.35 * s2;
@@ -112,7 +112,7 @@ pub mod shading {
     }
 
     /// The procedural surface detail of [`zwarp_core::ColorMap::Pattern`]: a deterministic RGB
-    /// multiplier (about `[0.35, 1.35]`) of the rest-pose world position `p` (the instance's
+    /// multiplier (about `[0.33, 1.24]`) of the rest-pose world position `p` (the instance's
     /// `transform` without animation, so the pattern moves with animated objects), its normal
     /// `n` (any non-zero length, any sign; zero or non-finite = equal weights) and the object id.
     ///

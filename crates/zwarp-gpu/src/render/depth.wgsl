@@ -183,7 +183,7 @@ fn pattern_plane(q: vec2<f32>, axis: u32, id: u32) -> vec3<f32> {
     let s1 = stripe(q, vec2<f32>(0.8, 0.6), 20.0);
     let s2 = stripe(q, vec2<f32>(-0.6, 0.8), 4.0);
     let s3 = stripe(q, vec2<f32>(1.0, 0.0), 0.6666667);
-    let g = 0.62 + 0.18 * n1 + 0.1 * n2 + 0.1 * s1;
+    let g = 0.45 + 0.3 * n1 + 0.17 * n2 + 0.08 * s1;
     let ta = tint(id, 0u);
     let tb = tint(id, 1u);
     let ka = 0.35 * s2;
