@@ -8,7 +8,7 @@
 
 use glam::{DMat4, DVec3, Mat3, Mat4, Vec2, Vec3};
 use rayon::prelude::*;
-use zwarp_core::{Camera, ColorMap, Image, Projection, Scene, NO_ITEM};
+use zwarp_core::{Camera, ColorMap, Image, Mesh, Projection, Scene, NO_ITEM};
 
 use crate::setup::Binned;
 
@@ -82,9 +82,10 @@ pub mod shading {
         tri * tri * (3.0 - 2.0 * tri)
     }
 
-    /// One projection plane of the pattern (`axis` 0..3 names it), for object `id`.
+    /// One projection plane of the pattern (`axis` 0..3 names it) for object `id`, whose
+    /// stripe tints are `ta = tint(id, 0)` and `tb = tint(id, 1)`.
     #[inline]
-    pub fn pattern_plane(q: Vec2, axis: u32, id: u32) -> Vec3 {
+    pub fn pattern_plane(q: Vec2, axis: u32, id: u32, ta: Vec3, tb: Vec3) -> Vec3 {
         let seed = id.wrapping_mul(16).wrapping_add(axis * 4);
         let n1 = value_noise(q * NOISE_FREQ[0], seed);
         let n2 = value_noise(q * NOISE_FREQ[1], seed + 1);
@@ -92,8 +93,6 @@ pub mod shading {
         let s2 = stripe(q, STRIPE_DIR[1], STRIPE_FREQ[1]);
         let s3 = stripe(q, STRIPE_DIR[2], STRIPE_FREQ[2]);
         let g = 0.45 + 0.3 * n1 + 0.17 * n2 + 0.08 * s1;
-        let ta = tint(id, 0);
-        let tb = tint(id, 1);
         let ka = 0.35 * s2;
         let kb = 0.3 * s3;
         Vec3::new(
@@ -131,15 +130,16 @@ pub mod shading {
         } else {
             Vec3::splat(1.0 / 3.0)
         };
+        let (ta, tb) = (tint(id, 0), tint(id, 1));
         let mut c = Vec3::ZERO;
         if w.x > 0.0 {
-            c += w.x * pattern_plane(Vec2::new(p.y, p.z), 0, id);
+            c += w.x * pattern_plane(Vec2::new(p.y, p.z), 0, id, ta, tb);
         }
         if w.y > 0.0 {
-            c += w.y * pattern_plane(Vec2::new(p.z, p.x), 1, id);
+            c += w.y * pattern_plane(Vec2::new(p.z, p.x), 1, id, ta, tb);
         }
         if w.z > 0.0 {
-            c += w.z * pattern_plane(Vec2::new(p.x, p.y), 2, id);
+            c += w.z * pattern_plane(Vec2::new(p.x, p.y), 2, id, ta, tb);
         }
         c
     }
@@ -218,6 +218,9 @@ pub(crate) fn resolve(binned: &Binned, scene: &Scene, cam: &Camera, handles: &Im
     let mut out = Image::new(cam.width, cam.height, shading::SKY_COLOR);
     out.data_mut().par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         let ndc_y = 1.0 - (y as f64 + 0.5) * 2.0 / h as f64;
+        // Neighbouring pixels mostly show the same triangle: keep its barycentric set-up.
+        let mut last = NO_ITEM;
+        let mut setup = [DVec3::ZERO; 3];
         for (x, px) in row.iter_mut().enumerate() {
             let hnd = handles.data()[y * w + x];
             if hnd == NO_ITEM {
@@ -225,24 +228,38 @@ pub(crate) fn resolve(binned: &Binned, scene: &Scene, cam: &Camera, handles: &Im
             }
             let ndc_x = (x as f64 + 0.5) * 2.0 / w as f64 - 1.0;
             let (inst, [d, t]) = binned.meta(hnd);
-            let dr = &binned.draws[d as usize];
-            *px =
-                shade_pixel(scene, inst, dr.mesh, t as usize, &draws[d as usize], ndc_x, ndc_y, light, eye, ortho_dir);
+            let mesh = &scene.meshes[binned.draws[d as usize].mesh as usize];
+            let ds = &draws[d as usize];
+            if hnd != last {
+                setup = barycentric_setup(mesh, t as usize, ds);
+                last = hnd;
+            }
+            let b = barycentrics(&setup, ndc_x, ndc_y);
+            *px = shade_pixel(scene, inst, mesh, t as usize, ds, b, light, eye, ortho_dir);
         }
     });
     out
 }
 
-/// Perspective-correct barycentrics of NDC point `(x, y)` on the triangle with clip-space
-/// vertices `c` (2-D homogeneous: `b ~ M^-1 (x, y, 1)` with `M = [x_i; y_i; w_i]`, normalized
-/// to sum 1; exact for clipped triangles too, since the unclipped vertices are used). A
-/// degenerate (edge-on) triangle gives the centroid.
+/// The rows of `det(M) M^-1` for triangle `t` of `mesh` drawn with `ds`, where
+/// `M = [x_i; y_i; w_i]` holds the clip-space vertices (f64): what [`barycentrics`] needs.
 #[inline]
-fn barycentrics(c: [glam::DVec4; 3], x: f64, y: f64) -> [f32; 3] {
-    let col = |p: glam::DVec4| DVec3::new(p.x, p.y, p.w);
-    let (c0, c1, c2) = (col(c[0]), col(c[1]), col(c[2]));
+fn barycentric_setup(mesh: &Mesh, t: usize, ds: &DrawShade) -> [DVec3; 3] {
+    let c = mesh.indices[t].map(|i| {
+        let p = ds.mvp * mesh.positions[i as usize].as_dvec3().extend(1.0);
+        DVec3::new(p.x, p.y, p.w)
+    });
+    [c[1].cross(c[2]), c[2].cross(c[0]), c[0].cross(c[1])]
+}
+
+/// Perspective-correct barycentrics of NDC point `(x, y)` on a triangle (2-D homogeneous:
+/// `b ~ M^-1 (x, y, 1)` with `M = [x_i; y_i; w_i]` its clip-space vertices, normalized to sum 1;
+/// exact for clipped triangles too, since the unclipped vertices are used). `k` is
+/// [`barycentric_setup`]. A degenerate (edge-on) triangle gives the centroid.
+#[inline]
+fn barycentrics(k: &[DVec3; 3], x: f64, y: f64) -> [f32; 3] {
     let q = DVec3::new(x, y, 1.0);
-    let b = [c1.cross(c2).dot(q), c2.cross(c0).dot(q), c0.cross(c1).dot(q)];
+    let b = [k[0].dot(q), k[1].dot(q), k[2].dot(q)];
     let s = b[0] + b[1] + b[2];
     if s == 0.0 || !s.is_finite() {
         return [1.0 / 3.0; 3];
@@ -255,19 +272,16 @@ fn barycentrics(c: [glam::DVec4; 3], x: f64, y: f64) -> [f32; 3] {
 fn shade_pixel(
     scene: &Scene,
     inst: u32,
-    mesh: u32,
+    mesh: &Mesh,
     t: usize,
     ds: &DrawShade,
-    ndc_x: f64,
-    ndc_y: f64,
+    b: [f32; 3],
     light: Vec3,
     eye: Option<Vec3>,
     ortho_dir: Vec3,
 ) -> [f32; 3] {
-    let mesh = &scene.meshes[mesh as usize];
     let tri = mesh.indices[t];
     let p = tri.map(|i| mesh.positions[i as usize]);
-    let b = barycentrics(p.map(|v| ds.mvp * v.as_dvec3().extend(1.0)), ndc_x, ndc_y);
     let obj = p[0] * b[0] + p[1] * b[1] + p[2] * b[2];
     let world = ds.model.transform_point3(obj);
     let rest = ds.rest.transform_point3(obj);

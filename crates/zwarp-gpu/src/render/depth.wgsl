@@ -176,7 +176,7 @@ fn tint(id: u32, k: u32) -> vec3<f32> {
     );
 }
 
-fn pattern_plane(q: vec2<f32>, axis: u32, id: u32) -> vec3<f32> {
+fn pattern_plane(q: vec2<f32>, axis: u32, id: u32, ta: vec3<f32>, tb: vec3<f32>) -> vec3<f32> {
     let seed = id * 16u + axis * 4u;
     let n1 = value_noise(q * 32.0, seed);
     let n2 = value_noise(q * 8.0, seed + 1u);
@@ -184,8 +184,6 @@ fn pattern_plane(q: vec2<f32>, axis: u32, id: u32) -> vec3<f32> {
     let s2 = stripe(q, vec2<f32>(-0.6, 0.8), 4.0);
     let s3 = stripe(q, vec2<f32>(1.0, 0.0), 0.6666667);
     let g = 0.45 + 0.3 * n1 + 0.17 * n2 + 0.08 * s1;
-    let ta = tint(id, 0u);
-    let tb = tint(id, 1u);
     let ka = 0.35 * s2;
     let kb = 0.3 * s3;
     return g * (vec3<f32>(1.0) + ka * (ta - vec3<f32>(1.0))) * (vec3<f32>(1.0) + kb * (tb - vec3<f32>(1.0)));
@@ -200,15 +198,17 @@ fn pattern(p: vec3<f32>, n: vec3<f32>, id: u32) -> vec3<f32> {
         ww = ww * ww;
         w = ww / (ww.x + ww.y + ww.z);
     }
+    let ta = tint(id, 0u);
+    let tb = tint(id, 1u);
     var c = vec3<f32>(0.0);
     if (w.x > 0.0) {
-        c += w.x * pattern_plane(vec2<f32>(p.y, p.z), 0u, id);
+        c += w.x * pattern_plane(vec2<f32>(p.y, p.z), 0u, id, ta, tb);
     }
     if (w.y > 0.0) {
-        c += w.y * pattern_plane(vec2<f32>(p.z, p.x), 1u, id);
+        c += w.y * pattern_plane(vec2<f32>(p.z, p.x), 1u, id, ta, tb);
     }
     if (w.z > 0.0) {
-        c += w.z * pattern_plane(vec2<f32>(p.x, p.y), 2u, id);
+        c += w.z * pattern_plane(vec2<f32>(p.x, p.y), 2u, id, ta, tb);
     }
     return c;
 }
