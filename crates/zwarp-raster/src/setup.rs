@@ -449,7 +449,7 @@ pub(crate) struct Draw {
 /// indexes `bin_items`, which holds indices into `tris`).
 pub(crate) struct Chunk {
     pub tris: Vec<Tri>,
-    /// Per-triangle source (only when colour was requested): `[index into Binned::draws,
+    /// Per-triangle source (only when colour is requested): `[index into Binned::draws,
     /// triangle index in that draw's mesh]`; clipped pieces name their unclipped source triangle.
     pub srcs: Vec<[u32; 2]>,
     /// Per-triangle instance id, compact (only when colour was requested).
