@@ -16,6 +16,7 @@ pub mod camera;
 pub mod error;
 pub mod geom;
 pub mod image;
+pub mod material;
 pub mod motion;
 pub mod scene;
 
@@ -23,6 +24,7 @@ pub use camera::{Camera, Projection};
 pub use error::{Error, Result};
 pub use geom::Aabb;
 pub use image::Image;
+pub use material::{linear_to_srgb, srgb_to_linear, ColorMap, Material, MeshPart, Texture, Wrap, DEFAULT_MATERIAL};
 pub use motion::{check_motion_inputs, motion_field, Motion};
 pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
 

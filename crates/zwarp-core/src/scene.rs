@@ -1,15 +1,21 @@
 //! Scene description: meshes, instances (with optional animation), lights.
 //! Loaders and procedural generators live in `zwarp-scene`; this is only the data.
 
-use glam::{Mat4, Quat, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::material::{Material, MeshPart, DEFAULT_MATERIAL};
 use crate::{Aabb, Error, Result};
 
 /// Item-buffer value of pixels that show no object.
 pub const NO_ITEM: u32 = u32::MAX;
 
-/// A triangle mesh in its object space.
+/// A triangle mesh in its object space, with optional per-vertex normals and texture
+/// coordinates and a material per run of triangles ([`MeshPart`]).
+///
+/// Without normals the renderer shades with the flat triangle normal; without UVs or parts it
+/// colours with [`DEFAULT_MATERIAL`] (the triplanar pattern), so [`Mesh::new`] alone gives a
+/// fully shaded mesh.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
     /// Vertex positions.
@@ -18,11 +24,20 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
     /// Object-space bounds of `positions` (fill with [`Mesh::compute_bounds`]).
     pub bounds: Aabb,
+    /// Per-vertex object-space normals (one per position; normalized on use, a zero normal
+    /// falls back to the flat triangle normal), or `None` for flat shading.
+    pub normals: Option<Vec<Vec3>>,
+    /// Per-vertex texture coordinates (one per position, glTF convention: `(0, 0)` = top-left
+    /// of the image), or `None`.
+    pub uvs: Option<Vec<Vec2>>,
+    /// Materials by triangle run, ascending `first_triangle`, the first at 0 (empty = every
+    /// triangle has [`DEFAULT_MATERIAL`]).
+    pub parts: Vec<MeshPart>,
 }
 
 impl Mesh {
     /// A mesh from positions and triangles, with bounds computed and all data validated:
-    /// finite positions and in-range indices.
+    /// finite positions and in-range indices. No normals, no UVs, the default material.
     pub fn new(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Result<Self> {
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
             return Err(Error::invalid(format!("vertex {i} is not finite ({:?})", positions[i])));
@@ -34,9 +49,91 @@ impl Mesh {
                 indices[t]
             )));
         }
-        let mut m = Mesh { positions, indices, bounds: Aabb::EMPTY };
+        let mut m = Mesh { positions, indices, bounds: Aabb::EMPTY, normals: None, uvs: None, parts: Vec::new() };
         m.compute_bounds();
         Ok(m)
+    }
+    /// Adds per-vertex normals; errors unless there is one finite normal per position.
+    pub fn with_normals(mut self, normals: Vec<Vec3>) -> Result<Self> {
+        check_attribute("normal", normals.len(), self.positions.len(), normals.iter().position(|n| !n.is_finite()))?;
+        self.normals = Some(normals);
+        Ok(self)
+    }
+    /// Adds per-vertex texture coordinates; errors unless there is one finite UV per position.
+    pub fn with_uvs(mut self, uvs: Vec<Vec2>) -> Result<Self> {
+        check_attribute("uv", uvs.len(), self.positions.len(), uvs.iter().position(|n| !n.is_finite()))?;
+        self.uvs = Some(uvs);
+        Ok(self)
+    }
+    /// Gives every triangle `material`.
+    pub fn with_material(mut self, material: Material) -> Self {
+        self.parts = vec![MeshPart { first_triangle: 0, material }];
+        self
+    }
+    /// Sets the material runs; errors unless they start at triangle 0, ascend strictly, start
+    /// inside the mesh and have finite base colours.
+    pub fn with_parts(mut self, parts: Vec<MeshPart>) -> Result<Self> {
+        self.parts = parts;
+        self.check_parts()?;
+        Ok(self)
+    }
+    /// Checks everything the renderers rely on (the fields are public): finite positions,
+    /// in-range indices, attribute counts and values, material runs. One-line errors.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid(format!("vertex {i} is not finite ({:?})", self.positions[i])));
+        }
+        let n = self.positions.len() as u32;
+        if let Some(t) = self.indices.iter().position(|t| t.iter().any(|&i| i >= n)) {
+            return Err(Error::invalid(format!(
+                "triangle {t} indexes vertex {:?} but there are only {n} vertices",
+                self.indices[t]
+            )));
+        }
+        self.check_attributes()?;
+        self.check_parts()
+    }
+    /// Checks the normal and UV counts and values (cheaper than [`Mesh::validate`]).
+    pub fn check_attributes(&self) -> Result<()> {
+        if let Some(ns) = &self.normals {
+            check_attribute("normal", ns.len(), self.positions.len(), ns.iter().position(|n| !n.is_finite()))?;
+        }
+        if let Some(uv) = &self.uvs {
+            check_attribute("uv", uv.len(), self.positions.len(), uv.iter().position(|n| !n.is_finite()))?;
+        }
+        Ok(())
+    }
+    fn check_parts(&self) -> Result<()> {
+        let nt = self.indices.len();
+        for (k, p) in self.parts.iter().enumerate() {
+            let ok_start =
+                if k == 0 { p.first_triangle == 0 } else { p.first_triangle > self.parts[k - 1].first_triangle };
+            if !ok_start || (p.first_triangle as usize >= nt && nt > 0) {
+                return Err(Error::invalid(format!(
+                    "mesh part {k} starts at triangle {} (parts must start at 0, ascend and lie inside the {nt} triangles)",
+                    p.first_triangle
+                )));
+            }
+            p.material.validate().map_err(|e| Error::invalid(format!("mesh part {k}: {}", strip_invalid(e))))?;
+        }
+        Ok(())
+    }
+    /// Index into [`Mesh::parts`] of the part holding triangle `t` (`None` without parts).
+    #[inline]
+    pub fn part_of(&self, t: usize) -> Option<usize> {
+        if self.parts.is_empty() {
+            None
+        } else {
+            Some(self.parts.partition_point(|p| p.first_triangle as usize <= t).saturating_sub(1))
+        }
+    }
+    /// The material of triangle `t`.
+    #[inline]
+    pub fn material_of(&self, t: usize) -> &Material {
+        match self.part_of(t) {
+            Some(k) => &self.parts[k].material,
+            None => &DEFAULT_MATERIAL,
+        }
     }
     /// Recomputes [`Mesh::bounds`] from the positions.
     pub fn compute_bounds(&mut self) {
@@ -45,6 +142,23 @@ impl Mesh {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len()
+    }
+}
+
+fn check_attribute(what: &str, len: usize, positions: usize, non_finite: Option<usize>) -> Result<()> {
+    if len != positions {
+        return Err(Error::invalid(format!("mesh has {len} {what}s for {positions} vertices (need one per vertex)")));
+    }
+    if let Some(i) = non_finite {
+        return Err(Error::invalid(format!("{what} {i} is not finite")));
+    }
+    Ok(())
+}
+
+fn strip_invalid(e: Error) -> String {
+    match e {
+        Error::Invalid(m) => m,
+        other => other.to_string(),
     }
 }
 
@@ -114,7 +228,9 @@ pub struct Instance {
     pub animation: Animation,
     /// World bounds at `t = 0` (kept in sync by [`Scene::update_bounds`]).
     pub world_aabb: Aabb,
-    /// Diffuse albedo (linear RGB) for the simple Lambert shading.
+    /// Per-object linear RGB tint: the renderer's albedo is `albedo * material base colour *
+    /// (texture | pattern)`. Loaders give objects without a file material a colour per object
+    /// id and objects with one white; flat-shading consumers (soft-shadow images) use it alone.
     pub albedo: Vec3,
     /// `true` for ground / background geometry (may be peeled into its own last layer).
     pub is_ground: bool,

@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 use zwarp_core::{Image, NO_ITEM};
 
-use crate::setup::{shading, Binned, Tri, TILE_H, TILE_W};
+use crate::setup::{Binned, Tri, TILE_H, TILE_W};
 
 const TILE_PIX: usize = TILE_W * TILE_H;
 /// Triangles rasterized between two refreshes of a tile's conservative max depth.
@@ -305,8 +305,10 @@ pub(crate) struct Targets<'a> {
     pub depth: &'a mut Image<f32>,
     /// Item buffer (instance ids). Written where a fragment won; elsewhere kept (load) or NO_ITEM.
     pub items: Option<&'a mut Image<u32>>,
-    /// Colour buffer: flat colour where a fragment won; elsewhere kept (load) or sky.
-    pub color: Option<&'a mut Image<[f32; 3]>>,
+    /// Visibility buffer for the colour resolve (`shade.rs`): the triangle handle
+    /// (`chunk << 16 | index`, see [`Binned::meta`]) where a fragment won; elsewhere kept
+    /// (load) or [`NO_ITEM`].
+    pub handles: Option<&'a mut Image<u32>>,
     /// Peeling threshold (stored depth); fragments must be strictly behind it.
     pub threshold: Option<&'a Image<f32>>,
     /// Start from the current contents of `depth` (and keep `items`/`color` where nothing is
@@ -320,8 +322,8 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
     let (w, h) = (vp.width as usize, vp.height as usize);
     let tiles_x = vp.tiles_x();
     let avx2 = has_avx2();
-    let want_ids = targets.items.is_some() || targets.color.is_some() || mode == Mode::Count;
-    let handles = targets.color.is_some();
+    let want_ids = targets.items.is_some() || targets.handles.is_some() || mode == Mode::Count;
+    let handles = targets.handles.is_some();
     let band = w * TILE_H;
     let load = targets.load;
     let thr_img = targets.threshold;
@@ -329,7 +331,7 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
         Some(it) => it.data_mut().chunks_mut(band).map(Some).collect(),
         None => (0..vp.tiles_y()).map(|_| None).collect(),
     };
-    let mut color_bands: Vec<Option<&mut [[f32; 3]]>> = match targets.color {
+    let mut handle_bands: Vec<Option<&mut [u32]>> = match targets.handles {
         Some(c) => c.data_mut().chunks_mut(band).map(Some).collect(),
         None => (0..vp.tiles_y()).map(|_| None).collect(),
     };
@@ -338,7 +340,7 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
         .data_mut()
         .par_chunks_mut(band)
         .zip(items_bands.par_iter_mut())
-        .zip(color_bands.par_iter_mut())
+        .zip(handle_bands.par_iter_mut())
         .enumerate()
         .for_each(|(ty, ((dband, iband), cband))| {
             let mut buf = TileBuf {
@@ -411,13 +413,11 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
                             }
                         }
                     }
-                    if let Some(cb) = cband.as_deref_mut() {
+                    if let Some(hb) = cband.as_deref_mut() {
                         for c in 0..cols {
                             let hnd = buf.ids[s + c];
-                            if hnd != NO_ITEM {
-                                cb[o + c] = binned.meta(hnd).1;
-                            } else if !load {
-                                cb[o + c] = shading::SKY_COLOR;
+                            if hnd != NO_ITEM || !load {
+                                hb[o + c] = hnd;
                             }
                         }
                     }

@@ -28,6 +28,11 @@
 //! ~200 K triangle/tile pairs of Sponza touch (depth complexity ~5; many tiny triangles make
 //! per-row and per-triangle overhead comparable to the blend itself) and the f64 set-up.
 //!
+//! Colour ([`FrameOptions::color`]) is a visibility-buffer resolve after the depth pass: each
+//! covered pixel names its source triangle, and one parallel pass computes perspective-correct
+//! barycentrics at the pixel centre (2-D homogeneous, from the unclipped clip-space vertices)
+//! and shades with vertex normals, base-colour textures or the triplanar pattern ([`shading`]).
+//!
 //! Entry points: [`render_depth`], [`render_frame`], [`render_motion`], [`render_layers`],
 //! [`draw_into`], [`any_fragment_visible`].
 
@@ -37,12 +42,13 @@ mod kernel;
 mod peel;
 pub mod scenes;
 mod setup;
+mod shade;
 
 use glam::Vec3;
 use zwarp_core::{Camera, Error, Image, Motion, Result, Scene, NO_ITEM};
 
 pub use peel::{render_layers, Layer, PeelOptions, UmbraPeeling, ViewRegion};
-pub use setup::shading;
+pub use shade::shading;
 
 use kernel::{run_pass, Mode, Targets};
 use setup::{bin_scene, setup_world_triangles, SetupParams};
@@ -54,15 +60,20 @@ pub struct Frame {
     pub depth: Image<f32>,
     /// Instance index per pixel, [`NO_ITEM`] where empty (the item buffer of seed 000, Sec. 3.1).
     pub items: Image<u32>,
-    /// Flat-shaded linear RGB (see [`shading`]), when requested.
+    /// Textured, shaded linear RGB (see [`shading`]), when requested; sky where empty.
     pub color: Option<Image<[f32; 3]>>,
 }
 
 /// Options of [`render_frame`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FrameOptions<'a> {
-    /// Also produce the colour buffer: per-object albedo * (ambient + Lambert with the headlight
-    /// [`shading::LIGHT_DIR_VIEW`]), flat per-triangle normal (two-sided), sky colour where empty.
+    /// Also produce the colour buffer (the input of colour warping, seed 001): per pixel,
+    /// `Instance::albedo * Material::base_color * (base-colour texture at the interpolated UV |
+    /// the triplanar [`shading::pattern`] | 1)` times `ambient + Lambert` with the headlight
+    /// [`shading::LIGHT_DIR_VIEW`] and the interpolated vertex normal (the flat triangle normal
+    /// without normals), two-sided; sky colour where empty. Position, normal and UV are
+    /// interpolated perspective-correctly at the pixel centre by a resolve pass over the
+    /// triangle ids of the depth pass (colour work only runs when this is set).
     pub color: bool,
     /// Draw only these instance ids (e.g. the visible set of an occlusion-culling pass); `None`
     /// draws all instances.
@@ -86,7 +97,7 @@ pub fn render_depth(scene: &Scene, cam: &Camera, t: f32) -> Result<Image<f32>> {
     run_pass(
         &binned,
         Mode::Depth,
-        Targets { depth: &mut depth, items: None, color: None, threshold: None, load: false },
+        Targets { depth: &mut depth, items: None, handles: None, threshold: None, load: false },
     );
     Ok(depth)
 }
@@ -98,12 +109,13 @@ pub fn render_frame(scene: &Scene, cam: &Camera, t: f32, opts: &FrameOptions) ->
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: opts.objects, color: opts.color })?;
     let mut depth = Image::new(cam.width, cam.height, 1.0f32);
     let mut items = Image::new(cam.width, cam.height, NO_ITEM);
-    let mut color = opts.color.then(|| Image::new(cam.width, cam.height, shading::SKY_COLOR));
+    let mut handles = opts.color.then(|| Image::new(cam.width, cam.height, NO_ITEM));
     run_pass(
         &binned,
         Mode::Depth,
-        Targets { depth: &mut depth, items: Some(&mut items), color: color.as_mut(), threshold: None, load: false },
+        Targets { depth: &mut depth, items: Some(&mut items), handles: handles.as_mut(), threshold: None, load: false },
     );
+    let color = handles.map(|h| shade::resolve(&binned, scene, cam, &h));
     Ok(Frame { depth, items, color })
 }
 
@@ -155,7 +167,7 @@ pub fn draw_into(
         return Err(Error::invalid("draw_into: depth buffer holds NaN"));
     }
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: Some(objects), color: false })?;
-    run_pass(&binned, Mode::Depth, Targets { depth, items, color: None, threshold: None, load: true });
+    run_pass(&binned, Mode::Depth, Targets { depth, items, handles: None, threshold: None, load: true });
     Ok(())
 }
 
@@ -213,7 +225,7 @@ pub fn pipeline_stats(scene: &Scene, cam: &Camera, t: f32) -> Result<(usize, usi
     run_pass(
         &binned,
         Mode::Depth,
-        Targets { depth: &mut depth, items: None, color: None, threshold: None, load: false },
+        Targets { depth: &mut depth, items: None, handles: None, threshold: None, load: false },
     );
     let t2 = std::time::Instant::now();
     let set_up = binned.chunks.iter().map(|c| c.tris.len()).sum();
@@ -238,7 +250,8 @@ pub fn coverage_counts(cam: &Camera, triangles: &[[Vec3; 3]]) -> Result<Image<u3
     let (bin_start, bin_items) = setup::bin_tris(&tris, &vp);
     let binned = setup::Binned {
         vp,
-        chunks: vec![setup::Chunk { tris, colors: Vec::new(), insts: Vec::new(), bin_start, bin_items }],
+        chunks: vec![setup::Chunk { tris, srcs: Vec::new(), insts: Vec::new(), bin_start, bin_items }],
+        draws: Vec::new(),
     };
     if binned.chunks[0].tris.len() > u16::MAX as usize {
         return Err(Error::invalid("coverage_counts: too many triangles for one chunk"));
@@ -248,10 +261,12 @@ pub fn coverage_counts(cam: &Camera, triangles: &[[Vec3; 3]]) -> Result<Image<u3
     run_pass(
         &binned,
         Mode::Count,
-        Targets { depth: &mut depth, items: Some(&mut counts), color: None, threshold: None, load: false },
+        Targets { depth: &mut depth, items: Some(&mut counts), handles: None, threshold: None, load: false },
     );
     Ok(counts)
 }
 
+#[cfg(test)]
+mod colour_tests;
 #[cfg(test)]
 mod tests;

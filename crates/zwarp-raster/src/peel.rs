@@ -212,7 +212,7 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
             run_pass(
                 &binned,
                 mode,
-                Targets { depth: &mut depth, items: Some(&mut items), color: None, threshold: thr, load: false },
+                Targets { depth: &mut depth, items: Some(&mut items), handles: None, threshold: thr, load: false },
             );
         }
         // Threshold of the next pass (per pixel, rows in parallel).
@@ -234,7 +234,7 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
             run_pass(
                 &gb,
                 Mode::Depth,
-                Targets { depth: &mut depth, items: Some(&mut items), color: None, threshold: None, load: false },
+                Targets { depth: &mut depth, items: Some(&mut items), handles: None, threshold: None, load: false },
             );
         }
         layers.push(Layer { depth, items });

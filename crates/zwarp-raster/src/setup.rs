@@ -449,8 +449,9 @@ pub(crate) struct Draw {
 /// indexes `bin_items`, which holds indices into `tris`).
 pub(crate) struct Chunk {
     pub tris: Vec<Tri>,
-    /// Per-triangle flat colour (only when colour was requested).
-    pub colors: Vec<[f32; 3]>,
+    /// Per-triangle source (only when colour is requested): `[index into Binned::draws,
+    /// triangle index in that draw's mesh]`; clipped pieces name their unclipped source triangle.
+    pub srcs: Vec<[u32; 2]>,
     /// Per-triangle instance id, compact (only when colour was requested).
     pub insts: Vec<u32>,
     pub bin_start: Vec<u32>,
@@ -468,41 +469,19 @@ impl Chunk {
 pub(crate) struct Binned {
     pub vp: Viewport,
     pub chunks: Vec<Chunk>,
+    /// The instances drawn, in draw order (what [`Chunk::srcs`] indexes).
+    pub draws: Vec<Draw>,
 }
 
 impl Binned {
-    /// Instance id and flat colour of the triangle behind a handle written by a colour pass
-    /// (compact per-chunk arrays, so the per-pixel look-ups stay in cache).
+    /// Instance id and source `[draw, mesh triangle]` of the triangle behind a handle written
+    /// by a colour pass (compact per-chunk arrays, so the per-pixel look-ups stay in cache).
     #[inline]
-    pub fn meta(&self, handle: u32) -> (u32, [f32; 3]) {
+    pub fn meta(&self, handle: u32) -> (u32, [u32; 2]) {
         let c = &self.chunks[(handle >> 16) as usize];
         let i = (handle & 0xffff) as usize;
-        (c.insts[i], c.colors[i])
+        (c.insts[i], c.srcs[i])
     }
-}
-
-/// Shading constants of the simple colour output (shared with the GPU renderer).
-pub mod shading {
-    use glam::Vec3;
-    /// Direction *towards* the light in view space (camera looks down -z): a headlight from
-    /// slightly above-left of the eye, so faces turned towards the camera are lit.
-    pub const LIGHT_DIR_VIEW: Vec3 = Vec3::new(-0.3, 0.5, 0.812404);
-    /// Ambient term: `colour = albedo * (AMBIENT + (1 - AMBIENT) * max(0, n . l))`.
-    pub const AMBIENT: f32 = 0.25;
-    /// Colour of empty pixels.
-    pub const SKY_COLOR: [f32; 3] = [0.55, 0.7, 0.9];
-}
-
-/// Flat two-sided Lambert colour of a triangle: the normal is flipped to face the eye (so back
-/// faces are lit like front faces), then `albedo * (ambient + (1 - ambient) * max(0, n . l))`.
-fn flat_color(view_pos: [Vec3; 3], ortho: bool, albedo: Vec3) -> [f32; 3] {
-    let n = (view_pos[1] - view_pos[0]).cross(view_pos[2] - view_pos[0]);
-    let n = n.normalize_or_zero();
-    let to_eye = if ortho { Vec3::Z } else { -view_pos[0] };
-    let n = if n.dot(to_eye) < 0.0 { -n } else { n };
-    let l = shading::LIGHT_DIR_VIEW.normalize();
-    let k = shading::AMBIENT + (1.0 - shading::AMBIENT) * n.dot(l).max(0.0);
-    (albedo * k).to_array()
 }
 
 /// `true` if the world box may intersect the view frustum of `vp` (conservative: tests the 8
@@ -594,6 +573,12 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
         if mesh.indices.par_iter().any(|t| t[0] >= nv || t[1] >= nv || t[2] >= nv) {
             return Err(Error::invalid(format!("mesh {mi} has a triangle indexing beyond its {nv} vertices")));
         }
+        // The colour resolve reads normals, UVs and material runs by index.
+        if params.color {
+            mesh.validate().map_err(|e| {
+                Error::invalid(format!("mesh {mi}: {}", e.to_string().trim_start_matches("invalid input: ")))
+            })?;
+        }
     }
     let mut draws = Vec::with_capacity(sel.len());
     let (mut vo, mut to) = (0usize, 0usize);
@@ -639,8 +624,7 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
 
     // Triangle set-up and binning, in parallel over fixed-size triangle chunks.
     let n_chunks = total_tris.div_ceil(CHUNK_TRIS);
-    let ortho = matches!(cam.projection, zwarp_core::Projection::Orthographic { .. });
-    let ctx = ChunkCtx { scene, cam, draws: &draws, clip: &clip, vp, color: params.color, ortho, total_tris };
+    let ctx = ChunkCtx { scene, draws: &draws, clip: &clip, vp, color: params.color, total_tris };
     let avx2 = crate::kernel::has_avx2();
     let chunks: Vec<Chunk> = (0..n_chunks)
         .into_par_iter()
@@ -655,18 +639,16 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
             setup_chunk(&ctx, ci)
         })
         .collect();
-    Ok(Binned { vp, chunks })
+    Ok(Binned { vp, chunks, draws })
 }
 
 /// Everything a set-up chunk reads.
 struct ChunkCtx<'a> {
     scene: &'a Scene,
-    cam: &'a Camera,
     draws: &'a [Draw],
     clip: &'a [ScreenVert],
     vp: Viewport,
     color: bool,
-    ortho: bool,
     total_tris: usize,
 }
 
@@ -684,7 +666,7 @@ fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
     let start = ci * CHUNK_TRIS;
     let end = (start + CHUNK_TRIS).min(ctx.total_tris);
     let mut tris: Vec<Tri> = Vec::with_capacity(end - start);
-    let mut colors: Vec<[f32; 3]> = Vec::new();
+    let mut srcs: Vec<[u32; 2]> = Vec::new();
     let mut d = draws.partition_point(|d| d.tri_offset <= start) - 1;
     let mut g = start;
     while g < end {
@@ -696,9 +678,7 @@ fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
         let local = g - dr.tri_offset;
         let n = (mesh.indices.len() - local).min(end - g);
         let vb = &ctx.clip[dr.vert_offset..dr.vert_offset + mesh.positions.len()];
-        let mv = ctx.cam.view * dr.model;
-        let albedo = scene.instances[dr.inst as usize].albedo;
-        for tri in &mesh.indices[local..local + n] {
+        for (k, tri) in mesh.indices[local..local + n].iter().enumerate() {
             let sv = [vb[tri[0] as usize], vb[tri[1] as usize], vb[tri[2] as usize]];
             let before = tris.len();
             if sv[0].needs_clip() || sv[1].needs_clip() || sv[2].needs_clip() {
@@ -709,20 +689,14 @@ fn setup_chunk(ctx: &ChunkCtx, ci: usize) -> Chunk {
                 setup_projected(sv, None, &vp, dr.inst, &mut tris);
             }
             if ctx.color && tris.len() > before {
-                let p = [
-                    mv.transform_point3(mesh.positions[tri[0] as usize]),
-                    mv.transform_point3(mesh.positions[tri[1] as usize]),
-                    mv.transform_point3(mesh.positions[tri[2] as usize]),
-                ];
-                let col = flat_color(p, ctx.ortho, albedo);
-                colors.resize(tris.len(), col);
+                srcs.resize(tris.len(), [d as u32, (local + k) as u32]);
             }
         }
         g += n;
     }
     let (bin_start, bin_items) = bin_tris(&tris, &vp);
     let insts = if ctx.color { tris.iter().map(|t| t.inst).collect() } else { Vec::new() };
-    Chunk { tris, colors, insts, bin_start, bin_items }
+    Chunk { tris, srcs, insts, bin_start, bin_items }
 }
 
 /// Bins triangles into tiles (counting sort, CSR). Triangles spanning several tiles are only

@@ -269,7 +269,8 @@ fn far_plane_discards_fragments_beyond_one() {
 fn backfaces_are_drawn_identically() {
     let (w, h) = (32, 32);
     let cam = Camera::perspective(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 1.0, 0.1, 50.0, w, h).unwrap();
-    let front = quad(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0));
+    let front = quad(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0))
+        .with_material(zwarp_core::Material::uniform(Vec3::ONE));
     let mut back = front.clone();
     back.indices.iter_mut().for_each(|t| t.swap(1, 2));
     let a = render_frame(

@@ -10,6 +10,11 @@
 //! Conventions: the procedural scenes, PLY files and raw soups are Z up (ground at z = 0);
 //! glTF and OBJ are Y up ([`Scene::up`] says which). Objects are [`zwarp_core::Instance`]s,
 //! their index is the item-buffer id.
+//!
+//! Surfaces (for colour warping, seed 001): meshes from glTF / OBJ / PLY keep their normals,
+//! UVs and materials (base-colour factors, textures); everything else (procedural scenes, raw
+//! soups, untextured files) is coloured by the renderer's triplanar pattern
+//! ([`zwarp_core::ColorMap::Pattern`]) tinted per object.
 
 #![warn(missing_docs)]
 

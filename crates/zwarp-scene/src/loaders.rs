@@ -2,15 +2,27 @@
 //! folders of mesh files. They produce the objects the renderer, warper and culler work on
 //! (seed 000 Sec. 4-5: per-object item buffers and occlusion queries).
 //!
+//! Surface data for textured colour (colour warping needs detail to resample): per-vertex
+//! normals (glTF `NORMAL`, OBJ `vn`, PLY `nx ny nz`), texture coordinates (glTF `TEXCOORD_n`,
+//! OBJ `vt` with `v` flipped to glTF's top-left origin) and materials (glTF
+//! `baseColorFactor` / `baseColorTexture` with its sampler's wrap modes, OBJ `Kd` / `map_Kd`,
+//! the map's path relative to its `.mtl`). Textures are decoded (PNG, JPEG) from sRGB to linear
+//! RGBA `f32` once per file and shared. A texture that is missing or cannot be decoded is an
+//! error, not a silent fallback. Meshes without a file material get the renderer's pattern.
+//!
 //! Every error is one line naming the offending file (`Error::Parse { path, msg }` or
 //! `Error::Io`).
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 use rayon::prelude::*;
-use zwarp_core::{Animation, Error, Mesh, Result, Scene};
+use zwarp_core::{
+    srgb_to_linear, Animation, ColorMap, Error, Image, Material, Mesh, MeshPart, Result, Scene, Texture, Wrap,
+};
 
 use crate::{albedo_for_id, is_ground_name, ply, soup, SceneOptions, GROUND_ALBEDO};
 
@@ -46,7 +58,8 @@ pub(crate) struct Part {
     /// Mesh key: parts with the same key share one mesh (glTF meshes used by several nodes).
     pub mesh_key: usize,
     pub transform: Mat4,
-    pub albedo: Option<Vec3>,
+    /// The file gives this part's mesh materials (then the instance tint is white).
+    pub has_material: bool,
 }
 
 /// Meshes + parts of one file.
@@ -66,19 +79,49 @@ fn at(path: &Path) -> impl Fn(Error) -> Error + '_ {
 /// Loads a PLY file as one mesh (no object structure in PLY).
 pub(crate) fn load_ply(path: &Path) -> Result<Mesh> {
     let m = ply::read_ply(path)?;
-    Mesh::new(m.positions, m.indices).map_err(at(path))
+    let mesh = Mesh::new(m.positions, m.indices).map_err(at(path))?;
+    match m.normals {
+        Some(n) => mesh.with_normals(n).map_err(at(path)),
+        None => Ok(mesh),
+    }
 }
 
-/// Loads an OBJ file: each model (`o`/`g`) is one object, polygons triangulated; the albedo
-/// is the material's diffuse colour when the `.mtl` is present.
+/// Loads an OBJ file: each model (`o`/`g`, split by tobj at every `usemtl`) is one object,
+/// polygons triangulated, with the file's normals and texture coordinates; a model with a
+/// material gets `Kd` (times `map_Kd` where given) as its material. A missing or broken `.mtl`
+/// only costs the materials; a `map_Kd` that is missing or undecodable is an error naming the
+/// `.mtl` and the texture.
 pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
     if !path.is_file() {
         return Err(Error::parse(path, "file not found"));
     }
-    let opts = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
-    let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| Error::parse(path, format!("OBJ: {e}")))?;
-    // A missing or broken .mtl only costs the colours.
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
+    // Which .mtl each material comes from (tobj appends the libraries' materials in order).
+    let libs: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    let (models, materials) = tobj::load_obj_buf(&mut reader, &opts, |p| {
+        let full = dir.join(p);
+        let r = tobj::load_mtl(&full);
+        libs.borrow_mut().push((full, r.as_ref().map_or(0, |(m, _)| m.len())));
+        r
+    })
+    .map_err(|e| Error::parse(path, format!("OBJ: {e}")))?;
     let materials = materials.unwrap_or_default();
+    let libs = libs.into_inner();
+    let mtl_of = |i: usize| -> PathBuf {
+        let mut first = 0;
+        for (p, n) in &libs {
+            if i < first + n {
+                return p.clone();
+            }
+            first += n;
+        }
+        path.to_path_buf()
+    };
+    let mut textures: HashMap<PathBuf, Arc<Texture>> = HashMap::new();
+    let mut built: HashMap<usize, Material> = HashMap::new();
     let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new() };
     for model in models {
         let m = &model.mesh;
@@ -90,23 +133,128 @@ pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
         if indices.is_empty() {
             continue;
         }
-        let mesh = Mesh::new(positions, indices)
-            .map_err(|e| Error::parse(path, format!("OBJ model '{}': {}", model.name, strip(e))))?;
-        let albedo = m
-            .material_id
-            .and_then(|i| materials.get(i))
-            .and_then(|mat| mat.diffuse)
-            .map(Vec3::from_array)
-            .filter(|c| c.is_finite());
+        let in_model = |e: Error| Error::parse(path, format!("OBJ model '{}': {}", model.name, strip(e)));
+        let mut mesh = Mesh::new(positions, indices).map_err(in_model)?;
+        if !m.normals.is_empty() {
+            let n = m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+            mesh = mesh.with_normals(n).map_err(in_model)?;
+        }
+        if !m.texcoords.is_empty() {
+            // OBJ's v runs up from the bottom of the image; zwarp's UVs are glTF's (top-left origin).
+            let uv = m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect();
+            mesh = mesh.with_uvs(uv).map_err(in_model)?;
+        }
+        let material = match m.material_id.filter(|&i| i < materials.len()) {
+            Some(i) => {
+                if let std::collections::hash_map::Entry::Vacant(e) = built.entry(i) {
+                    e.insert(obj_material(&materials[i], &mtl_of(i), &mut textures)?);
+                }
+                Some(built[&i].clone())
+            }
+            None => None,
+        };
+        let has_material = material.is_some();
+        if let Some(mat) = material {
+            let has_uvs = mesh.uvs.is_some();
+            mesh = mesh.with_material(fallback_without_uvs(mat, has_uvs));
+        }
         out.parts.push(Part {
             name: model.name.clone(),
             mesh_key: out.meshes.len(),
             transform: Mat4::IDENTITY,
-            albedo,
+            has_material,
         });
         out.meshes.push(mesh);
     }
     Ok(out)
+}
+
+/// An OBJ material: `Kd` (white if absent) times `map_Kd` (path relative to the `.mtl`; the
+/// last word of the statement when the whole is not a file, so `-o`/`-s` options are skipped).
+fn obj_material(m: &tobj::Material, mtl: &Path, cache: &mut HashMap<PathBuf, Arc<Texture>>) -> Result<Material> {
+    let kd = m.diffuse.map(Vec3::from_array).filter(|c| c.is_finite()).unwrap_or(Vec3::ONE);
+    let Some(map) = m.diffuse_texture.as_deref().map(str::trim).filter(|s| !s.is_empty()) else {
+        return Ok(Material::pattern(kd));
+    };
+    let base = mtl.parent().unwrap_or(Path::new("."));
+    let whole = base.join(map.replace('\\', "/"));
+    let file = if whole.is_file() {
+        whole
+    } else {
+        let last = map.split_whitespace().last().unwrap_or(map);
+        let f = base.join(last.replace('\\', "/"));
+        if !f.is_file() {
+            return Err(Error::parse(mtl, format!("material '{}': map_Kd texture {} not found", m.name, f.display())));
+        }
+        f
+    };
+    if let Some(t) = cache.get(&file) {
+        return Ok(Material::textured(kd, t.clone()));
+    }
+    let img = image::open(&file).map_err(|e| Error::parse(&file, format!("texture: {e}")))?;
+    let rgba = img.to_rgba32f();
+    let (w, h) = rgba.dimensions();
+    let tex = Arc::new(texture_from_encoded(w, h, rgba.as_raw(), 4, true, [Wrap::Repeat; 2]).map_err(at(&file))?);
+    cache.insert(file, tex.clone());
+    Ok(Material::textured(kd, tex))
+}
+
+/// A textured material on a mesh without UVs shows the pattern instead (with its base colour).
+fn fallback_without_uvs(m: Material, has_uvs: bool) -> Material {
+    match m.map {
+        ColorMap::Texture(_) if !has_uvs => Material::pattern(m.base_color),
+        _ => m,
+    }
+}
+
+/// A texture from `channels` interleaved encoded values in `[0, 1]` per texel (1 = grey,
+/// 2 = grey + alpha, 3 = RGB, 4 = RGBA), colour channels sRGB-decoded when `srgb`.
+fn texture_from_encoded(w: u32, h: u32, v: &[f32], channels: usize, srgb: bool, wrap: [Wrap; 2]) -> Result<Texture> {
+    if channels == 0 || v.len() != w as usize * h as usize * channels {
+        return Err(Error::invalid(format!("texture data does not match its {w}x{h} size")));
+    }
+    let dec = |x: f32| if srgb { srgb_to_linear(x) } else { x };
+    let texels = v
+        .chunks_exact(channels)
+        .map(|c| match channels {
+            1 => [dec(c[0]), dec(c[0]), dec(c[0]), 1.0],
+            2 => [dec(c[0]), dec(c[0]), dec(c[0]), c[1]],
+            3 => [dec(c[0]), dec(c[1]), dec(c[2]), 1.0],
+            _ => [dec(c[0]), dec(c[1]), dec(c[2]), c[3]],
+        })
+        .collect();
+    Texture::new(Image::from_vec(w, h, texels)?, wrap[0], wrap[1])
+}
+
+/// Decoded glTF image -> linear RGBA texture (8/16-bit channels are sRGB, float ones linear).
+fn gltf_texture(data: &gltf::image::Data, wrap: [Wrap; 2]) -> Result<Texture> {
+    use gltf::image::Format as F;
+    let (channels, bytes) = match data.format {
+        F::R8 => (1, 1),
+        F::R8G8 => (2, 1),
+        F::R8G8B8 => (3, 1),
+        F::R8G8B8A8 => (4, 1),
+        F::R16 => (1, 2),
+        F::R16G16 => (2, 2),
+        F::R16G16B16 => (3, 2),
+        F::R16G16B16A16 => (4, 2),
+        F::R32G32B32FLOAT => (3, 4),
+        F::R32G32B32A32FLOAT => (4, 4),
+    };
+    let v: Vec<f32> = match bytes {
+        1 => data.pixels.iter().map(|&b| b as f32 / 255.0).collect(),
+        2 => data.pixels.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]]) as f32 / 65535.0).collect(),
+        _ => data.pixels.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect(),
+    };
+    texture_from_encoded(data.width, data.height, &v, channels, bytes < 4, wrap)
+}
+
+fn gltf_wrap(m: gltf::texture::WrappingMode) -> Wrap {
+    match m {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    }
 }
 
 fn strip(e: Error) -> String {
@@ -118,7 +266,8 @@ fn strip(e: Error) -> String {
 
 /// Loads a glTF 2.0 file (`.gltf` with external or embedded base64 buffers, or `.glb`): every
 /// node with a mesh is one object with its world transform; all triangle primitives of a mesh
-/// form one [`Mesh`], shared by the nodes that use it. Images are not decoded.
+/// form one [`Mesh`] (one [`MeshPart`] per primitive), shared by the nodes that use it.
+/// Base-colour textures are decoded once per (image, sampler).
 pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
     if !path.is_file() {
         return Err(Error::parse(path, "file not found"));
@@ -130,6 +279,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
         gltf::import_buffers(&doc, Some(base), g.blob).map_err(|e| Error::parse(path, format!("glTF buffers: {e}")))?;
 
     let mut mesh_slot: HashMap<usize, usize> = HashMap::new();
+    let mut textures = GltfTextures { base, buffers: &buffers, cache: HashMap::new() };
     let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new() };
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(s) => s.nodes().collect(),
@@ -154,7 +304,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
             let slot = match mesh_slot.get(&mesh.index()) {
                 Some(&s) => Some(s),
                 None => {
-                    let m = gltf_mesh(path, &mesh, &buffers)?;
+                    let m = gltf_mesh(path, &mesh, &buffers, &mut textures)?;
                     if m.indices.is_empty() {
                         None
                     } else {
@@ -165,12 +315,9 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
                 }
             };
             if let Some(slot) = slot {
-                let albedo = mesh.primitives().next().map(|p| {
-                    let c = p.material().pbr_metallic_roughness().base_color_factor();
-                    Vec3::new(c[0], c[1], c[2])
-                });
+                let has_material = mesh.primitives().any(|p| p.material().index().is_some());
                 let name = node.name().or(mesh.name()).unwrap_or("").to_string();
-                out.parts.push(Part { name, mesh_key: slot, transform: world, albedo });
+                out.parts.push(Part { name, mesh_key: slot, transform: world, has_material });
             }
         }
         for c in node.children() {
@@ -180,39 +327,111 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
     Ok(out)
 }
 
-fn gltf_mesh(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<Mesh> {
+/// Base-colour textures of one glTF file, decoded on first use.
+struct GltfTextures<'a> {
+    base: &'a Path,
+    buffers: &'a [gltf::buffer::Data],
+    cache: HashMap<(usize, Option<usize>), Arc<Texture>>,
+}
+
+impl GltfTextures<'_> {
+    fn get(&mut self, path: &Path, tex: &gltf::Texture) -> Result<Arc<Texture>> {
+        let img = tex.source();
+        let key = (img.index(), tex.sampler().index());
+        if let Some(t) = self.cache.get(&key) {
+            return Ok(t.clone());
+        }
+        let data = gltf::image::Data::from_source(img.source(), Some(self.base), self.buffers)
+            .map_err(|e| Error::parse(path, format!("glTF image {}: {e}", img.index())))?;
+        let wrap = [gltf_wrap(tex.sampler().wrap_s()), gltf_wrap(tex.sampler().wrap_t())];
+        let t = Arc::new(
+            gltf_texture(&data, wrap)
+                .map_err(|e| Error::parse(path, format!("glTF image {}: {}", img.index(), strip(e))))?,
+        );
+        self.cache.insert(key, t.clone());
+        Ok(t)
+    }
+}
+
+/// The material of a glTF primitive: `baseColorFactor` (RGB; alpha ignored: opaque) times
+/// `baseColorTexture` when the primitive has the texture's `TEXCOORD_n`, else the pattern.
+fn gltf_material(path: &Path, prim: &gltf::Primitive, textures: &mut GltfTextures) -> Result<(Material, Option<u32>)> {
+    let pbr = prim.material().pbr_metallic_roughness();
+    let c = pbr.base_color_factor();
+    let base = Vec3::new(c[0], c[1], c[2]);
+    match pbr.base_color_texture() {
+        Some(info) => Ok((Material::textured(base, textures.get(path, &info.texture())?), Some(info.tex_coord()))),
+        None => Ok((Material::pattern(base), None)),
+    }
+}
+
+fn gltf_mesh(
+    path: &Path,
+    mesh: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+    textures: &mut GltfTextures,
+) -> Result<Mesh> {
     let mut positions: Vec<Vec3> = Vec::new();
+    let mut normals: Vec<Vec3> = Vec::new();
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let (mut any_normals, mut any_uvs) = (false, false);
     let mut indices: Vec<[u32; 3]> = Vec::new();
+    let mut parts: Vec<MeshPart> = Vec::new();
+    let in_mesh = |m: String| Error::parse(path, format!("glTF mesh {}: {m}", mesh.index()));
     for prim in mesh.primitives() {
         // Check the accessors against their buffers first: the gltf reader silently yields
         // nothing for an accessor that overruns its buffer, which would drop geometry or
         // turn an indexed primitive into a non-indexed one.
         let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else { continue };
-        check_accessor(&pos_acc, buffers)
-            .map_err(|m| Error::parse(path, format!("glTF mesh {}: {m}", mesh.index())))?;
+        check_accessor(&pos_acc, buffers).map_err(in_mesh)?;
         if let Some(ia) = prim.indices() {
-            check_accessor(&ia, buffers).map_err(|m| Error::parse(path, format!("glTF mesh {}: {m}", mesh.index())))?;
+            check_accessor(&ia, buffers).map_err(in_mesh)?;
+        }
+        let (material, uv_set) = gltf_material(path, &prim, textures)?;
+        for sem in [Some(gltf::Semantic::Normals), uv_set.map(gltf::Semantic::TexCoords)].into_iter().flatten() {
+            if let Some(acc) = prim.get(&sem) {
+                check_accessor(&acc, buffers).map_err(in_mesh)?;
+            }
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
         let Some(pos) = reader.read_positions() else {
-            return Err(Error::parse(path, format!("glTF mesh {}: unreadable POSITION accessor", mesh.index())));
+            return Err(in_mesh("unreadable POSITION accessor".into()));
         };
         let base = positions.len() as u32;
         let start = positions.len();
         positions.extend(pos.map(Vec3::from_array));
         let n = (positions.len() - start) as u32;
+        // Attributes: missing ones are zeros (a zero normal shades flat; a textured material
+        // without its UVs shows the pattern).
+        if let Some(it) = reader.read_normals() {
+            normals.extend(it.map(Vec3::from_array));
+            any_normals = true;
+        }
+        let mut has_uv = false;
+        if let Some(set) = uv_set {
+            if let Some(it) = reader.read_tex_coords(set) {
+                uvs.extend(it.into_f32().map(Vec2::from_array));
+                has_uv = true;
+                any_uvs = true;
+            }
+        }
+        for (what, len) in [("NORMAL", normals.len()), ("TEXCOORD", uvs.len())] {
+            if len > positions.len() || (len > start && len != positions.len()) {
+                return Err(in_mesh(format!(
+                    "{what} accessor has {} elements but POSITION has {n}",
+                    len as i64 - start as i64
+                )));
+            }
+        }
+        normals.resize(positions.len(), Vec3::ZERO);
+        uvs.resize(positions.len(), Vec2::ZERO);
         let idx: Vec<u32> = match (prim.indices(), reader.read_indices()) {
             (_, Some(i)) => i.into_u32().collect(),
             (None, None) => (0..n).collect(),
-            (Some(_), None) => {
-                return Err(Error::parse(path, format!("glTF mesh {}: unreadable index accessor", mesh.index())))
-            }
+            (Some(_), None) => return Err(in_mesh("unreadable index accessor".into())),
         };
         if let Some(&bad) = idx.iter().find(|&&i| i >= n) {
-            return Err(Error::parse(
-                path,
-                format!("glTF mesh {} indexes vertex {bad} but the primitive has only {n} vertices", mesh.index()),
-            ));
+            return Err(in_mesh(format!("indexes vertex {bad} but the primitive has only {n} vertices")));
         }
         let tris: Vec<[u32; 3]> = match prim.mode() {
             gltf::mesh::Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
@@ -223,9 +442,23 @@ fn gltf_mesh(path: &Path, mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> 
             // Points and lines have no depth footprint in a triangle rasterizer.
             _ => Vec::new(),
         };
+        if !tris.is_empty() {
+            parts.push(MeshPart {
+                first_triangle: indices.len() as u32,
+                material: fallback_without_uvs(material, has_uv),
+            });
+        }
         indices.extend(tris.into_iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
     }
-    Mesh::new(positions, indices).map_err(|e| Error::parse(path, format!("glTF mesh {}: {}", mesh.index(), strip(e))))
+    let e = |e: Error| in_mesh(strip(e));
+    let mut m = Mesh::new(positions, indices).map_err(e)?;
+    if any_normals {
+        m = m.with_normals(normals).map_err(e)?;
+    }
+    if any_uvs {
+        m = m.with_uvs(uvs).map_err(e)?;
+    }
+    m.with_parts(parts).map_err(e)
 }
 
 /// `Err(message)` unless accessor `a` lies inside its buffer view and the view inside its
@@ -264,7 +497,7 @@ pub(crate) fn load_file_objects(path: &Path, kind: Kind) -> Result<FileObjects> 
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             Ok(FileObjects {
                 meshes: vec![m],
-                parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, albedo: None }],
+                parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material: false }],
             })
         }
     }
@@ -278,7 +511,13 @@ pub(crate) fn add_objects(scene: &mut Scene, file: &Path, objs: FileObjects) {
     for p in objs.parts {
         let id = scene.instances.len() as u32;
         let ground = file_ground || is_ground_name(&p.name);
-        let albedo = if ground { GROUND_ALBEDO } else { p.albedo.unwrap_or_else(|| albedo_for_id(id)) };
+        let albedo = if p.has_material {
+            Vec3::ONE
+        } else if ground {
+            GROUND_ALBEDO
+        } else {
+            albedo_for_id(id)
+        };
         scene.add_instance(base + p.mesh_key as u32, p.transform, albedo, Animation::Static, ground);
     }
 }
@@ -290,7 +529,7 @@ pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> 
     if kind == Kind::Ply {
         let m = ply::read_ply(path)?;
         let ground = is_ground_name(&display_name(path));
-        add_soup(&mut scene, path, m.positions, m.indices, ground, opts)?;
+        add_soup(&mut scene, path, m.positions, m.normals, m.indices, ground, opts)?;
     } else {
         let objs = load_file_objects(path, kind)?;
         // Only the file name decides "ground", not the folders above it.
@@ -300,11 +539,12 @@ pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> 
 }
 
 /// Splits a soup ([`soup::split_soup`]) and adds one object per group, each with its own
-/// compacted mesh in world space.
+/// compacted mesh in world space (with the soup's normals, if any).
 pub(crate) fn add_soup(
     scene: &mut Scene,
     path: &Path,
     positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
     indices: Vec<[u32; 3]>,
     ground: bool,
     opts: &SceneOptions,
@@ -315,18 +555,24 @@ pub(crate) fn add_soup(
         .map(|g| {
             let mut remap: HashMap<u32, u32> = HashMap::with_capacity(g.len() * 2);
             let mut pos = Vec::new();
+            let mut old = Vec::new();
             let tris = g
                 .iter()
                 .map(|&t| {
                     indices[t as usize].map(|v| {
                         *remap.entry(v).or_insert_with(|| {
                             pos.push(positions[v as usize]);
+                            old.push(v);
                             (pos.len() - 1) as u32
                         })
                     })
                 })
                 .collect();
-            Mesh::new(pos, tris).map_err(at(path))
+            let mesh = Mesh::new(pos, tris).map_err(at(path))?;
+            match &normals {
+                Some(n) => mesh.with_normals(old.iter().map(|&v| n[v as usize]).collect()).map_err(at(path)),
+                None => Ok(mesh),
+            }
         })
         .collect();
     for m in meshes {
@@ -346,7 +592,7 @@ pub(crate) fn load_folder(dir: &Path, opts: &SceneOptions) -> Result<Scene> {
     if dir.join("VertexBuffer.bin").is_file() && dir.join("IndexBuffer.bin").is_file() {
         let (p, t) = soup::read_raw_soup(dir)?;
         let ground = is_ground_name(&display_name(dir));
-        add_soup(&mut scene, &dir.join("IndexBuffer.bin"), p, t, ground, opts)?;
+        add_soup(&mut scene, &dir.join("IndexBuffer.bin"), p, None, t, ground, opts)?;
         return Ok(scene);
     }
     let mut files = Vec::new();
@@ -370,26 +616,68 @@ pub(crate) fn load_folder(dir: &Path, opts: &SceneOptions) -> Result<Scene> {
 }
 
 /// Merges all parts of a file into one object (a folder's file = one object), baking each
-/// part's transform into the merged mesh.
+/// part's transform into the merged mesh (normals by its normal matrix) and keeping every part's
+/// materials as runs of the merged mesh. Parts without normals or UVs get zeros there (flat
+/// shading; textured materials of such parts show the pattern).
 fn merge_parts(objs: FileObjects) -> FileObjects {
     if objs.parts.len() <= 1 {
         return objs;
     }
+    let any_normals = objs.parts.iter().any(|p| objs.meshes[p.mesh_key].normals.is_some());
+    let any_uvs = objs.parts.iter().any(|p| objs.meshes[p.mesh_key].uvs.is_some());
     let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut uvs = Vec::new();
     let mut indices = Vec::new();
+    let mut parts: Vec<MeshPart> = Vec::new();
     for p in &objs.parts {
         let m = &objs.meshes[p.mesh_key];
         let base = positions.len() as u32;
+        let first = indices.len() as u32;
         positions.extend(m.positions.iter().map(|v| p.transform.transform_point3(*v)));
         indices.extend(m.indices.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        if any_normals {
+            let nm = Mat3::from_mat4(p.transform).inverse().transpose();
+            let nm = if nm.is_finite() { nm } else { Mat3::from_mat4(p.transform) };
+            match &m.normals {
+                Some(n) => normals.extend(n.iter().map(|v| nm * *v)),
+                None => normals.resize(positions.len(), Vec3::ZERO),
+            }
+        }
+        if any_uvs {
+            match &m.uvs {
+                Some(u) => uvs.extend_from_slice(u),
+                None => uvs.resize(positions.len(), Vec2::ZERO),
+            }
+        }
+        if m.indices.is_empty() {
+            continue;
+        }
+        let has_uv = m.uvs.is_some();
+        if m.parts.is_empty() {
+            parts.push(MeshPart { first_triangle: first, material: Material::default() });
+        }
+        for mp in &m.parts {
+            parts.push(MeshPart {
+                first_triangle: first + mp.first_triangle,
+                material: fallback_without_uvs(mp.material.clone(), has_uv),
+            });
+        }
     }
-    let albedo = objs.parts[0].albedo;
+    let has_material = objs.parts.iter().any(|p| p.has_material);
     // A merged file is ground if its path says so (checked by the caller) or if every part
     // is named as ground; one ground part among walls does not make the whole file ground.
     let name = if objs.parts.iter().all(|p| is_ground_name(&p.name)) { "ground".to_string() } else { String::new() };
-    let mut mesh = Mesh { positions, indices, bounds: Default::default() };
+    let mut mesh = Mesh {
+        positions,
+        indices,
+        bounds: Default::default(),
+        normals: any_normals.then_some(normals),
+        uvs: any_uvs.then_some(uvs),
+        parts: if has_material { parts } else { Vec::new() },
+    };
     mesh.compute_bounds();
-    FileObjects { meshes: vec![mesh], parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, albedo }] }
+    FileObjects { meshes: vec![mesh], parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material }] }
 }
 
 fn collect_mesh_files(dir: &Path, out: &mut Vec<(PathBuf, Kind)>, depth: usize) -> Result<()> {

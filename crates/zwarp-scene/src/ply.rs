@@ -1,6 +1,7 @@
 //! A small, robust PLY reader (ASCII, binary little endian, binary big endian).
 //!
-//! Reads the `vertex` element's `x, y, z` (float or double or any numeric type) and the `face`
+//! Reads the `vertex` element's `x, y, z` and, when all three are present, its normal `nx, ny, nz`
+//! (float or double or any numeric type) and the `face`
 //! element's index list (`vertex_indices` or `vertex_index`, any list count/item types);
 //! every other element and property is skipped by its declared type. Polygons are
 //! fan-triangulated, faces with fewer than 3 corners are ignored. Used for the real scenes of
@@ -70,11 +71,13 @@ struct Element {
     props: Vec<Property>,
 }
 
-/// Positions and fan-triangulated faces of one PLY file.
+/// Positions, optional normals and fan-triangulated faces of one PLY file.
 #[derive(Clone, Debug, Default)]
 pub struct PlyMesh {
     /// Vertex positions as stored (no up-axis change).
     pub positions: Vec<Vec3>,
+    /// Vertex normals (`nx, ny, nz`) when the vertex element has all three, as stored.
+    pub normals: Option<Vec<Vec3>>,
     /// Triangles.
     pub indices: Vec<[u32; 3]>,
 }
@@ -108,9 +111,15 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                     (Some(x), Some(y), Some(z)) => (x, y, z),
                     _ => return Err("vertex element lacks x, y or z".into()),
                 };
+                let inormal = match (idx("nx"), idx("ny"), idx("nz")) {
+                    (Some(x), Some(y), Some(z)) => Some((x, y, z)),
+                    _ => None,
+                };
                 out.positions.reserve(el.count.min(cap));
+                let mut normals = inormal.map(|_| Vec::with_capacity(el.count.min(cap)));
                 for v in 0..el.count {
                     let mut p = [0.0f64; 3];
+                    let mut nrm = [0.0f64; 3];
                     for (k, prop) in el.props.iter().enumerate() {
                         match prop {
                             Property::Scalar { ty, .. } => {
@@ -121,6 +130,14 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                                     p[1] = x;
                                 } else if k == iz {
                                     p[2] = x;
+                                } else if let Some((nx, ny, nz)) = inormal {
+                                    if k == nx {
+                                        nrm[0] = x;
+                                    } else if k == ny {
+                                        nrm[1] = x;
+                                    } else if k == nz {
+                                        nrm[2] = x;
+                                    }
                                 }
                             }
                             Property::List { count, item, .. } => reader.skip_list(*count, *item)?,
@@ -131,7 +148,18 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                         return Err(format!("vertex {v} is not finite ({}, {}, {})", p[0], p[1], p[2]));
                     }
                     out.positions.push(q);
+                    if let Some(ns) = normals.as_mut() {
+                        let n = Vec3::new(nrm[0] as f32, nrm[1] as f32, nrm[2] as f32);
+                        if !n.is_finite() {
+                            return Err(format!(
+                                "normal of vertex {v} is not finite ({}, {}, {})",
+                                nrm[0], nrm[1], nrm[2]
+                            ));
+                        }
+                        ns.push(n);
+                    }
                 }
+                out.normals = normals;
                 vertex_count = Some(el.count);
             }
             "face" => {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use zwarp_core::Error;
-use zwarp_scene::{load_scene, CameraPath, SceneOptions, SplitMode, GROUND_ALBEDO};
+use zwarp_scene::{load_scene, CameraPath, SceneOptions, SplitMode};
 
 fn fixture(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name).to_string_lossy().into_owned()
@@ -47,12 +47,17 @@ fn obj_models_are_objects_with_material_colours_and_ground() {
     assert_eq!(sc.triangle_count(), 4);
     let wall = &sc.instances[0];
     assert!(!wall.is_ground);
-    assert!((wall.albedo - Vec3::new(0.8, 0.1, 0.1)).length() < 1e-6);
+    // The colour lives in the material (pattern times Kd); the instance tint is white.
+    assert_eq!(wall.albedo, Vec3::ONE);
+    let wm = &sc.meshes[wall.mesh as usize];
+    assert_eq!(wm.material_of(0), &zwarp_core::Material::pattern(Vec3::new(0.8, 0.1, 0.1)));
     assert_eq!(wall.world_aabb.min, Vec3::ZERO);
     assert_eq!(wall.world_aabb.max, Vec3::new(1.0, 1.0, 0.0));
     let ground = &sc.instances[1];
     assert!(ground.is_ground);
-    assert_eq!(ground.albedo, GROUND_ALBEDO);
+    // OBJ's `usemtl` state carries over `o`: the ground uses "red" too, so its tint is white.
+    assert_eq!(ground.albedo, Vec3::ONE);
+    assert_eq!(sc.meshes[ground.mesh as usize].material_of(0).base_color, Vec3::new(0.8, 0.1, 0.1));
     assert_eq!(sc.meshes[ground.mesh as usize].triangle_count(), 2, "quad face triangulated");
 }
 
@@ -95,7 +100,10 @@ fn gltf_and_glb_nodes_are_instances_with_world_transforms() {
         // The child: parent (identity) * translate(10, 0, 0) * scale 2.
         assert_eq!(boxes[1], (Vec3::new(10.0, 0.0, 0.0), Vec3::new(12.0, 2.0, 0.0)));
         for i in &s.instances {
-            assert!((i.albedo - Vec3::new(0.2, 0.4, 0.6)).length() < 1e-6);
+            assert_eq!(i.albedo, Vec3::ONE);
+            let m = s.meshes[i.mesh as usize].material_of(0);
+            assert!((m.base_color - Vec3::new(0.2, 0.4, 0.6)).length() < 1e-6, "{f}");
+            assert_eq!(m.map, zwarp_core::ColorMap::Pattern);
         }
     }
 }
@@ -346,4 +354,176 @@ fn default_path_of_a_y_up_file_flies_above_it() {
         let c = cam.project(b.center()).unwrap();
         assert!(c.x > 0.0 && c.x < 64.0 && c.y > 0.0 && c.y < 48.0 && c.z < 1.0);
     }
+}
+
+/// 4x4 RGBA test texture: texel (i, j) has sRGB bytes (60 i, 60 j, 200, 255).
+fn test_png() -> Vec<u8> {
+    let mut px = Vec::new();
+    for j in 0..4u8 {
+        for i in 0..4u8 {
+            px.extend_from_slice(&[60 * i, 60 * j, 200, 255]);
+        }
+    }
+    let img = image::RgbaImage::from_raw(4, 4, px).unwrap();
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
+
+/// The linear value the loaders must give an sRGB byte.
+fn lin(b: u8) -> f32 {
+    zwarp_core::srgb_to_linear(b as f32 / 255.0)
+}
+
+/// A glTF quad (x, y in [0, 1], z = 0, normal +z) with UVs (glTF: v = 0 at the top, i.e. at
+/// y = 1), a base-colour factor and the base-colour texture `image` (a JSON image object).
+fn textured_quad_gltf(image: serde_json::Value, uv_count: usize) -> String {
+    let mut b: Vec<u8> = Vec::new();
+    for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]] {
+        p.iter().for_each(|v| b.extend_from_slice(&v.to_le_bytes()));
+    }
+    for _ in 0..4 {
+        [0.0f32, 0.0, 1.0].iter().for_each(|v| b.extend_from_slice(&v.to_le_bytes()));
+    }
+    for uv in [[0.0f32, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]] {
+        uv.iter().for_each(|v| b.extend_from_slice(&v.to_le_bytes()));
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    b.extend_from_slice(&[0, 0]);
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": "panel"}],
+        "meshes": [{"primitives": [{
+            "attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2},
+            "indices": 3,
+            "material": 0
+        }]}],
+        "materials": [{"pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 0.5, 1.0, 1.0],
+            "baseColorTexture": {"index": 0}
+        }}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"wrapS": 33071, "wrapT": 10497}],
+        "images": [image],
+        "buffers": [{"byteLength": b.len(), "uri": format!("data:application/octet-stream;base64,{}", encode_b64(&b))}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 128, "byteLength": 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": uv_count, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ]
+    });
+    serde_json::to_string(&json).unwrap()
+}
+
+#[test]
+fn gltf_normals_uvs_and_embedded_png_texture() {
+    let d = temp_dir("gltf-tex");
+    let uri = format!("data:image/png;base64,{}", encode_b64(&test_png()));
+    let f = d.join("panel.gltf");
+    std::fs::write(&f, textured_quad_gltf(serde_json::json!({ "uri": uri }), 4)).unwrap();
+    let s = load_scene(f.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.instances.len(), 1);
+    assert_eq!(s.instances[0].albedo, Vec3::ONE, "the file's material carries the colour");
+    let m = &s.meshes[0];
+    assert_eq!(m.normals.as_deref(), Some(&[Vec3::Z; 4][..]));
+    let uvs = m.uvs.as_ref().unwrap();
+    assert_eq!(uvs[3], glam::Vec2::new(0.0, 0.0), "top-left corner (y = 1) has uv (0, 0)");
+    let mat = m.material_of(1);
+    assert_eq!(mat.base_color, Vec3::new(1.0, 0.5, 1.0));
+    let tex = mat.texture().expect("textured");
+    assert_eq!(tex.image().size(), (4, 4));
+    assert_eq!(tex.wrap(), [zwarp_core::Wrap::Clamp, zwarp_core::Wrap::Repeat]);
+    // Texel (2, 1) = bytes (120, 60, 200), decoded from sRGB.
+    let t = *tex.image().get(2, 1);
+    for (got, want) in t.iter().zip([lin(120), lin(60), lin(200), 1.0]) {
+        assert!((got - want).abs() < 1e-6, "{t:?}");
+    }
+    // A missing external image is a one-line error naming the file.
+    let f = d.join("missing.gltf");
+    std::fs::write(&f, textured_quad_gltf(serde_json::json!({ "uri": "nowhere.png" }), 4)).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("missing.gltf") && msg.contains("glTF image 0"), "{msg}");
+    // TEXCOORD_0 with fewer elements than POSITION.
+    let f = d.join("short_uv.gltf");
+    std::fs::write(&f, textured_quad_gltf(serde_json::json!({ "uri": uri }), 3)).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("short_uv.gltf") && msg.contains("TEXCOORD"), "{msg}");
+}
+
+#[test]
+fn obj_with_mtl_map_kd_relative_to_the_mtl() {
+    let d = temp_dir("obj-tex");
+    std::fs::create_dir_all(d.join("mat/tex")).unwrap();
+    std::fs::write(d.join("mat/tex/checker.png"), test_png()).unwrap();
+    std::fs::write(d.join("mat/looks.mtl"), "newmtl painted\nKd 1 1 0.5\nmap_Kd tex/checker.png\n").unwrap();
+    let obj = "mtllib mat/looks.mtl\no panel\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+               vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nusemtl painted\nf 1/1/1 2/2/1 3/3/1 4/4/1\n";
+    let f = d.join("panel.obj");
+    std::fs::write(&f, obj).unwrap();
+    let s = load_scene(f.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.instances.len(), 1);
+    let m = &s.meshes[0];
+    assert_eq!(m.triangle_count(), 2);
+    assert!(m.normals.as_ref().unwrap().iter().all(|n| *n == Vec3::Z));
+    // OBJ's v = 0 is the bottom of the image: flipped to zwarp's (glTF's) top-left origin.
+    let uvs = m.uvs.as_ref().unwrap();
+    for (p, uv) in m.positions.iter().zip(uvs) {
+        assert_eq!((uv.x, uv.y), (p.x, 1.0 - p.y), "{p} {uv}");
+    }
+    let mat = m.material_of(0);
+    assert_eq!(mat.base_color, Vec3::new(1.0, 1.0, 0.5));
+    let t = *mat.texture().expect("map_Kd").image().get(3, 0);
+    assert!((t[0] - lin(180)).abs() < 1e-6 && t[1] == 0.0 && (t[2] - lin(200)).abs() < 1e-6, "{t:?}");
+    // A map_Kd that is not there: one line naming the .mtl and the texture.
+    std::fs::remove_file(d.join("mat/tex/checker.png")).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("looks.mtl") && msg.contains("checker.png") && msg.contains("not found"), "{msg}");
+}
+
+#[test]
+fn ply_vertex_normals_are_read() {
+    let d = temp_dir("ply-normals");
+    let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float nx\nproperty float ny\nproperty float nz\nelement face 1\n\
+                  property list uchar int vertex_indices\nend_header\n";
+    let f = d.join("tri.ply");
+    std::fs::write(&f, format!("{header}0 0 0 0 0 1\n1 0 0 0 0.6 0.8\n0 1 0 1 0 0\n3 0 1 2\n")).unwrap();
+    let s = load_scene(f.to_str().unwrap(), &opts(SplitMode::None)).unwrap().scene;
+    let n = s.meshes[0].normals.as_ref().expect("normals");
+    let p = &s.meshes[0].positions;
+    for (pos, want) in [(Vec3::ZERO, Vec3::Z), (Vec3::X, Vec3::new(0.0, 0.6, 0.8)), (Vec3::Y, Vec3::X)] {
+        let i = p.iter().position(|q| *q == pos).unwrap();
+        assert_eq!(n[i], want);
+    }
+    // A folder of PLY files keeps them too (one object per file).
+    let s = load_scene(d.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert!(s.meshes[0].normals.is_some());
+    // Without nx/ny/nz: no normals.
+    let s = load_scene(&fixture("quad_ascii.ply"), &SceneOptions::default()).unwrap().scene;
+    assert!(s.meshes.iter().all(|m| m.normals.is_none()));
+    // A NaN normal is a one-line error.
+    let f = d.join("nan.ply");
+    std::fs::write(&f, format!("{header}0 0 0 0 0 nan\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n")).unwrap();
+    let msg = err_of(f.to_str().unwrap());
+    assert!(msg.contains("nan.ply") && msg.contains("normal of vertex 0 is not finite"), "{msg}");
+}
+
+#[test]
+fn files_without_materials_get_the_pattern_and_id_colours() {
+    let s = load_scene(&fixture("quad_ascii.ply"), &opts(SplitMode::None)).unwrap().scene;
+    assert!(s.meshes.iter().all(|m| m.parts.is_empty() && m.uvs.is_none()));
+    assert_eq!(s.meshes[0].material_of(0).map, zwarp_core::ColorMap::Pattern);
+    assert_ne!(s.instances[0].albedo, Vec3::ONE);
 }

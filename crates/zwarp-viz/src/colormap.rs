@@ -212,15 +212,10 @@ pub fn motion_to_rgb8(motion: &Image<Motion>, max: Option<f32>) -> Image<[u8; 3]
     Image::from_vec(motion.width(), motion.height(), data).expect("same size")
 }
 
-/// Linear-light value -> 8-bit sRGB (IEC 61966-2-1 transfer curve), clamped to `[0, 1]`;
-/// NaN -> 0.
+/// Linear-light value -> 8-bit sRGB (IEC 61966-2-1 transfer curve, the one
+/// [`zwarp_core::linear_to_srgb`]), clamped to `[0, 1]`; NaN -> 0.
 pub fn linear_to_srgb8(v: f32) -> u8 {
-    if v.is_nan() {
-        return 0;
-    }
-    let v = v.clamp(0.0, 1.0);
-    let s = if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
-    (s * 255.0).round() as u8
+    (zwarp_core::linear_to_srgb(v) * 255.0).round() as u8
 }
 
 /// Linear RGB colour buffer (the renderer's / colour warp's output, seed 001) -> 8-bit sRGB.

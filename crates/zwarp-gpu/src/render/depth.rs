@@ -23,9 +23,11 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Colour format where [`COLOR_FORMAT`] is not renderable (half floats, ~3 decimal digits).
 pub const COLOR_FORMAT_FALLBACK: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
 
-/// Lighting of the colour target, the CPU renderer's model (`zwarp_raster::shading`): flat
-/// two-sided per-triangle normal (turned towards the eye), headlight given in view space,
-/// `albedo * (ambient + (1 - ambient) * max(0, n . l))`, sky colour where nothing is drawn.
+/// Lighting of the colour target, the CPU renderer's model (`zwarp_raster::shading`): the
+/// interpolated vertex normal (flat triangle normal without normals) on the eye's side of the
+/// triangle, headlight given in view space, `albedo * (ambient + (1 - ambient) * max(0, n . l))`
+/// with the textured / patterned albedo of `depth.wgsl`'s `shade`, sky colour where nothing is
+/// drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shading {
     /// Direction towards the light in view space (camera looks down -z); normalized on use.
@@ -190,6 +192,9 @@ pub struct Renderer {
     ctx: GpuContext,
     scene_layout: wgpu::BindGroupLayout,
     peel_layout: wgpu::BindGroupLayout,
+    shade_layout: wgpu::BindGroupLayout,
+    /// Bound at group 1 by colour frames (which have no peel input).
+    empty_bind: wgpu::BindGroup,
     depth_pipeline: wgpu::RenderPipeline,
     /// `[item only, item + colour]` for the first layer / plain frames.
     frame_pipeline: [wgpu::RenderPipeline; 2],
@@ -205,6 +210,17 @@ const VERTEX_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayou
     array_stride: 12,
     step_mode: wgpu::VertexStepMode::Vertex,
     attributes: &[wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }],
+};
+
+/// Vertex stream 1 of the colour pipelines (`AttrGpu` in scene.rs): normal, UV, material.
+const ATTRIBUTE_LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    array_stride: 24,
+    step_mode: wgpu::VertexStepMode::Vertex,
+    attributes: &[
+        wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 1 },
+        wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x2, offset: 12, shader_location: 2 },
+        wgpu::VertexAttribute { format: wgpu::VertexFormat::Uint32, offset: 20, shader_location: 3 },
+    ],
 };
 
 impl Renderer {
@@ -258,6 +274,29 @@ impl Renderer {
                 count: None,
             }],
         });
+        let fs = wgpu::ShaderStages::FRAGMENT;
+        let shade_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("zwarp shading"),
+            entries: &[storage(0, fs), storage(1, fs), storage(2, fs), storage(3, fs)],
+        });
+        // Group 1 is the peel input; plain colour frames bind an empty group there.
+        let empty_layout =
+            dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("zwarp empty"), entries: &[] });
+        let empty_bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp empty"),
+            layout: &empty_layout,
+            entries: &[],
+        });
+        let layout_scene_color = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("zwarp scene colour"),
+            bind_group_layouts: &[Some(&scene_layout), Some(&empty_layout), Some(&shade_layout)],
+            immediate_size: 0,
+        });
+        let layout_peel_color = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("zwarp peel colour"),
+            bind_group_layouts: &[Some(&scene_layout), Some(&peel_layout), Some(&shade_layout)],
+            immediate_size: 0,
+        });
         let layout_scene = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("zwarp scene"),
             bind_group_layouts: &[Some(&scene_layout)],
@@ -307,15 +346,21 @@ impl Renderer {
                 Some(wgpu::ColorTargetState { format: ITEM_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
                 Some(wgpu::ColorTargetState { format: color_format, blend: None, write_mask: wgpu::ColorWrites::ALL }),
             ];
-            let n_targets = if entry.ends_with("_item") { 1 } else { 2 };
+            let items_only = entry.ends_with("_item");
+            let n_targets = if items_only { 1 } else { 2 };
+            let (vs, buffers): (&str, &[Option<wgpu::VertexBufferLayout>]) = if items_only {
+                ("vs_frame", &[Some(VERTEX_LAYOUT)])
+            } else {
+                ("vs_shade", &[Some(VERTEX_LAYOUT), Some(ATTRIBUTE_LAYOUT)])
+            };
             dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some(label),
                 layout: Some(layout),
                 vertex: wgpu::VertexState {
                     module: &module,
-                    entry_point: Some("vs_frame"),
+                    entry_point: Some(vs),
                     compilation_options: Default::default(),
-                    buffers: &[Some(VERTEX_LAYOUT)],
+                    buffers,
                 },
                 primitive,
                 depth_stencil: depth_state.clone(),
@@ -340,16 +385,16 @@ impl Renderer {
         let mut color_format = COLOR_FORMAT;
         let mut colour = ctx.catch("building the colour pipelines", || {
             [
-                frame_like("zwarp frame", &layout_scene, "fs_frame", color_format),
-                frame_like("zwarp peel", &layout_peel, "fs_peel", color_format),
+                frame_like("zwarp frame", &layout_scene_color, "fs_frame", color_format),
+                frame_like("zwarp peel", &layout_peel_color, "fs_peel", color_format),
             ]
         });
         if colour.is_err() {
             color_format = COLOR_FORMAT_FALLBACK;
             colour = ctx.catch("building the colour pipelines", || {
                 [
-                    frame_like("zwarp frame", &layout_scene, "fs_frame", color_format),
-                    frame_like("zwarp peel", &layout_peel, "fs_peel", color_format),
+                    frame_like("zwarp frame", &layout_scene_color, "fs_frame", color_format),
+                    frame_like("zwarp peel", &layout_peel_color, "fs_peel", color_format),
                 ]
             });
         }
@@ -423,6 +468,8 @@ impl Renderer {
             ctx: ctx.clone(),
             scene_layout,
             peel_layout,
+            shade_layout,
+            empty_bind,
             depth_pipeline,
             frame_pipeline,
             peel_pipeline,
@@ -456,6 +503,19 @@ impl Renderer {
         })
     }
 
+    fn shade_bind_group(&self, scene: &GpuScene) -> wgpu::BindGroup {
+        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("zwarp shading"),
+            layout: &self.shade_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: scene.shade_objects.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: scene.materials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: scene.tex_info.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: scene.texels.as_entire_binding() },
+            ],
+        })
+    }
+
     fn check_camera(&self, camera: &Camera) -> Result<()> {
         self.ctx.check_texture_size(camera.width, camera.height, "render")?;
         if !camera.view_proj().is_finite() {
@@ -464,8 +524,13 @@ impl Renderer {
         Ok(())
     }
 
-    fn draw(pass: &mut wgpu::RenderPass<'_>, scene: &GpuScene, ground: Option<bool>) {
+    /// Draws the batches (all, or only ground / non-ground ones); `attributes` binds the
+    /// shading vertex stream of the colour pipelines.
+    fn draw(pass: &mut wgpu::RenderPass<'_>, scene: &GpuScene, ground: Option<bool>, attributes: bool) {
         pass.set_vertex_buffer(0, scene.vertices.slice(..));
+        if attributes {
+            pass.set_vertex_buffer(1, scene.attributes.slice(..));
+        }
         pass.set_index_buffer(scene.indices.slice(..), wgpu::IndexFormat::Uint32);
         for b in scene.batches.iter().filter(|b| ground.is_none_or(|g| g == b.ground)) {
             pass.draw_indexed(
@@ -488,7 +553,7 @@ impl Renderer {
         target: &DepthTarget,
     ) -> Result<()> {
         let mut pass = self.begin_depth_pass(encoder, scene, camera, t, target, "zwarp depth-only")?;
-        Self::draw(&mut pass, scene, None);
+        Self::draw(&mut pass, scene, None, false);
         Ok(())
     }
 
@@ -863,6 +928,10 @@ impl Renderer {
         self.ctx.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uni));
         let bind = self.scene_bind_group(scene);
         let with_color = !targets.color.is_empty();
+        let shade_bind = with_color.then(|| {
+            scene.write_shading(&self.ctx, t);
+            self.shade_bind_group(scene)
+        });
         let variant = with_color as usize;
         let sky = sh.sky;
         let peeled = if opts.ground_separate { Some(false) } else { None };
@@ -906,18 +975,22 @@ impl Renderer {
                 ..Default::default()
             });
             pass.set_bind_group(0, &bind, &[]);
+            if let Some(sb) = &shade_bind {
+                pass.set_bind_group(1, &self.empty_bind, &[]);
+                pass.set_bind_group(2, sb, &[]);
+            }
             if ground_layer {
                 // The ground alone, not a peel (Sec. 3.4: the separate last layer).
                 pass.set_pipeline(&self.frame_pipeline[variant]);
-                Self::draw(&mut pass, scene, Some(true));
+                Self::draw(&mut pass, scene, Some(true), with_color);
             } else if k == 0 {
                 pass.set_pipeline(&self.frame_pipeline[variant]);
-                Self::draw(&mut pass, scene, peeled);
+                Self::draw(&mut pass, scene, peeled, with_color);
             } else {
                 // Layer k reads layer k-1's depth texture.
                 pass.set_pipeline(&self.peel_pipeline[variant]);
                 pass.set_bind_group(1, &targets.peel_binds[k - 1], &[]);
-                Self::draw(&mut pass, scene, peeled);
+                Self::draw(&mut pass, scene, peeled, with_color);
             }
         }
         Ok(())
