@@ -621,6 +621,7 @@ impl PreparedLayer {
 /// depth outside `[0, 1)`, infinite motion) marked by an infinite target depth: the reference
 /// the input of the forward baselines, and the reference the one-pass preparation is tested
 /// against.
+#[cfg(test)]
 pub(crate) fn validated_samples(layer: &WarpLayer<'_>) -> Result<Vec<Motion>> {
     layer.depth.check_nonempty("layer depth")?;
     layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;

@@ -435,14 +435,9 @@ unsafe fn first8(
     let y1 = _mm256_min_epi32(iy, hm);
     // Row loads where every lane is live, x0 runs by one within each row of four, y0 is shared
     // by each row of four, and no index was clamped (x1 = x0 + 1, y1 = y0 + 1).
-    let mut lanes = [0i32; 16];
-    _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, x0);
-    _mm256_storeu_si256(lanes.as_mut_ptr().add(8) as *mut __m256i, y0);
-    let run = _mm256_add_epi32(
-        _mm256_setr_epi32(lanes[0], lanes[0], lanes[0], lanes[0], lanes[4], lanes[4], lanes[4], lanes[4]),
-        _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3),
-    );
-    let row = _mm256_setr_epi32(lanes[8], lanes[8], lanes[8], lanes[8], lanes[12], lanes[12], lanes[12], lanes[12]);
+    let firsts = _mm256_setr_epi32(0, 0, 0, 0, 4, 4, 4, 4);
+    let run = _mm256_add_epi32(_mm256_permutevar8x32_epi32(x0, firsts), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+    let row = _mm256_permutevar8x32_epi32(y0, firsts);
     let contiguous = _mm256_movemask_ps(live) == 0xff
         && _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(
             _mm256_and_si256(_mm256_cmpeq_epi32(x0, run), _mm256_cmpeq_epi32(y0, row)),
@@ -452,7 +447,15 @@ unsafe fn first8(
             ),
         ))) == 0xff;
     let w = ls.w as usize;
-    let (a, b) = (lanes[8] as usize * w + lanes[0] as usize, lanes[12] as usize * w + lanes[4] as usize);
+    let (a, b) = if contiguous {
+        let xa = _mm256_extract_epi32::<0>(x0) as usize;
+        let xb = _mm256_extract_epi32::<4>(x0) as usize;
+        let ya = _mm256_extract_epi32::<0>(y0) as usize;
+        let yb = _mm256_extract_epi32::<4>(y0) as usize;
+        (ya * w + xa, yb * w + xb)
+    } else {
+        (0, 0)
+    };
     let at = Texels { contiguous, a, b, w, x0, x1, y0, y1, wv: _mm256_set1_epi32(ls.w as i32) };
     let [vx00, vx10, vx01, vx11] = at.read(pl.vx);
     let [vy00, vy10, vy01, vy11] = at.read(pl.vy);
