@@ -70,7 +70,8 @@ fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<RowReach>)> {
         let rows: Vec<(u8, Option<(f32, f32)>)> = (0..h as usize)
             .into_par_iter()
             .map(|y| {
-                let (d, m) = (&depth[y * w as usize..(y + 1) * w as usize], &motion[y * w as usize..(y + 1) * w as usize]);
+                let (d, m) =
+                    (&depth[y * w as usize..(y + 1) * w as usize], &motion[y * w as usize..(y + 1) * w as usize]);
                 let mut flags = 0u8;
                 let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
                 for (&d, m) in d.iter().zip(m) {
@@ -297,153 +298,152 @@ mod reference {
     use crate::prepare::validated_samples;
     use std::sync::atomic::{AtomicU32, Ordering};
 
-fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<Vec<Motion>>)> {
-    let first = layers.first().ok_or_else(|| Error::invalid("forward warp needs at least one layer"))?;
-    let (w, h) = first.depth.size();
-    let mut out = Vec::with_capacity(layers.len());
-    for (i, l) in layers.iter().enumerate() {
-        if l.depth.size() != (w, h) {
-            return Err(Error::invalid(format!(
-                "layer {i} is {}x{} but layer 0 is {w}x{h}",
-                l.depth.width(),
-                l.depth.height()
-            )));
+    fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<Vec<Motion>>)> {
+        let first = layers.first().ok_or_else(|| Error::invalid("forward warp needs at least one layer"))?;
+        let (w, h) = first.depth.size();
+        let mut out = Vec::with_capacity(layers.len());
+        for (i, l) in layers.iter().enumerate() {
+            if l.depth.size() != (w, h) {
+                return Err(Error::invalid(format!(
+                    "layer {i} is {}x{} but layer 0 is {w}x{h}",
+                    l.depth.width(),
+                    l.depth.height()
+                )));
+            }
+            out.push(validated_samples(l)?);
         }
-        out.push(validated_samples(l)?);
+        Ok((w, h, out))
     }
-    Ok((w, h, out))
-}
 
-fn new_target(n: usize) -> Vec<AtomicU32> {
-    (0..n).map(|_| AtomicU32::new(EMPTY_DEPTH.to_bits())).collect()
-}
+    fn new_target(n: usize) -> Vec<AtomicU32> {
+        (0..n).map(|_| AtomicU32::new(EMPTY_DEPTH.to_bits())).collect()
+    }
 
-fn finish(w: u32, h: u32, buf: Vec<AtomicU32>) -> Result<Image<f32>> {
-    Image::from_vec(w, h, buf.into_iter().map(|a| f32::from_bits(a.into_inner())).collect())
-}
+    fn finish(w: u32, h: u32, buf: Vec<AtomicU32>) -> Result<Image<f32>> {
+        Image::from_vec(w, h, buf.into_iter().map(|a| f32::from_bits(a.into_inner())).collect())
+    }
 
-#[inline]
-fn depth_test(buf: &[AtomicU32], i: usize, z: f32) {
-    // `+ 0.0` turns -0.0 into +0.0, whose bits order correctly.
-    buf[i].fetch_min((z + 0.0).to_bits(), Ordering::Relaxed);
-}
+    #[inline]
+    fn depth_test(buf: &[AtomicU32], i: usize, z: f32) {
+        // `+ 0.0` turns -0.0 into +0.0, whose bits order correctly.
+        buf[i].fetch_min((z + 0.0).to_bits(), Ordering::Relaxed);
+    }
 
-/// Multi-layer AFW (see [`afw`]).
-pub(super) fn afw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
-    let (w, h, layers) = check_layers(layers)?;
-    let buf = new_target(w as usize * h as usize);
-    let hs = 0.5 + FORWARD_SUPPORT_EXPANSION;
-    for samples in &layers {
-        samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
-            for (x, m) in row.iter().enumerate() {
-                if m.depth >= 1.0 {
-                    continue;
-                }
-                let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + m.v;
-                // Target centres j + 0.5 strictly inside (c - hs, c + hs).
-                let x0 = ((c.x - hs - 0.5).floor() + 1.0).max(0.0);
-                let x1 = ((c.x + hs - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
-                let y0 = ((c.y - hs - 0.5).floor() + 1.0).max(0.0);
-                let y1 = ((c.y + hs - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
-                if x0 > x1 || y0 > y1 {
-                    continue;
-                }
-                for ty in y0 as usize..=y1 as usize {
-                    for tx in x0 as usize..=x1 as usize {
-                        depth_test(&buf, ty * w as usize + tx, m.depth);
+    /// Multi-layer AFW (see [`afw`]).
+    pub(super) fn afw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+        let (w, h, layers) = check_layers(layers)?;
+        let buf = new_target(w as usize * h as usize);
+        let hs = 0.5 + FORWARD_SUPPORT_EXPANSION;
+        for samples in &layers {
+            samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
+                for (x, m) in row.iter().enumerate() {
+                    if m.depth >= 1.0 {
+                        continue;
                     }
-                }
-            }
-        });
-    }
-    finish(w, h, buf)
-}
-
-/// Multi-layer VFW (see [`vfw`]). Corner motion: the mean motion of the (up to four) pixels
-/// sharing the corner that are valid and move within [`CONTINUITY_PX`] of the quad's own pixel,
-/// so quads stitch on smooth surfaces but do not stretch across depth edges into disocclusions.
-/// Each quad carries its pixel's target depth (flat), so zero motion reproduces the source.
-pub(super) fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
-    let (w, h, layers) = check_layers(layers)?;
-    let buf = new_target(w as usize * h as usize);
-    let e = FORWARD_SUPPORT_EXPANSION;
-    for samples in &layers {
-        let at = |x: i64, y: i64| -> Option<&Motion> {
-            if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
-                return None;
-            }
-            let m = &samples[y as usize * w as usize + x as usize];
-            (m.depth < 1.0).then_some(m)
-        };
-        samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
-            for (x, m) in row.iter().enumerate() {
-                if m.depth >= 1.0 {
-                    continue;
-                }
-                let (xi, yi) = (x as i64, y as i64);
-                let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
-                    let mut sum = Vec2::ZERO;
-                    let mut n = 0.0f32;
-                    for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
-                        if let Some(s) = at(px, py) {
-                            if (s.v - m.v).abs().max_element() < CONTINUITY_PX {
-                                sum += s.v;
-                                n += 1.0;
-                            }
+                    let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + m.v;
+                    // Target centres j + 0.5 strictly inside (c - hs, c + hs).
+                    let x0 = ((c.x - hs - 0.5).floor() + 1.0).max(0.0);
+                    let x1 = ((c.x + hs - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
+                    let y0 = ((c.y - hs - 0.5).floor() + 1.0).max(0.0);
+                    let y1 = ((c.y + hs - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
+                    if x0 > x1 || y0 > y1 {
+                        continue;
+                    }
+                    for ty in y0 as usize..=y1 as usize {
+                        for tx in x0 as usize..=x1 as usize {
+                            depth_test(&buf, ty * w as usize + tx, m.depth);
                         }
                     }
-                    // n >= 1: the quad's own pixel always shares the corner.
-                    Vec2::new(cx as f32, cy as f32) + sum / n + out * e
-                };
-                // Corners in order TL, TR, BR, BL, each pushed outwards by e per axis.
-                let q = [
-                    corner(xi, yi, Vec2::new(-1.0, -1.0)),
-                    corner(xi + 1, yi, Vec2::new(1.0, -1.0)),
-                    corner(xi + 1, yi + 1, Vec2::new(1.0, 1.0)),
-                    corner(xi, yi + 1, Vec2::new(-1.0, 1.0)),
-                ];
-                raster_triangle(&buf, w, h, [q[0], q[1], q[2]], m.depth);
-                raster_triangle(&buf, w, h, [q[0], q[2], q[3]], m.depth);
-            }
-        });
+                }
+            });
+        }
+        finish(w, h, buf)
     }
-    finish(w, h, buf)
-}
 
-#[inline]
-fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
-    (b - a).perp_dot(p - a)
-}
+    /// Multi-layer VFW (see [`vfw`]). Corner motion: the mean motion of the (up to four) pixels
+    /// sharing the corner that are valid and move within [`CONTINUITY_PX`] of the quad's own pixel,
+    /// so quads stitch on smooth surfaces but do not stretch across depth edges into disocclusions.
+    /// Each quad carries its pixel's target depth (flat), so zero motion reproduces the source.
+    pub(super) fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+        let (w, h, layers) = check_layers(layers)?;
+        let buf = new_target(w as usize * h as usize);
+        let e = FORWARD_SUPPORT_EXPANSION;
+        for samples in &layers {
+            let at = |x: i64, y: i64| -> Option<&Motion> {
+                if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
+                    return None;
+                }
+                let m = &samples[y as usize * w as usize + x as usize];
+                (m.depth < 1.0).then_some(m)
+            };
+            samples.par_chunks(w as usize).enumerate().for_each(|(y, row)| {
+                for (x, m) in row.iter().enumerate() {
+                    if m.depth >= 1.0 {
+                        continue;
+                    }
+                    let (xi, yi) = (x as i64, y as i64);
+                    let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
+                        let mut sum = Vec2::ZERO;
+                        let mut n = 0.0f32;
+                        for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
+                            if let Some(s) = at(px, py) {
+                                if (s.v - m.v).abs().max_element() < CONTINUITY_PX {
+                                    sum += s.v;
+                                    n += 1.0;
+                                }
+                            }
+                        }
+                        // n >= 1: the quad's own pixel always shares the corner.
+                        Vec2::new(cx as f32, cy as f32) + sum / n + out * e
+                    };
+                    // Corners in order TL, TR, BR, BL, each pushed outwards by e per axis.
+                    let q = [
+                        corner(xi, yi, Vec2::new(-1.0, -1.0)),
+                        corner(xi + 1, yi, Vec2::new(1.0, -1.0)),
+                        corner(xi + 1, yi + 1, Vec2::new(1.0, 1.0)),
+                        corner(xi, yi + 1, Vec2::new(-1.0, 1.0)),
+                    ];
+                    raster_triangle(&buf, w, h, [q[0], q[1], q[2]], m.depth);
+                    raster_triangle(&buf, w, h, [q[0], q[2], q[3]], m.depth);
+                }
+            });
+        }
+        finish(w, h, buf)
+    }
 
-/// Rasterizes triangle `t = [a, b, c]` where edge `c -> a` is the quad diagonal: pixel centres
-/// strictly inside the outer edges `a -> b`, `b -> c` and on or inside the diagonal (so the two
-/// halves of a quad leave no gap; a centre on the diagonal may be written twice, which the
-/// atomic min makes harmless).
-fn raster_triangle(buf: &[AtomicU32], w: u32, h: u32, t: [Vec2; 3], z: f32) {
-    let area = edge(t[0], t[1], t[2]);
-    if area == 0.0 || !area.is_finite() {
-        return;
+    #[inline]
+    fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
+        (b - a).perp_dot(p - a)
     }
-    let s = area.signum();
-    let lo = t[0].min(t[1]).min(t[2]);
-    let hi = t[0].max(t[1]).max(t[2]);
-    let x0 = ((lo.x - 0.5).floor() + 1.0).max(0.0);
-    let x1 = ((hi.x - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
-    let y0 = ((lo.y - 0.5).floor() + 1.0).max(0.0);
-    let y1 = ((hi.y - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
-    if x0 > x1 || y0 > y1 {
-        return;
-    }
-    for ty in y0 as u32..=y1 as u32 {
-        for tx in x0 as u32..=x1 as u32 {
-            let p = Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5);
-            if s * edge(t[0], t[1], p) > 0.0 && s * edge(t[1], t[2], p) > 0.0 && s * edge(t[2], t[0], p) >= 0.0 {
-                depth_test(buf, ty as usize * w as usize + tx as usize, z);
+
+    /// Rasterizes triangle `t = [a, b, c]` where edge `c -> a` is the quad diagonal: pixel centres
+    /// strictly inside the outer edges `a -> b`, `b -> c` and on or inside the diagonal (so the two
+    /// halves of a quad leave no gap; a centre on the diagonal may be written twice, which the
+    /// atomic min makes harmless).
+    fn raster_triangle(buf: &[AtomicU32], w: u32, h: u32, t: [Vec2; 3], z: f32) {
+        let area = edge(t[0], t[1], t[2]);
+        if area == 0.0 || !area.is_finite() {
+            return;
+        }
+        let s = area.signum();
+        let lo = t[0].min(t[1]).min(t[2]);
+        let hi = t[0].max(t[1]).max(t[2]);
+        let x0 = ((lo.x - 0.5).floor() + 1.0).max(0.0);
+        let x1 = ((hi.x - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
+        let y0 = ((lo.y - 0.5).floor() + 1.0).max(0.0);
+        let y1 = ((hi.y - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        for ty in y0 as u32..=y1 as u32 {
+            for tx in x0 as u32..=x1 as u32 {
+                let p = Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5);
+                if s * edge(t[0], t[1], p) > 0.0 && s * edge(t[1], t[2], p) > 0.0 && s * edge(t[2], t[0], p) >= 0.0 {
+                    depth_test(buf, ty as usize * w as usize + tx as usize, z);
+                }
             }
         }
     }
-}
-
 }
 
 #[cfg(test)]
@@ -510,7 +510,11 @@ mod tests {
             let hash = |i: u32| crate::search::hash_u32(i ^ seed.wrapping_mul(0x9e37_79b9));
             let layer = |k: u32| {
                 let d = Image::from_fn(w, h, |x, y| {
-                    if hash(x * 7 + y * 131 + k) % 9 == 0 { 1.0 } else { 0.2 + 0.001 * ((x + 3 * y + k) % 500) as f32 }
+                    if hash(x * 7 + y * 131 + k) % 9 == 0 {
+                        1.0
+                    } else {
+                        0.2 + 0.001 * ((x + 3 * y + k) % 500) as f32
+                    }
                 });
                 let m = Image::from_fn(w, h, |x, y| {
                     let t = hash(x + 1000 * y + 77 * k);
@@ -528,8 +532,14 @@ mod tests {
             let layers = [WarpLayer { depth: &a.0, motion: &a.1 }, WarpLayer { depth: &b.0, motion: &b.1 }];
             let bits = |i: &Image<f32>| i.data().iter().map(|z| z.to_bits()).collect::<Vec<_>>();
             for l in [1, 2] {
-                assert_eq!(bits(&afw_layers(&layers[..l]).unwrap()), bits(&reference::afw_layers(&layers[..l]).unwrap()));
-                assert_eq!(bits(&vfw_layers(&layers[..l]).unwrap()), bits(&reference::vfw_layers(&layers[..l]).unwrap()));
+                assert_eq!(
+                    bits(&afw_layers(&layers[..l]).unwrap()),
+                    bits(&reference::afw_layers(&layers[..l]).unwrap())
+                );
+                assert_eq!(
+                    bits(&vfw_layers(&layers[..l]).unwrap()),
+                    bits(&reference::vfw_layers(&layers[..l]).unwrap())
+                );
             }
         }
     }
