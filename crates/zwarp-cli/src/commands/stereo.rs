@@ -29,7 +29,7 @@ pub struct StereoArgs {
     #[arg(long, default_value_t = 2)]
     pub frames: usize,
     /// Eye separation (interpupillary distance) in world units; default 64 mm.
-    #[arg(long, default_value_t = 0.064)]
+    #[arg(long, default_value_t = 0.064, allow_negative_numbers = true)]
     pub eye_sep: f32,
     /// Strategies (comma list of cyclops, alternate).
     #[arg(long, default_value = "cyclops,alternate")]

@@ -149,15 +149,19 @@ impl ColorWarpKernel {
         entries: &[(u32, &wgpu::Buffer)],
         groups: (u32, u32),
     ) {
-        let entries: Vec<wgpu::BindGroupEntry> =
-            entries.iter().map(|(b, buf)| wgpu::BindGroupEntry { binding: *b, resource: buf.as_entire_binding() }).collect();
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(b, buf)| wgpu::BindGroupEntry { binding: *b, resource: buf.as_entire_binding() })
+            .collect();
         let bind = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("zwarp colour warp"),
             layout: &pipeline.get_bind_group_layout(0),
             entries: &entries,
         });
-        let mut pass = enc
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("zwarp colour warp"), timestamp_writes: None });
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("zwarp colour warp"),
+            timestamp_writes: None,
+        });
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(groups.0, groups.1, 1);
@@ -177,11 +181,17 @@ impl ColorWarpKernel {
 
     /// The heuristic warp (twin of `zwarp_color::heuristic_warp`): same validation, same
     /// output up to float rounding.
-    pub fn heuristic(&self, field: &Field<'_>, color: &Image<[f32; 3]>, hp: &HeuristicParams) -> Result<ColorWarpOutput> {
+    pub fn heuristic(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        hp: &HeuristicParams,
+    ) -> Result<ColorWarpOutput> {
         hp.validate()?;
         let (w, h) = field.size();
         let (seed_mode, seed) = seed_code(hp.seed);
-        let params = Params { iterations: hp.iterations, threshold: hp.threshold, seed_mode, seed, ..Self::base_params(field) };
+        let params =
+            Params { iterations: hp.iterations, threshold: hp.threshold, seed_mode, seed, ..Self::base_params(field) };
         let inp = self.inputs(field, color, &[], &params)?;
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         self.dispatch(
@@ -294,8 +304,8 @@ mod tests {
             &zwarp_raster::FrameOptions { color: true, objects: None },
         )
         .unwrap();
-        let m = zwarp_core::motion_field(&f.depth, Some(&f.items), &ca, &cb, &loaded.scene.object_deltas(ta, tb))
-            .unwrap();
+        let m =
+            zwarp_core::motion_field(&f.depth, Some(&f.items), &ca, &cb, &loaded.scene.object_deltas(ta, tb)).unwrap();
         (f.depth, m, f.color.unwrap(), ca)
     }
 
@@ -316,7 +326,8 @@ mod tests {
         let k = ColorWarpKernel::new(&ctx).unwrap();
         let (depth, m, color, cam) = frame();
         let basis = WarpBasis::temporal(&depth, &m).unwrap().with_spatial(&cam, None).unwrap();
-        for params in [FieldParams::temporal(0.5), FieldParams::temporal(-1.0), FieldParams { t: 1.0, u: 0.3, v: 0.1 }] {
+        for params in [FieldParams::temporal(0.5), FieldParams::temporal(-1.0), FieldParams { t: 1.0, u: 0.3, v: 0.1 }]
+        {
             let f = basis.field(params).unwrap();
             for seed in [Seed::Upstream(1.0), Seed::Pixel, Seed::Offset(Vec2::new(3.0, 0.0))] {
                 let hp = HeuristicParams { seed, ..HeuristicParams::default() };

@@ -147,7 +147,7 @@ struct Smp {
     depth: f32,
     dvdx: vec2<f32>,
     dvdy: vec2<f32>,
-    smooth: bool,
+    is_smooth: bool,
 }
 
 // ColorSampler::fetch_at (q inside).
@@ -171,13 +171,13 @@ fn fetch(q: vec2<f32>) -> Smp {
         s.dvdy = bot - top;
         s.v = lerp2(top, bot, l.ay);
         s.depth = zt + (zb - zt) * l.ay;
-        s.smooth = true;
+        s.is_smooth = true;
     } else {
         s.v = field_v(l.near);
         s.depth = depth_at(l.near);
         s.dvdx = vec2<f32>(0.0, 0.0);
         s.dvdy = vec2<f32>(0.0, 0.0);
-        s.smooth = false;
+        s.is_smooth = false;
     }
     return s;
 }
