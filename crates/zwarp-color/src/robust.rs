@@ -198,26 +198,34 @@ impl Subdivision {
             )));
         }
         let (w, h) = (width as usize, height as usize);
-        // Level 0: per texel, the max over the (up to four) cells its footprint touches.
+        // Level 0: per texel, the max over the (up to four) cells its footprint touches (a
+        // row max of neighbouring cells, then a column max of neighbouring rows).
         let (cw, ch) = (w.saturating_sub(1), h.saturating_sub(1));
-        let mut level: Vec<f32> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = (i % w, i / w);
-                let mut m = if cw == 0 || ch == 0 { f32::INFINITY } else { 0.0f32 };
-                for cy in y.saturating_sub(1)..=y.min(ch.saturating_sub(1)) {
-                    for cx in x.saturating_sub(1)..=x.min(cw.saturating_sub(1)) {
-                        if cw > 0 && ch > 0 {
-                            m = m.max(rho[cy * cw + cx]);
-                        }
-                    }
-                }
-                m
-            })
-            .collect();
-        let mut levels = Vec::new();
+        let mut level: Vec<f32> = if cw == 0 || ch == 0 {
+            vec![f32::INFINITY; w * h]
+        } else {
+            let rowmax: Vec<f32> = (0..ch * w)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, cy) = (i % w, i / w);
+                    let r = &rho[cy * cw..(cy + 1) * cw];
+                    let a = if x > 0 { r[x - 1] } else { r[0] };
+                    let b = if x < cw { r[x] } else { r[cw - 1] };
+                    a.max(b)
+                })
+                .collect();
+            (0..w * h)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    let a = rowmax[y.saturating_sub(1).min(ch - 1) * w + x];
+                    let b = rowmax[y.min(ch - 1) * w + x];
+                    a.max(b)
+                })
+                .collect()
+        };
+        let mut levels: Vec<Vec<f32>> = Vec::new();
         let (mut lw, mut lh) = (w, h);
-        levels.push(level.clone());
         let steps = tile.trailing_zeros();
         for _ in 0..steps {
             let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
@@ -239,10 +247,10 @@ impl Subdivision {
                     m
                 })
                 .collect();
-            level = next;
-            levels.push(level.clone());
+            levels.push(std::mem::replace(&mut level, next));
             (lw, lh) = (nw, nh);
         }
+        levels.push(level);
         let widths: Vec<usize> = (0..=steps).map(|l| w.div_ceil(1 << l)).collect();
         let (tx, ty) = (width.div_ceil(tile), height.div_ceil(tile));
         let per_tile: Vec<Vec<Leaf>> = (0..tx * ty)
@@ -437,6 +445,7 @@ pub fn robust_warp_with(
     let wu = w as usize;
     let fallback = params.fallback;
     let fsp = fallback.search();
+    let lanes = crate::lanes::simd_enabled() && w >= 2 && h >= 2;
     let per_band: Vec<(u64, u64)> = out
         .color
         .data_mut()
@@ -452,6 +461,52 @@ pub fn robust_warp_with(
             for &qi in &binned[counts[b] as usize..counts[b + 1] as usize] {
                 let (leaf, q) = (&leaves[qi as usize], &warped[qi as usize]);
                 let (fx0, fy0, fx1, fy1) = (leaf.x0 as f32, leaf.y0 as f32, leaf.x1 as f32, leaf.y1 as f32);
+                #[cfg(target_arch = "x86_64")]
+                if lanes {
+                    let quad = crate::lanes::avx2::Quad {
+                        dst_lo: q.dst_lo.to_array(),
+                        dst_ext: q.dst_ext.to_array(),
+                        src_lo: q.src_lo.to_array(),
+                        src_ext: q.src_ext.to_array(),
+                        foot: [fx0, fx1, fy0, fy1],
+                    };
+                    for py in q.py0.max(y0)..q.py1.min(y1) {
+                        let row = (py - y0) as usize * wu;
+                        let mut px = q.px0;
+                        while px < q.px1 {
+                            let n = ((q.px1 - px) as usize).min(8);
+                            searches += n as u64;
+                            // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
+                            let hits = unsafe {
+                                crate::lanes::avx2::robust8(
+                                    field,
+                                    &sub.rho,
+                                    src,
+                                    &quad,
+                                    px,
+                                    n,
+                                    py,
+                                    params.iterations,
+                                    params.threshold,
+                                    params.accelerate,
+                                )
+                            };
+                            let mut m = hits.accepted;
+                            while m != 0 {
+                                let k = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                let i = row + px as usize + k;
+                                if hits.depth[k] < db[i] {
+                                    db[i] = hits.depth[k];
+                                    cb[i] = hits.color[k];
+                                    rb[i] = hits.residual[k];
+                                }
+                            }
+                            px += 8;
+                        }
+                    }
+                    continue;
+                }
                 for py in q.py0.max(y0)..q.py1.min(y1) {
                     let row = (py - y0) as usize * wu;
                     for px in q.px0..q.px1 {

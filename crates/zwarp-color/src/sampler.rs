@@ -95,7 +95,10 @@ impl<'a> ColorSampler<'a> {
         let (x1, y1) = (ix.min(wm), iy.min(hm));
         let wu = self.w as usize;
         let cell = ((x0 != x1) & (y0 != y1)).then(|| y0 as usize * wm as usize + x0 as usize);
-        let near = (q.y as u32).min(hm) as usize * wu + (q.x as u32).min(wm) as usize;
+        // The texel containing q: x0 when frac(q + 0.5) < 0.5, else x1 (equal to
+        // `floor(q)` clamped into the image, and to what the AVX2 lanes select).
+        let (nx, ny) = (if ax >= 0.5 { x1 } else { x0 }, if ay >= 0.5 { y1 } else { y0 });
+        let near = ny as usize * wu + nx as usize;
         let (r0, r1) = (y0 as usize * wu, y1 as usize * wu);
         Loc { i: [r0 + x0 as usize, r0 + x1 as usize, r1 + x0 as usize, r1 + x1 as usize], ax, ay, cell, near }
     }

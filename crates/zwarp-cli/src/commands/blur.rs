@@ -190,6 +190,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
     let mut render_ms = Vec::new();
     let mut strips = colorwarp::Strips::new();
     let mut focus_used = 0.0;
+    let mut slot = ColorWarpOutput::empty();
     for (ki, &fk) in ks.iter().enumerate() {
         let t = path.time_of_frame(fk, 1.0);
         let c = path.camera_at(t, w, h)?;
@@ -259,17 +260,31 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
                     if m == Method::Robust { Some(Subdivision::of_fields(&corner_fields, rp.tile)?) } else { None };
                 let mut acc = vec![[0.0f32; 3]; (w * h) as usize];
                 for (f, p) in fields.iter().zip(&samples) {
+                    let owned;
                     let o = match m {
-                        Method::Heuristic => be.heuristic(f, &centre.color, &hp)?,
-                        Method::Robust => be.robust_with(sub.as_ref().expect("subdivided"), f, &centre.color, &rp)?,
-                        Method::Mesh => zwarp_color::mesh_warp(f, &centre.color, &centre.cam)?,
-                        Method::Scatter => zwarp_color::scatter_warp(f, &centre.color)?,
+                        Method::Heuristic => {
+                            be.heuristic_into(f, &centre.color, &hp, &mut slot)?;
+                            &slot
+                        }
+                        Method::Robust => {
+                            be.robust_with_into(sub.as_ref().expect("subdivided"), f, &centre.color, &rp, &mut slot)?;
+                            &slot
+                        }
+                        Method::Mesh => {
+                            owned = zwarp_color::mesh_warp(f, &centre.color, &centre.cam)?;
+                            &owned
+                        }
+                        Method::Scatter => {
+                            owned = zwarp_color::scatter_warp(f, &centre.color)?;
+                            &owned
+                        }
                         Method::Reproject => {
                             let (cam, ts) = (sample_cam(p)?, t + p.t * dt);
                             let (d, it) = be.depth_items(&cam, ts)?;
                             let tv = View { cam, t: ts, color: Image::new(0, 0, [0.0; 3]), depth: d, items: it };
                             let mo = be.motion(&tv, &centre.cam, centre.t)?;
-                            zwarp_color::reproject(&tv.depth, &mo, &centre.depth, &centre.color, &centre.cam)?
+                            owned = zwarp_color::reproject(&tv.depth, &mo, &centre.depth, &centre.color, &centre.cam)?;
+                            &owned
                         }
                         Method::Repeat => unreachable!("handled above"),
                     };

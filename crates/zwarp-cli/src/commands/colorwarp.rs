@@ -176,22 +176,60 @@ impl<'a> Backends<'a> {
         }
     }
 
-    /// The robust warp with a given subdivision (WGSL twin on the GPU).
-    pub fn robust_with(
+    /// The heuristic warp into `out`, whose buffers a CPU warp reuses (an engine's steady state).
+    pub fn heuristic_into(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &HeuristicParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match &self.gpu {
+            None => Ok(zwarp_color::heuristic_warp_into(field, color, p, out)?),
+            Some(g) => {
+                *out = g.warp.heuristic(field, color, p)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// The robust warp (its subdivision included) into `out` (buffers reused on the CPU).
+    pub fn robust_into(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &RobustParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match &self.gpu {
+            None => {
+                let sub = Subdivision::of_field(field, p.tile)?;
+                zwarp_color::robust_warp_with(&sub, field, color, p, out)?;
+                Ok(())
+            }
+            Some(g) => {
+                *out = g.warp.robust(field, color, p)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// The robust warp with a given subdivision into `out` (WGSL twin on the GPU).
+    pub fn robust_with_into(
         &self,
         sub: &Subdivision,
         field: &Field<'_>,
         color: &Image<[f32; 3]>,
         p: &RobustParams,
-    ) -> Result<ColorWarpOutput> {
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
         match &self.gpu {
             None => {
-                let mut out = ColorWarpOutput::empty();
-                zwarp_color::robust_warp_with(sub, field, color, p, &mut out)?;
-                Ok(out)
+                zwarp_color::robust_warp_with(sub, field, color, p, out)?;
             }
-            Some(g) => Ok(g.warp.robust_with(sub, field, color, p)?),
+            Some(g) => *out = g.warp.robust_with(sub, field, color, p)?,
         }
+        Ok(())
     }
 
     /// The robust warp including its subdivision.

@@ -167,6 +167,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     let mut accs: Vec<((bool, bool, Method), Acc)> = Vec::new();
     let mut strips = colorwarp::Strips::new();
     let mut pairs: Vec<(String, Image<[f32; 3]>, Image<[f32; 3]>)> = Vec::new();
+    let mut slot = zwarp_color::ColorWarpOutput::empty();
     for (ki, &k) in ks.iter().enumerate() {
         let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
         let (c, cp) = (path.camera_at(t, w, h)?, path.camera_at(tp, w, h)?);
@@ -206,8 +207,14 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 for &m in &methods {
                     let (out, samples) = report::time_repeated(reps, || -> Result<_> {
                         Ok(match m {
-                            Method::Heuristic => be.heuristic(&field, &src.color, &hp)?,
-                            Method::Robust => be.robust(&field, &src.color, &rp)?,
+                            Method::Heuristic => {
+                                be.heuristic_into(&field, &src.color, &hp, &mut slot)?;
+                                return Ok(None);
+                            }
+                            Method::Robust => {
+                                be.robust_into(&field, &src.color, &rp, &mut slot)?;
+                                return Ok(None);
+                            }
                             Method::Repeat => zwarp_color::repeat(&src.color, &src.depth)?,
                             Method::Mesh => zwarp_color::mesh_warp(&field, &src.color, &src.cam)?,
                             Method::Scatter => zwarp_color::scatter_warp(&field, &src.color)?,
@@ -223,8 +230,14 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                                 let ms = be.motion(&tv, &src.cam, src.t)?;
                                 zwarp_color::reproject(&tv.depth, &ms, &src.depth, &src.color, &src.cam)?
                             }
-                        })
+                        }
+                        .into())
                     })?;
+                    // The two warps write into the reused slot.
+                    let out = match out {
+                        Some(o) => o,
+                        None => slot.clone(),
+                    };
                     let q = colorwarp::quality(&reference.color, &out, Some(&unseen))?;
                     if ki == 0 && args.images.is_some() {
                         colorwarp::add_panel(&mut strips, (alternate, ei as u32), &reference.color, &out.color)?;

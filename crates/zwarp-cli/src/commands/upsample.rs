@@ -165,6 +165,17 @@ fn timed(reps: usize, mut f: impl FnMut() -> Result<ColorWarpOutput>) -> Result<
     report::time_repeated(reps, &mut f)
 }
 
+/// Times `f` writing into `slot` (its buffers reused between runs, as an engine keeps them);
+/// returns a copy of the last output and the samples.
+fn timed_into(
+    reps: usize,
+    slot: &mut ColorWarpOutput,
+    mut f: impl FnMut(&mut ColorWarpOutput) -> Result<()>,
+) -> Result<(ColorWarpOutput, Vec<f64>)> {
+    let (_, samples) = report::time_repeated(reps, || f(slot))?;
+    Ok((slot.clone(), samples))
+}
+
 /// Runs the plan; one row per (mode, method).
 fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> Result<(Vec<UpsampleRow>, String)> {
     let scene = &loaded.scene;
@@ -187,6 +198,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
     let bar = colorwarp::progress(steps, format!("upsample {}", args.scene.scene), true);
     let mut accs: Vec<((bool, Method), Acc)> = Vec::new();
     let mut strips = colorwarp::Strips::new();
+    let mut slot = ColorWarpOutput::empty();
     let mut render_ms = Vec::new();
     let mut motion_ms = Vec::new();
     let cam = |t: f32| path.camera_at(t, w, h);
@@ -263,13 +275,13 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 };
                 for &m in &plan.methods {
                     let (out, samples) = match (m, interp) {
-                        (Method::Heuristic, false) => timed(plan.reps, || be.heuristic(&fe, &src.color, &hp))?,
+                        (Method::Heuristic, false) => timed_into(plan.reps, &mut slot, |o| be.heuristic_into(&fe, &src.color, &hp, o))?,
                         (Method::Heuristic, true) => timed(plan.reps, || {
                             let a = be.heuristic(fa.as_ref().expect("fwd"), &src.color, &hp)?;
                             let b = be.heuristic(fb.as_ref().expect("bwd"), &next.color, &hp)?;
                             combine(a, b)
                         })?,
-                        (Method::Robust, false) => timed(plan.reps, || be.robust(&fe, &src.color, &rp))?,
+                        (Method::Robust, false) => timed_into(plan.reps, &mut slot, |o| be.robust_into(&fe, &src.color, &rp, o))?,
                         (Method::Robust, true) => timed(plan.reps, || {
                             let a = be.robust(fa.as_ref().expect("fwd"), &src.color, &rp)?;
                             let b = be.robust(fb.as_ref().expect("bwd"), &next.color, &rp)?;
