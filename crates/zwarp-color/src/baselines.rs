@@ -330,20 +330,22 @@ pub fn push_pull(color: &mut Image<[f32; 3]>, valid: &Image<bool>) -> Result<()>
         return Ok(());
     }
     let (w, h) = color.size();
-    // Levels: (w, h, colour, weight in {0, 1}).
-    type Level = (u32, u32, Vec<[f32; 3]>, Vec<bool>);
-    let mut levels: Vec<Level> = vec![(w, h, color.data().to_vec(), valid.data().to_vec())];
-    while {
-        let (lw, lh, _, _) = levels.last().expect("a level");
-        *lw > 1 || *lh > 1
-    } {
-        let (lw, lh, c, v) = levels.last().expect("a level");
-        let (lw, lh) = (*lw as usize, *lh as usize);
+    /// One level of the pyramid: size, colours, coverage.
+    struct Level {
+        w: usize,
+        h: usize,
+        c: Vec<[f32; 3]>,
+        v: Vec<bool>,
+    }
+    // Pull: level l + 1 averages the valid texels of each 2x2 block of level l (level 0 is the
+    // image itself, read in place).
+    let pull = |lw: usize, lh: usize, c: &[[f32; 3]], v: &[bool]| -> Level {
         let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
-        let (nc, nv): (Vec<[f32; 3]>, Vec<bool>) = (0..nw * nh)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = (2 * (i % nw), 2 * (i / nw));
+        let mut nc = vec![[0.0f32; 3]; nw * nh];
+        let mut nv = vec![false; nw * nh];
+        nc.par_chunks_mut(nw).zip(nv.par_chunks_mut(nw)).enumerate().for_each(|(ny, (oc, ov))| {
+            for nx in 0..nw {
+                let (x, y) = (2 * nx, 2 * ny);
                 let mut s = [0.0f32; 3];
                 let mut n = 0u32;
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
@@ -354,28 +356,40 @@ pub fn push_pull(color: &mut Image<[f32; 3]>, valid: &Image<bool>) -> Result<()>
                         n += 1;
                     }
                 }
-                if n == 0 {
-                    ([0.0; 3], false)
-                } else {
-                    (s.map(|x| x / n as f32), true)
+                if n > 0 {
+                    oc[nx] = s.map(|x| x / n as f32);
+                    ov[nx] = true;
                 }
-            })
-            .unzip();
-        levels.push((nw as u32, nh as u32, nc, nv));
-    }
-    for l in (0..levels.len() - 1).rev() {
-        let (upper, lower) = levels.split_at_mut(l + 1);
-        let (lw, _, lc, lv) = &mut upper[l];
-        let (cw, ch, cc, _) = &lower[0];
-        let lw = *lw as usize;
-        lc.par_iter_mut().zip(lv.par_iter_mut()).enumerate().for_each(|(i, (c, v))| {
-            if !*v {
-                let q = Vec2::new(((i % lw) as f32 + 0.5) * 0.5, ((i / lw) as f32 + 0.5) * 0.5);
-                *c = bilinear(cc, *cw, *ch, q);
-                *v = true;
             }
         });
+        Level { w: nw, h: nh, c: nc, v: nv }
+    };
+    let mut levels = vec![pull(w as usize, h as usize, color.data(), valid.data())];
+    while {
+        let l = levels.last().expect("a level");
+        l.w > 1 || l.h > 1
+    } {
+        let l = levels.last().expect("a level");
+        let next = pull(l.w, l.h, &l.c, &l.v);
+        levels.push(next);
     }
-    color.data_mut().copy_from_slice(&levels[0].2);
+    // Push: every invalid texel takes the bilinear value of the level above.
+    let push = |lw: usize, c: &mut [[f32; 3]], v: &[bool], up: &Level| {
+        c.par_chunks_mut(lw).enumerate().for_each(|(y, row)| {
+            for (x, o) in row.iter_mut().enumerate() {
+                if !v[y * lw + x] {
+                    let q = Vec2::new((x as f32 + 0.5) * 0.5, (y as f32 + 0.5) * 0.5);
+                    *o = bilinear(&up.c, up.w as u32, up.h as u32, q);
+                }
+            }
+        });
+    };
+    for l in (0..levels.len() - 1).rev() {
+        let (lower, upper) = levels.split_at_mut(l + 1);
+        let cur = &mut lower[l];
+        push(cur.w, &mut cur.c, &cur.v, &upper[0]);
+        cur.v.iter_mut().for_each(|v| *v = true);
+    }
+    push(w as usize, color.data_mut(), valid.data(), &levels[0]);
     Ok(())
 }

@@ -100,12 +100,7 @@ pub(crate) mod avx2 {
         Loc {
             cell,
             has_cell: _mm256_castsi256_ps(has),
-            i: [
-                _mm256_add_epi32(r0, x0),
-                _mm256_add_epi32(r0, x1),
-                _mm256_add_epi32(r1, x0),
-                _mm256_add_epi32(r1, x1),
-            ],
+            i: [_mm256_add_epi32(r0, x0), _mm256_add_epi32(r0, x1), _mm256_add_epi32(r1, x0), _mm256_add_epi32(r1, x1)],
             ax,
             ay,
             hx: _mm256_cmp_ps::<_CMP_GE_OQ>(ax, half),
@@ -243,7 +238,8 @@ pub(crate) mod avx2 {
             let vy = _mm256_blendv_ps(near(&l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), by, sm);
             let z = _mm256_blendv_ps(near(&l, z4), bzl, sm);
             // Record the visit (the orbit's farthest sample).
-            let better = _mm256_and_ps(active, _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, bz), _mm256_andnot_ps(visited, all)));
+            let better =
+                _mm256_and_ps(active, _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, bz), _mm256_andnot_ps(visited, all)));
             bqx = _mm256_blendv_ps(bqx, qx, better);
             bqy = _mm256_blendv_ps(bqy, qy, better);
             bvx = _mm256_blendv_ps(bvx, vx, better);
@@ -387,7 +383,8 @@ pub(crate) mod avx2 {
         let sign = _mm256_set1_ps(-0.0);
         let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
         let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
-        let ppx = _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)), _mm256_set1_ps(0.5));
+        let ppx =
+            _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)), _mm256_set1_ps(0.5));
         let ppy = _mm256_set1_ps(py as f32 + 0.5);
         // Seed (Warped::seed).
         let relx = if q.dst_ext[0] > 1e-6 {
@@ -457,8 +454,10 @@ pub(crate) mod avx2 {
             let (mut nx, mut ny) = (wx, wy);
             if accelerate {
                 // newton_step with the bilinear Jacobian (zero for nearest samples).
-                let dxx = _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay));
-                let dxy = _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay));
+                let dxx =
+                    _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay));
+                let dxy =
+                    _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay));
                 let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
                 let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
                 let m00 = _mm256_add_ps(one, dxx);
@@ -489,7 +488,12 @@ pub(crate) mod avx2 {
             ),
         );
         let acc = _mm256_and_ps(conv, foot);
-        let mut hits = Hits { accepted: _mm256_movemask_ps(acc) as u32, depth: [0.0; 8], color: [[0.0; 3]; 8], residual: [0.0; 8] };
+        let mut hits = Hits {
+            accepted: _mm256_movemask_ps(acc) as u32,
+            depth: [0.0; 8],
+            color: [[0.0; 3]; 8],
+            residual: [0.0; 8],
+        };
         if hits.accepted == 0 {
             return hits;
         }
@@ -524,5 +528,49 @@ pub(crate) mod avx2 {
         _mm256_storeu_ps(hits.depth.as_mut_ptr(), cz);
         _mm256_storeu_ps(hits.residual.as_mut_ptr(), res);
         hits
+    }
+
+    /// `spectral_radius(dx, dy)` of eight cells (same operations as the scalar function).
+    #[inline(always)]
+    unsafe fn radius8(dxx: __m256, dxy: __m256, dyx: __m256, dyy: __m256) -> __m256 {
+        // a = dx.x, b = dy.x, c = dx.y, d = dy.y
+        let tr = _mm256_add_ps(dxx, dyy);
+        let det = _mm256_sub_ps(_mm256_mul_ps(dxx, dyy), _mm256_mul_ps(dyx, dxy));
+        let disc = _mm256_sub_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.25), tr), tr), det);
+        let real = _mm256_add_ps(
+            _mm256_mul_ps(_mm256_set1_ps(0.5), _mm256_andnot_ps(_mm256_set1_ps(-0.0), tr)),
+            _mm256_sqrt_ps(disc),
+        );
+        let complex = _mm256_sqrt_ps(_mm256_max_ps(det, _mm256_setzero_ps()));
+        _mm256_blendv_ps(complex, real, _mm256_cmp_ps::<_CMP_GE_OQ>(disc, _mm256_setzero_ps()))
+    }
+
+    /// `rho` of the cells of one row from the field on its two texel rows (`a`: top, `b`:
+    /// bottom; `cw + 1` values each), eight cells at a time; returns how many cells it wrote
+    /// (the rest is left to the portable loop).
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn rho_row(ax: &[f32], ay: &[f32], bx: &[f32], by: &[f32], out: &mut [f32]) -> usize {
+        let cw = out.len();
+        let mut cx = 0;
+        while cx + 8 <= cw {
+            let l = |s: &[f32], o: usize| _mm256_loadu_ps(s.as_ptr().add(cx + o));
+            let (vax, vay, vbx, vby) = (l(ax, 0), l(ay, 0), l(ax, 1), l(ay, 1));
+            let (vcx, vcy, vdx, vdy) = (l(bx, 0), l(by, 0), l(bx, 1), l(by, 1));
+            // dxt = vb - va, dxb = vd - vc, dyl = vc - va, dyr = vd - vb
+            let (dxtx, dxty) = (_mm256_sub_ps(vbx, vax), _mm256_sub_ps(vby, vay));
+            let (dxbx, dxby) = (_mm256_sub_ps(vdx, vcx), _mm256_sub_ps(vdy, vcy));
+            let (dylx, dyly) = (_mm256_sub_ps(vcx, vax), _mm256_sub_ps(vcy, vay));
+            let (dyrx, dyry) = (_mm256_sub_ps(vdx, vbx), _mm256_sub_ps(vdy, vby));
+            let r = _mm256_max_ps(
+                _mm256_max_ps(
+                    _mm256_max_ps(radius8(dxtx, dxty, dylx, dyly), radius8(dxtx, dxty, dyrx, dyry)),
+                    radius8(dxbx, dxby, dylx, dyly),
+                ),
+                radius8(dxbx, dxby, dyrx, dyry),
+            );
+            _mm256_storeu_ps(out.as_mut_ptr().add(cx), r);
+            cx += 8;
+        }
+        cx
     }
 }

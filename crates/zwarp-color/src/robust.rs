@@ -16,8 +16,10 @@
 //!    footprint and is nearer than what the pixel holds (ties: the earlier quad).
 //!
 //! Cells with `rho >= 1` are sampled nearest (Fig. 4: the signal is extrapolated into the
-//! discontinuity). Pixels no quad covers (disocclusions) get the heuristic warp's in-painting
-//! (Sec. 3.3), reported non-converged unless that search converged.
+//! discontinuity). Pixels no quad covers (disocclusions) get the heuristic warp's search
+//! (Sec. 3.3); where that does not converge either, the push-pull pyramid fills them
+//! ([`HoleFill`]; the orbit's in-painting on request). They are reported non-converged unless
+//! the heuristic search converged.
 
 use glam::Vec2;
 use rayon::prelude::*;
@@ -50,6 +52,21 @@ pub struct RobustParams {
     pub accelerate: bool,
     /// The heuristic warp that fills the pixels no quad covers (its seed strategy matters).
     pub fallback: HeuristicParams,
+    /// What the pixels that neither a quad nor the fallback search solved show.
+    pub fill: HoleFill,
+}
+
+/// How the robust warp fills the pixels no converged search reached (disocclusions, strips
+/// off the source's border).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum HoleFill {
+    /// The fallback heuristic's orbit in-painting (seed 001 Sec. 3.3: the farthest iterate).
+    Orbit,
+    /// The push-pull pyramid over every converged pixel ([`crate::push_pull`], the in-painting
+    /// of the baselines): smoother and, on the measured scenes, closer to the reference at
+    /// disocclusions than the orbit's clone.
+    #[default]
+    PushPull,
 }
 
 impl Default for RobustParams {
@@ -61,6 +78,7 @@ impl Default for RobustParams {
             margin: 1.0,
             accelerate: true,
             fallback: HeuristicParams::default(),
+            fill: HoleFill::PushPull,
         }
     }
 }
@@ -123,18 +141,31 @@ pub fn rho_cells(field: &Field<'_>) -> Vec<f32> {
     let wu = w as usize;
     let mut out = vec![0.0f32; cw * ch];
     out.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
-        let mut va = field.v(cy * wu);
-        let mut vc = field.v((cy + 1) * wu);
-        for (cx, o) in row.iter_mut().enumerate() {
-            let vb = field.v(cy * wu + cx + 1);
-            let vd = field.v((cy + 1) * wu + cx + 1);
+        // The field on the two texel rows of this cell row (x and y components).
+        let mut buf = vec![0.0f32; 4 * wu];
+        let (ax, rest) = buf.split_at_mut(wu);
+        let (ay, rest) = rest.split_at_mut(wu);
+        let (bx, by) = rest.split_at_mut(wu);
+        for x in 0..wu {
+            let (a, b) = (field.v(cy * wu + x), field.v((cy + 1) * wu + x));
+            (ax[x], ay[x], bx[x], by[x]) = (a.x, a.y, b.x, b.y);
+        }
+        let mut cx0 = 0;
+        #[cfg(target_arch = "x86_64")]
+        if crate::lanes::simd_enabled() {
+            // SAFETY: AVX2 checked; rows hold w = cw + 1 values.
+            cx0 = unsafe { crate::lanes::avx2::rho_row(ax, ay, bx, by, row) };
+        }
+        for (cx, o) in row.iter_mut().enumerate().skip(cx0) {
+            let va = Vec2::new(ax[cx], ay[cx]);
+            let vb = Vec2::new(ax[cx + 1], ay[cx + 1]);
+            let vc = Vec2::new(bx[cx], by[cx]);
+            let vd = Vec2::new(bx[cx + 1], by[cx + 1]);
             let (dxt, dxb, dyl, dyr) = (vb - va, vd - vc, vc - va, vd - vb);
             *o = spectral_radius(dxt, dyl)
                 .max(spectral_radius(dxt, dyr))
                 .max(spectral_radius(dxb, dyl))
                 .max(spectral_radius(dxb, dyr));
-            va = vb;
-            vc = vd;
         }
     });
     out
@@ -204,25 +235,24 @@ impl Subdivision {
         let mut level: Vec<f32> = if cw == 0 || ch == 0 {
             vec![f32::INFINITY; w * h]
         } else {
-            let rowmax: Vec<f32> = (0..ch * w)
-                .into_par_iter()
-                .map(|i| {
-                    let (x, cy) = (i % w, i / w);
-                    let r = &rho[cy * cw..(cy + 1) * cw];
-                    let a = if x > 0 { r[x - 1] } else { r[0] };
-                    let b = if x < cw { r[x] } else { r[cw - 1] };
-                    a.max(b)
-                })
-                .collect();
-            (0..w * h)
-                .into_par_iter()
-                .map(|i| {
-                    let (x, y) = (i % w, i / w);
-                    let a = rowmax[y.saturating_sub(1).min(ch - 1) * w + x];
-                    let b = rowmax[y.min(ch - 1) * w + x];
-                    a.max(b)
-                })
-                .collect()
+            let mut rowmax = vec![0.0f32; ch * w];
+            rowmax.par_chunks_mut(w).enumerate().for_each(|(cy, out)| {
+                let r = &rho[cy * cw..(cy + 1) * cw];
+                out[0] = r[0];
+                for x in 1..cw {
+                    out[x] = r[x - 1].max(r[x]);
+                }
+                out[cw] = r[cw - 1];
+            });
+            let mut l0 = vec![0.0f32; w * h];
+            l0.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+                let a = &rowmax[y.saturating_sub(1).min(ch - 1) * w..][..w];
+                let b = &rowmax[y.min(ch - 1) * w..][..w];
+                for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+                    *o = a.max(*b);
+                }
+            });
+            l0
         };
         let mut levels: Vec<Vec<f32>> = Vec::new();
         let (mut lw, mut lh) = (w, h);
@@ -230,10 +260,11 @@ impl Subdivision {
         for _ in 0..steps {
             let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
             let prev = &level;
-            let next: Vec<f32> = (0..nw * nh)
-                .into_par_iter()
-                .map(|i| {
-                    let (x, y) = (2 * (i % nw), 2 * (i / nw));
+            let mut next = vec![0.0f32; nw * nh];
+            next.par_chunks_mut(nw).enumerate().for_each(|(ny, out)| {
+                let y = 2 * ny;
+                for (nx, o) in out.iter_mut().enumerate() {
+                    let x = 2 * nx;
                     let mut m = prev[y * lw + x];
                     if x + 1 < lw {
                         m = m.max(prev[y * lw + x + 1]);
@@ -244,9 +275,9 @@ impl Subdivision {
                             m = m.max(prev[(y + 1) * lw + x + 1]);
                         }
                     }
-                    m
-                })
-                .collect();
+                    *o = m;
+                }
+            });
             levels.push(std::mem::replace(&mut level, next));
             (lw, lh) = (nw, nh);
         }
@@ -544,5 +575,9 @@ pub fn robust_warp_with(
         })
         .collect();
     let (searches, holes) = per_band.iter().fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    if params.fill == HoleFill::PushPull && holes > 0 {
+        let valid = out.converged_mask();
+        crate::push_pull(&mut out.color, &valid)?;
+    }
     Ok(RobustStats { quads: leaves.len(), searches, holes })
 }

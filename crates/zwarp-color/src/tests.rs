@@ -319,15 +319,21 @@ fn floor_pass_copies_the_colour() {
 fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
     let (w, h) = (53, 29);
     let color = noise(w, h);
-    let rnd = |x: u32, y: u32, s: u32| (zwarp_warp::search::hash_u32(x * 131 + y * 7919 + s) % 10_000) as f32 / 10_000.0;
+    let rnd =
+        |x: u32, y: u32, s: u32| (zwarp_warp::search::hash_u32(x * 131 + y * 7919 + s) % 10_000) as f32 / 10_000.0;
     let depth = Image::from_fn(w, h, |x, y| if (x / 9 + y / 7) % 3 == 0 { 0.3 + 0.1 * rnd(x, y, 1) } else { 0.9 });
     let m1 = Image::from_fn(w, h, |x, y| {
         let near = *depth.get(x, y) < 0.5;
         let base = if near { Vec2::new(4.5, -1.25) } else { Vec2::new(-0.3, 0.2) };
-        Motion { v: base + Vec2::new(0.05 * x as f32, 0.02 * y as f32) + 0.3 * Vec2::new(rnd(x, y, 2), rnd(x, y, 3)), depth: 0.5 }
+        Motion {
+            v: base + Vec2::new(0.05 * x as f32, 0.02 * y as f32) + 0.3 * Vec2::new(rnd(x, y, 2), rnd(x, y, 3)),
+            depth: 0.5,
+        }
     });
-    let m2 = Image::from_fn(w, h, |x, y| Motion { v: Vec2::new(rnd(x, y, 4) * 8.0 - 4.0, rnd(x, y, 5) * 2.0), depth: 0.5 });
-    let b = WarpBasis::second_order(&depth, (1.0, &m1), (-1.0, &m2)).unwrap().with_spatial(&cam(w, h), Some(5.0)).unwrap();
+    let m2 =
+        Image::from_fn(w, h, |x, y| Motion { v: Vec2::new(rnd(x, y, 4) * 8.0 - 4.0, rnd(x, y, 5) * 2.0), depth: 0.5 });
+    let b =
+        WarpBasis::second_order(&depth, (1.0, &m1), (-1.0, &m2)).unwrap().with_spatial(&cam(w, h), Some(5.0)).unwrap();
     let params = [
         FieldParams::temporal(0.5),
         FieldParams::temporal(-1.7),
@@ -356,9 +362,13 @@ fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
         }
     }
     assert_eq!(compared, 48);
-    // The robust warp's quad lanes likewise (Newton on and off, two tile sizes).
+    // The robust warp's quad lanes likewise (Newton on and off, two tile sizes), and rho.
     for p in params {
         let f = b.field(p).unwrap();
+        set_simd(false);
+        let rp = rho_cells(&f);
+        set_simd(true);
+        assert_eq!(rp, rho_cells(&f), "rho {p:?}");
         for (accelerate, tile) in [(true, 16), (false, 8), (true, 4)] {
             let rp = RobustParams { accelerate, tile, ..RobustParams::default() };
             set_simd(false);
@@ -366,7 +376,12 @@ fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
             set_simd(true);
             let (lanes, sl) = robust_warp(&f, &color, &rp).unwrap();
             assert_eq!(sp, sl);
-            let same = portable.color.data().iter().zip(lanes.color.data()).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+            let same = portable
+                .color
+                .data()
+                .iter()
+                .zip(lanes.color.data())
+                .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
                 && portable.depth.data().iter().zip(lanes.depth.data()).all(|(a, b)| a.to_bits() == b.to_bits())
                 && portable.residual.data().iter().zip(lanes.residual.data()).all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "robust {p:?} accelerate {accelerate} tile {tile}");

@@ -275,13 +275,17 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 };
                 for &m in &plan.methods {
                     let (out, samples) = match (m, interp) {
-                        (Method::Heuristic, false) => timed_into(plan.reps, &mut slot, |o| be.heuristic_into(&fe, &src.color, &hp, o))?,
+                        (Method::Heuristic, false) => {
+                            timed_into(plan.reps, &mut slot, |o| be.heuristic_into(&fe, &src.color, &hp, o))?
+                        }
                         (Method::Heuristic, true) => timed(plan.reps, || {
                             let a = be.heuristic(fa.as_ref().expect("fwd"), &src.color, &hp)?;
                             let b = be.heuristic(fb.as_ref().expect("bwd"), &next.color, &hp)?;
                             combine(a, b)
                         })?,
-                        (Method::Robust, false) => timed_into(plan.reps, &mut slot, |o| be.robust_into(&fe, &src.color, &rp, o))?,
+                        (Method::Robust, false) => {
+                            timed_into(plan.reps, &mut slot, |o| be.robust_into(&fe, &src.color, &rp, o))?
+                        }
                         (Method::Robust, true) => timed(plan.reps, || {
                             let a = be.robust(fa.as_ref().expect("fwd"), &src.color, &rp)?;
                             let b = be.robust(fb.as_ref().expect("bwd"), &next.color, &rp)?;
