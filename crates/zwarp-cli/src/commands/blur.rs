@@ -249,9 +249,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         }
         let corner_fields = basis.fields(&corners)?;
         let hp = HeuristicParams { seed: Seed::Upstream(1.0), ..HeuristicParams::default() };
-        // Per view the orbit fills what no quad covers (the average over K views hides it; a
-        // push-pull pass per view would cost more than the fill is worth here).
-        let rp = RobustParams { fallback: hp, fill: zwarp_color::HoleFill::Orbit, ..RobustParams::default() };
+        let rp = RobustParams { fallback: hp, ..RobustParams::default() };
         let floor = k as f64 * zwarp_color::floor::floor_ms(&fields[fields.len() / 2], &centre.color, 3)?.0;
         for &m in &methods {
             let (out, ms) = report::time_repeated(reps, || -> Result<ColorWarpOutput> {

@@ -408,7 +408,10 @@ pub fn median(v: &[f64]) -> f64 {
 
 /// Panels of overview images, keyed by (mode, strategy) flags: two rows per key (predictions,
 /// FLIP maps), the reference first.
-pub type Strips = Vec<((bool, u32), (Vec<Image<[u8; 3]>>, Vec<Image<[u8; 3]>>))>;
+pub type Strips = Vec<((bool, u32), Panels)>;
+
+/// One strip: predictions (the reference first) above their FLIP maps.
+pub type Panels = (Vec<Image<[u8; 3]>>, Vec<Image<[u8; 3]>>);
 
 /// Appends `pred` (and its FLIP map) to the strip of `key`, starting it with `reference`.
 pub fn add_panel(
@@ -434,7 +437,7 @@ pub fn add_panel(
 }
 
 /// Writes one strip (predictions above their FLIP maps) as `dir/name.png`.
-pub fn write_strip(dir: &Path, name: &str, panels: &(Vec<Image<[u8; 3]>>, Vec<Image<[u8; 3]>>)) -> Result<()> {
+pub fn write_strip(dir: &Path, name: &str, panels: &Panels) -> Result<()> {
     let top = zwarp_viz::side_by_side(&panels.0.iter().collect::<Vec<_>>())?;
     let bottom = zwarp_viz::side_by_side(&panels.1.iter().collect::<Vec<_>>())?;
     let (w, h) = (top.width(), top.height() + bottom.height() + zwarp_viz::GAP);

@@ -166,7 +166,9 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     );
     let mut accs: Vec<((bool, bool, Method), Acc)> = Vec::new();
     let mut strips = colorwarp::Strips::new();
-    let mut pairs: Vec<(String, Image<[f32; 3]>, Image<[f32; 3]>)> = Vec::new();
+    // (name, left, right) views of the first frame for the anaglyph and side-by-side images.
+    type Pair = (String, Image<[f32; 3]>, Image<[f32; 3]>);
+    let mut pairs: Vec<Pair> = Vec::new();
     let mut slot = zwarp_color::ColorWarpOutput::empty();
     for (ki, &k) in ks.iter().enumerate() {
         let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
