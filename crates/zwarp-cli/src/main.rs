@@ -27,6 +27,12 @@ enum Command {
     Cull(commands::cull::CullArgs),
     /// Soft shadows from warped shadow maps vs the reference and PCSS (paper 000, Sec. 6).
     Shadows(commands::shadows::ShadowsArgs),
+    /// Frame-rate upsampling by colour warping vs rendering the in-between frames (seed 001).
+    Upsample(commands::upsample::UpsampleArgs),
+    /// Stereo views from one centre view or the previous frame's other eye (seed 001).
+    Stereo(commands::stereo::StereoArgs),
+    /// Motion and defocus blur by accumulating warped views vs rendered ones (seed 001).
+    Blur(commands::blur::BlurArgs),
     /// List the compute devices (GPU adapters) zwarp can use.
     Info(commands::info::InfoArgs),
 }
@@ -47,6 +53,9 @@ fn main() {
         Command::Info(a) => commands::info::run(a),
         Command::Cull(a) => commands::cull::run(a),
         Command::Shadows(a) => commands::shadows::run(a),
+        Command::Upsample(a) => commands::upsample::run(a),
+        Command::Stereo(a) => commands::stereo::run(a),
+        Command::Blur(a) => commands::blur::run(a),
     };
     if let Err(e) = result {
         // One line: the error and its causes, joined.

@@ -606,3 +606,223 @@ fn shadows_gpu_backend_matches_cpu() {
         assert!(ssim >= 0.99, "{m}: gpu vs cpu SSIM {ssim}");
     }
 }
+
+/// The JSON fields every colour-warp row (`upsample`, `stereo`, `blur`) carries.
+const COLOR_FIELDS: [&str; 12] =
+    ["method", "scene", "width", "height", "psnr", "psnr_y", "psnr_rgb", "ssim", "ssim_y", "flip", "cie94", "floor_ms"];
+
+/// Checks the shared colour-row fields and the method names; returns the rows.
+fn color_rows(json: &std::path::Path, methods: usize) -> Vec<serde_json::Value> {
+    let rows = json_rows(json);
+    let names: std::collections::BTreeSet<String> =
+        rows.iter().map(|r| r["method"].as_str().unwrap().to_string()).collect();
+    assert_eq!(names.len(), methods, "{names:?}");
+    for n in &names {
+        assert!(["heuristic", "robust", "repeat", "mesh", "reproject", "scatter"].contains(&n.as_str()), "{n}");
+    }
+    for r in &rows {
+        for k in COLOR_FIELDS {
+            assert!(!r[k].is_null(), "field {k} missing in {r}");
+        }
+        let s = r["ssim"].as_f64().unwrap();
+        assert!(s > 0.3 && s <= 1.0, "{r}");
+        let f = r["flip"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&f), "{r}");
+    }
+    rows
+}
+
+#[test]
+fn upsample_writes_the_documented_fields() {
+    let d = tmp("upsample");
+    let j = d.join("u.json");
+    let img = d.join("img");
+    let (ok, out, err) = zwarp(&[
+        "upsample",
+        "--scene",
+        "mo",
+        "--scale",
+        "0.02",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "--frames",
+        "1",
+        "--factor",
+        "2",
+        "--interpolate",
+        "--reps",
+        "1",
+        "--images",
+        img.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("heuristic") && out.contains("speedup"), "{out}");
+    let rows = color_rows(&j, 6);
+    // Six methods, extrapolated and interpolated.
+    assert_eq!(rows.len(), 12);
+    for r in &rows {
+        for k in [
+            "mode",
+            "motion",
+            "factor",
+            "warp_ms",
+            "render_ms",
+            "speedup",
+            "floor_ratio",
+            "converged",
+            "disocc_fraction",
+        ] {
+            assert!(!r[k].is_null(), "field {k} missing in {r}");
+        }
+        let sp = r["render_ms"].as_f64().unwrap() / r["warp_ms"].as_f64().unwrap();
+        assert!((r["speedup"].as_f64().unwrap() - sp).abs() < 1e-6 * sp.max(1.0), "{r}");
+    }
+    assert!(rows.iter().any(|r| r["mode"] == "interpolate") && rows.iter().any(|r| r["mode"] == "extrapolate"));
+    assert!(img.join("mo_f2_reference.png").exists() && img.join("mo_f2_extrap_robust.png").exists());
+    assert!(img.join("mo_f2_extrap_strip.png").exists());
+}
+
+#[test]
+fn stereo_and_blur_write_the_documented_fields() {
+    let d = tmp("stereo");
+    let j = d.join("s.json");
+    let img = d.join("img");
+    let (ok, _, err) = zwarp(&[
+        "stereo",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--methods",
+        "heuristic,robust,repeat",
+        "--images",
+        img.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let rows = color_rows(&j, 3);
+    // Three methods x two strategies x two eyes.
+    assert_eq!(rows.len(), 12);
+    for r in &rows {
+        assert!(["left", "right"].contains(&r["eye"].as_str().unwrap()), "{r}");
+        assert!(["cyclops", "alternate"].contains(&r["strategy"].as_str().unwrap()), "{r}");
+        assert!(!r["seed_offset_px"].is_null() && !r["warp_ms"].is_null());
+    }
+    assert!(img.join("cb_reference_anaglyph.png").exists() && img.join("cb_cyclops_robust_sbs.png").exists());
+    let j = d.join("b.json");
+    let (ok, _, err) = zwarp(&[
+        "blur",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "--motion",
+        "--defocus",
+        "--samples",
+        "4",
+        "--methods",
+        "heuristic,robust,repeat",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let rows = color_rows(&j, 3);
+    for r in &rows {
+        for k in ["samples", "ms", "render_ms", "speedup", "floor_ratio"] {
+            assert!(!r[k].is_null(), "field {k} missing in {r}");
+        }
+        let k = if r["method"] == "repeat" { 1 } else { 4 };
+        assert_eq!(r["samples"].as_u64().unwrap(), k, "{r}");
+    }
+}
+
+#[test]
+fn colour_commands_reject_bad_input_in_one_line() {
+    let d = tmp("colorbad");
+    let j = d.join("x.json");
+    let js = j.to_str().unwrap();
+    let sky = d.join("sky.json");
+    std::fs::write(&sky, r#"{"fov_y_deg":60,"near":0.1,"far":100,"up":[0,0,1],"fps":30,"keys":[{"t":0,"eye":[0,0,500],"target":[100,0,600]},{"t":1,"eye":[1,0,500],"target":[101,0,600]}]}"#).unwrap();
+    let small = ["--scale", "0.01", "--width", "64", "--height", "48"];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["upsample", "--scene", "mo", "--factor", "0"], "--factor"),
+        (vec!["upsample", "--scene", "mo", "--motion", "cubic"], "--motion"),
+        (vec!["upsample", "--scene", "mo", "--methods", "magic"], "magic"),
+        (vec!["stereo", "--scene", "mo", "--eye-sep", "NaN"], "--eye-sep"),
+        (vec!["stereo", "--scene", "mo", "--eye-sep", "-1"], "--eye-sep"),
+        (vec!["blur", "--scene", "mo", "--motion", "--samples", "0"], "--samples"),
+        (vec!["blur", "--scene", "mo", "--samples", "4"], "nothing to blur"),
+        (vec!["upsample", "--scene", "mo", "--path", sky.to_str().unwrap()], "no surface"),
+    ];
+    for (mut args, what) in cases {
+        args.extend_from_slice(&small);
+        args.extend_from_slice(&["--reps", "1", "--json", js]);
+        let (ok, _, err) = zwarp(&args);
+        assert!(!ok, "{args:?} accepted");
+        let line = error_line(&err);
+        assert!(line.contains(what), "{args:?}: {line}");
+        assert_eq!(err.lines().filter(|l| l.starts_with("error")).count(), 1, "{err}");
+    }
+}
+
+#[test]
+fn colour_commands_gpu_backend_matches_cpu() {
+    if !gpu_available() {
+        return;
+    }
+    let d = tmp("colorgpu");
+    let run = |backend: &str| {
+        let j = d.join(format!("{backend}.json"));
+        let (ok, _, err) = zwarp_env(
+            &[
+                "upsample",
+                "--scene",
+                "mo",
+                "--scale",
+                "0.02",
+                "--width",
+                "96",
+                "--height",
+                "64",
+                "--frames",
+                "1",
+                "--reps",
+                "1",
+                "--methods",
+                "heuristic,robust",
+                "--backend",
+                backend,
+                "--json",
+                j.to_str().unwrap(),
+            ],
+            &[("XDG_RUNTIME_DIR", "/tmp")],
+        );
+        assert!(ok, "{err}");
+        json_rows(&j)
+    };
+    let (cpu, gpu) = (run("cpu"), run("gpu"));
+    assert_eq!(cpu.len(), gpu.len());
+    for (c, g) in cpu.iter().zip(&gpu) {
+        assert_eq!(c["method"], g["method"]);
+        // Both render the same frames (GPU renderer vs CPU rasterizer) and warp them.
+        let (pc, pg) = (c["psnr"].as_f64().unwrap(), g["psnr"].as_f64().unwrap());
+        assert!((pc - pg).abs() < 1.0, "{c} vs {g}");
+    }
+}

@@ -12,6 +12,8 @@
 //!   `zwarp_warp::warp_depth` with axis-aligned bounds.
 //! - [`HoleFillKernel`]: hole filling as a post-pass (Fig. 8 dilation, background fill), the
 //!   twin of `zwarp_warp::fill_holes`.
+//! - [`ColorWarpKernel`]: the colour warps of seed 001 (heuristic Sec. 3.3, robust Sec. 3.4),
+//!   twins of `zwarp_color::{heuristic_warp, robust_warp}`.
 //! - [`MaxDepthKernel`]: max mipmap, N-buffer and Y-map (seed 000 Sec. 5.2), bit-identical to
 //!   `zwarp_cull::{MaxMipmap, NBuffer, YMap}`.
 //! - [`CullKernel`]: VFC + screen-space AABB test per object into a visible list and indirect
@@ -43,9 +45,10 @@ pub mod shadows;
 pub mod timer;
 
 pub use compute::{
-    rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass, GpuMaxDepth,
-    GpuMotionPyramid, GpuPreparedWarp, GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams, HoleFillKernel,
-    MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel, WocStage, MAX_GPU_LAYERS,
+    rapid_flags, ColorWarpKernel, CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass,
+    GpuMaxDepth, GpuMotionPyramid, GpuPreparedWarp, GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams,
+    HoleFillKernel, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel, WocStage,
+    MAX_GPU_LAYERS,
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{

@@ -9,6 +9,10 @@
 //! - [`depth_quality`]: the headline depth metrics on linear view depth normalized by the
 //!   reference frame's own surface range ([`surface_range`], [`normalized_linear_depth`]),
 //!   plus the same metrics on the stored `[0, 1]` buffer.
+//! - Colour ([`color_quality`]): luminance and per-channel PSNR / SSIM on linear colour, CIE94
+//!   under D65 ([`cie94_mean`], seed 001 Fig. 8) and NVIDIA FLIP ([`flip`], feature `flip`: the
+//!   reference implementation through the `nv-flip` crate, which builds its C++ with the
+//!   system's C++ compiler).
 //! - Culling safety (seed 002, thesis Sec. V.1): a predicted depth *nearer* than the reference
 //!   is an error (it can hide visible objects), a *farther* one is a conservative
 //!   over-estimation; [`signed_depth_errors`] counts both separately and gives the thesis'
@@ -17,11 +21,18 @@
 //! All functions validate their input (same size, non-empty, finite values, positive data range)
 //! and return [`zwarp_core::Error::Invalid`] with a one-line message instead of panicking.
 
+mod color;
 mod depth;
 mod diff;
 mod psnr;
 mod ssim;
 
+pub use color::{
+    cie94, cie94_map, cie94_mean, color_quality, linear_rgb_to_lab, luminance, masked_mean, psnr_channels,
+    psnr_rgb_masked, ColorQuality, D65_WHITE, LUMA, RGB_TO_XYZ,
+};
+#[cfg(feature = "flip")]
+pub use color::{flip, Flip, FLIP_DEFAULT_PPD};
 pub use depth::{depth_quality, normalized_linear_depth, surface_range, DepthQuality};
 pub use diff::{
     abs_diff, count_differing, count_differing_exact, count_farther, count_nearer, signed_depth_errors, signed_diff,

@@ -5,6 +5,7 @@ use zwarp_core::Result;
 
 use crate::GpuContext;
 
+mod colorwarp;
 mod cull;
 mod holes;
 mod maxdepth;
@@ -13,6 +14,7 @@ mod pyramid;
 mod warp;
 mod woc;
 
+pub use colorwarp::ColorWarpKernel;
 pub use cull::{CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass};
 pub use holes::HoleFillKernel;
 pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};

@@ -1,0 +1,454 @@
+//! What `zwarp upsample`, `stereo` and `blur` share: the methods (seed 001's two variants and
+//! the baselines), colour rendering on either backend, the quality figures of a predicted frame
+//! (including the pixels the source did not see), the warps on either backend, images.
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use serde::Serialize;
+use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Subdivision};
+use zwarp_core::{Camera, Image, Motion, Scene};
+
+use crate::args::Backend;
+use crate::report::ser_f64;
+
+/// A prediction method (JSON `method`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Seed 001 Sec. 3.3: one seed, 3 iterations, orbit in-painting.
+    Heuristic,
+    /// Seed 001 Sec. 3.4: rho, subdivision, quads rasterised with a depth test.
+    Robust,
+    /// The source frame shown again.
+    Repeat,
+    /// Per-pixel forward mesh warp (Mark et al. 1997).
+    Mesh,
+    /// Reverse reprojection caching (Nehab et al. 2007): re-render of the target's depth.
+    Reproject,
+    /// FSR3-like forward scatter with push-pull in-painting.
+    Scatter,
+}
+
+impl Method {
+    /// Every method, in table order.
+    pub const ALL: [Method; 6] =
+        [Method::Heuristic, Method::Robust, Method::Repeat, Method::Mesh, Method::Reproject, Method::Scatter];
+
+    /// The JSON / CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Heuristic => "heuristic",
+            Method::Robust => "robust",
+            Method::Repeat => "repeat",
+            Method::Mesh => "mesh",
+            Method::Reproject => "reproject",
+            Method::Scatter => "scatter",
+        }
+    }
+}
+
+/// Parses `--methods` (comma list of the names, or `all`).
+pub fn parse_methods(s: &str) -> Result<Vec<Method>> {
+    let mut out = Vec::new();
+    for name in crate::args::parse_list::<String>(s, "--methods")? {
+        if name == "all" {
+            out.extend(Method::ALL);
+            continue;
+        }
+        match Method::ALL.iter().find(|m| m.name() == name) {
+            Some(m) => out.push(*m),
+            None => {
+                bail!("--methods: unknown method '{name}' (heuristic, robust, repeat, mesh, reproject, scatter, all)")
+            }
+        }
+    }
+    out.dedup();
+    Ok(out)
+}
+
+/// One rendered view: colour, depth and item ids.
+pub struct View {
+    /// The camera.
+    pub cam: Camera,
+    /// Scene time.
+    pub t: f32,
+    /// Linear RGB.
+    pub color: Image<[f32; 3]>,
+    /// Depth, `[0, 1]`.
+    pub depth: Image<f32>,
+    /// Instance ids.
+    pub items: Image<u32>,
+}
+
+/// The GPU side of a run: device, renderer, uploaded scene, colour-warp kernels.
+pub struct Gpu {
+    ctx: zwarp_gpu::GpuContext,
+    renderer: zwarp_gpu::Renderer,
+    scene: zwarp_gpu::GpuScene,
+    warp: zwarp_gpu::ColorWarpKernel,
+}
+
+/// Renders views and runs the two colour warps on the chosen backend (baselines stay on the
+/// CPU).
+pub struct Backends<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    gpu: Option<Gpu>,
+}
+
+impl<'a> Backends<'a> {
+    /// CPU, or the first GPU adapter (one clear error if there is none).
+    pub fn new(scene: &'a Scene, backend: Backend) -> Result<Self> {
+        let gpu = match backend {
+            Backend::Cpu => None,
+            Backend::Gpu => {
+                let ctx = zwarp_gpu::GpuContext::new()?;
+                let renderer = zwarp_gpu::Renderer::new(&ctx)?;
+                let scene = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
+                let warp = zwarp_gpu::ColorWarpKernel::new(&ctx)?;
+                Some(Gpu { ctx, renderer, scene, warp })
+            }
+        };
+        Ok(Backends { scene, gpu })
+    }
+
+    /// `"cpu"` or the adapter's name.
+    pub fn name(&self) -> String {
+        match &self.gpu {
+            None => "cpu".into(),
+            Some(g) => format!("gpu ({})", g.ctx.adapter.name),
+        }
+    }
+
+    /// Colour, depth and ids of the scene at `t` seen by `cam`.
+    pub fn view(&self, cam: &Camera, t: f32) -> Result<View> {
+        let (depth, items, color) = match &self.gpu {
+            None => {
+                let f = zwarp_raster::render_frame(
+                    self.scene,
+                    cam,
+                    t,
+                    &zwarp_raster::FrameOptions { color: true, objects: None },
+                )?;
+                (f.depth, f.items, f.color)
+            }
+            Some(g) => {
+                let f = g.renderer.render_frame(
+                    &g.scene,
+                    cam,
+                    t,
+                    &zwarp_gpu::FrameOptions { color: true, ..Default::default() },
+                )?;
+                (f.depth, f.items, f.color)
+            }
+        };
+        let color = zwarp_color::require_color(color.as_ref(), "the rendered frame")?.clone();
+        Ok(View { cam: *cam, t, color, depth, items })
+    }
+
+    /// Depth and ids only (the re-render of reverse reprojection caching), on the CPU.
+    pub fn depth_items(&self, cam: &Camera, t: f32) -> Result<(Image<f32>, Image<u32>)> {
+        let f = zwarp_raster::render_frame(self.scene, cam, t, &zwarp_raster::FrameOptions::default())?;
+        Ok((f.depth, f.items))
+    }
+
+    /// The motion field of `view` towards `cam_b` at `t_b` (camera and object motion).
+    pub fn motion(&self, view: &View, cam_b: &Camera, t_b: f32) -> Result<Image<Motion>> {
+        Ok(zwarp_core::motion_field(
+            &view.depth,
+            Some(&view.items),
+            &view.cam,
+            cam_b,
+            &self.scene.object_deltas(view.t, t_b),
+        )?)
+    }
+
+    /// The heuristic warp (WGSL twin on the GPU).
+    pub fn heuristic(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &HeuristicParams,
+    ) -> Result<ColorWarpOutput> {
+        match &self.gpu {
+            None => Ok(zwarp_color::heuristic_warp(field, color, p)?),
+            Some(g) => Ok(g.warp.heuristic(field, color, p)?),
+        }
+    }
+
+    /// The heuristic warp into `out`, whose buffers a CPU warp reuses (an engine's steady state).
+    pub fn heuristic_into(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &HeuristicParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match &self.gpu {
+            None => Ok(zwarp_color::heuristic_warp_into(field, color, p, out)?),
+            Some(g) => {
+                *out = g.warp.heuristic(field, color, p)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// The robust warp (its subdivision included) into `out` (buffers reused on the CPU).
+    pub fn robust_into(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &RobustParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match &self.gpu {
+            None => {
+                let sub = Subdivision::of_field(field, p.tile)?;
+                zwarp_color::robust_warp_with(&sub, field, color, p, out)?;
+                Ok(())
+            }
+            Some(g) => {
+                *out = g.warp.robust(field, color, p)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// The robust warp with a given subdivision into `out` (WGSL twin on the GPU).
+    pub fn robust_with_into(
+        &self,
+        sub: &Subdivision,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &RobustParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match &self.gpu {
+            None => {
+                zwarp_color::robust_warp_with(sub, field, color, p, out)?;
+            }
+            Some(g) => *out = g.warp.robust_with(sub, field, color, p)?,
+        }
+        Ok(())
+    }
+
+    /// The robust warp including its subdivision.
+    pub fn robust(&self, field: &Field<'_>, color: &Image<[f32; 3]>, p: &RobustParams) -> Result<ColorWarpOutput> {
+        match &self.gpu {
+            None => Ok(zwarp_color::robust_warp(field, color, p)?.0),
+            Some(g) => Ok(g.warp.robust(field, color, p)?),
+        }
+    }
+}
+
+/// Errors unless the view shows at least one surface (a colour warp of pure sky has nothing to
+/// move; a path looking away from the scene is bad input).
+pub fn check_has_surface(view: &View, what: &str) -> Result<()> {
+    if view.depth.data().iter().all(|&d| d >= 1.0) {
+        bail!("{what} shows no surface of the scene (only sky): nothing to warp; check --path");
+    }
+    Ok(())
+}
+
+/// Quality of one prediction (JSON fields of every colour-warp row, means over the frames).
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Quality {
+    /// PSNR (dB) on linear RGB, all channels.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr: f64,
+    /// PSNR (dB) of the luminance.
+    #[serde(serialize_with = "ser_f64")]
+    pub psnr_y: f64,
+    /// PSNR (dB) of R, G, B.
+    pub psnr_rgb: [f64; 3],
+    /// Mean per-channel SSIM on linear RGB.
+    pub ssim: f64,
+    /// SSIM of the luminance.
+    pub ssim_y: f64,
+    /// Mean FLIP error (LDR, sRGB encoding of the linear colour).
+    pub flip: f64,
+    /// Mean CIE94 difference under D65 (seed 001 Fig. 8).
+    pub cie94: f64,
+    /// Fraction of pixels the method reports converged (its confidence output).
+    pub converged: f64,
+    /// Fraction of target pixels the source did not see (disocclusions, border strips).
+    pub disocc_fraction: f64,
+    /// PSNR (dB) over those pixels.
+    #[serde(serialize_with = "ser_f64")]
+    pub disocc_psnr: f64,
+    /// Mean CIE94 over those pixels.
+    #[serde(serialize_with = "ser_f64")]
+    pub disocc_cie94: f64,
+    /// Mean FLIP over those pixels.
+    #[serde(serialize_with = "ser_f64")]
+    pub disocc_flip: f64,
+}
+
+/// The quality of `pred` against `reference`; `unseen` marks the pixels the source did not see.
+pub fn quality(reference: &Image<[f32; 3]>, pred: &ColorWarpOutput, unseen: Option<&Image<bool>>) -> Result<Quality> {
+    let q = zwarp_metrics::color_quality(reference, &pred.color)?;
+    let flip_map = zwarp_metrics::flip(reference, &pred.color, zwarp_metrics::FLIP_DEFAULT_PPD)?.map;
+    let (df, dp, dc, dfl) = match unseen {
+        Some(m) => {
+            let n = m.data().iter().filter(|&&v| v).count();
+            (
+                n as f64 / m.len() as f64,
+                zwarp_metrics::psnr_rgb_masked(reference, &pred.color, m, 1.0)?,
+                zwarp_metrics::cie94_mean(reference, &pred.color, Some(m))?,
+                zwarp_metrics::masked_mean(&flip_map, Some(m))?,
+            )
+        }
+        None => (0.0, f64::NAN, f64::NAN, f64::NAN),
+    };
+    Ok(Quality {
+        psnr: q.psnr,
+        psnr_y: q.psnr_y,
+        psnr_rgb: q.psnr_channels,
+        ssim: q.ssim,
+        ssim_y: q.ssim_y,
+        flip: q.flip,
+        cie94: q.cie94,
+        converged: pred.converged_fraction(),
+        disocc_fraction: df,
+        disocc_psnr: dp,
+        disocc_cie94: dc,
+        disocc_flip: dfl,
+    })
+}
+
+/// Mean of finite values (NaN if none); infinities count as such when all are infinite.
+pub fn mean(v: &[f64]) -> f64 {
+    let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if finite.is_empty() {
+        return v.first().copied().unwrap_or(f64::NAN);
+    }
+    finite.iter().sum::<f64>() / finite.len() as f64
+}
+
+/// Mean of several [`Quality`] values, field by field.
+pub fn mean_quality(qs: &[Quality]) -> Quality {
+    let m = |f: fn(&Quality) -> f64| mean(&qs.iter().map(f).collect::<Vec<_>>());
+    Quality {
+        psnr: m(|q| q.psnr),
+        psnr_y: m(|q| q.psnr_y),
+        psnr_rgb: [m(|q| q.psnr_rgb[0]), m(|q| q.psnr_rgb[1]), m(|q| q.psnr_rgb[2])],
+        ssim: m(|q| q.ssim),
+        ssim_y: m(|q| q.ssim_y),
+        flip: m(|q| q.flip),
+        cie94: m(|q| q.cie94),
+        converged: m(|q| q.converged),
+        disocc_fraction: m(|q| q.disocc_fraction),
+        disocc_psnr: m(|q| q.disocc_psnr),
+        disocc_cie94: m(|q| q.disocc_cie94),
+        disocc_flip: m(|q| q.disocc_flip),
+    }
+}
+
+/// The pixels of the target view `target` the source view did not see: its depth reprojected
+/// into the source (`to_source`) lands off-screen or behind another surface.
+pub fn unseen(target_depth: &Image<f32>, to_source: &Image<Motion>, source: &View) -> Result<Image<bool>> {
+    Ok(zwarp_color::source_visibility(target_depth, to_source, &source.depth, &source.cam)?.map(|&v| !v))
+}
+
+/// Writes a linear RGB image as sRGB PNG `dir/name.png`.
+pub fn write_color(dir: &Path, name: &str, img: &Image<[f32; 3]>) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
+    zwarp_viz::write_png(dir.join(format!("{name}.png")), &zwarp_viz::color_to_rgb8(img))?;
+    Ok(())
+}
+
+/// Writes the FLIP error map of `pred` against `reference` (turbo, 0..1) as `dir/name.png`.
+pub fn write_flip(dir: &Path, name: &str, reference: &Image<[f32; 3]>, pred: &Image<[f32; 3]>) -> Result<()> {
+    let f = zwarp_metrics::flip(reference, pred, zwarp_metrics::FLIP_DEFAULT_PPD)?;
+    zwarp_viz::write_png(dir.join(format!("{name}.png")), &zwarp_viz::scalar_to_rgb8(&f.map, 0.0, 1.0)?)?;
+    Ok(())
+}
+
+/// A file-name-safe form of a scene spec.
+pub fn safe_name(s: &str) -> String {
+    let base = Path::new(s).file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| s.into());
+    base.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect()
+}
+
+/// A progress bar like `zwarp eval`'s (hidden when `show` is false).
+pub fn progress(len: u64, msg: String, show: bool) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new(len);
+    b.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    b.set_message(msg);
+    b
+}
+
+/// The camera `cam` moved by `(u, v)` world units along its right and up axes, with the
+/// projection sheared so that the plane at view distance `focus` maps to itself (a thin-lens
+/// sample for defocus; `None`: parallel cameras, the stereo eyes of DESIGN.md "Stereo/VR").
+pub fn offset_camera(cam: &Camera, u: f32, v: f32, focus: Option<f32>) -> Camera {
+    let view = glam::Mat4::from_translation(glam::Vec3::new(-u, -v, 0.0)) * cam.view;
+    let proj = match focus {
+        None => cam.proj,
+        Some(f) => {
+            let (sx, sy) = (cam.proj.x_axis.x * u / f, cam.proj.y_axis.y * v / f);
+            glam::Mat4::from_cols(glam::Vec4::X, glam::Vec4::Y, glam::Vec4::Z, glam::Vec4::new(sx, sy, 0.0, 1.0))
+                * cam.proj
+        }
+    };
+    Camera { view, proj, ..*cam }
+}
+
+/// Median of samples (ms).
+pub fn median(v: &[f64]) -> f64 {
+    crate::report::Timing::of(v).median
+}
+
+/// Panels of overview images, keyed by (mode, strategy) flags: two rows per key (predictions,
+/// FLIP maps), the reference first.
+pub type Strips = Vec<((bool, u32), Panels)>;
+
+/// One strip: predictions (the reference first) above their FLIP maps.
+pub type Panels = (Vec<Image<[u8; 3]>>, Vec<Image<[u8; 3]>>);
+
+/// Appends `pred` (and its FLIP map) to the strip of `key`, starting it with `reference`.
+pub fn add_panel(
+    strips: &mut Strips,
+    key: (bool, u32),
+    reference: &Image<[f32; 3]>,
+    pred: &Image<[f32; 3]>,
+) -> Result<()> {
+    let i = match strips.iter().position(|(k, _)| *k == key) {
+        Some(i) => i,
+        None => {
+            let r = zwarp_viz::color_to_rgb8(reference);
+            let black = Image::new(r.width(), r.height(), [0u8; 3]);
+            strips.push((key, (vec![r], vec![black])));
+            strips.len() - 1
+        }
+    };
+    let f = zwarp_metrics::flip(reference, pred, zwarp_metrics::FLIP_DEFAULT_PPD)?;
+    let (a, b) = &mut strips[i].1;
+    a.push(zwarp_viz::color_to_rgb8(pred));
+    b.push(zwarp_viz::scalar_to_rgb8(&f.map, 0.0, 1.0)?);
+    Ok(())
+}
+
+/// Writes one strip (predictions above their FLIP maps) as `dir/name.png`.
+pub fn write_strip(dir: &Path, name: &str, panels: &Panels) -> Result<()> {
+    let top = zwarp_viz::side_by_side(&panels.0.iter().collect::<Vec<_>>())?;
+    let bottom = zwarp_viz::side_by_side(&panels.1.iter().collect::<Vec<_>>())?;
+    let (w, h) = (top.width(), top.height() + bottom.height() + zwarp_viz::GAP);
+    let mut out = Image::new(w, h, zwarp_viz::GAP_COLOR);
+    for y in 0..top.height() {
+        out.row_mut(y).copy_from_slice(top.row(y));
+    }
+    for y in 0..bottom.height() {
+        let oy = top.height() + zwarp_viz::GAP + y;
+        out.row_mut(oy)[..bottom.width() as usize].copy_from_slice(bottom.row(y));
+    }
+    zwarp_viz::write_png(dir.join(format!("{name}.png")), &out)?;
+    Ok(())
+}

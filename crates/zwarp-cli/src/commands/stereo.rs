@@ -1,0 +1,401 @@
+//! `zwarp stereo`: stereoscopic views by colour warping (seed 001 Sec. 3.3 Fig. 2, 6: stereo
+//! post-conversion of a racing game). The eyes are the path's centre camera moved by `-E/2` and
+//! `+E/2` along its right axis (DESIGN.md "Stereo/VR"). Two strategies: `cyclops` warps the one
+//! rendered centre view to both eyes (spatial field, eq. 4), `alternate` warps the previous
+//! frame's other eye (temporal + spatial field, Sec. 4's linear combination). Every method is
+//! compared per eye with rendering that eye; anaglyph and side-by-side images.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+use glam::Vec2;
+use serde::Serialize;
+use zwarp_color::{Field, FieldParams, HeuristicParams, RobustParams, Seed, WarpBasis};
+use zwarp_core::{Camera, Image};
+
+use super::colorwarp::{self, Backends, Method, Quality, View};
+use crate::args::{Backend, SceneArgs, SizeArgs};
+use crate::report::{self, fmt, Table, Timing};
+
+/// Arguments of `zwarp stereo`.
+#[derive(Args, Clone, Debug)]
+pub struct StereoArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub size: SizeArgs,
+    /// Frames evaluated, spread evenly along the camera path.
+    #[arg(long, default_value_t = 2)]
+    pub frames: usize,
+    /// Eye separation (interpupillary distance) in world units; default 64 mm.
+    #[arg(long, default_value_t = 0.064, allow_negative_numbers = true)]
+    pub eye_sep: f32,
+    /// Strategies (comma list of cyclops, alternate).
+    #[arg(long, default_value = "cyclops,alternate")]
+    pub strategy: String,
+    /// Methods (comma list of heuristic, robust, repeat, mesh, reproject, scatter, or `all`).
+    #[arg(long, default_value = "all")]
+    pub methods: String,
+    /// `cpu` or `gpu` (renders and the two colour warps on the GPU; baselines on the CPU).
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+    /// Timed repetitions per measurement (after one warm-up run).
+    #[arg(long, default_value_t = 3)]
+    pub reps: usize,
+    /// Write anaglyph, side-by-side, predictions and FLIP maps here (first frame).
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+    /// Write the results as JSON (`rows`).
+    #[arg(long)]
+    pub json: PathBuf,
+}
+
+/// One (strategy, eye, method), aggregated over the frames (JSON `rows`).
+#[derive(Clone, Debug, Serialize)]
+pub struct StereoRow {
+    /// `heuristic`, `robust`, `repeat`, `mesh`, `reproject`, `scatter`.
+    pub method: String,
+    /// `cyclops` (from the centre view) or `alternate` (from the previous frame's other eye).
+    pub strategy: String,
+    /// `left` or `right`.
+    pub eye: String,
+    /// Scene spec.
+    pub scene: String,
+    /// Eye separation (world units).
+    pub eye_sep: f32,
+    /// Frames the row averages.
+    pub frames: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Quality (means over the frames).
+    #[serde(flatten)]
+    pub quality: Quality,
+    /// Median prediction time (ms), warm.
+    pub warp_ms: f64,
+    /// Fastest prediction.
+    pub warp_ms_min: f64,
+    /// Slowest prediction.
+    pub warp_ms_max: f64,
+    /// Median time (ms) of rendering this eye with colour, same run.
+    pub render_ms: f64,
+    /// `render_ms / warp_ms`.
+    pub speedup: f64,
+    /// Median streaming floor (ms) of the prediction (`zwarp_color::floor`), same run.
+    pub floor_ms: f64,
+    /// `warp_ms / floor_ms`.
+    pub floor_ratio: f64,
+    /// The heuristic's fixed seed offset (pixels, x), the mean over the frames.
+    pub seed_offset_px: f32,
+}
+
+/// The camera of one eye: `cam` moved by `side * sep / 2` along its right axis.
+pub fn eye_camera(cam: &Camera, side: f32, sep: f32) -> Camera {
+    colorwarp::offset_camera(cam, side * 0.5 * sep, 0.0, None)
+}
+
+/// The heuristic's fixed offset (Sec. 3.3: "a simple fixed offset worked well"): minus the
+/// field at the texel of the 2nd-percentile depth, i.e. towards where near surfaces come from.
+fn seed_offset(field: &Field<'_>) -> Vec2 {
+    let d = field.depth();
+    let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
+    if idx.is_empty() {
+        return Vec2::ZERO;
+    }
+    let k = idx.len() / 50;
+    idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
+    let v = -field.v(idx[k] as usize);
+    if v.is_finite() && v.length() < 1.0e4 {
+        v
+    } else {
+        Vec2::ZERO
+    }
+}
+
+/// Red-cyan anaglyph of two linear RGB views (red from the left eye, green and blue from the
+/// right), as sRGB.
+pub fn anaglyph(left: &Image<[f32; 3]>, right: &Image<[f32; 3]>) -> Image<[u8; 3]> {
+    let (l, r) = (zwarp_viz::color_to_rgb8(left), zwarp_viz::color_to_rgb8(right));
+    Image::from_fn(l.width(), l.height(), |x, y| [l.get(x, y)[0], r.get(x, y)[1], r.get(x, y)[2]])
+}
+
+#[derive(Default)]
+struct Acc {
+    q: Vec<Quality>,
+    ms: Vec<f64>,
+    floor: Vec<f64>,
+    render: Vec<f64>,
+    offset: Vec<f32>,
+}
+
+fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<StereoRow>, String)> {
+    args.size.check()?;
+    let sep = args.eye_sep;
+    if !(sep.is_finite() && sep > 0.0) {
+        bail!("--eye-sep must be a positive distance, got {sep}");
+    }
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let mut strategies = Vec::new();
+    for s in crate::args::parse_list::<String>(&args.strategy, "--strategy")? {
+        match s.as_str() {
+            "cyclops" => strategies.push(false),
+            "alternate" => strategies.push(true),
+            o => bail!("--strategy: unknown strategy '{o}' (cyclops, alternate)"),
+        }
+    }
+    let methods = colorwarp::parse_methods(&args.methods)?;
+    let reps = args.reps.max(1);
+    let (w, h) = (args.size.width, args.size.height);
+    let path = &loaded.path;
+    let be = Backends::new(&loaded.scene, args.backend)?;
+    let total = path.frame_count_at(1.0);
+    if total < 2 {
+        bail!("the camera path is too short for stereo ({total} frame; need 2)");
+    }
+    let count = args.frames.min(total - 1);
+    let ks: Vec<usize> =
+        (0..count).map(|i| if count == 1 { 1 + (total - 2) / 2 } else { 1 + i * (total - 2) / (count - 1) }).collect();
+    let bar = colorwarp::progress(
+        (ks.len() * strategies.len() * 2 * methods.len()) as u64,
+        format!("stereo {}", args.scene.scene),
+        true,
+    );
+    let mut accs: Vec<((bool, bool, Method), Acc)> = Vec::new();
+    let mut strips = colorwarp::Strips::new();
+    // (name, left, right) views of the first frame for the anaglyph and side-by-side images.
+    type Pair = (String, Image<[f32; 3]>, Image<[f32; 3]>);
+    let mut pairs: Vec<Pair> = Vec::new();
+    let mut slot = zwarp_color::ColorWarpOutput::empty();
+    for (ki, &k) in ks.iter().enumerate() {
+        let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
+        let (c, cp) = (path.camera_at(t, w, h)?, path.camera_at(tp, w, h)?);
+        let centre = be.view(&c, t)?;
+        colorwarp::check_has_surface(&centre, &format!("frame {k} of the camera path"))?;
+        let centre_basis = WarpBasis::new(&centre.depth)?.with_spatial(&c, None)?;
+        // Reference eyes, rendered and timed.
+        let mut refs = Vec::new();
+        for side in [-1.0f32, 1.0] {
+            let ce = eye_camera(&c, side, sep);
+            let (v, samples) = report::time_repeated(reps, || be.view(&ce, t))?;
+            refs.push((v, samples));
+        }
+        for &alternate in &strategies {
+            let mut preds: Vec<Vec<(Method, Image<[f32; 3]>)>> = vec![Vec::new(), Vec::new()];
+            for (ei, side) in [-1.0f32, 1.0].into_iter().enumerate() {
+                let (reference, render_samples) = &refs[ei];
+                // The source: the centre view now, or the other eye of the previous frame.
+                let prev_other;
+                let alt_basis;
+                let (src, field): (&View, Field<'_>) = if alternate {
+                    let cs = eye_camera(&cp, -side, sep);
+                    prev_other = be.view(&cs, tp)?;
+                    let cs_now = eye_camera(&c, -side, sep);
+                    let m = be.motion(&prev_other, &cs_now, t)?;
+                    alt_basis = WarpBasis::temporal(&prev_other.depth, &m)?.with_spatial(&cs, None)?;
+                    (&prev_other, alt_basis.field(FieldParams { t: 1.0, u: side * sep, v: 0.0 })?)
+                } else {
+                    (&centre, centre_basis.field(FieldParams::spatial(side * 0.5 * sep, 0.0))?)
+                };
+                let offset = seed_offset(&field);
+                let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
+                let rp = RobustParams { fallback: hp, ..RobustParams::default() };
+                let to_src = be.motion(reference, &src.cam, src.t)?;
+                let unseen = colorwarp::unseen(&reference.depth, &to_src, src)?;
+                let floor = zwarp_color::floor::floor_ms(&field, &src.color, reps)?.0;
+                for &m in &methods {
+                    let (out, samples) = report::time_repeated(reps, || -> Result<_> {
+                        Ok(match m {
+                            Method::Heuristic => {
+                                be.heuristic_into(&field, &src.color, &hp, &mut slot)?;
+                                return Ok(None);
+                            }
+                            Method::Robust => {
+                                be.robust_into(&field, &src.color, &rp, &mut slot)?;
+                                return Ok(None);
+                            }
+                            Method::Repeat => zwarp_color::repeat(&src.color, &src.depth)?,
+                            Method::Mesh => zwarp_color::mesh_warp(&field, &src.color, &src.cam)?,
+                            Method::Scatter => zwarp_color::scatter_warp(&field, &src.color)?,
+                            Method::Reproject => {
+                                let (d, it) = be.depth_items(&reference.cam, t)?;
+                                let tv = View {
+                                    cam: reference.cam,
+                                    t,
+                                    color: Image::new(0, 0, [0.0; 3]),
+                                    depth: d,
+                                    items: it,
+                                };
+                                let ms = be.motion(&tv, &src.cam, src.t)?;
+                                zwarp_color::reproject(&tv.depth, &ms, &src.depth, &src.color, &src.cam)?
+                            }
+                        }
+                        .into())
+                    })?;
+                    // The two warps write into the reused slot.
+                    let out = match out {
+                        Some(o) => o,
+                        None => slot.clone(),
+                    };
+                    let q = colorwarp::quality(&reference.color, &out, Some(&unseen))?;
+                    if ki == 0 && args.images.is_some() {
+                        colorwarp::add_panel(&mut strips, (alternate, ei as u32), &reference.color, &out.color)?;
+                        preds[ei].push((m, out.color.clone()));
+                    }
+                    let key = (alternate, ei == 1, m);
+                    let idx = match accs.iter().position(|(k2, _)| *k2 == key) {
+                        Some(i) => i,
+                        None => {
+                            accs.push((key, Acc::default()));
+                            accs.len() - 1
+                        }
+                    };
+                    let a = &mut accs[idx].1;
+                    a.q.push(q);
+                    a.ms.extend(samples);
+                    a.floor.push(floor);
+                    a.render.extend(render_samples.iter().copied());
+                    a.offset.push(offset.x);
+                    bar.inc(1);
+                }
+            }
+            if ki == 0 {
+                let strategy = if alternate { "alternate" } else { "cyclops" };
+                for (m, l) in &preds[0] {
+                    if let Some((_, r)) = preds[1].iter().find(|(m2, _)| m2 == m) {
+                        pairs.push((format!("{strategy}_{}", m.name()), l.clone(), r.clone()));
+                    }
+                }
+            }
+        }
+        if ki == 0 {
+            pairs.push(("reference".into(), refs[0].0.color.clone(), refs[1].0.color.clone()));
+        }
+    }
+    bar.finish_and_clear();
+    if let Some(dir) = &args.images {
+        let base = colorwarp::safe_name(&args.scene.scene);
+        colorwarp::write_color(
+            dir,
+            &format!("{base}_centre"),
+            &be.view(&path.camera_at(path.time_of_frame(ks[0], 1.0), w, h)?, path.time_of_frame(ks[0], 1.0))?.color,
+        )?;
+        for (name, l, r) in &pairs {
+            zwarp_viz::write_png(dir.join(format!("{base}_{name}_anaglyph.png")), &anaglyph(l, r))?;
+            let sbs = zwarp_viz::side_by_side(&[&zwarp_viz::color_to_rgb8(l), &zwarp_viz::color_to_rgb8(r)])?;
+            zwarp_viz::write_png(dir.join(format!("{base}_{name}_sbs.png")), &sbs)?;
+        }
+        for ((alternate, eye), panels) in &strips {
+            let strategy = if *alternate { "alternate" } else { "cyclops" };
+            let eye = if *eye == 0 { "left" } else { "right" };
+            colorwarp::write_strip(dir, &format!("{base}_{strategy}_{eye}_strip"), panels)?;
+        }
+    }
+    let rows = accs
+        .into_iter()
+        .map(|((alternate, right, m), a)| {
+            let t = Timing::of(&a.ms);
+            let render = Timing::of(&a.render).median;
+            let floor = colorwarp::median(&a.floor);
+            StereoRow {
+                method: m.name().into(),
+                strategy: if alternate { "alternate" } else { "cyclops" }.into(),
+                eye: if right { "right" } else { "left" }.into(),
+                scene: args.scene.scene.clone(),
+                eye_sep: sep,
+                frames: a.q.len(),
+                width: w,
+                height: h,
+                quality: colorwarp::mean_quality(&a.q),
+                warp_ms: t.median,
+                warp_ms_min: t.min,
+                warp_ms_max: t.max,
+                render_ms: render,
+                speedup: render / t.median.max(1e-9),
+                floor_ms: floor,
+                floor_ratio: t.median / floor.max(1e-9),
+                seed_offset_px: a.offset.iter().sum::<f32>() / a.offset.len().max(1) as f32,
+            }
+        })
+        .collect();
+    Ok((rows, be.name()))
+}
+
+/// The rows as a table.
+pub fn table(rows: &[StereoRow]) -> String {
+    let mut t = Table::new(&[
+        "method",
+        "strategy",
+        "eye",
+        "PSNR",
+        "PSNR Y",
+        "SSIM",
+        "FLIP",
+        "CIE94",
+        "conv",
+        "unseen",
+        "unseen PSNR",
+        "warp ms",
+        "floor ms",
+        "x floor",
+        "render ms",
+        "speedup",
+    ]);
+    for r in rows {
+        let q = &r.quality;
+        t.row(vec![
+            r.method.clone(),
+            r.strategy.clone(),
+            r.eye.clone(),
+            fmt(q.psnr, 2),
+            fmt(q.psnr_y, 2),
+            fmt(q.ssim, 4),
+            fmt(q.flip, 4),
+            fmt(q.cie94, 2),
+            fmt(q.converged, 3),
+            fmt(q.disocc_fraction, 4),
+            fmt(q.disocc_psnr, 2),
+            fmt(r.warp_ms, 2),
+            fmt(r.floor_ms, 2),
+            fmt(r.floor_ratio, 1),
+            fmt(r.render_ms, 1),
+            fmt(r.speedup, 2),
+        ]);
+    }
+    t.render()
+}
+
+/// `zwarp stereo`.
+pub fn run(args: StereoArgs) -> Result<()> {
+    if !(args.eye_sep.is_finite() && args.eye_sep > 0.0) {
+        bail!("--eye-sep must be a positive distance, got {}", args.eye_sep);
+    }
+    let loaded = args.scene.load()?;
+    let (rows, backend) = evaluate(&args, &loaded)?;
+    println!(
+        "zwarp stereo: {} ({} objects, {} triangles), {}x{}, eye separation {}, {} frame(s), backend {backend}, {} CPU threads",
+        args.scene.scene,
+        loaded.scene.instances.len(),
+        loaded.scene.triangle_count(),
+        args.size.width,
+        args.size.height,
+        args.eye_sep,
+        args.frames,
+        rayon::current_num_threads()
+    );
+    println!("{}", table(&rows));
+    report::write_json(
+        &args.json,
+        "stereo",
+        &rows,
+        serde_json::json!({ "backend": backend, "threads": rayon::current_num_threads() }),
+    )?;
+    println!("wrote {}", args.json.display());
+    if let Some(d) = &args.images {
+        println!("images in {}", d.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,576 @@
+//! AVX2 lanes of the heuristic warp (seed 001 Sec. 4: "a minimal and high performance
+//! reprojection kernel"): eight target pixels of a row at once, the same operations in the same
+//! order as the portable path (`heuristic_pixel`: the seed, `zwarp_warp::search::
+//! fixed_point_search` with one seed, the orbit in-painting, the colour look-up), so the output
+//! is bit-identical (no FMA; `min`/`max`/comparisons with the semantics of glam's). Chosen at
+//! run time where the CPU has AVX2 ([`set_simd`] switches it off for tests and timing).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+static SIMD: AtomicBool = AtomicBool::new(true);
+
+/// Enables (default) or disables the AVX2 lanes of the heuristic warp (results are identical).
+pub fn set_simd(enabled: bool) {
+    SIMD.store(enabled, Ordering::Relaxed);
+}
+
+/// `true` if the AVX2 lanes run: switched on and the CPU has AVX2.
+pub fn simd_enabled() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        SIMD.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx2 {
+    use std::arch::x86_64::*;
+
+    use crate::field::Field;
+    use crate::heuristic::{HeuristicParams, Seed};
+
+    /// Planes of the field as raw pointers (at most three terms).
+    struct Planes {
+        n: usize,
+        x: [*const f32; 3],
+        y: [*const f32; 3],
+        sx: [__m256; 3],
+        sy: [__m256; 3],
+        depth: *const f32,
+    }
+
+    #[derive(Clone, Copy)]
+    struct V2 {
+        x: __m256,
+        y: __m256,
+    }
+
+    #[inline(always)]
+    unsafe fn v_at(p: &Planes, idx: __m256i) -> V2 {
+        let mut vx = _mm256_setzero_ps();
+        let mut vy = _mm256_setzero_ps();
+        for k in 0..p.n {
+            let gx = _mm256_i32gather_ps::<4>(p.x[k], idx);
+            let gy = _mm256_i32gather_ps::<4>(p.y[k], idx);
+            vx = _mm256_add_ps(vx, _mm256_mul_ps(p.sx[k], gx));
+            vy = _mm256_add_ps(vy, _mm256_mul_ps(p.sy[k], gy));
+        }
+        V2 { x: vx, y: vy }
+    }
+
+    /// The four texel indices, weights, and the nearest-texel selectors of `ColorSampler::locate`.
+    struct Loc {
+        i: [__m256i; 4],
+        ax: __m256,
+        ay: __m256,
+        hx: __m256,
+        hy: __m256,
+        /// Cell index `y0 (w - 1) + x0` (0 where the cell does not exist) and its existence.
+        cell: __m256i,
+        has_cell: __m256,
+    }
+
+    #[inline(always)]
+    unsafe fn locate(qx: __m256, qy: __m256, w: i32, wm: __m256i, hm: __m256i) -> Loc {
+        let half = _mm256_set1_ps(0.5);
+        let tx = _mm256_add_ps(qx, half);
+        let ty = _mm256_add_ps(qy, half);
+        let ix = _mm256_cvttps_epi32(tx);
+        let iy = _mm256_cvttps_epi32(ty);
+        let ax = _mm256_sub_ps(tx, _mm256_cvtepi32_ps(ix));
+        let ay = _mm256_sub_ps(ty, _mm256_cvtepi32_ps(iy));
+        let one = _mm256_set1_epi32(1);
+        let zero = _mm256_setzero_si256();
+        let x0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(ix, one), zero), wm);
+        let y0 = _mm256_min_epi32(_mm256_max_epi32(_mm256_sub_epi32(iy, one), zero), hm);
+        let x1 = _mm256_min_epi32(ix, wm);
+        let y1 = _mm256_min_epi32(iy, hm);
+        let wv = _mm256_set1_epi32(w);
+        let r0 = _mm256_mullo_epi32(y0, wv);
+        let r1 = _mm256_mullo_epi32(y1, wv);
+        let has = _mm256_andnot_si256(
+            _mm256_or_si256(_mm256_cmpeq_epi32(x0, x1), _mm256_cmpeq_epi32(y0, y1)),
+            _mm256_set1_epi32(-1),
+        );
+        let cell = _mm256_and_si256(_mm256_add_epi32(_mm256_mullo_epi32(y0, _mm256_sub_epi32(wv, one)), x0), has);
+        Loc {
+            cell,
+            has_cell: _mm256_castsi256_ps(has),
+            i: [_mm256_add_epi32(r0, x0), _mm256_add_epi32(r0, x1), _mm256_add_epi32(r1, x0), _mm256_add_epi32(r1, x1)],
+            ax,
+            ay,
+            hx: _mm256_cmp_ps::<_CMP_GE_OQ>(ax, half),
+            hy: _mm256_cmp_ps::<_CMP_GE_OQ>(ay, half),
+        }
+    }
+
+    /// Selects texel `k` of the four by the nearest-texel masks.
+    #[inline(always)]
+    unsafe fn near(l: &Loc, a: [__m256; 4]) -> __m256 {
+        let top = _mm256_blendv_ps(a[0], a[1], l.hx);
+        let bot = _mm256_blendv_ps(a[2], a[3], l.hx);
+        _mm256_blendv_ps(top, bot, l.hy)
+    }
+
+    /// glam's `a.lerp(b, s)`: `a * (1 - s) + b * s`.
+    #[inline(always)]
+    unsafe fn lerp(a: __m256, b: __m256, s: __m256) -> __m256 {
+        let one = _mm256_set1_ps(1.0);
+        _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s))
+    }
+
+    /// `a + (b - a) * s` (the scalar depth and colour interpolation).
+    #[inline(always)]
+    unsafe fn mix(a: __m256, b: __m256, s: __m256) -> __m256 {
+        _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), s))
+    }
+
+    #[inline(always)]
+    unsafe fn smooth(v: &[V2; 4]) -> __m256 {
+        let lox = _mm256_min_ps(_mm256_min_ps(v[0].x, v[1].x), _mm256_min_ps(v[2].x, v[3].x));
+        let loy = _mm256_min_ps(_mm256_min_ps(v[0].y, v[1].y), _mm256_min_ps(v[2].y, v[3].y));
+        let hix = _mm256_max_ps(_mm256_max_ps(v[0].x, v[1].x), _mm256_max_ps(v[2].x, v[3].x));
+        let hiy = _mm256_max_ps(_mm256_max_ps(v[0].y, v[1].y), _mm256_max_ps(v[2].y, v[3].y));
+        let d = _mm256_max_ps(_mm256_sub_ps(hix, lox), _mm256_sub_ps(hiy, loy));
+        _mm256_cmp_ps::<_CMP_LT_OQ>(d, _mm256_set1_ps(zwarp_warp::search::CONTINUITY_PX))
+    }
+
+    /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image).
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) unsafe fn heuristic8(
+        f: &Field<'_>,
+        color: &[[f32; 3]],
+        params: &HeuristicParams,
+        x0: usize,
+        y: usize,
+        oc: &mut [[f32; 3]],
+        od: &mut [f32],
+        or: &mut [f32],
+    ) {
+        let (w, h) = f.size();
+        let terms = f.terms();
+        let mut pl = Planes {
+            n: terms.len(),
+            x: [std::ptr::null(); 3],
+            y: [std::ptr::null(); 3],
+            sx: [_mm256_setzero_ps(); 3],
+            sy: [_mm256_setzero_ps(); 3],
+            depth: f.depth().as_ptr(),
+        };
+        for (k, t) in terms.iter().enumerate() {
+            pl.x[k] = t.x.as_ptr();
+            pl.y[k] = t.y.as_ptr();
+            pl.sx[k] = _mm256_set1_ps(t.scale.x);
+            pl.sy[k] = _mm256_set1_ps(t.scale.y);
+        }
+        let wi = w as i32;
+        let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
+        let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
+        let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
+        let zero = _mm256_setzero_ps();
+        let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
+        let px = _mm256_add_ps(_mm256_set1_ps(x0 as f32 + 0.5), lane);
+        // x0 + 0.5 + lane equals (x0 + lane) + 0.5 exactly for image-sized coordinates.
+        let py = _mm256_set1_ps(y as f32 + 0.5);
+        // Seed.
+        let (mut qx, mut qy) = match params.seed {
+            Seed::Pixel => (px, py),
+            Seed::Offset(d) => (_mm256_add_ps(px, _mm256_set1_ps(d.x)), _mm256_add_ps(py, _mm256_set1_ps(d.y))),
+            Seed::Upstream(k) => {
+                // At a pixel centre both samplings return texel (x, y) (bilinear weights are 0;
+                // `v0 * 1 + v1 * 0` is `v0` up to the sign of a zero, which `p - k v` drops).
+                let i = (y * w as usize + x0) as isize;
+                let mut vx = zero;
+                let mut vy = zero;
+                for t in 0..pl.n {
+                    vx = _mm256_add_ps(vx, _mm256_mul_ps(pl.sx[t], _mm256_loadu_ps(pl.x[t].offset(i))));
+                    vy = _mm256_add_ps(vy, _mm256_mul_ps(pl.sy[t], _mm256_loadu_ps(pl.y[t].offset(i))));
+                }
+                let kk = _mm256_set1_ps(k);
+                (_mm256_sub_ps(px, _mm256_mul_ps(kk, vx)), _mm256_sub_ps(py, _mm256_mul_ps(kk, vy)))
+            }
+        };
+        // Clamp into the image (glam: max then min).
+        qx = _mm256_min_ps(_mm256_max_ps(qx, zero), cx);
+        qy = _mm256_min_ps(_mm256_max_ps(qy, zero), cy);
+        let thr2 = _mm256_set1_ps(params.threshold * params.threshold);
+        let all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        let mut active = all;
+        let mut conv = zero;
+        // Converged lanes: colour position, depth, residual.
+        let (mut cqx, mut cqy, mut cz, mut cr) = (zero, zero, zero, zero);
+        // The converged iteration's cell (first and last texel) and its continuity.
+        let (mut ci0, mut ci3, mut csm) = (_mm256_set1_epi32(-1), _mm256_set1_epi32(-1), zero);
+        // Orbit: the farthest visit (ties: the later one).
+        let (mut bqx, mut bqy, mut bvx, mut bvy) = (zero, zero, zero, zero);
+        let mut bz = _mm256_set1_ps(f32::NEG_INFINITY);
+        let mut visited = zero;
+        for _ in 0..params.iterations {
+            let inside = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+            );
+            active = _mm256_and_ps(active, inside);
+            if _mm256_movemask_ps(active) == 0 {
+                break;
+            }
+            // Lanes that are done sample a safe position.
+            let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
+            let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
+            let l = locate(sx, sy, wi, wm, hm);
+            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
+            let z4 = [
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[0]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[1]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[2]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[3]),
+            ];
+            let sm = smooth(&v4);
+            let bx = lerp(lerp(v4[0].x, v4[1].x, l.ax), lerp(v4[2].x, v4[3].x, l.ax), l.ay);
+            let by = lerp(lerp(v4[0].y, v4[1].y, l.ax), lerp(v4[2].y, v4[3].y, l.ax), l.ay);
+            let bzl = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
+            let vx = _mm256_blendv_ps(near(&l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), bx, sm);
+            let vy = _mm256_blendv_ps(near(&l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), by, sm);
+            let z = _mm256_blendv_ps(near(&l, z4), bzl, sm);
+            // Record the visit (the orbit's farthest sample).
+            let better =
+                _mm256_and_ps(active, _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, bz), _mm256_andnot_ps(visited, all)));
+            bqx = _mm256_blendv_ps(bqx, qx, better);
+            bqy = _mm256_blendv_ps(bqy, qy, better);
+            bvx = _mm256_blendv_ps(bvx, vx, better);
+            bvy = _mm256_blendv_ps(bvy, vy, better);
+            bz = _mm256_blendv_ps(bz, z, better);
+            visited = _mm256_or_ps(visited, active);
+            // The fixed-point step.
+            let wx = _mm256_sub_ps(px, vx);
+            let wy = _mm256_sub_ps(py, vy);
+            let stx = _mm256_sub_ps(wx, qx);
+            let sty = _mm256_sub_ps(wy, qy);
+            let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+            let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+            // Residual |q + v - p| and the colour position p - v.
+            let ex = _mm256_sub_ps(_mm256_add_ps(qx, vx), px);
+            let ey = _mm256_sub_ps(_mm256_add_ps(qy, vy), py);
+            let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
+            cqx = _mm256_blendv_ps(cqx, wx, now);
+            cqy = _mm256_blendv_ps(cqy, wy, now);
+            cz = _mm256_blendv_ps(cz, z, now);
+            cr = _mm256_blendv_ps(cr, res, now);
+            let nowi = _mm256_castps_si256(now);
+            ci0 = _mm256_blendv_epi8(ci0, l.i[0], nowi);
+            ci3 = _mm256_blendv_epi8(ci3, l.i[3], nowi);
+            csm = _mm256_blendv_ps(csm, sm, now);
+            conv = _mm256_or_ps(conv, now);
+            active = _mm256_andnot_ps(now, active);
+            qx = _mm256_blendv_ps(qx, wx, active);
+            qy = _mm256_blendv_ps(qy, wy, active);
+        }
+        // Not converged: the farthest visit (every lane visited its clamped seed).
+        let bex = _mm256_sub_ps(_mm256_add_ps(bqx, bvx), px);
+        let bey = _mm256_sub_ps(_mm256_add_ps(bqy, bvy), py);
+        let bres = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(bex, bex), _mm256_mul_ps(bey, bey)));
+        let colx = _mm256_blendv_ps(bqx, cqx, conv);
+        let coly = _mm256_blendv_ps(bqy, cqy, conv);
+        let outz = _mm256_blendv_ps(bz, cz, conv);
+        let outr = _mm256_blendv_ps(bres, cr, conv);
+        // Colour at (colx, coly), clamped (ColorSampler::color).
+        let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
+        let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
+        let l = locate(qx, qy, wi, wm, hm);
+        // The continuity of a cell depends only on its texels: where every lane's colour cell
+        // is the cell it converged in, the mask is known (the common case: q and p - V(q)
+        // less than the threshold apart).
+        let same = _mm256_and_si256(_mm256_cmpeq_epi32(l.i[0], ci0), _mm256_cmpeq_epi32(l.i[3], ci3));
+        let sm = if _mm256_movemask_epi8(same) == -1 {
+            csm
+        } else {
+            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
+            smooth(&v4)
+        };
+        let cbase = color.as_ptr() as *const f32;
+        let three = _mm256_set1_epi32(3);
+        let ci = l.i.map(|i| _mm256_mullo_epi32(i, three));
+        let mut rgb = [zero; 3];
+        for (ch, o) in rgb.iter_mut().enumerate() {
+            let off = _mm256_set1_epi32(ch as i32);
+            let c = ci.map(|i| _mm256_i32gather_ps::<4>(cbase, _mm256_add_epi32(i, off)));
+            let top = mix(c[0], c[1], l.ax);
+            let bot = mix(c[2], c[3], l.ax);
+            *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
+        }
+        let (mut r, mut g, mut b) = ([0f32; 8], [0f32; 8], [0f32; 8]);
+        _mm256_storeu_ps(r.as_mut_ptr(), rgb[0]);
+        _mm256_storeu_ps(g.as_mut_ptr(), rgb[1]);
+        _mm256_storeu_ps(b.as_mut_ptr(), rgb[2]);
+        for k in 0..8 {
+            oc[k] = [r[k], g[k], b[k]];
+        }
+        _mm256_storeu_ps(od.as_mut_ptr(), outz);
+        _mm256_storeu_ps(or.as_mut_ptr(), outr);
+    }
+
+    /// Continuity of the cells of `l` by their `rho` (seed 001 Sec. 3.4): `rho < 1` where the
+    /// cell exists.
+    #[inline(always)]
+    unsafe fn smooth_rho(l: &Loc, rho: *const f32) -> __m256 {
+        let r = _mm256_i32gather_ps::<4>(rho, l.cell);
+        _mm256_and_ps(l.has_cell, _mm256_cmp_ps::<_CMP_LT_OQ>(r, _mm256_set1_ps(1.0)))
+    }
+
+    /// One warped quad of the robust warp as the lanes need it (see `robust::Warped`).
+    pub(crate) struct Quad {
+        pub dst_lo: [f32; 2],
+        pub dst_ext: [f32; 2],
+        pub src_lo: [f32; 2],
+        pub src_ext: [f32; 2],
+        /// Footprint `[x0, x1) x [y0, y1)`.
+        pub foot: [f32; 4],
+    }
+
+    /// Result of [`robust8`]: per lane, accepted (converged inside the quad), depth, colour,
+    /// residual.
+    pub(crate) struct Hits {
+        pub accepted: u32,
+        pub depth: [f32; 8],
+        pub color: [[f32; 3]; 8],
+        pub residual: [f32; 8],
+    }
+
+    /// The robust warp's search for pixels `px..px + n` (n <= 8) of row `py` from quad `q`:
+    /// the interpolated seed, the shared search's walk (Newton steps with `accelerate`), the
+    /// footprint test and the colour at `p - V(q)` — the portable loop's arithmetic.
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) unsafe fn robust8(
+        f: &Field<'_>,
+        rho: &[f32],
+        color: &[[f32; 3]],
+        q: &Quad,
+        px: i32,
+        n: usize,
+        py: i32,
+        iterations: u32,
+        threshold: f32,
+        accelerate: bool,
+    ) -> Hits {
+        let (w, h) = f.size();
+        let terms = f.terms();
+        let mut pl = Planes {
+            n: terms.len(),
+            x: [std::ptr::null(); 3],
+            y: [std::ptr::null(); 3],
+            sx: [_mm256_setzero_ps(); 3],
+            sy: [_mm256_setzero_ps(); 3],
+            depth: f.depth().as_ptr(),
+        };
+        for (k, t) in terms.iter().enumerate() {
+            pl.x[k] = t.x.as_ptr();
+            pl.y[k] = t.y.as_ptr();
+            pl.sx[k] = _mm256_set1_ps(t.scale.x);
+            pl.sy[k] = _mm256_set1_ps(t.scale.y);
+        }
+        let rp = rho.as_ptr();
+        let wi = w as i32;
+        let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
+        let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
+        let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
+        let zero = _mm256_setzero_ps();
+        let sign = _mm256_set1_ps(-0.0);
+        let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
+        let ppx =
+            _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)), _mm256_set1_ps(0.5));
+        let ppy = _mm256_set1_ps(py as f32 + 0.5);
+        // Seed (Warped::seed).
+        let relx = if q.dst_ext[0] > 1e-6 {
+            _mm256_div_ps(_mm256_sub_ps(ppx, _mm256_set1_ps(q.dst_lo[0])), _mm256_set1_ps(q.dst_ext[0]))
+        } else {
+            _mm256_set1_ps(0.5)
+        };
+        let rely = if q.dst_ext[1] > 1e-6 {
+            _mm256_div_ps(_mm256_sub_ps(ppy, _mm256_set1_ps(q.dst_lo[1])), _mm256_set1_ps(q.dst_ext[1]))
+        } else {
+            _mm256_set1_ps(0.5)
+        };
+        let sx = _mm256_add_ps(_mm256_set1_ps(q.src_lo[0]), _mm256_mul_ps(relx, _mm256_set1_ps(q.src_ext[0])));
+        let sy = _mm256_add_ps(_mm256_set1_ps(q.src_lo[1]), _mm256_mul_ps(rely, _mm256_set1_ps(q.src_ext[1])));
+        let lox = q.src_lo[0] - 0.5;
+        let loy = q.src_lo[1] - 0.5;
+        let hix = (q.src_lo[0] + q.src_ext[0]) + 0.499;
+        let hiy = (q.src_lo[1] + q.src_ext[1]) + 0.499;
+        let mut qx = _mm256_min_ps(_mm256_max_ps(sx, _mm256_set1_ps(lox)), _mm256_set1_ps(hix));
+        let mut qy = _mm256_min_ps(_mm256_max_ps(sy, _mm256_set1_ps(loy)), _mm256_set1_ps(hiy));
+        let thr2 = _mm256_set1_ps(threshold * threshold);
+        let mut active = valid;
+        let mut conv = zero;
+        let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
+        let one = _mm256_set1_ps(1.0);
+        for _ in 0..iterations {
+            let inside = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+            );
+            active = _mm256_and_ps(active, inside);
+            if _mm256_movemask_ps(active) == 0 {
+                break;
+            }
+            let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
+            let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
+            let l = locate(sx, sy, wi, wm, hm);
+            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
+            let z4 = [
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[0]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[1]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[2]),
+                _mm256_i32gather_ps::<4>(pl.depth, l.i[3]),
+            ];
+            let sm = smooth_rho(&l, rp);
+            let tx = lerp(v4[0].x, v4[1].x, l.ax);
+            let ty = lerp(v4[0].y, v4[1].y, l.ax);
+            let bx = lerp(v4[2].x, v4[3].x, l.ax);
+            let by = lerp(v4[2].y, v4[3].y, l.ax);
+            let vx = _mm256_blendv_ps(near(&l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), lerp(tx, bx, l.ay), sm);
+            let vy = _mm256_blendv_ps(near(&l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), lerp(ty, by, l.ay), sm);
+            let bz = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
+            let z = _mm256_blendv_ps(near(&l, z4), bz, sm);
+            let wx = _mm256_sub_ps(ppx, vx);
+            let wy = _mm256_sub_ps(ppy, vy);
+            let stx = _mm256_sub_ps(wx, qx);
+            let sty = _mm256_sub_ps(wy, qy);
+            let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+            let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+            cqx = _mm256_blendv_ps(cqx, qx, now);
+            cqy = _mm256_blendv_ps(cqy, qy, now);
+            cvx = _mm256_blendv_ps(cvx, vx, now);
+            cvy = _mm256_blendv_ps(cvy, vy, now);
+            cz = _mm256_blendv_ps(cz, z, now);
+            conv = _mm256_or_ps(conv, now);
+            active = _mm256_andnot_ps(now, active);
+            let (mut nx, mut ny) = (wx, wy);
+            if accelerate {
+                // newton_step with the bilinear Jacobian (zero for nearest samples).
+                let dxx =
+                    _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay));
+                let dxy =
+                    _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay));
+                let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
+                let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
+                let m00 = _mm256_add_ps(one, dxx);
+                let m01 = dyx;
+                let m10 = dxy;
+                let m11 = _mm256_add_ps(one, dyy);
+                let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
+                let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_andnot_ps(sign, det), _mm256_set1_ps(0.05));
+                let ddx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
+                let ddy = _mm256_div_ps(
+                    _mm256_add_ps(_mm256_mul_ps(_mm256_xor_ps(m10, sign), stx), _mm256_mul_ps(m00, sty)),
+                    det,
+                );
+                nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, ddx), ok);
+                ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, ddy), ok);
+            }
+            qx = _mm256_blendv_ps(qx, nx, active);
+            qy = _mm256_blendv_ps(qy, ny, active);
+        }
+        let foot = _mm256_and_ps(
+            _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(cqx, _mm256_set1_ps(q.foot[0])),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(cqx, _mm256_set1_ps(q.foot[1])),
+            ),
+            _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(cqy, _mm256_set1_ps(q.foot[2])),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(cqy, _mm256_set1_ps(q.foot[3])),
+            ),
+        );
+        let acc = _mm256_and_ps(conv, foot);
+        let mut hits = Hits {
+            accepted: _mm256_movemask_ps(acc) as u32,
+            depth: [0.0; 8],
+            color: [[0.0; 3]; 8],
+            residual: [0.0; 8],
+        };
+        if hits.accepted == 0 {
+            return hits;
+        }
+        let ex = _mm256_sub_ps(_mm256_add_ps(cqx, cvx), ppx);
+        let ey = _mm256_sub_ps(_mm256_add_ps(cqy, cvy), ppy);
+        let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
+        // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
+        let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, cvx), acc);
+        let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, cvy), acc);
+        let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
+        let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
+        let l = locate(qx, qy, wi, wm, hm);
+        let sm = smooth_rho(&l, rp);
+        let cbase = color.as_ptr() as *const f32;
+        let three = _mm256_set1_epi32(3);
+        let ci = l.i.map(|i| _mm256_mullo_epi32(i, three));
+        let mut rgb = [zero; 3];
+        for (ch, o) in rgb.iter_mut().enumerate() {
+            let off = _mm256_set1_epi32(ch as i32);
+            let c = ci.map(|i| _mm256_i32gather_ps::<4>(cbase, _mm256_add_epi32(i, off)));
+            let top = mix(c[0], c[1], l.ax);
+            let bot = mix(c[2], c[3], l.ax);
+            *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
+        }
+        let (mut r, mut g, mut b) = ([0f32; 8], [0f32; 8], [0f32; 8]);
+        _mm256_storeu_ps(r.as_mut_ptr(), rgb[0]);
+        _mm256_storeu_ps(g.as_mut_ptr(), rgb[1]);
+        _mm256_storeu_ps(b.as_mut_ptr(), rgb[2]);
+        for k in 0..8 {
+            hits.color[k] = [r[k], g[k], b[k]];
+        }
+        _mm256_storeu_ps(hits.depth.as_mut_ptr(), cz);
+        _mm256_storeu_ps(hits.residual.as_mut_ptr(), res);
+        hits
+    }
+
+    /// `spectral_radius(dx, dy)` of eight cells (same operations as the scalar function).
+    #[inline(always)]
+    unsafe fn radius8(dxx: __m256, dxy: __m256, dyx: __m256, dyy: __m256) -> __m256 {
+        // a = dx.x, b = dy.x, c = dx.y, d = dy.y
+        let tr = _mm256_add_ps(dxx, dyy);
+        let det = _mm256_sub_ps(_mm256_mul_ps(dxx, dyy), _mm256_mul_ps(dyx, dxy));
+        let disc = _mm256_sub_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.25), tr), tr), det);
+        let real = _mm256_add_ps(
+            _mm256_mul_ps(_mm256_set1_ps(0.5), _mm256_andnot_ps(_mm256_set1_ps(-0.0), tr)),
+            _mm256_sqrt_ps(disc),
+        );
+        let complex = _mm256_sqrt_ps(_mm256_max_ps(det, _mm256_setzero_ps()));
+        _mm256_blendv_ps(complex, real, _mm256_cmp_ps::<_CMP_GE_OQ>(disc, _mm256_setzero_ps()))
+    }
+
+    /// `rho` of the cells of one row from the field on its two texel rows (`a`: top, `b`:
+    /// bottom; `cw + 1` values each), eight cells at a time; returns how many cells it wrote
+    /// (the rest is left to the portable loop).
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn rho_row(ax: &[f32], ay: &[f32], bx: &[f32], by: &[f32], out: &mut [f32]) -> usize {
+        let cw = out.len();
+        let mut cx = 0;
+        while cx + 8 <= cw {
+            let l = |s: &[f32], o: usize| _mm256_loadu_ps(s.as_ptr().add(cx + o));
+            let (vax, vay, vbx, vby) = (l(ax, 0), l(ay, 0), l(ax, 1), l(ay, 1));
+            let (vcx, vcy, vdx, vdy) = (l(bx, 0), l(by, 0), l(bx, 1), l(by, 1));
+            // dxt = vb - va, dxb = vd - vc, dyl = vc - va, dyr = vd - vb
+            let (dxtx, dxty) = (_mm256_sub_ps(vbx, vax), _mm256_sub_ps(vby, vay));
+            let (dxbx, dxby) = (_mm256_sub_ps(vdx, vcx), _mm256_sub_ps(vdy, vcy));
+            let (dylx, dyly) = (_mm256_sub_ps(vcx, vax), _mm256_sub_ps(vcy, vay));
+            let (dyrx, dyry) = (_mm256_sub_ps(vdx, vbx), _mm256_sub_ps(vdy, vby));
+            let r = _mm256_max_ps(
+                _mm256_max_ps(
+                    _mm256_max_ps(radius8(dxtx, dxty, dylx, dyly), radius8(dxtx, dxty, dyrx, dyry)),
+                    radius8(dxbx, dxby, dylx, dyly),
+                ),
+                radius8(dxbx, dxby, dyrx, dyry),
+            );
+            _mm256_storeu_ps(out.as_mut_ptr().add(cx), r);
+            cx += 8;
+        }
+        cx
+    }
+}
