@@ -83,6 +83,8 @@ fn city_single_and_multi_layer_match_cpu() {
         ("offset seed", WarpParams { seeding: SeedStrategy::Offset(Vec2::new(-3.0, 1.0)), ..base() }),
         ("dilate", WarpParams { holes: HolePolicy::Dilate { radius: 4 }, ..base() }),
         ("background fill", WarpParams { holes: HolePolicy::Background { radius: 4 }, ..base() }),
+        ("no coverage test", WarpParams { cover_radius: 0.0, ..base() }),
+        ("wide coverage", WarpParams { cover_radius: 8.0, ..base() }),
     ];
     for nl in [1usize, 3] {
         let layers = layers_of(&d[..nl], &m[..nl]);

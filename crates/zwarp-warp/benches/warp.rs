@@ -2,10 +2,11 @@
 //! 6x6 boxes ray cast analytically, peeled into 3 layers (the last = ground only), camera
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
 //! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), and the
-//! VFW / AFW forward baselines side by side.
+//! VFW / AFW forward baselines side by side, and the streaming floor of the same inputs
+//! (`floor::floor_pass`: one read of every layer, one write of the output).
 //!
 //! After the criterion groups a summary prints, per configuration: median wall time over a few
-//! warm runs, megapixels per second per core (rayon threads), and an estimate of bytes touched
+//! warm runs, the ratio to the floor, megapixels per second per core (rayon threads), and an estimate of bytes touched
 //! per target pixel (counted texel reads x texel size, plus output writes), from an
 //! instrumented replay of the single-layer search.
 //!
@@ -110,6 +111,10 @@ fn main() {
         g.sample_size(10);
         for l in [1usize, 3] {
             let ls = layers(&case, l);
+            let mut floor_out = vec![0.0f32; 1920 * 1080];
+            g.bench_with_input(BenchmarkId::new("floor", l), &l, |b, _| {
+                b.iter(|| zwarp_warp::floor::floor_pass(&ls, 1, 1920, &mut floor_out).unwrap())
+            });
             g.bench_with_input(BenchmarkId::new("mmc_prepare", l), &l, |b, _| {
                 b.iter(|| PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap())
             });
@@ -133,10 +138,15 @@ fn main() {
     println!("\nsummary: 1920x1080, {threads} rayon thread(s); median [min, max] of 5 warm runs");
     for l in [1usize, 3] {
         let ls = layers(&case, l);
+        // The streaming floor of the same inputs (one read of every layer, one write): the
+        // ratios below are kernel time over it.
+        let mut floor_out = vec![0.0f32; 1920 * 1080];
+        let (floor, flo, fhi) = median_ms(5, || zwarp_warp::floor::floor_pass(&ls, 1, 1920, &mut floor_out).unwrap());
+        println!("L={l} floor: {floor:.2} ms [{flo:.2}, {fhi:.2}]");
         let (t, lo, hi) = median_ms(5, || {
             std::hint::black_box(PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap());
         });
-        println!("L={l} MMC+prepare: {t:.1} ms [{lo:.1}, {hi:.1}]");
+        println!("L={l} MMC+prepare: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor", t / floor);
         let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap();
         for n in [1u32, 4, 16] {
             let params = WarpParams { n_seeds: n, ..Default::default() };
@@ -150,14 +160,17 @@ fn main() {
             } else {
                 String::new()
             };
-            println!("L={l} ours N={n:2}: {t:.1} ms [{lo:.1}, {hi:.1}], {mpx:.2} Mpx/s/core{traffic}");
+            println!(
+                "L={l} ours N={n:2}: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor, {mpx:.2} Mpx/s/core{traffic}",
+                t / floor
+            );
         }
         for (name, f) in [("VFW", vfw_layers as fn(&[WarpLayer<'_>]) -> _), ("AFW", afw_layers)] {
             let (t, lo, hi) = median_ms(5, || {
                 let _ = f(&ls).unwrap();
             });
             let mpx = px / (t * 1e-3) / 1e6 / threads as f64;
-            println!("L={l} {name}: {t:.1} ms [{lo:.1}, {hi:.1}], {mpx:.2} Mpx/s/core");
+            println!("L={l} {name}: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor, {mpx:.2} Mpx/s/core", t / floor);
         }
     }
 }

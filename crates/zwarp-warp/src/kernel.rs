@@ -21,8 +21,8 @@ use crate::bounds::{Bound, BoundFrame, TightBound};
 use crate::holes::{awoc_depth, HolePolicy};
 use crate::prepare::PreparedLayer;
 use crate::search::{
-    effective_seeds, fixed_point_search, seed_key, stratified_seeds, Candidate, LayerSampler, MotionSource, Sample,
-    SeedStrategy,
+    effective_seeds, fixed_point_search_closest, seed_key, stratified_seeds, Candidate, LayerSampler, MotionSource,
+    Sample, SeedStrategy,
 };
 use crate::{BoundKind, PixelState, SourcePos, WarpParams, MAX_SEEDS};
 
@@ -201,6 +201,10 @@ impl<'a> Kernel<'a> {
         let scale = params.motion_scale;
         let max_q = self.max_q();
         let mut awoc: Option<(BoundFrame, TightBound)> = None;
+        let cover2 = params.cover_radius * params.cover_radius;
+        // The nearest depth of a layer that, before any candidate, failed with a walk within the
+        // coverage radius of p.
+        let mut cover = f32::INFINITY;
         for k in k0..self.layers.len() {
             let pyr = self.layers[k].pyramid();
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
@@ -241,12 +245,24 @@ impl<'a> Kernel<'a> {
             if params.holes == HolePolicy::Awoc && awoc.is_none() {
                 awoc = Some((pyr.frame(), tb));
             }
-            if let Some(c) = self.search_layer(k, x, y, p, &tb, prev_q, seeds) {
-                prev_q = Some(c.q);
-                if best.is_none_or(|b| c.depth < b.depth) {
-                    best = Some(c);
+            match self.search_layer(k, x, y, p, &tb, prev_q, seeds) {
+                (Some(c), _) => {
+                    prev_q = Some(c.q);
+                    if best.is_none_or(|b| c.depth < b.depth) {
+                        best = Some(c);
+                    }
+                }
+                (None, a) => {
+                    if best.is_none() && a.r2 < cover2 {
+                        cover = cover.min(a.depth);
+                    }
                 }
             }
+        }
+        // A deeper layer's candidate behind a front surface that covers p is hidden
+        // (WarpParams::cover_radius): the pixel goes to the hole policy.
+        if best.is_some_and(|c| crate::hidden_behind(c.depth, cover)) {
+            best = None;
         }
         if let Some(c) = best {
             return (c.depth, PixelState::Converged, SourcePos { q: c.q, layer: c.tag });
@@ -283,7 +299,7 @@ impl<'a> Kernel<'a> {
         tb: &TightBound,
         prev_q: Option<Vec2>,
         seeds: &mut [Vec2; MAX_SEEDS as usize],
-    ) -> Option<Candidate> {
+    ) -> (Option<Candidate>, crate::search::Approach) {
         let params = self.params;
         let frame = self.layers[k].pyramid().frame();
         let mut n = match params.seeding {
@@ -319,7 +335,7 @@ impl<'a> Kernel<'a> {
             *s = s.clamp(Vec2::ZERO, max_q);
         }
         let src = StackSampler { layers: self.samplers, k, cross: params.cross_layer };
-        fixed_point_search(&src, p, &seeds[..n], &params.search())
+        fixed_point_search_closest(&src, p, &seeds[..n], &params.search())
     }
 
     /// The largest seed position: seeds are clamped into `[0, max_q]`, just inside the image.
@@ -549,6 +565,10 @@ impl<'a> Kernel<'a> {
         // The last converged position (cross-layer seed) and whether there is one.
         let (mut pqx, mut pqy) = (zero, zero);
         let act = sw::lane_mask(active);
+        // Per lane the nearest depth of a layer that, before any candidate, failed with a walk
+        // within the coverage radius (Kernel::pixel_from).
+        let mut cover = _mm256_set1_ps(f32::INFINITY);
+        let cover2 = _mm256_set1_ps(self.params.cover_radius * self.params.cover_radius);
         // The common case in one pass (`simd_warp::fast8`).
         if let Some(s0) = stages[0][t].filter(StageBound::resolved) {
             let mut later = [f32::INFINITY; 8];
@@ -612,6 +632,14 @@ impl<'a> Kernel<'a> {
                 let prev = with_prev.then_some((pqx, pqy, has));
                 let r = sw::search8(ls, k, frame, px, py, xi, yi, bits, &region, prev);
                 let now = r.converged;
+                if !with_prev {
+                    // Kernel::pixel_from: a failed search of a lane without a candidate.
+                    let near = _mm256_cmp_ps::<_CMP_LT_OQ>(r.closest, cover2);
+                    let failed = _mm256_andnot_ps(now, sw::lane_mask(bits));
+                    let z =
+                        _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), r.closest_depth, _mm256_and_ps(failed, near));
+                    cover = _mm256_min_ps(cover, z);
+                }
                 // Found: the cross-layer seed of later layers; nearer than the candidate (or the
                 // first): the candidate.
                 pqx = _mm256_blendv_ps(pqx, r.qx, now);
@@ -627,6 +655,13 @@ impl<'a> Kernel<'a> {
                 has = _mm256_or_ps(has, now);
             }
         }
+        // crate::hidden_behind: (1 - z) * COVER_DEPTH_RATIO < 1 - cover.
+        let one = _mm256_set1_ps(1.0);
+        let hidden = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_mul_ps(_mm256_sub_ps(one, bz), _mm256_set1_ps(crate::COVER_DEPTH_RATIO)),
+            _mm256_sub_ps(one, cover),
+        );
+        has = _mm256_andnot_ps(hidden, has);
         self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
     }
 

@@ -43,8 +43,8 @@ pub use depth_warp::{
 };
 pub use holes::{dilate_holes, fill_holes, hole_fill, FillRule, HolePolicy, FILL_DIRECTIONS};
 pub use search::{
-    fixed_point_search, Candidate, CandidateChoice, LayerSampler, MotionSource, Sample, SamplePlanes, Sampling,
-    SearchParams, SeedStrategy,
+    fixed_point_search, fixed_point_search_closest, Approach, Candidate, CandidateChoice, LayerSampler, MotionSource,
+    Sample, SamplePlanes, Sampling, SearchParams, SeedStrategy,
 };
 
 use zwarp_core::{Error, Image, Result};
@@ -94,6 +94,20 @@ pub struct SourcePos {
     pub q: glam::Vec2,
     /// Index of the layer whose sample was chosen (`u32::MAX` if none).
     pub layer: u32,
+}
+
+/// How much farther than a covering front surface (in linear depth, `WarpParams::cover_radius`)
+/// a deeper layer's candidate must be to count as hidden behind it.
+pub const COVER_DEPTH_RATIO: f32 = 1.1;
+
+/// `true` if a candidate at target depth `z` lies behind a covering surface at depth `cover`
+/// by more than [`COVER_DEPTH_RATIO`] in linear depth: for a perspective depth buffer `1 - z`
+/// is inversely proportional to linear depth where the far plane is far beyond the point, so
+/// the test needs no camera (for orthographic depth it is a margin on the distance to the far
+/// plane).
+#[inline(always)]
+pub fn hidden_behind(z: f32, cover: f32) -> bool {
+    (1.0 - z) * COVER_DEPTH_RATIO < 1.0 - cover
 }
 
 /// Parameters of the backward depth warp (seed 000 Sec. 3, names follow the paper).
@@ -150,6 +164,18 @@ pub struct WarpParams {
     /// (one sample per pixel: the source and target grids coincide). The WGSL twin
     /// (`zwarp_gpu::WarpKernel`) supports every m.
     pub multisample: u32,
+    /// Coverage radius of the multi-layer choice, in source samples (0 disables it). Sec. 3.4
+    /// takes the nearest converged candidate over the layers, which assumes a layer that failed
+    /// has no surface at `p`. Where a front layer's search failed although one of its walks had
+    /// a smooth (bilinear) sample landing within this radius of `p` (the surface maps next to
+    /// `p`: a steep, magnified part of it defeated the iteration), a deeper layer's candidate
+    /// more than [`COVER_DEPTH_RATIO`] farther than that sample is one the front layer hides;
+    /// the pixel is left to the hole policy instead, as with a single layer. In a disocclusion
+    /// the front layer's walks end on nearest samples at the occluder's edge, far from `p`, or
+    /// on the background next to the gap at the revealed surface's own depth, and deeper layers
+    /// fill it as in the paper — except within the radius of an occluder's trailing edge, where
+    /// the pixel goes to the hole policy too. Default 3.5.
+    pub cover_radius: f32,
 }
 
 impl Default for WarpParams {
@@ -176,6 +202,7 @@ impl Default for WarpParams {
             accelerate: true,
             motion_scale: glam::Vec2::ONE,
             multisample: 1,
+            cover_radius: 3.5,
         }
     }
 }
@@ -208,6 +235,9 @@ impl WarpParams {
                 "multisample must be in 1..={MAX_MULTISAMPLE} source samples per pixel and axis, got {}",
                 self.multisample
             )));
+        }
+        if !(self.cover_radius.is_finite() && self.cover_radius >= 0.0) {
+            return Err(Error::invalid(format!("cover_radius must be finite and >= 0, got {}", self.cover_radius)));
         }
         if !self.motion_scale.is_finite() {
             return Err(Error::invalid(format!("motion_scale must be finite, got {}", self.motion_scale)));

@@ -410,8 +410,38 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
     seeds: &[Vec2],
     params: &SearchParams,
 ) -> Option<Candidate> {
+    fixed_point_search_closest(src, p, seeds, params).0
+}
+
+/// The closest approach of a search's walks to the target position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Approach {
+    /// The smallest squared residual `|p - v(q) - q|^2` of any smooth (bilinear) sampled iterate
+    /// of any seed (`+inf` if none). Nearest samples are left out: they sit at discontinuities,
+    /// where a surface's edge lands next to `p` without covering it.
+    pub r2: f32,
+    /// Target depth of that iterate's sample (`+inf` if none).
+    pub depth: f32,
+}
+
+impl Approach {
+    /// No smooth sampled iterate.
+    pub const NONE: Approach = Approach { r2: f32::INFINITY, depth: f32::INFINITY };
+}
+
+/// [`fixed_point_search`], also returning the closest approach of its walks. A failed search
+/// whose walk came within a few pixels of `p` found the layer's surface mapping next to `p`:
+/// the multi-layer warp's coverage test ([`crate::WarpParams::cover_radius`]).
+#[inline]
+pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
+    src: &S,
+    p: Vec2,
+    seeds: &[Vec2],
+    params: &SearchParams,
+) -> (Option<Candidate>, Approach) {
     let thr2 = params.threshold * params.threshold;
     let mut best: Option<Candidate> = None;
+    let mut closest = Approach::NONE;
     crate::stats::count(crate::stats::Counter::Seeds, seeds.len() as u64);
     for (i, &seed) in seeds.iter().enumerate() {
         let mut walk = S::Walk::default();
@@ -421,12 +451,15 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
             let w = p - s.v;
             let step = w - q;
             let r2 = step.length_squared();
+            if s.smooth && r2 < closest.r2 {
+                closest = Approach { r2, depth: s.depth };
+            }
             if r2 < thr2 {
                 // Converged: the sample at `q` (Fig. 3), no further "polishing" sample (measured
                 // neutral for quality on the procedural scenes, ~10 % of the warp's cost).
                 let c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
                 match params.choice {
-                    CandidateChoice::FirstConverged => return Some(c),
+                    CandidateChoice::FirstConverged => return (Some(c), closest),
                     CandidateChoice::MinDepth => {
                         if best.is_none_or(|b| c.depth < b.depth) {
                             best = Some(c);
@@ -450,7 +483,7 @@ pub fn fixed_point_search<S: MotionSource + ?Sized>(
             q = next;
         }
     }
-    best
+    (best, closest)
 }
 
 /// The Newton step `(I + Dv)^-1 r` for the residual `r = p - v(q) - q` with the sample's

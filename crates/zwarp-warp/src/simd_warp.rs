@@ -56,6 +56,19 @@ pub(crate) struct Lanes {
     pub qy: __m256,
     /// Layer of the converged sample (its tag: the layer itself or the one it borrowed from).
     pub tag: __m256i,
+    /// Closest approach of the lane's walks: the smallest squared residual of any smooth sampled
+    /// iterate (`+inf` if none), and that sample's depth, as `search::fixed_point_search_closest`
+    /// returns them.
+    pub closest: __m256,
+    pub closest_depth: __m256,
+}
+
+/// The nearer of two closest approaches `(r2, depth)` per lane (the first on ties, as the
+/// scalar walk keeps its first minimum).
+#[inline(always)]
+unsafe fn nearer(a: (__m256, __m256), b: (__m256, __m256)) -> (__m256, __m256) {
+    let take = _mm256_cmp_ps::<_CMP_LT_OQ>(b.0, a.0);
+    (_mm256_blendv_ps(a.0, b.0, take), _mm256_blendv_ps(a.1, b.1, take))
 }
 
 #[inline(always)]
@@ -111,6 +124,8 @@ struct Smp8 {
     dxy: __m256,
     dyx: __m256,
     dyy: __m256,
+    /// Bilinear samples of a smooth neighbourhood (`Sample::smooth`).
+    smooth: __m256,
 }
 
 /// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive sampling) for the `live` lanes,
@@ -189,6 +204,7 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, qx: __m256, qy: __m256, live: 
         dxy: _mm256_and_ps(smooth, dxy),
         dyx: _mm256_and_ps(smooth, dyx),
         dyy: _mm256_and_ps(smooth, dyy),
+        smooth: _mm256_and_ps(live, smooth),
     }
 }
 
@@ -280,10 +296,13 @@ pub(crate) unsafe fn search8(
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
         // The first iteration alone (most lanes converge in it); the others walk again from
         // their seed with the complete step.
-        let (now, depth, more) = first8(ls, k, px, py, qx, qy, act);
-        let mut out = Lanes { converged: now, depth, qx, qy, tag: _mm256_set1_epi32(k as i32) };
+        let (now, depth, more, (closest, closest_depth)) = first8(ls, k, px, py, qx, qy, act);
+        let mut out = Lanes { converged: now, depth, qx, qy, tag: _mm256_set1_epi32(k as i32), closest, closest_depth };
         if _mm256_movemask_ps(more) != 0 {
-            let (c2, d2, qx2, qy2, t2) = walk8(ls, k, px, py, qx, qy, more);
+            let (c2, d2, qx2, qy2, t2, a2) = walk8(ls, k, px, py, qx, qy, more);
+            // The walk repeats the first iterate: its approach is the lane's whole approach.
+            out.closest = _mm256_blendv_ps(out.closest, a2.0, more);
+            out.closest_depth = _mm256_blendv_ps(out.closest_depth, a2.1, more);
             out.converged = _mm256_or_ps(out.converged, c2);
             out.depth = _mm256_blendv_ps(out.depth, d2, c2);
             out.qx = _mm256_blendv_ps(out.qx, qx2, c2);
@@ -323,6 +342,7 @@ pub(crate) unsafe fn search8(
     let mut depth = one;
     let (mut cqx, mut cqy) = (zero, zero);
     let mut ctag = _mm256_setzero_si256();
+    let mut closest = (inf, inf);
     for j in 0..max_n {
         let ji = _mm256_set1_epi32(j);
         let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, ji));
@@ -375,7 +395,8 @@ pub(crate) unsafe fn search8(
         // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
-        let (now, z, wqx, wqy, wtag) = walk8(ls, k, px, py, qx, qy, live);
+        let (now, z, wqx, wqy, wtag, wa) = walk8(ls, k, px, py, qx, qy, live);
+        closest = nearer(closest, wa);
         // MinDepth in seed order: the first candidate, then strictly nearer ones.
         let take = _mm256_and_ps(
             now,
@@ -387,13 +408,14 @@ pub(crate) unsafe fn search8(
         ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
         has = _mm256_or_ps(has, now);
     }
-    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag }
+    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag, closest: closest.0, closest_depth: closest.1 }
 }
 
 /// The first iteration of [`walk8`] for one seed per lane (the lanes' own layer only, no
 /// Jacobian): the lanes that converged at their seed and the sample's depth, and the lanes that
 /// have a sample but did not converge (they need the complete walk; lanes without a sample — outside
-/// the image, or an empty texel that layer 0 cannot borrow for — are done). Where the eight
+/// the image, or an empty texel that layer 0 cannot borrow for — are done), and the squared
+/// residual of the lanes with a smooth sample (`+inf` elsewhere: the closest approach so far). Where the eight
 /// lanes are two rows of four consecutive pixels whose texels are consecutive and inside the
 /// image (the seeds of a resolved tile), the texels are read with row loads instead of gathers.
 #[inline]
@@ -406,7 +428,7 @@ unsafe fn first8(
     qx: __m256,
     qy: __m256,
     live: __m256,
-) -> (__m256, __m256, __m256) {
+) -> (__m256, __m256, __m256, (__m256, __m256)) {
     let zero = _mm256_setzero_ps();
     let (half, one) = (splat(0.5), splat(1.0));
     let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
@@ -416,7 +438,7 @@ unsafe fn first8(
     );
     let live = _mm256_and_ps(live, inside);
     if _mm256_movemask_ps(live) == 0 {
-        return (zero, one, zero);
+        return (zero, one, zero, (splat(f32::INFINITY), splat(f32::INFINITY)));
     }
     let pl = &ls.layers[k];
     let live_i = _mm256_castps_si256(live);
@@ -500,7 +522,14 @@ unsafe fn first8(
     if ls.cross && k > 0 {
         more = _mm256_or_ps(more, _mm256_andnot_ps(own, live));
     }
-    (now, _mm256_blendv_ps(one, z, now), more)
+    let inf = splat(f32::INFINITY);
+    let smooth_own = _mm256_and_ps(own, smooth);
+    (
+        now,
+        _mm256_blendv_ps(one, z, now),
+        more,
+        (_mm256_blendv_ps(inf, r2, smooth_own), _mm256_blendv_ps(inf, z, smooth_own)),
+    )
 }
 
 /// Where [`first8`] reads the four texels of its lanes: row loads at `a` (lanes 0-3) and `b`
@@ -545,7 +574,9 @@ impl Texels {
 }
 
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
-/// cross-layer fallback): the lanes that converged, and their sample's depth, position and tag.
+/// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, and
+/// the walk's closest approach (smallest squared residual of a smooth sampled iterate and its
+/// depth, `+inf` if none).
 #[inline]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::type_complexity)]
@@ -557,7 +588,7 @@ unsafe fn walk8(
     mut qx: __m256,
     mut qy: __m256,
     mut live: __m256,
-) -> (__m256, __m256, __m256, __m256, __m256i) {
+) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256)) {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
     let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
@@ -567,6 +598,7 @@ unsafe fn walk8(
     let mut depth = one;
     let (mut cqx, mut cqy) = (zero, zero);
     let mut ctag = _mm256_setzero_si256();
+    let mut closest = (splat(f32::INFINITY), splat(f32::INFINITY));
     // Whether the walk already borrowed once (StackSampler's count of empty landings).
     let mut borrowed = zero;
     for _ in 0..ls.iterations {
@@ -601,6 +633,7 @@ unsafe fn walk8(
                 s.dxy = _mm256_blendv_ps(s.dxy, b.dxy, take);
                 s.dyx = _mm256_blendv_ps(s.dyx, b.dyx, take);
                 s.dyy = _mm256_blendv_ps(s.dyy, b.dyy, take);
+                s.smooth = _mm256_blendv_ps(s.smooth, b.smooth, take);
                 s.has = _mm256_or_ps(s.has, take);
                 tag = _mm256_blendv_epi8(tag, _mm256_set1_epi32(j as i32), _mm256_castps_si256(take));
                 need = _mm256_andnot_ps(take, need);
@@ -616,6 +649,7 @@ unsafe fn walk8(
         let stx = _mm256_sub_ps(wx, qx);
         let sty = _mm256_sub_ps(wy, qy);
         let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+        closest = nearer(closest, (_mm256_blendv_ps(splat(f32::INFINITY), r2, _mm256_and_ps(live, s.smooth)), s.z));
         let now = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
         depth = _mm256_blendv_ps(depth, s.z, now);
         cqx = _mm256_blendv_ps(cqx, qx, now);
@@ -644,7 +678,7 @@ unsafe fn walk8(
         qx = nx;
         qy = ny;
     }
-    (conv, depth, cqx, cqy, ctag)
+    (conv, depth, cqx, cqy, ctag, closest)
 }
 
 /// A lane mask (all bits set per active lane) from the low 8 bits of `bits`.
@@ -1111,7 +1145,7 @@ pub(crate) unsafe fn fast8(
     let qy = _mm256_add_ps(_mm256_mul_ps(fs, ux), _mm256_mul_ps(fc, uy));
     let qx = _mm256_min_ps(_mm256_max_ps(qx, zero), splat(ls.max_q.x));
     let qy = _mm256_min_ps(_mm256_max_ps(qy, zero), splat(ls.max_q.y));
-    let (now, depth, more) = first8(ls, 0, px, py, qx, qy, act);
+    let (now, depth, more, _) = first8(ls, 0, px, py, qx, qy, act);
     if _mm256_movemask_ps(more) != 0 {
         return None;
     }

@@ -3,7 +3,7 @@
 use glam::{Vec2, Vec3};
 use proptest::prelude::*;
 use zwarp_core::{motion_field, Camera, Error, Image, Motion};
-use zwarp_warp::synth::{SynthBox, SynthScene};
+use zwarp_warp::synth::{SynthBox, SynthLayers, SynthScene};
 use zwarp_warp::*;
 
 fn uniform(depth: &Image<f32>, v: Vec2) -> Image<Motion> {
@@ -85,10 +85,31 @@ fn occluder_scene() -> (Image<f32>, Image<Motion>, Image<f32>, Image<Motion>) {
 #[test]
 fn occluder_over_background_picks_the_nearer_surface_and_multi_layer_fills_the_disocclusion() {
     let (d0, m0, d1, m1) = occluder_scene();
-    let params = WarpParams { n_seeds: 8, ..Default::default() };
+    // Sec. 3.4's choice as the paper states it (no coverage test).
+    let params = WarpParams { n_seeds: 8, cover_radius: 0.0, ..Default::default() };
     let single = warp_depth(&[WarpLayer { depth: &d0, motion: &m0 }], &params).unwrap();
     let multi =
         warp_depth(&[WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }], &params).unwrap();
+    // With the coverage test the square's smooth interior lands within the radius of the
+    // disoccluded pixels next to its trailing edge (x = 13): those go to the hole policy; the
+    // rest of the disocclusion and everything else is unchanged.
+    let cover = WarpParams { n_seeds: 8, ..Default::default() };
+    let covered =
+        warp_depth(&[WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }], &cover).unwrap();
+    let mut holes = 0;
+    for y in 0..16u32 {
+        for x in 0..32u32 {
+            let trailing = (5..11).contains(&y) && (8..13).contains(&x) && 13.0 - (x as f32 + 0.5) < cover.cover_radius;
+            if trailing && *covered.state.get(x, y) == PixelState::Hole {
+                holes += 1;
+            } else {
+                assert_eq!(covered.depth.get(x, y), multi.depth.get(x, y), "covered ({x},{y})");
+                assert_eq!(covered.state.get(x, y), multi.state.get(x, y), "covered ({x},{y})");
+            }
+        }
+    }
+    // The two columns next to the edge, on the rows whose bilinear neighbourhood is all square.
+    assert_eq!(holes, 10);
     for y in 0..16u32 {
         for x in 0..32u32 {
             let rows = (5..11).contains(&y);
@@ -348,6 +369,8 @@ fn bad_input_returns_invalid_errors() {
         WarpParams { threshold: 0.0, ..p },
         WarpParams { holes: HolePolicy::Dilate { radius: 0 }, ..p },
         WarpParams { seeding: SeedStrategy::Offset(Vec2::new(f32::INFINITY, 0.0)), ..p },
+        WarpParams { cover_radius: -1.0, ..p },
+        WarpParams { cover_radius: f32::NAN, ..p },
     ] {
         let e = warp_depth(&l, &bad).unwrap_err();
         assert!(matches!(e, Error::Invalid(_)));
@@ -692,4 +715,84 @@ fn multisample_errors_are_clear() {
     let p3 = WarpParams { multisample: 3, ..Default::default() };
     assert!(matches!(warp_pixels(&prepared, &p3, &[12]), Err(Error::Invalid(_))), "index past the 4x3 target");
     assert_eq!(warp_pixels(&prepared, &p3, &[11]).unwrap().len(), 1);
+}
+
+/// A wall a short distance from a camera that walks along it at a grazing angle, boxes behind
+/// it: source layers (peeled, ground last), their motion, the target's reference depth and
+/// items, and the target camera.
+#[allow(clippy::type_complexity)]
+fn near_wall_case(w: u32, h: u32, step: f32) -> (Vec<Image<f32>>, Vec<Image<Motion>>, SynthLayers, Camera, Camera) {
+    let wall = SynthBox {
+        aabb: zwarp_core::Aabb::new(Vec3::new(-20.0, 0.0, -0.4), Vec3::new(20.0, 5.0, 0.0)),
+        velocity: Vec3::ZERO,
+    };
+    let mut boxes = vec![wall];
+    for i in 0..6 {
+        let x = -10.0 + 4.0 * i as f32;
+        boxes.push(SynthBox {
+            aabb: zwarp_core::Aabb::new(
+                Vec3::new(x, 0.0, -4.0 - i as f32),
+                Vec3::new(x + 1.5, 3.0 + i as f32 * 0.5, -2.5 - i as f32),
+            ),
+            velocity: Vec3::ZERO,
+        });
+    }
+    let scene = SynthScene { ground_half: 40.0, boxes };
+    let cam = |x: f32| {
+        Camera::perspective(Vec3::new(x, 1.6, 1.2), Vec3::new(x + 3.0, 1.5, -0.6), Vec3::Y, 1.05, 0.1, 100.0, w, h)
+            .unwrap()
+    };
+    let (a, b) = (cam(0.0), cam(step));
+    let src = scene.render(&a, 0.0, 4, true);
+    let reference = scene.render(&b, 0.0, 1, false);
+    let deltas = scene.object_deltas(0.0, 0.0);
+    let motions =
+        src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &deltas).unwrap()).collect();
+    (src.depth, motions, reference, b, a)
+}
+
+/// Wall pixels (4 px or more from the image border) where the L = 4 warp's depth differs from the
+/// L = 1 warp's by more than 1 % in linear depth, and how many of those L = 4 put behind the
+/// wall.
+fn wall_disagreement(step: f32, cover_radius: f32) -> (usize, usize) {
+    let (w, h) = (160, 96);
+    let (depths, motions, reference, cam, _) = near_wall_case(w, h, step);
+    let layers: Vec<WarpLayer> = depths.iter().zip(&motions).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+    let params = WarpParams { n_seeds: 4, cover_radius, ..Default::default() };
+    let single = warp_depth(&layers[..1], &params).unwrap();
+    let multi = warp_depth(&layers, &params).unwrap();
+    let (mut differ, mut behind) = (0, 0);
+    for y in 4..h - 4 {
+        for x in 4..w - 4 {
+            if *reference.items[0].get(x, y) != 0 {
+                continue;
+            }
+            let (a, b, r) = (
+                cam.linear_depth(*single.depth.get(x, y)),
+                cam.linear_depth(*multi.depth.get(x, y)),
+                cam.linear_depth(*reference.depth[0].get(x, y)),
+            );
+            if (a - b).abs() > 0.01 * a.min(b) {
+                differ += 1;
+                behind += (*multi.state.get(x, y) == PixelState::Converged && b > 1.02 * r) as usize;
+            }
+        }
+    }
+    (differ, behind)
+}
+
+#[test]
+fn deeper_layers_do_not_show_through_a_near_wall() {
+    // At walking speed (5-10 cm per frame, the wall 1.2 m away) every wall pixel converges at
+    // L = 1 and L = 4 agrees.
+    assert_eq!(wall_disagreement(0.1, 3.5), (0, 0));
+    // At 40 cm per frame the wall's nearest part magnifies strongly and layer 0's search fails on
+    // ~1 % of it; without the coverage test (Sec. 3.4's plain nearest candidate) the surfaces
+    // behind the wall converge there and win (speckles of far depth on the wall).
+    let (differ, behind) = wall_disagreement(0.4, 0.0);
+    assert!(differ > 50 && behind > 50, "{differ} {behind}");
+    // With it the front layer's failed walks, which came within a few pixels of the pixel, keep
+    // them hidden: L = 4 gives L = 1's answer on all but a handful of the ~10K wall pixels.
+    let (differ, behind) = wall_disagreement(0.4, WarpParams::default().cover_radius);
+    assert!(differ <= 5 && behind <= 5, "{differ} {behind}");
 }

@@ -74,7 +74,8 @@ struct Params {
     /// `WarpParams::multisample` as a float: target pixel `(x, y)` is searched at the source
     /// position `multisample * (x + 0.5, y + 0.5)`.
     multisample: f32,
-    _pad: u32,
+    /// `WarpParams::cover_radius` squared.
+    cover2: f32,
     levels: [[u32; 4]; MAX_LEVELS],
     axes: [[f32; 4]; MAX_GPU_LAYERS],
 }
@@ -388,7 +389,7 @@ impl WarpKernel {
             motion_scale: params.motion_scale.to_array(),
             target: [tw, th],
             multisample: params.multisample as f32,
-            _pad: 0,
+            cover2: params.cover_radius * params.cover_radius,
             levels,
             axes,
         };

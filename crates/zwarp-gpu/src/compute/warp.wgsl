@@ -38,7 +38,8 @@ struct Params {
     target_size: vec2<u32>,
     // WarpParams::multisample as a float (depth_warp::Kernel::m).
     multisample: f32,
-    pad: u32,
+    // WarpParams::cover_radius squared.
+    cover2: f32,
     // Per level l - 1: (offset within a layer's block, width, height, 0).
     levels: array<vec4<u32>, 16>,
     // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
@@ -56,6 +57,8 @@ const FLAG_BACKGROUND: u32 = 64u;
 // the first searched layer's tight region.
 const FLAG_AWOC: u32 = 128u;
 const EMPTY_Z: f32 = 2.0;
+// zwarp_warp::COVER_DEPTH_RATIO.
+const COVER_DEPTH_RATIO: f32 = 1.1;
 // zwarp_warp::search::CONTINUITY_PX.
 const CONTINUITY: f32 = 1.0;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
@@ -370,6 +373,8 @@ struct Smp {
     tag: u32,
     dvdx: vec2<f32>,
     dvdy: vec2<f32>,
+    // A bilinear sample of a smooth neighbourhood (Sample::smooth).
+    bilinear: bool,
 };
 
 // One texel with its motion scaled by motion_scale (LayerSampler::with_scale).
@@ -415,12 +420,12 @@ fn fetch(k: u32, q: vec2<f32>) -> Smp {
                 let bot_d = s01.z + (s11.z - s01.z) * ax;
                 let dvdx = lerp2(s10.xy - s00.xy, s11.xy - s01.xy, ay);
                 let dvdy = bot_v - top_v;
-                return Smp(true, lerp2(top_v, bot_v, ay), top_d + (bot_d - top_d) * ay, k, dvdx, dvdy);
+                return Smp(true, lerp2(top_v, bot_v, ay), top_d + (bot_d - top_d) * ay, k, dvdx, dvdy, true);
             }
         }
     }
     let m = at(k, xn, yn);
-    return Smp(valid_z(m.z), m.xy, m.z, k, zero, zero);
+    return Smp(valid_z(m.z), m.xy, m.z, k, zero, zero, false);
 }
 
 fn inside(q: vec2<f32>) -> bool {
@@ -430,7 +435,7 @@ fn inside(q: vec2<f32>) -> bool {
 // StackSampler::sample (Fig. 6): an empty landing in layer k > 0 borrows the nearest
 // non-empty layer above once; the second empty landing fails the seed.
 fn stack_sample(k: u32, q: vec2<f32>, empties: ptr<function, u32>) -> Smp {
-    let none = Smp(false, vec2<f32>(0.0), 0.0, 0u, vec2<f32>(0.0), vec2<f32>(0.0));
+    let none = Smp(false, vec2<f32>(0.0), 0.0, 0u, vec2<f32>(0.0), vec2<f32>(0.0), false);
     if (!inside(q)) {
         return none;
     }
@@ -591,6 +596,9 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     var awoc_region = vec4<f32>(0.0);
     var has_prev = false;
     var prev_q = vec2<f32>(0.0);
+    // depth_warp::Kernel::pixel_from: the nearest depth of a layer that, before any candidate,
+    // failed with a walk within the coverage radius of p.
+    var cover = params.inf.x;
     for (var k = 0u; k < params.layers; k++) {
         if (tile_ok[k * 4u + tile_index] == 0u) {
             continue;
@@ -649,6 +657,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         }
         let key = seed_key(x, y, k);
         var found = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+        // search::fixed_point_search_closest: the smallest squared residual of a smooth sampled
+        // iterate and that sample's depth.
+        var closest = params.inf.x;
+        var closest_z = params.inf.x;
         for (var i = 0u; i < n; i++) {
             var seed: vec2<f32>;
             if (cross_seed && i == n - 1u) {
@@ -671,6 +683,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                 let wv = p - s.v;
                 let step = wv - q;
                 let r2 = dot(step, step);
+                if (s.bilinear && r2 < closest) {
+                    closest = r2;
+                    closest_z = s.depth;
+                }
                 var next = wv;
                 if ((params.flags & FLAG_ACCEL) != 0u) {
                     let m00 = 1.0 + s.dvdx.x;
@@ -703,7 +719,13 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             if (!best.ok || found.depth < best.depth) {
                 best = found;
             }
+        } else if (!best.ok && closest < params.cover2) {
+            cover = min(cover, closest_z);
         }
+    }
+    // zwarp_warp::hidden_behind: a deeper layer's candidate behind a covering front surface.
+    if (best.ok && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - cover) {
+        best.ok = false;
     }
     let i = y * tw + x;
     if (best.ok) {
