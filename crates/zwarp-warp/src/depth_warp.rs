@@ -63,6 +63,34 @@ pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<Wa
     Ok(out)
 }
 
+/// The complete prediction of seed 000 Sec. 4 from source layers with their motion: the
+/// preparation (reusing the buffers of `recycled`, last frame's preparation), the warp into
+/// `out`'s buffers and, under [`HolePolicy::Background`], the background protocol
+/// ([`crate::holes::fill_background_with`], with the limits taken from the preparation) over
+/// the warp's far holes; any other policy runs inside the warp. Returns the preparation, to be
+/// recycled by the next call. `zwarp eval` and the `zwarp` facade call this.
+pub fn predict_into(
+    layers: &[WarpLayer<'_>],
+    params: &WarpParams,
+    recycled: Vec<PreparedLayer>,
+    out: &mut WarpOutput,
+) -> Result<Vec<PreparedLayer>> {
+    params.validate()?;
+    let fill = match params.holes {
+        HolePolicy::Background { radius } => Some(radius),
+        _ => None,
+    };
+    let warp_params = if fill.is_some() { WarpParams { holes: HolePolicy::FarDepth, ..*params } } else { *params };
+    let prepared = PreparedLayer::prepare_stack_recycling(layers, warp_params.bound, recycled)?;
+    warp_prepared_into(&prepared, &warp_params, out)?;
+    if let Some(radius) = fill {
+        let (w, h) = out.depth.size();
+        let limits = crate::holes::BackgroundLimits::of_prepared(&prepared, w, h, params.multisample, radius)?;
+        crate::holes::fill_background_with(layers, out, limits, &params.search())?;
+    }
+    Ok(prepared)
+}
+
 /// [`warp_prepared`] into the buffers of `out` (an earlier warp's output, of any size: buffers
 /// that are too small are replaced), as an engine keeps its output from frame to frame. The
 /// result is the same as [`warp_prepared`]'s; what it saves is allocating and faulting in fresh

@@ -39,7 +39,8 @@ pub mod synth;
 pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
 pub use depth_warp::{
-    target_size, warp_depth, warp_pixels, warp_prepared, warp_prepared_into, PreparedLayer, SurfaceMotion, WarpLayer,
+    predict_into, target_size, warp_depth, warp_pixels, warp_prepared, warp_prepared_into, PreparedLayer,
+    SurfaceMotion, WarpLayer,
 };
 pub use holes::{dilate_holes, fill_holes, hole_fill, FillRule, HolePolicy, FILL_DIRECTIONS};
 pub use search::{

@@ -14,7 +14,7 @@ use serde::Serialize;
 use zwarp_core::{motion_field, Camera, Image, Motion, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::CameraPath;
-use zwarp_warp::{BoundKind, HolePolicy, PreparedLayer, WarpLayer, WarpParams};
+use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::report::{self, fmt, ser_f64, Table, Timing};
@@ -600,12 +600,6 @@ pub fn evaluate(
                                                         o
                                                     }
                                                     None => {
-                                                        warp_params.validate()?;
-                                                        let prepared = PreparedLayer::prepare_stack_recycling(
-                                                            &layers,
-                                                            warp_params.bound,
-                                                            std::mem::take(&mut recycled),
-                                                        )?;
                                                         // The output buffers carry over too (an
                                                         // engine's steady state).
                                                         let mut o = match slot.take() {
@@ -618,23 +612,12 @@ pub fn evaluate(
                                                                 source: None,
                                                             },
                                                         };
-                                                        zwarp_warp::warp_prepared_into(
-                                                            &prepared,
-                                                            &warp_params,
+                                                        recycled = zwarp_warp::predict_into(
+                                                            &layers,
+                                                            &params,
+                                                            std::mem::take(&mut recycled),
                                                             &mut o,
                                                         )?;
-                                                        if let Some(radius) = fill {
-                                                            // The fill's limits come from the preparation's pass.
-                                                            let (w, h) = o.depth.size();
-                                                            let limits =
-                                                                zwarp_warp::holes::BackgroundLimits::of_prepared(
-                                                                    &prepared, w, h, ms, radius,
-                                                                )?;
-                                                            zwarp_warp::holes::fill_background_with(
-                                                                &layers, &mut o, limits, &search,
-                                                            )?;
-                                                        }
-                                                        recycled = prepared;
                                                         o
                                                     }
                                                 };
