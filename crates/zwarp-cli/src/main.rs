@@ -45,6 +45,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    private_runtime_dir();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Demo(a) => commands::demo::run(a),
@@ -62,5 +63,24 @@ fn main() {
         let msg = e.chain().map(|c| c.to_string()).collect::<Vec<_>>().join(": ");
         eprintln!("error: {msg}");
         std::process::exit(1);
+    }
+}
+
+/// Mesa's Vulkan loader prints two lines starting with "error:" when `XDG_RUNTIME_DIR` is unset
+/// (common in containers and CI), which read as zwarp failing. Without one, give the process a
+/// private runtime directory (mode 0700 under the temp dir) before any GPU or thread starts.
+fn private_runtime_dir() {
+    #[cfg(unix)]
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+        // SAFETY: getuid has no preconditions.
+        let uid = unsafe { libc::getuid() };
+        let dir = std::env::temp_dir().join(format!("zwarp-runtime-{uid}"));
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        // Only a directory this user owns (another user may have created the name first).
+        if std::fs::metadata(&dir).is_ok_and(|m| m.is_dir() && m.uid() == uid) {
+            // First thing in main, before any other thread exists (set_var is not thread-safe).
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        }
     }
 }

@@ -160,6 +160,33 @@ fn bad_eval_parameters_are_rejected() {
     assert!(!j.exists(), "no JSON is written on bad input");
 }
 
+/// Without `XDG_RUNTIME_DIR` the GPU loader stays quiet: zwarp gives it a private runtime dir.
+#[test]
+fn missing_runtime_dir_prints_no_loader_errors() {
+    let out = Command::new(env!("CARGO_BIN_EXE_zwarp"))
+        .arg("info")
+        .env_remove("XDG_RUNTIME_DIR")
+        .output()
+        .expect("run zwarp");
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.lines().any(|l| l.starts_with("error")), "{err}");
+}
+
+#[test]
+fn cull_needs_two_frames() {
+    let d = tmp("cullbad");
+    let j = d.join("c.json");
+    for frames in ["0", "1"] {
+        let (ok, _, err) =
+            zwarp(&["cull", "--scene", "cb", "--scale", "0.01", "--frames", frames, "--json", j.to_str().unwrap()]);
+        assert!(!ok, "--frames {frames} accepted");
+        error_line(&err);
+        assert!(err.contains("--frames"), "{err}");
+    }
+    assert!(!j.exists(), "no JSON is written on bad input");
+}
+
 /// `--multisample 1,2`: our warp from a 2x2-sampled source next to the one-sample rows (the
 /// forward baselines only at m = 1), same scene, frames and reference; `multisample` in JSON.
 #[test]

@@ -22,7 +22,8 @@ pub struct CullArgs {
     pub scene: SceneArgs,
     #[command(flatten)]
     pub size: SizeArgs,
-    /// Consecutive frames to run from the start of the path (0 = the whole path).
+    /// Consecutive frames to run from the start of the path (at least 2; more than the path
+    /// has runs the whole path).
     #[arg(long, default_value_t = 30)]
     pub frames: usize,
     /// Motion-speed factors (comma list): frame k is taken at time k * speed / fps.
@@ -129,6 +130,9 @@ pub struct CullRow {
 /// `zwarp cull`.
 pub fn run(args: CullArgs) -> Result<()> {
     args.size.check()?;
+    if args.frames < 2 {
+        bail!("--frames must be at least 2 (culling frame k uses frame k - 1), got {}", args.frames);
+    }
     let speeds: Vec<f32> = parse_list(&args.speed, "--speed")?;
     if speeds.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         bail!("--speed values must be positive");
@@ -188,9 +192,7 @@ pub fn run(args: CullArgs) -> Result<()> {
     let mut rows: Vec<CullRow> = Vec::new();
     for &speed in &speeds {
         let mut frames = path.frames(args.size.width, args.size.height, speed)?;
-        if args.frames > 0 {
-            frames.truncate(args.frames);
-        }
+        frames.truncate(args.frames);
         if frames.len() < 2 {
             bail!("the camera path gives {} frame(s) at speed {speed}x; culling needs at least 2", frames.len());
         }
