@@ -103,6 +103,34 @@ fn city_single_and_multi_layer_match_cpu() {
     }
 }
 
+/// The multi-layer coverage test (`WarpParams::cover_radius`) where it decides most: a fast walk
+/// along a near wall, four peeled layers (seed 000 Sec. 3.4).
+#[test]
+fn near_wall_coverage_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    let (w, h) = (160, 96);
+    let scene = SynthScene::near_wall();
+    let (a, b) = (SynthScene::near_wall_camera(0.0, w, h).unwrap(), SynthScene::near_wall_camera(0.4, w, h).unwrap());
+    let src = scene.render(&a, 0.0, 4, true);
+    let deltas = scene.object_deltas(0.0, 0.0);
+    let m: Vec<Image<Motion>> =
+        src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &deltas).unwrap()).collect();
+    let layers = layers_of(&src.depth, &m);
+    let on = WarpParams { n_seeds: 4, ..base() };
+    let off = WarpParams { cover_radius: 0.0, ..on };
+    let (cpu_on, cpu_off) = (warp_depth(&layers, &on).unwrap(), warp_depth(&layers, &off).unwrap());
+    // The test decides pixels here: the two CPU warps differ.
+    let decided = cpu_on.state.data().iter().zip(cpu_off.state.data()).filter(|(x, y)| x != y).count();
+    assert!(decided > 50, "{decided}");
+    for (p, cpu, what) in [(&on, &cpu_on, "coverage"), (&off, &cpu_off, "no coverage")] {
+        let gpu = k.warp(&layers, p).unwrap();
+        assert_same(&gpu, cpu, what);
+        let differ = gpu.state.data().iter().zip(cpu.state.data()).filter(|(x, y)| x != y).count();
+        assert!(differ * 20 < decided, "{what}: {differ} states differ of {decided} decided");
+    }
+}
+
 #[test]
 fn rendered_frame_pair_matches_cpu() {
     let Some(ctx) = test_context() else { return };

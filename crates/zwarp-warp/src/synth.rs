@@ -55,6 +55,33 @@ impl SynthScene {
         SynthScene { ground_half: 40.0, boxes }
     }
 
+    /// A wall (box 0: 40 m long, 5 m high, 0.4 m thick, its front face the plane `z = 0`) with
+    /// six boxes of growing size 2.5-9 m behind it, on a ground of half size 40. With
+    /// [`SynthScene::near_wall_camera`] the camera walks along the wall 1.2 m in front of it at
+    /// a grazing angle: most of the view is wall whose nearest part magnifies strongly, and the
+    /// deeper layers see its back face and the boxes behind.
+    pub fn near_wall() -> Self {
+        let mut boxes = vec![SynthBox {
+            aabb: Aabb::new(Vec3::new(-20.0, 0.0, -0.4), Vec3::new(20.0, 5.0, 0.0)),
+            velocity: Vec3::ZERO,
+        }];
+        for i in 0..6 {
+            let (x, k) = (-10.0 + 4.0 * i as f32, i as f32);
+            boxes.push(SynthBox {
+                aabb: Aabb::new(Vec3::new(x, 0.0, -4.0 - k), Vec3::new(x + 1.5, 3.0 + k * 0.5, -2.5 - k)),
+                velocity: Vec3::ZERO,
+            });
+        }
+        SynthScene { ground_half: 40.0, boxes }
+    }
+
+    /// The camera of [`SynthScene::near_wall`] after walking `x` metres along the wall: eye at
+    /// height 1.6 m, 1.2 m from the wall, looking 3 m ahead and 1.8 m across (60 deg vertical
+    /// field of view, near 0.1, far 100).
+    pub fn near_wall_camera(x: f32, w: u32, h: u32) -> zwarp_core::Result<Camera> {
+        Camera::perspective(Vec3::new(x, 1.6, 1.2), Vec3::new(x + 3.0, 1.5, -0.6), Vec3::Y, 1.05, 0.1, 100.0, w, h)
+    }
+
     /// World-space motion `M(t_b) M(t_a)^-1` of every object id (for `motion_field`).
     pub fn object_deltas(&self, t_a: f32, t_b: f32) -> Vec<Mat4> {
         let mut d: Vec<Mat4> = self.boxes.iter().map(|b| Mat4::from_translation(b.velocity * (t_b - t_a))).collect();

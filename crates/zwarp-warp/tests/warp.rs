@@ -722,26 +722,8 @@ fn multisample_errors_are_clear() {
 /// items, and the target camera.
 #[allow(clippy::type_complexity)]
 fn near_wall_case(w: u32, h: u32, step: f32) -> (Vec<Image<f32>>, Vec<Image<Motion>>, SynthLayers, Camera, Camera) {
-    let wall = SynthBox {
-        aabb: zwarp_core::Aabb::new(Vec3::new(-20.0, 0.0, -0.4), Vec3::new(20.0, 5.0, 0.0)),
-        velocity: Vec3::ZERO,
-    };
-    let mut boxes = vec![wall];
-    for i in 0..6 {
-        let x = -10.0 + 4.0 * i as f32;
-        boxes.push(SynthBox {
-            aabb: zwarp_core::Aabb::new(
-                Vec3::new(x, 0.0, -4.0 - i as f32),
-                Vec3::new(x + 1.5, 3.0 + i as f32 * 0.5, -2.5 - i as f32),
-            ),
-            velocity: Vec3::ZERO,
-        });
-    }
-    let scene = SynthScene { ground_half: 40.0, boxes };
-    let cam = |x: f32| {
-        Camera::perspective(Vec3::new(x, 1.6, 1.2), Vec3::new(x + 3.0, 1.5, -0.6), Vec3::Y, 1.05, 0.1, 100.0, w, h)
-            .unwrap()
-    };
+    let scene = SynthScene::near_wall();
+    let cam = |x: f32| SynthScene::near_wall_camera(x, w, h).unwrap();
     let (a, b) = (cam(0.0), cam(step));
     let src = scene.render(&a, 0.0, 4, true);
     let reference = scene.render(&b, 0.0, 1, false);
