@@ -209,10 +209,39 @@ unsafe fn vfw_row_avx2(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: 
     vfw_row(l, w, h, band, y0, y)
 }
 
+/// The corners (TL, TR, BR, BL) of the VFW quad of the valid pixel `(x, y)` with motion `v`:
+/// each pixel corner moves by the mean motion of the (up to four) valid pixels sharing it that
+/// move within [`CONTINUITY_PX`] of `v`, and is pushed outwards by
+/// [`FORWARD_SUPPORT_EXPANSION`] per axis. `at` gives the valid samples (`None` outside the
+/// image or where empty).
+#[inline(always)]
+fn vfw_quad<'m>(at: &impl Fn(i64, i64) -> Option<&'m Motion>, x: i64, y: i64, v: Vec2) -> [Vec2; 4] {
+    let e = FORWARD_SUPPORT_EXPANSION;
+    let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
+        let mut sum = Vec2::ZERO;
+        let mut n = 0.0f32;
+        for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
+            if let Some(s) = at(px, py) {
+                if (s.v - v).abs().max_element() < CONTINUITY_PX {
+                    sum += s.v;
+                    n += 1.0;
+                }
+            }
+        }
+        // n >= 1: the quad's own pixel always shares the corner.
+        Vec2::new(cx as f32, cy as f32) + sum / n + out * e
+    };
+    [
+        corner(x, y, Vec2::new(-1.0, -1.0)),
+        corner(x + 1, y, Vec2::new(1.0, -1.0)),
+        corner(x + 1, y + 1, Vec2::new(1.0, 1.0)),
+        corner(x, y + 1, Vec2::new(-1.0, 1.0)),
+    ]
+}
+
 /// The VFW quads of source row `y` into the band of target rows starting at `y0`.
 #[inline(always)]
 fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize) {
-    let e = FORWARD_SUPPORT_EXPANSION;
     let (depth, motion) = (l.depth.data(), l.motion.data());
     let at = |x: i64, y: i64| -> Option<&Motion> {
         if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
@@ -226,28 +255,7 @@ fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: us
     let clip = (y0 as f32, (y0 + rows) as f32 - 1.0);
     for x in 0..w as usize {
         let Some(m) = at(x as i64, y as i64) else { continue };
-        let (xi, yi) = (x as i64, y as i64);
-        let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
-            let mut sum = Vec2::ZERO;
-            let mut n = 0.0f32;
-            for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
-                if let Some(s) = at(px, py) {
-                    if (s.v - m.v).abs().max_element() < CONTINUITY_PX {
-                        sum += s.v;
-                        n += 1.0;
-                    }
-                }
-            }
-            // n >= 1: the quad's own pixel always shares the corner.
-            Vec2::new(cx as f32, cy as f32) + sum / n + out * e
-        };
-        // Corners in order TL, TR, BR, BL, each pushed outwards by e per axis.
-        let q = [
-            corner(xi, yi, Vec2::new(-1.0, -1.0)),
-            corner(xi + 1, yi, Vec2::new(1.0, -1.0)),
-            corner(xi + 1, yi + 1, Vec2::new(1.0, 1.0)),
-            corner(xi, yi + 1, Vec2::new(-1.0, 1.0)),
-        ];
+        let q = vfw_quad(&at, x as i64, y as i64, m.v);
         raster_triangle(band, y0, w, h, clip, [q[0], q[1], q[2]], m.depth);
         raster_triangle(band, y0, w, h, clip, [q[0], q[2], q[3]], m.depth);
     }
@@ -367,7 +375,6 @@ mod reference {
     pub(super) fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
         let (w, h, layers) = check_layers(layers)?;
         let buf = new_target(w as usize * h as usize);
-        let e = FORWARD_SUPPORT_EXPANSION;
         for samples in &layers {
             let at = |x: i64, y: i64| -> Option<&Motion> {
                 if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
@@ -381,28 +388,7 @@ mod reference {
                     if m.depth >= 1.0 {
                         continue;
                     }
-                    let (xi, yi) = (x as i64, y as i64);
-                    let corner = |cx: i64, cy: i64, out: Vec2| -> Vec2 {
-                        let mut sum = Vec2::ZERO;
-                        let mut n = 0.0f32;
-                        for (px, py) in [(cx - 1, cy - 1), (cx, cy - 1), (cx - 1, cy), (cx, cy)] {
-                            if let Some(s) = at(px, py) {
-                                if (s.v - m.v).abs().max_element() < CONTINUITY_PX {
-                                    sum += s.v;
-                                    n += 1.0;
-                                }
-                            }
-                        }
-                        // n >= 1: the quad's own pixel always shares the corner.
-                        Vec2::new(cx as f32, cy as f32) + sum / n + out * e
-                    };
-                    // Corners in order TL, TR, BR, BL, each pushed outwards by e per axis.
-                    let q = [
-                        corner(xi, yi, Vec2::new(-1.0, -1.0)),
-                        corner(xi + 1, yi, Vec2::new(1.0, -1.0)),
-                        corner(xi + 1, yi + 1, Vec2::new(1.0, 1.0)),
-                        corner(xi, yi + 1, Vec2::new(-1.0, 1.0)),
-                    ];
+            let q = vfw_quad(&at, x as i64, y as i64, m.v);
                     raster_triangle(&buf, w, h, [q[0], q[1], q[2]], m.depth);
                     raster_triangle(&buf, w, h, [q[0], q[2], q[3]], m.depth);
                 }
