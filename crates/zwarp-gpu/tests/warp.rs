@@ -5,9 +5,9 @@ mod common;
 
 use common::*;
 use glam::{Vec2, Vec3};
-use zwarp_core::{motion_field, Aabb, Camera, Error, Image, Motion};
+use zwarp_core::{motion_field, Camera, Error, Image, Motion};
 use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer, WarpKernel};
-use zwarp_warp::synth::{SynthBox, SynthScene};
+use zwarp_warp::synth::SynthScene;
 use zwarp_warp::{
     warp_depth, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput,
     WarpParams,
@@ -29,11 +29,7 @@ fn assert_same(gpu: &WarpOutput, cpu: &WarpOutput, what: &str) -> (f64, f64, f64
 }
 
 fn city_pair(w: u32, h: u32, layers: u32) -> (Vec<Image<f32>>, Vec<Image<Motion>>) {
-    let mut scene = SynthScene::city(3);
-    scene.boxes.push(SynthBox {
-        aabb: Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
-        velocity: Vec3::new(4.0, 0.0, 0.0),
-    });
+    let scene = SynthScene::moving_city();
     let a = Camera::perspective(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0), Vec3::Y, 1.0, 0.5, 100.0, w, h)
         .unwrap();
     let b = Camera::perspective(Vec3::new(0.9, 8.3, 9.0), Vec3::new(0.6, 0.0, -4.5), Vec3::Y, 1.0, 0.5, 100.0, w, h)

@@ -388,7 +388,7 @@ mod reference {
                     if m.depth >= 1.0 {
                         continue;
                     }
-            let q = vfw_quad(&at, x as i64, y as i64, m.v);
+                    let q = vfw_quad(&at, x as i64, y as i64, m.v);
                     raster_triangle(&buf, w, h, [q[0], q[1], q[2]], m.depth);
                     raster_triangle(&buf, w, h, [q[0], q[2], q[3]], m.depth);
                 }

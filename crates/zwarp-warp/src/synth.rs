@@ -82,6 +82,27 @@ impl SynthScene {
         Camera::perspective(Vec3::new(x, 1.6, 1.2), Vec3::new(x + 3.0, 1.5, -0.6), Vec3::Y, 1.05, 0.1, 100.0, w, h)
     }
 
+    /// [`SynthScene::city`]`(3)` plus a 2 m box floating 2 m above the ground that moves at 4 m/s
+    /// along +x (object motion through the item buffer).
+    pub fn moving_city() -> Self {
+        let mut s = SynthScene::city(3);
+        s.boxes.push(SynthBox {
+            aabb: Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
+            velocity: Vec3::new(4.0, 0.0, 0.0),
+        });
+        s
+    }
+
+    /// Two views of [`SynthScene::city`] from 8 m up, the second 0.7 m to the side and 0.8 m
+    /// closer, turned slightly (1 rad vertical field of view, near 0.5, far 100).
+    pub fn city_views(w: u32, h: u32) -> zwarp_core::Result<(Camera, Camera)> {
+        let a =
+            Camera::perspective(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0), Vec3::Y, 1.0, 0.5, 100.0, w, h)?;
+        let b =
+            Camera::perspective(Vec3::new(0.7, 8.2, 9.2), Vec3::new(0.6, 0.0, -4.5), Vec3::Y, 1.0, 0.5, 100.0, w, h)?;
+        Ok((a, b))
+    }
+
     /// World-space motion `M(t_b) M(t_a)^-1` of every object id (for `motion_field`).
     pub fn object_deltas(&self, t_a: f32, t_b: f32) -> Vec<Mat4> {
         let mut d: Vec<Mat4> = self.boxes.iter().map(|b| Mat4::from_translation(b.velocity * (t_b - t_a))).collect();

@@ -1,9 +1,9 @@
 //! End-to-end tests of the backward depth warp (seed 000 Sec. 3) with exact expectations.
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use proptest::prelude::*;
 use zwarp_core::{motion_field, Camera, Error, Image, Motion};
-use zwarp_warp::synth::{SynthBox, SynthLayers, SynthScene};
+use zwarp_warp::synth::{SynthLayers, SynthScene};
 use zwarp_warp::*;
 
 fn uniform(depth: &Image<f32>, v: Vec2) -> Image<Motion> {
@@ -181,11 +181,7 @@ fn t_and_bound_iterations_are_independent() {
 }
 
 fn ground_cameras(w: u32, h: u32) -> (Camera, Camera) {
-    let a = Camera::perspective(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0), Vec3::Y, 1.0, 0.5, 100.0, w, h)
-        .unwrap();
-    let b = Camera::perspective(Vec3::new(0.7, 8.2, 9.2), Vec3::new(0.6, 0.0, -4.5), Vec3::Y, 1.0, 0.5, 100.0, w, h)
-        .unwrap();
-    (a, b)
+    SynthScene::city_views(w, h).unwrap()
 }
 
 #[test]
@@ -223,13 +219,7 @@ fn camera_moving_over_a_plane_matches_the_analytic_depth() {
 type CityCase = (Vec<Image<f32>>, Vec<Image<Motion>>, Image<f32>, Camera);
 
 fn city_case(w: u32, h: u32, layers: u32, moving: bool) -> CityCase {
-    let mut scene = SynthScene::city(3);
-    if moving {
-        scene.boxes.push(SynthBox {
-            aabb: zwarp_core::Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
-            velocity: Vec3::new(4.0, 0.0, 0.0),
-        });
-    }
+    let scene = if moving { SynthScene::moving_city() } else { SynthScene::city(3) };
     let (a, b) = ground_cameras(w, h);
     let (ta, tb) = (0.0, 0.25);
     let src = scene.render(&a, ta, layers, layers > 1);

@@ -10,8 +10,8 @@
 
 use std::path::{Path, PathBuf};
 
-use zwarp::warp::synth::{SynthBox, SynthScene};
-use zwarp::{Backend, Camera, Prediction, Vec3, Warper};
+use zwarp::warp::synth::SynthScene;
+use zwarp::{Backend, Prediction, Warper};
 
 /// Quality of one prediction against the direct render.
 pub struct Report {
@@ -26,14 +26,8 @@ pub struct Report {
 /// Renders the source view, predicts the target view with `backend`, writes the images to
 /// `out` and returns the quality.
 pub fn run(backend: Backend, w: u32, h: u32, out: &Path) -> zwarp::Result<Report> {
-    let mut scene = SynthScene::city(3);
-    scene.boxes.push(SynthBox {
-        aabb: zwarp::core::Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
-        velocity: Vec3::new(4.0, 0.0, 0.0),
-    });
-    let view = |eye: Vec3, at: Vec3| Camera::perspective(eye, at, Vec3::Y, 1.0, 0.5, 100.0, w, h);
-    let cam_a = view(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0))?;
-    let cam_b = view(Vec3::new(0.7, 8.2, 9.2), Vec3::new(0.6, 0.0, -4.5))?;
+    let scene = SynthScene::moving_city();
+    let (cam_a, cam_b) = SynthScene::city_views(w, h)?;
     let (t_a, t_b) = (0.0, 0.25);
 
     // The frame the renderer already drew: depth layers and item ids (for object motion).

@@ -1,24 +1,15 @@
 //! The facade against the stages it calls, on both backends, and its error paths.
 
-use zwarp::warp::synth::{SynthBox, SynthScene};
+use zwarp::warp::synth::SynthScene;
 use zwarp::warp::{holes, warp_depth, WarpLayer};
 use zwarp::{Backend, Camera, Error, HolePolicy, Image, Vec3, WarpParams, Warper};
 
 fn cameras(w: u32, h: u32) -> (Camera, Camera) {
-    let a = Camera::perspective(Vec3::new(0.0, 8.0, 10.0), Vec3::new(0.0, 0.0, -4.0), Vec3::Y, 1.0, 0.5, 100.0, w, h)
-        .unwrap();
-    let b = Camera::perspective(Vec3::new(0.7, 8.2, 9.2), Vec3::new(0.6, 0.0, -4.5), Vec3::Y, 1.0, 0.5, 100.0, w, h)
-        .unwrap();
-    (a, b)
+    SynthScene::city_views(w, h).unwrap()
 }
 
 fn scene() -> SynthScene {
-    let mut s = SynthScene::city(3);
-    s.boxes.push(SynthBox {
-        aabb: zwarp::core::Aabb::new(Vec3::new(-1.0, 2.0, 3.0), Vec3::new(1.0, 4.0, 5.0)),
-        velocity: Vec3::new(4.0, 0.0, 0.0),
-    });
-    s
+    SynthScene::moving_city()
 }
 
 #[test]
