@@ -45,6 +45,12 @@ pub enum HolePolicy {
     },
 }
 
+impl HolePolicy {
+    /// The hole protocol of seed 000 Sec. 4 as `zwarp eval` and the `zwarp` facade run it:
+    /// [`HolePolicy::Background`] with a 64-pixel radius (see [`fill_background`]).
+    pub const PAPER: HolePolicy = HolePolicy::Background { radius: 64 };
+}
+
 /// Which converged neighbour fills a hole in [`fill_holes`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FillRule {

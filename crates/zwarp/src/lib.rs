@@ -98,7 +98,7 @@ impl Warper {
     /// The parameters `zwarp eval` uses by default: [`WarpParams::default`] with the hole
     /// protocol of Sec. 4 (`HolePolicy::Background` with a 64-pixel radius).
     pub fn default_params() -> WarpParams {
-        WarpParams { holes: HolePolicy::Background { radius: 64 }, ..WarpParams::default() }
+        WarpParams { holes: HolePolicy::PAPER, ..WarpParams::default() }
     }
 
     /// A warper on `backend` with `params` (checked: a one-line [`Error::Invalid`] for bad

@@ -189,7 +189,7 @@ impl EvalPlan {
     /// The hole policy of every warp: the explicit `--holes`, or the paper's Sec. 4 protocol
     /// (holes filled with the background depth, at every L; see `EvalArgs::holes`).
     pub fn holes(&self) -> HolePolicy {
-        self.holes.unwrap_or(HolePolicy::Background { radius: 64 })
+        self.holes.unwrap_or(HolePolicy::PAPER)
     }
 }
 
@@ -277,7 +277,7 @@ impl EvalArgs {
             "far" => Some(HolePolicy::FarDepth),
             "dilate" => Some(HolePolicy::Dilate { radius: 4 }),
             "awoc" => Some(HolePolicy::Awoc),
-            "background" => Some(HolePolicy::Background { radius: 64 }),
+            "background" => Some(HolePolicy::PAPER),
             o => bail!("--holes: unknown hole policy '{o}' (paper, far, dilate, awoc, background)"),
         };
         let umbra = match self.peel.as_str() {
