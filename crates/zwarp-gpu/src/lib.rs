@@ -45,7 +45,7 @@ pub mod shadows;
 pub mod timer;
 
 pub use compute::{
-    rapid_flags, ColorWarpKernel, CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass,
+    predict, rapid_flags, ColorWarpKernel, CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass,
     GpuMaxDepth, GpuMotionPyramid, GpuPreparedWarp, GpuPrevFrame, GpuWarpLayer, GpuWarpOutput, GpuWoc, GpuWocParams,
     HoleFillKernel, MaxDepthKernel, MaxDepthLayout, MotionInput, MotionKernel, PyramidKernel, WarpKernel, WocStage,
     MAX_GPU_LAYERS,

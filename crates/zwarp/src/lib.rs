@@ -185,19 +185,7 @@ impl Warper {
         let layers: Vec<WarpLayer<'_>> =
             src.depth.iter().zip(&motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let out = match &self.gpu {
-            Some(k) => {
-                // The WGSL twins of the same stages: the warp with far holes, then the fill.
-                match self.params.holes {
-                    HolePolicy::Background { radius } => {
-                        let far = WarpParams { holes: HolePolicy::FarDepth, ..self.params };
-                        let mut o = k.warp.warp(&layers, &far)?;
-                        (o.depth, o.state) =
-                            k.fill.fill_background(&layers, &o.depth, &o.state, radius, &self.params.search())?;
-                        o
-                    }
-                    _ => k.warp.warp(&layers, &self.params)?,
-                }
-            }
+            Some(k) => zwarp_gpu::predict(&k.warp, &k.fill, &layers, &self.params)?,
             None => {
                 let mut o = match self.prediction.take() {
                     Some(p) => WarpOutput { depth: p.depth, state: p.state, source: None },

@@ -570,20 +570,6 @@ pub fn evaluate(
                                                 multisample: ms,
                                                 ..WarpParams::default()
                                             };
-                                            // The background protocol needs the source layers (sky
-                                            // seen through holes, border strips): the warp keeps far
-                                            // holes, then `fill_background` (or its WGSL twin) fills
-                                            // them.
-                                            let fill = match params.holes {
-                                                HolePolicy::Background { radius } => Some(radius),
-                                                _ => None,
-                                            };
-                                            let warp_params = if fill.is_some() {
-                                                WarpParams { holes: HolePolicy::FarDepth, ..params }
-                                            } else {
-                                                params
-                                            };
-                                            let search = params.search();
                                             // The preparation's buffers carry over from one timed
                                             // run to the next, as an engine keeps them across
                                             // frames (the first, untimed run allocates them).
@@ -591,13 +577,7 @@ pub fn evaluate(
                                             run(("ours".into(), l, n, t, Some(bound), ms), &layers, &mut |slot| {
                                                 let o = match &gpu {
                                                     Some((_, _, (kernel, holes), _)) => {
-                                                        let mut o = kernel.warp(&layers, &warp_params)?;
-                                                        if let Some(radius) = fill {
-                                                            (o.depth, o.state) = holes.fill_background(
-                                                                &layers, &o.depth, &o.state, radius, &search,
-                                                            )?;
-                                                        }
-                                                        o
+                                                        zwarp_gpu::predict(kernel, holes, &layers, &params)?
                                                     }
                                                     None => {
                                                         // The output buffers carry over too (an

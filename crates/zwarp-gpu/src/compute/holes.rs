@@ -296,3 +296,23 @@ impl HoleFillKernel {
         Ok((r.depth, r.state))
     }
 }
+
+/// The WGSL twin of `zwarp_warp::predict_into`: the warp of `layers` (`warp`) and, under
+/// `HolePolicy::Background`, the background protocol over its far holes (`fill`); any other
+/// hole policy runs inside the warp.
+pub fn predict(
+    warp: &super::WarpKernel,
+    fill: &HoleFillKernel,
+    layers: &[WarpLayer<'_>],
+    params: &zwarp_warp::WarpParams,
+) -> Result<zwarp_warp::WarpOutput> {
+    match params.holes {
+        HolePolicy::Background { radius } => {
+            let far = zwarp_warp::WarpParams { holes: HolePolicy::FarDepth, ..*params };
+            let mut o = warp.warp(layers, &far)?;
+            (o.depth, o.state) = fill.fill_background(layers, &o.depth, &o.state, radius, &params.search())?;
+            Ok(o)
+        }
+        _ => warp.warp(layers, params),
+    }
+}

@@ -16,7 +16,7 @@ mod woc;
 
 pub use colorwarp::ColorWarpKernel;
 pub use cull::{CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass};
-pub use holes::HoleFillKernel;
+pub use holes::{predict, HoleFillKernel};
 pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
