@@ -85,6 +85,37 @@ pub fn depth_to_rgb8_in_range(depth: &Image<f32>, cam: Option<&Camera>, range: (
     Image::from_vec(depth.width(), depth.height(), data).expect("same size")
 }
 
+/// Depth spans wider than this ratio (farthest / nearest surface) read better on a logarithmic
+/// scale: on a linear one a street or a court seen to the horizon is one colour near the camera.
+pub const LOG_DEPTH_RATIO: f32 = 10.0;
+
+/// Whether [`depth_to_rgb8_scaled`] colours `range` (linear view depth, metres) on a log scale.
+pub fn depth_scale_is_log(range: (f32, f32)) -> bool {
+    range.0 > 0.0 && range.1 > LOG_DEPTH_RATIO * range.0
+}
+
+/// [`depth_to_rgb8_in_range`] with a camera, on a logarithmic scale of linear view depth when
+/// the range spans more than [`LOG_DEPTH_RATIO`] ([`depth_scale_is_log`]), so equal colour steps
+/// are equal depth *ratios*; on the linear scale otherwise.
+pub fn depth_to_rgb8_scaled(depth: &Image<f32>, cam: &Camera, range: (f32, f32)) -> Image<[u8; 3]> {
+    if !depth_scale_is_log(range) {
+        return depth_to_rgb8_in_range(depth, Some(cam), range);
+    }
+    let (lo, hi) = (range.0.ln(), range.1.ln());
+    let data = depth
+        .data()
+        .par_iter()
+        .map(|&d| {
+            if !(is_surface(d) && d.is_finite()) {
+                return [0, 0, 0];
+            }
+            let t = ((cam.linear_depth(d.max(0.0)).max(range.0).ln() - lo) / (hi - lo)).clamp(0.0, 1.0);
+            turbo(1.0 - t * (1.0 - DEPTH_TURBO_MIN))
+        })
+        .collect();
+    Image::from_vec(depth.width(), depth.height(), data).expect("same size")
+}
+
 /// Scalar map (e.g. `zwarp_metrics::ssim_map` SSIM maps, error magnitudes, iteration counts) ->
 /// turbo colours, `lo` -> blue-violet end, `hi` -> red end, clamped; NaN black. Errors when
 /// `lo`/`hi` are not finite or `hi <= lo`.
@@ -244,15 +275,21 @@ pub fn diff_heatmap(predicted: &Image<f32>, reference: &Image<f32>, scale: f32) 
             if !d.is_finite() {
                 return [255, 0, 255];
             }
-            let v = ((d.abs() / scale).min(1.0) * 255.0).round() as u8;
-            if d < 0.0 {
-                [v, 0, 0]
-            } else {
-                [0, 0, v]
-            }
+            heat_color(d / scale)
         })
         .collect();
     Image::from_vec(predicted.width(), predicted.height(), data)
+}
+
+/// The colour of [`diff_heatmap`] for a difference of `v` full scales: red for `v < 0`
+/// (predicted nearer), blue for `v > 0`, intensity `|v|` saturating at 1, black at 0.
+pub fn heat_color(v: f32) -> [u8; 3] {
+    let i = (v.abs().min(1.0) * 255.0).round() as u8;
+    if v < 0.0 {
+        [i, 0, 0]
+    } else {
+        [0, 0, i]
+    }
 }
 
 /// Boolean mask (e.g. non-converged pixels, culled objects' footprints) -> white where
