@@ -17,7 +17,7 @@ use zwarp_core::Image;
 
 use super::colorwarp::{self, Backends, Method, Quality, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, Table, Timing};
+use crate::output::{self, fmt, Table, Timing};
 
 /// Arguments of `zwarp blur`.
 #[derive(Args, Clone, Debug)]
@@ -217,7 +217,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
             Ok(if args.defocus { colorwarp::offset_camera(&cam, p.u, p.v, Some(focus)) } else { cam })
         };
         // The reference: K rendered views.
-        let (reference, samples_ms) = report::time_repeated(reps, || {
+        let (reference, samples_ms) = output::time_repeated(reps, || {
             let mut acc = vec![[0.0f32; 3]; (w * h) as usize];
             for p in &samples {
                 accumulate(&mut acc, &be.view(&sample_cam(p)?, t + p.t * dt)?.color);
@@ -252,7 +252,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         let rp = RobustParams { fallback: hp, ..RobustParams::default() };
         let floor = k as f64 * zwarp_color::floor::floor_ms(&fields[fields.len() / 2], &centre.color, 3)?.0;
         for &m in &methods {
-            let (out, ms) = report::time_repeated(reps, || -> Result<ColorWarpOutput> {
+            let (out, ms) = output::time_repeated(reps, || -> Result<ColorWarpOutput> {
                 if m == Method::Repeat {
                     return Ok(zwarp_color::repeat(&centre.color, &centre.depth)?);
                 }
@@ -423,7 +423,7 @@ pub fn run(args: BlurArgs) -> Result<()> {
         rayon::current_num_threads()
     );
     println!("{}", table(&rows));
-    report::write_json(
+    output::write_json(
         &args.json,
         "blur",
         &rows,

@@ -10,7 +10,7 @@ use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Subdivi
 use zwarp_core::{Camera, Image, Motion, Scene};
 
 use crate::args::Backend;
-use crate::report::ser_f64;
+use crate::output::ser_f64;
 
 /// A prediction method (JSON `method`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -403,7 +403,7 @@ pub fn offset_camera(cam: &Camera, u: f32, v: f32, focus: Option<f32>) -> Camera
 
 /// Median of samples (ms).
 pub fn median(v: &[f64]) -> f64 {
-    crate::report::Timing::of(v).median
+    crate::output::Timing::of(v).median
 }
 
 /// Panels of overview images, keyed by (mode, strategy) flags: two rows per key (predictions,

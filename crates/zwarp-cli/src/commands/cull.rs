@@ -10,7 +10,7 @@ use zwarp_cull::{run_sequence_repeated, Method, WocParams};
 use zwarp_raster::{render_frame, FrameOptions};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, ser_f64, Table, Timing};
+use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// `--downsample` when not given, on the CPU backend (see [`CullArgs::downsample`]).
 pub const CPU_DOWNSAMPLE: u32 = 4;
@@ -125,6 +125,19 @@ pub struct CullRow {
     /// Worst-frame PSNR (dB) of the nearer-than-truth part of the map (`inf`: no error).
     #[serde(serialize_with = "ser_f64")]
     pub map_error_psnr_worst: f64,
+    /// Per frame: culling ratio and frame cost (the culling-ratio-over-frames plot).
+    pub frames_detail: Vec<CullFrame>,
+}
+
+/// One frame of a [`CullRow`].
+#[derive(Clone, Debug, Serialize)]
+pub struct CullFrame {
+    /// Frame index along the path.
+    pub frame: usize,
+    /// Fraction of the scene's objects culled.
+    pub culling_ratio: f64,
+    /// Culling + rendering of the kept objects (ms).
+    pub frame_ms: f64,
 }
 
 /// `zwarp cull`.
@@ -291,6 +304,14 @@ pub fn run(args: CullArgs) -> Result<()> {
                 map_error_fraction_max: map_fold(|m| m.error_fraction, f64::max),
                 map_overestimation_fraction: map_mean(|m| m.overestimation_fraction),
                 map_error_psnr_worst: map_fold(|m| m.error_psnr, f64::min),
+                frames_detail: rs
+                    .iter()
+                    .map(|r| CullFrame {
+                        frame: r.frame,
+                        culling_ratio: 1.0 - r.visible as f64 / scene.instances.len().max(1) as f64,
+                        frame_ms: r.cull.total_ms + r.draw_ms,
+                    })
+                    .collect(),
             });
             bar.inc(1);
         }
@@ -339,7 +360,7 @@ pub fn run(args: CullArgs) -> Result<()> {
         ]);
     }
     println!("{}", t.render());
-    report::write_json(
+    output::write_json(
         &args.json,
         "cull",
         &rows,

@@ -87,7 +87,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         );
     }
     let json = args.out.join("demo.json");
-    crate::report::write_json(&json, "demo", &rows, serde_json::json!({ "scene": spec }))?;
+    crate::output::write_json(&json, "demo", &rows, serde_json::json!({ "scene": spec }))?;
     println!(
         "Images (source, warped, reference, difference heat-maps) in {}; results in {}.",
         images.display(),

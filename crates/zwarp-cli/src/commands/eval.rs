@@ -17,7 +17,7 @@ use zwarp_scene::CameraPath;
 use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, ser_f64, Table, Timing};
+use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp eval`.
 #[derive(Args, Clone, Debug)]
@@ -75,7 +75,8 @@ pub struct EvalArgs {
     /// Timed repetitions per measurement (after one warm-up run).
     #[arg(long, default_value_t = 3)]
     pub reps: usize,
-    /// Write source / warped / reference / difference images here (first frame pair).
+    /// Write one figure strip per configuration of ours here (first frame pair): source | ours
+    /// | VFW | AFW | reference | error, with colour bars in metres.
     #[arg(long)]
     pub images: Option<PathBuf>,
     /// Write the results as JSON (`rows`, one per configuration).
@@ -486,11 +487,12 @@ pub fn evaluate(
         };
         let mut keys: Vec<Key> = Vec::new();
         let mut accs: Vec<Acc> = Vec::new();
+        let mut firsts = FirstPair::default();
         let mut ref_samples = Vec::new();
         // Motion-field time per multisampling factor m.
         let mut motion_samples: Vec<(u32, f64)> = Vec::new();
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
-            let (reference, samples) = report::time_repeated(plan.reps, || match &gpu {
+            let (reference, samples) = output::time_repeated(plan.reps, || match &gpu {
                 Some((_, renderer, _, uploaded)) => Ok(renderer.render_depth(uploaded, cb, *tb)?),
                 None => Ok(render_depth(scene, cb, *tb)?),
             })?;
@@ -506,6 +508,10 @@ pub fn evaluate(
                 };
                 let (bufs, motion_ms) = source_buffers(scene, &ca, *ta, &cb_grid, *tb, max_l, plan.umbra)?;
                 motion_samples.push((ms, motion_ms));
+                if pi == 0 && plan.images.is_some() {
+                    firsts.sources.push((ms, bufs.single.0.clone(), ca));
+                    firsts.reference = Some((reference.clone(), *cb));
+                }
                 bar.inc(1);
                 // `f` computes a configuration's prediction into the slot, which holds the previous
                 // repetition's output for reuse (one untimed warm-up, then `reps` timed runs).
@@ -543,10 +549,8 @@ pub fn evaluate(
                     a.warp_ms.extend(samples);
                     a.floor_ms.push(floor);
                     a.detail.push(FrameDetail { pair: pi, psnr: q.psnr, ssim: q.ssim, converged: conv });
-                    if pi == 0 {
-                        if let Some(dir) = &plan.images {
-                            write_images(dir, scene_name, speed, &key, &bufs.single.0, &out.0, &reference, &ca, cb)?;
-                        }
+                    if pi == 0 && plan.images.is_some() {
+                        firsts.predictions.push((key.clone(), out.0.clone()));
                     }
                     bar.inc(1);
                     Ok(())
@@ -624,6 +628,9 @@ pub fn evaluate(
             }
         }
         bar.finish_and_clear();
+        if let Some(dir) = &plan.images {
+            write_strips(dir, scene_name, speed, &firsts)?;
+        }
         let ref_t = Timing::of(&ref_samples);
         for (key, a) in keys.into_iter().zip(accs) {
             let wt = Timing::of(&a.warp_ms);
@@ -672,51 +679,62 @@ pub fn evaluate(
     Ok(rows)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn write_images(
-    dir: &std::path::Path,
-    scene: &str,
-    speed: f32,
-    key: &Key,
-    source: &Image<f32>,
-    warped: &Image<f32>,
-    reference: &Image<f32>,
-    ca: &Camera,
-    cb: &Camera,
-) -> Result<()> {
+/// The first frame pair's buffers, kept for the figure strips when `--images` is given.
+#[derive(Default)]
+struct FirstPair {
+    /// `(m, source depth, source camera)` per multisampling factor.
+    sources: Vec<(u32, Image<f32>, Camera)>,
+    /// The directly rendered target and its camera.
+    reference: Option<(Image<f32>, Camera)>,
+    /// Every configuration's prediction.
+    predictions: Vec<(Key, Image<f32>)>,
+}
+
+/// Width in pixels of one panel of a figure strip.
+const PANEL_WIDTH: u32 = 480;
+
+/// One labelled PNG per configuration of ours: source | ours | VFW | AFW (same L, when run) |
+/// reference | error of ours, each depth panel with its colour bar in metres (predictions in
+/// the reference's range) and the error panel with its scale.
+fn write_strips(dir: &std::path::Path, scene: &str, speed: f32, firsts: &FirstPair) -> Result<()> {
+    let Some((reference, cb)) = &firsts.reference else { return Ok(()) };
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
     let safe: String = scene.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
-    let base = format!("{safe}_{speed}x");
-    let src = dir.join(format!("{base}_source.png"));
-    if !src.exists() {
-        zwarp_viz::write_png(&src, &zwarp_viz::depth_to_rgb8(source, Some(ca)))?;
-        zwarp_viz::write_png(
-            dir.join(format!("{base}_reference.png")),
-            &zwarp_viz::depth_to_rgb8(reference, Some(cb)),
-        )?;
-        // Heat-map legend: red = predicted nearer than the reference, blue = farther,
-        // full intensity at 5% of the reference's depth range.
-    }
-    let mut cfg = match key.4 {
-        Some(b) => format!("{}_l{}_n{}_t{}_{}", key.0, key.1, key.2, key.3, bound_name(b)),
-        None => format!("{}_l{}", key.0, key.1),
-    };
-    if key.5 > 1 {
-        cfg.push_str(&format!("_m{}", key.5));
-    }
-    // The warped panel uses the reference's colour range so the two compare pixel for pixel.
     let shown = zwarp_viz::depth_range(reference, Some(cb)).unwrap_or((cb.near, cb.far));
-    zwarp_viz::write_png(
-        dir.join(format!("{base}_{cfg}_warped.png")),
-        &zwarp_viz::depth_to_rgb8_in_range(warped, Some(cb), shown),
-    )?;
-    // Heat map on linear depth normalised like the headline metric.
+    // The error on linear depth normalised like the headline metric, full scale at 1 % of the
+    // reference's surface range.
     let range = zwarp_metrics::surface_range(reference, cb).unwrap_or((cb.near, cb.far));
-    let (wn, rn) = (
-        zwarp_metrics::normalized_linear_depth(warped, cb, range),
-        zwarp_metrics::normalized_linear_depth(reference, cb, range),
-    );
-    zwarp_viz::write_png(dir.join(format!("{base}_{cfg}_diff.png")), &zwarp_viz::diff_heatmap(&wn, &rn, 0.05)?)?;
+    let norm = |d: &Image<f32>| zwarp_metrics::normalized_linear_depth(d, cb, range);
+    let rn = norm(reference);
+    let reference_panel = zwarp_viz::depth_panel("reference (render)", reference, cb, shown, PANEL_WIDTH)?;
+    let baseline = |name: &str, l: usize| {
+        firsts.predictions.iter().find(|(k, _)| k.0 == name && k.1 == l && k.5 == 1).map(|(_, d)| d)
+    };
+    for (key, ours) in firsts.predictions.iter().filter(|(k, _)| k.0 == "ours") {
+        let Some((_, source, ca)) = firsts.sources.iter().find(|(m, _, _)| *m == key.5) else { continue };
+        let src_range = zwarp_viz::depth_range(source, Some(ca)).unwrap_or((ca.near, ca.far));
+        let bound = key.4.map_or("-", bound_name);
+        let mut panels = vec![
+            zwarp_viz::depth_panel(&format!("source L={} m={}", key.1, key.5), source, ca, src_range, PANEL_WIDTH)?,
+            zwarp_viz::depth_panel(&format!("ours N={} T={} {bound}", key.2, key.3), ours, cb, shown, PANEL_WIDTH)?,
+        ];
+        for name in ["vfw", "afw"] {
+            if let Some(d) = baseline(name, key.1) {
+                panels.push(zwarp_viz::depth_panel(&name.to_uppercase(), d, cb, shown, PANEL_WIDTH)?);
+            }
+        }
+        panels.push(reference_panel.clone());
+        panels.push(zwarp_viz::diff_panel(
+            "error (red: nearer)",
+            &norm(ours),
+            &rn,
+            0.01,
+            0.01 * (range.1 - range.0),
+            PANEL_WIDTH,
+        )?);
+        let name = format!("{safe}_{speed}x_l{}_n{}_t{}_{bound}_m{}.png", key.1, key.2, key.3, key.5);
+        zwarp_viz::write_png(dir.join(name), &zwarp_viz::strip(&panels)?)?;
+    }
     Ok(())
 }
 
@@ -765,7 +783,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         rayon::current_num_threads()
     );
     println!("{}", table(&rows));
-    report::write_json(
+    output::write_json(
         &args.json,
         "eval",
         &rows,

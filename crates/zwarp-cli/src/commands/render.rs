@@ -9,7 +9,7 @@ use serde::Serialize;
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions};
 
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::report::{self, Timing};
+use crate::output::{self, Timing};
 
 /// Arguments of `zwarp render`.
 #[derive(Args, Clone, Debug)]
@@ -65,7 +65,7 @@ struct RenderJob<'a> {
 /// The CPU backend: zwarp-raster and the CPU motion field.
 fn render_cpu(job: &RenderJob<'_>) -> Result<Rendered> {
     let RenderJob { scene, cam, t, cam_next, t_next, layers, has_ground } = *job;
-    let (_, depth_samples) = report::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, cam, t)?))?;
+    let (_, depth_samples) = output::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, cam, t)?))?;
     let frame = render_frame(scene, cam, t, &FrameOptions { color: true, objects: None })?;
     let motion =
         zwarp_core::motion_field(&frame.depth, Some(&frame.items), cam, cam_next, &scene.object_deltas(t, t_next))?;
@@ -96,7 +96,7 @@ fn render_gpu(job: &RenderJob<'_>) -> Result<Rendered> {
     let r = zwarp_gpu::Renderer::new(&ctx)?;
     let gs = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
     let target = zwarp_gpu::DepthTarget::new(&ctx, cam.width, cam.height)?;
-    let (_, depth_samples) = report::time_repeated(3, || {
+    let (_, depth_samples) = output::time_repeated(3, || {
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         r.encode_depth(&mut enc, &gs, cam, t, &target)?;
         ctx.queue.submit([enc.finish()]);
@@ -254,7 +254,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             "adapter": rendered.adapter,
             "threads": rayon::current_num_threads(),
         });
-        report::write_json(j, "render", std::slice::from_ref(&row), meta)?;
+        output::write_json(j, "render", std::slice::from_ref(&row), meta)?;
     }
     Ok(())
 }

@@ -19,7 +19,7 @@ use zwarp_shadows::{
 };
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, ser_f64, Table, Timing};
+use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp shadows`.
 #[derive(Args, Clone, Debug)]
@@ -260,7 +260,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
     }
     println!("{}", table.render());
     let light_json: serde_json::Value = serde_json::from_str(&light_to_json(&light))?;
-    report::write_json(
+    output::write_json(
         &a.json,
         "shadows",
         &out,

@@ -16,7 +16,7 @@ use zwarp_core::{Camera, Image};
 
 use super::colorwarp::{self, Backends, Method, Quality, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, Table, Timing};
+use crate::output::{self, fmt, Table, Timing};
 
 /// Arguments of `zwarp stereo`.
 #[derive(Args, Clone, Debug)]
@@ -180,7 +180,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
         let mut refs = Vec::new();
         for side in [-1.0f32, 1.0] {
             let ce = eye_camera(&c, side, sep);
-            let (v, samples) = report::time_repeated(reps, || be.view(&ce, t))?;
+            let (v, samples) = output::time_repeated(reps, || be.view(&ce, t))?;
             refs.push((v, samples));
         }
         for &alternate in &strategies {
@@ -207,7 +207,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 let unseen = colorwarp::unseen(&reference.depth, &to_src, src)?;
                 let floor = zwarp_color::floor::floor_ms(&field, &src.color, reps)?.0;
                 for &m in &methods {
-                    let (out, samples) = report::time_repeated(reps, || -> Result<_> {
+                    let (out, samples) = output::time_repeated(reps, || -> Result<_> {
                         Ok(match m {
                             Method::Heuristic => {
                                 be.heuristic_into(&field, &src.color, &hp, &mut slot)?;
@@ -387,7 +387,7 @@ pub fn run(args: StereoArgs) -> Result<()> {
         rayon::current_num_threads()
     );
     println!("{}", table(&rows));
-    report::write_json(
+    output::write_json(
         &args.json,
         "stereo",
         &rows,

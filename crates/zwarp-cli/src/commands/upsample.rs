@@ -15,7 +15,7 @@ use zwarp_core::Image;
 
 use super::colorwarp::{self, Backends, Method, Quality, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::report::{self, fmt, Table, Timing};
+use crate::output::{self, fmt, Table, Timing};
 
 /// Arguments of `zwarp upsample`.
 #[derive(Args, Clone, Debug)]
@@ -162,7 +162,7 @@ struct Acc {
 
 /// Times `f` (`reps` runs after a warm-up) and returns its last output and the samples.
 fn timed(reps: usize, mut f: impl FnMut() -> Result<ColorWarpOutput>) -> Result<(ColorWarpOutput, Vec<f64>)> {
-    report::time_repeated(reps, &mut f)
+    output::time_repeated(reps, &mut f)
 }
 
 /// Times `f` writing into `slot` (its buffers reused between runs, as an engine keeps them);
@@ -172,7 +172,7 @@ fn timed_into(
     slot: &mut ColorWarpOutput,
     mut f: impl FnMut(&mut ColorWarpOutput) -> Result<()>,
 ) -> Result<(ColorWarpOutput, Vec<f64>)> {
-    let (_, samples) = report::time_repeated(reps, || f(slot))?;
+    let (_, samples) = output::time_repeated(reps, || f(slot))?;
     Ok((slot.clone(), samples))
 }
 
@@ -235,7 +235,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
             let frac = j as f32 / plan.factor as f32;
             let tt = tk(k) + frac / path.fps;
             let ct = cam(tt)?;
-            let (reference, samples) = report::time_repeated(plan.reps, || be.view(&ct, tt))?;
+            let (reference, samples) = output::time_repeated(plan.reps, || be.view(&ct, tt))?;
             render_ms.extend(samples);
             // The target's geometry (RRC's re-render) and what the sources saw of it.
             let (tdepth, titems) = be.depth_items(&ct, tt)?;
@@ -464,7 +464,7 @@ pub fn run(args: UpsampleArgs) -> Result<()> {
         rayon::current_num_threads()
     );
     println!("{}", table(&rows));
-    report::write_json(
+    output::write_json(
         &args.json,
         "upsample",
         &rows,
