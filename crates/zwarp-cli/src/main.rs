@@ -3,7 +3,7 @@
 
 mod args;
 mod commands;
-mod report;
+mod output;
 
 use clap::{Parser, Subcommand};
 
@@ -33,6 +33,8 @@ enum Command {
     Stereo(commands::stereo::StereoArgs),
     /// Motion and defocus blur by accumulating warped views vs rendered ones (seed 001).
     Blur(commands::blur::BlurArgs),
+    /// Run the protocol of every table and figure zwarp reproduces; write an HTML page, JSON and markdown.
+    Report(commands::report::ReportArgs),
     /// List the compute devices (GPU adapters) zwarp can use.
     Info(commands::info::InfoArgs),
 }
@@ -57,6 +59,7 @@ fn main() {
         Command::Upsample(a) => commands::upsample::run(a),
         Command::Stereo(a) => commands::stereo::run(a),
         Command::Blur(a) => commands::blur::run(a),
+        Command::Report(a) => commands::report::run(a),
     };
     if let Err(e) = result {
         // One line: the error and its causes, joined.

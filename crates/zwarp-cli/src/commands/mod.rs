@@ -7,6 +7,7 @@ pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod render;
+pub mod report;
 pub mod shadows;
 pub mod stereo;
 pub mod upsample;
