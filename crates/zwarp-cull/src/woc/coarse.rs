@@ -1,0 +1,225 @@
+//! Culling at a reduced resolution (`WocParams::downsample`): the coarse camera, conservative
+//! max reductions of depth over each coarse texel's footprint, and the previous frame reduced
+//! to the coarse grid with the item of each texel's farthest sample.
+
+use glam::Vec2;
+use rayon::prelude::*;
+use zwarp_core::{Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
+
+/// The same view volume rendered at `1/factor` of the resolution (rounded up): projection and
+/// view are unchanged, only the pixel grid is coarser.
+pub fn coarse_camera(cam: &Camera, factor: u32) -> Camera {
+    Camera { width: cam.width.div_ceil(factor.max(1)), height: cam.height.div_ceil(factor.max(1)), ..*cam }
+}
+
+/// Fine pixels `[lo, hi)` touched by coarse pixel `i` when `fine` pixels map onto `coarse`.
+#[inline]
+pub(crate) fn footprint(i: u32, fine: u32, coarse: u32) -> (u32, u32) {
+    let (i, fine, coarse) = (i as u64, fine as u64, coarse as u64);
+    let lo = i * fine / coarse;
+    let hi = ((i + 1) * fine).div_ceil(coarse).min(fine);
+    (lo as u32, hi as u32)
+}
+
+/// Conservative reduction of a depth + item buffer to `width x height` (the size of
+/// [`coarse_camera`]): each coarse pixel takes the max depth over every fine pixel its
+/// footprint touches, and the item of that farthest pixel (first one on ties).
+pub fn downsample_max(
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    width: u32,
+    height: u32,
+) -> Result<(Image<f32>, Image<u32>)> {
+    depth.check_nonempty("depth buffer")?;
+    depth.check_same_size(items, "depth vs item buffer")?;
+    if width == 0 || height == 0 || width > depth.width() || height > depth.height() {
+        return Err(Error::invalid(format!("cannot reduce {}x{} to {width}x{height}", depth.width(), depth.height())));
+    }
+    let r = reduce_prev(depth, items, (width, height), None);
+    Ok((r.depth, r.items))
+}
+
+/// A fine pixel of a coarse footprint: depth, item, x, y.
+pub(crate) type Px = (f32, u32, u32, u32);
+
+/// The previous frame at the culling resolution ([`reduce_prev`]).
+pub(crate) struct CoarsePrev {
+    /// [`downsample_max`]'s depth.
+    pub(crate) depth: Image<f32>,
+    /// [`downsample_max`]'s items.
+    pub(crate) items: Image<u32>,
+    /// Per coarse texel, its nearest and farthest non-empty fine pixel when they belong to two
+    /// different objects (ids below the object count given), the nearer strictly nearer
+    /// (input of [`coarse_internal_openings`]); empty unless asked for.
+    pub(crate) pairs: Vec<Option<(Px, Px)>>,
+    /// A fine depth was NaN.
+    pub(crate) nan: bool,
+}
+
+/// One pass over the fine previous buffers for the coarse culling resolution (seed 002
+/// Sec. VI): [`downsample_max`]'s conservative reduction, the near/far object pairs of
+/// [`coarse_internal_openings`] when `pairs_below` gives the object count, and the NaN check,
+/// reading each fine pixel once (separate passes cost ~1.5 ms per 0.5 Mpx frame, more than the
+/// coarse warp itself). Ties keep the first pixel in row-major order.
+pub(crate) fn reduce_prev(
+    depth: &Image<f32>,
+    items: &Image<u32>,
+    (cw, ch): (u32, u32),
+    pairs_below: Option<usize>,
+) -> CoarsePrev {
+    let (fw, fh) = depth.size();
+    let xs: Vec<(u32, u32)> = (0..cw).map(|cx| footprint(cx, fw, cw)).collect();
+    let (cwu, n) = (cw as usize, cw as usize * ch as usize);
+    let mut out_d = vec![0.0f32; n];
+    let mut out_i = vec![NO_ITEM; n];
+    let mut out_p: Vec<Option<(Px, Px)>> = if pairs_below.is_some() { vec![None; n] } else { Vec::new() };
+    let limit = pairs_below.unwrap_or(0);
+    // Per coarse column of one coarse row: farthest pixel (depth, item) and, for the pairs,
+    // the nearest and farthest valid pixel (depth, fine x, fine y). The fine rows are walked
+    // whole, so consecutive pixels update different columns' accumulators: no loop-carried
+    // dependency through one running max (the per-texel loop was latency-bound, ~7 cycles per
+    // fine pixel). Ties keep the first pixel in row-major order (strict comparisons).
+    #[derive(Clone, Copy)]
+    struct Acc {
+        best: (f32, u32),
+        near: (f32, u32, u32),
+        far: (f32, u32, u32),
+    }
+    const EMPTY_ACC: Acc =
+        Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
+    let row = |cy: usize, od: &mut [f32], oi: &mut [u32], op: Option<&mut [Option<(Px, Px)>]>| -> bool {
+        let (y0, y1) = footprint(cy as u32, fh, ch);
+        let mut acc = vec![EMPTY_ACC; xs.len()];
+        let mut nan = false;
+        for y in y0..y1 {
+            let (ds, is) = (depth.row(y), items.row(y));
+            for (a, &(x0, x1)) in acc.iter_mut().zip(&xs) {
+                for x in x0..x1 {
+                    let (d, id) = (ds[x as usize], is[x as usize]);
+                    nan |= d.is_nan();
+                    if d > a.best.0 {
+                        a.best = (d, id);
+                    }
+                    // `NO_ITEM` is never below the object count.
+                    if d < EMPTY_DEPTH && (id as usize) < limit {
+                        if d < a.near.0 {
+                            a.near = (d, x, y);
+                        }
+                        if d > a.far.0 {
+                            a.far = (d, x, y);
+                        }
+                    }
+                }
+            }
+        }
+        for (cx, a) in acc.iter().enumerate() {
+            od[cx] = a.best.0;
+            oi[cx] = a.best.1;
+        }
+        if let Some(p) = op {
+            for (o, a) in p.iter_mut().zip(&acc) {
+                *o = (a.near.0 < a.far.0).then(|| {
+                    let near = (a.near.0, *items.get(a.near.1, a.near.2), a.near.1, a.near.2);
+                    let far = (a.far.0, *items.get(a.far.1, a.far.2), a.far.1, a.far.2);
+                    (near, far)
+                });
+                if o.is_some_and(|(n, f)| n.1 == f.1) {
+                    *o = None;
+                }
+            }
+        }
+        nan
+    };
+    let nan = if pairs_below.is_some() {
+        out_d
+            .par_chunks_mut(cwu)
+            .zip(out_i.par_chunks_mut(cwu))
+            .zip(out_p.par_chunks_mut(cwu))
+            .enumerate()
+            .map(|(cy, ((od, oi), op))| row(cy, od, oi, Some(op)))
+            .reduce(|| false, |a, b| a || b)
+    } else {
+        out_d
+            .par_chunks_mut(cwu)
+            .zip(out_i.par_chunks_mut(cwu))
+            .enumerate()
+            .map(|(cy, (od, oi))| row(cy, od, oi, None))
+            .reduce(|| false, |a, b| a || b)
+    };
+    CoarsePrev {
+        depth: Image::from_vec(cw, ch, out_d).expect("cw x ch values"),
+        items: Image::from_vec(cw, ch, out_i).expect("cw x ch values"),
+        pairs: out_p,
+        nan,
+    }
+}
+
+/// Coarse texels whose footprint holds an *internal opening*: two different objects (the
+/// nearest and the farthest fine pixel of the footprint) whose own screen motions, from
+/// `prev_cam` at `t_a` to `cam` at `t_b` in fine pixels, pull them apart by more than
+/// `min_separation` px/frame. Returns one flag per coarse texel (row-major, `cw x ch` of
+/// [`coarse_camera`]).
+///
+/// Why: [`downsample_max`] keeps the farthest fine pixel of a footprint and that pixel's item,
+/// so a coarse texel straddling a near object `A` and a farther `B` moves rigidly with `B`.
+/// Where `A` slides away from `B` inside the footprint, the strip it uncovers (what is behind
+/// `A`: `B`'s hidden part, or anything farther when `B` ends there too) gets `B`'s depth, and
+/// the coarse opening-rim test never sees the boundary (it is inside one texel). Blanking these
+/// texels is the coarse analogue of [`RimMode::Source`]. The separation direction is taken from
+/// the far pixel to the near one; any relative motion within 120 degrees of it counts, so a
+/// boundary running obliquely through the footprint is still caught. `pairs` comes from
+/// [`reduce_prev`] (fine pixel coordinates in a `fw x fh` image).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn coarse_internal_openings(
+    scene: &Scene,
+    pairs: &[Option<(Px, Px)>],
+    (fw, fh): (u32, u32),
+    prev_cam: &Camera,
+    cam: &Camera,
+    t_a: f32,
+    t_b: f32,
+    min_separation: f32,
+) -> Vec<bool> {
+    // Object matrices of the items involved, computed once each.
+    let mut ids: Vec<u32> = pairs.iter().flatten().flat_map(|(a, b)| [a.1, b.1]).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let vp_b = cam.view_proj();
+    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * scene.instances[id as usize].delta(t_a, t_b)).collect();
+    let mat = |id: u32| &mats[ids.binary_search(&id).expect("collected above")];
+    let inv_a = prev_cam.view_proj().inverse();
+    let motion = |p: &Px| {
+        zwarp_core::motion::reproject_pixel(&inv_a, mat(p.1), (fw, fh), (cam.width, cam.height), p.2, p.3, p.0).v
+    };
+    pairs
+        .par_iter()
+        .map(|pair| {
+            pair.is_some_and(|(near, far)| {
+                let rel = motion(&near) - motion(&far);
+                let dir = Vec2::new(near.2 as f32 - far.2 as f32, near.3 as f32 - far.3 as f32).normalize();
+                let len = rel.length();
+                len > min_separation && rel.dot(dir) > -0.5 * len
+            })
+        })
+        .collect()
+}
+
+/// Depth-only twin of [`downsample_max`]: each of the `cw x ch` coarse pixels takes the max of
+/// `fine` over every fine pixel its footprint touches (the bound each coarse texel of an
+/// occlusion map must respect). `cw`, `ch` at least 1 and at most `fine`'s size.
+pub fn max_over_footprints(fine: &Image<f32>, (cw, ch): (u32, u32)) -> Image<f32> {
+    let (fw, fh) = fine.size();
+    let xs: Vec<(u32, u32)> = (0..cw).map(|cx| footprint(cx, fw, cw)).collect();
+    let mut out = Image::new(cw, ch, f32::NEG_INFINITY);
+    out.data_mut().par_chunks_mut(cw as usize).enumerate().for_each(|(cy, row)| {
+        let (y0, y1) = footprint(cy as u32, fh, ch);
+        for (o, &(x0, x1)) in row.iter_mut().zip(&xs) {
+            for y in y0..y1 {
+                for &d in &fine.row(y)[x0 as usize..x1 as usize] {
+                    *o = o.max(d);
+                }
+            }
+        }
+    });
+    out
+}

@@ -1,0 +1,178 @@
+//! Rapid-motion objects (thesis Sec. IV.1, Fig. 5): objects whose screen-space speed exceeds a
+//! threshold are drawn exactly into the predicted depth instead of being warped.
+
+use super::{hull_hides, max_over_footprints, WocParams, DEPTH_TOLERANCE};
+use crate::bounds::ObjectBounds;
+use crate::frustum::Frustum;
+use crate::maxdepth::MaxDepthQuery;
+use crate::screen::{screen_rect_with, PixelRect, ScreenRect};
+use rayon::prelude::*;
+use zwarp_core::{Aabb, Camera, Image, Result, Scene, EMPTY_DEPTH};
+use zwarp_raster::draw_into;
+
+/// Screen-space speed (pixels per frame) of an instance between two views: the largest
+/// displacement of its object-space bounding-box corners, each moved with the instance's
+/// transform at each time (so rotating objects are tracked point by point). Infinite when a
+/// corner is behind or in front of the near plane in either view. Pass the same camera twice
+/// for the object's own motion only (0 for static objects).
+pub fn screen_speed(scene: &Scene, id: u32, cam_a: &Camera, t_a: f32, cam_b: &Camera, t_b: f32) -> f32 {
+    let inst = &scene.instances[id as usize];
+    if !inst.animation.is_animated() && cam_a == cam_b {
+        return 0.0;
+    }
+    let bounds = scene.meshes[inst.mesh as usize].bounds;
+    if bounds.is_empty() {
+        return 0.0;
+    }
+    let (ma, mb) = (inst.transform_at(t_a), inst.transform_at(t_b));
+    let (vpa, vpb) = (cam_a.view_proj(), cam_b.view_proj());
+    let mut speed = 0.0f32;
+    for c in bounds.corners() {
+        let pa = zwarp_core::camera::project_with(&vpa, cam_a.width, cam_a.height, ma.transform_point3(c));
+        let pb = zwarp_core::camera::project_with(&vpb, cam_b.width, cam_b.height, mb.transform_point3(c));
+        match (pa, pb) {
+            (Some(a), Some(b)) if a.z >= 0.0 && b.z >= 0.0 => {
+                speed = speed.max((b.truncate() - a.truncate()).length());
+            }
+            _ => return f32::INFINITY,
+        }
+    }
+    speed
+}
+
+/// Draws `objects` at time `t` exactly into `predicted`, which has the size of the culling
+/// resolution and bounds the depth `full_cam` renders: at full resolution directly; at a coarse
+/// one into a far full-resolution buffer that is then reduced by max over each coarse pixel's
+/// footprint (as the previous depth is, [`downsample_max`]) and merged by min, so every coarse
+/// value stays an upper bound of the depth of the fine pixels under it. (Rasterizing at the
+/// coarse resolution would give a covered coarse pixel the depth at its centre, which bounds
+/// neither its uncovered fine pixels nor a sloped surface's far corner.)
+pub(crate) fn draw_exact(
+    predicted: &mut Image<f32>,
+    scene: &Scene,
+    full_cam: &Camera,
+    t: f32,
+    objects: &[u32],
+) -> Result<()> {
+    if predicted.size() == (full_cam.width, full_cam.height) {
+        return draw_into(predicted, None, scene, full_cam, t, objects);
+    }
+    let mut fine = Image::new(full_cam.width, full_cam.height, EMPTY_DEPTH);
+    draw_into(&mut fine, None, scene, full_cam, t, objects)?;
+    let coarse = max_over_footprints(&fine, predicted.size());
+    predicted.data_mut().par_iter_mut().zip(coarse.data().par_iter()).for_each(|(p, &c)| *p = p.min(c));
+    Ok(())
+}
+
+/// What the screen-space stage still has to decide for an object in the frustum ([`prepass`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Test {
+    /// Rapid-motion object: drawn into the occlusion map and kept.
+    Forced,
+    /// Its box crosses the near plane: kept.
+    Keep,
+    /// Test this screen rectangle (culling resolution) and nearest corner depth.
+    Rect(PixelRect, f32),
+}
+
+/// An object of the frustum, after [`prepass`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Prepassed {
+    pub(crate) id: u32,
+    pub(crate) aabb: Aabb,
+    pub(crate) test: Test,
+}
+
+/// Rapid-motion classification of [`WocParams::rapid_motion`] for one frame pair.
+pub(crate) struct Rapid<'a> {
+    /// Threshold in full-resolution pixels per frame (`None`: path disabled).
+    pub(crate) threshold: Option<f32>,
+    /// Camera of the speed's first view (the current one unless the camera motion counts).
+    pub(crate) cam_a: &'a Camera,
+    /// Current full-resolution camera.
+    pub(crate) cam_b: &'a Camera,
+    pub(crate) t_a: f32,
+    pub(crate) includes_camera: bool,
+}
+
+impl<'a> Rapid<'a> {
+    pub(crate) fn of(params: &WocParams, full_prev_cam: &'a Camera, full_cam: &'a Camera, t_a: f32) -> Self {
+        Rapid {
+            threshold: params.rapid_threshold_px(full_cam.width),
+            cam_a: if params.rapid_includes_camera { full_prev_cam } else { full_cam },
+            cam_b: full_cam,
+            t_a,
+            includes_camera: params.rapid_includes_camera,
+        }
+    }
+}
+
+/// Objects handed to the parallel per-object loops in runs of at least this many (one rayon
+/// task per object costs more than the test of a culled one).
+pub(crate) const OBJECT_CHUNK: usize = 512;
+
+/// The per-object pass of [`woc`] before the occlusion map exists: bounds at `t`, VFC, the
+/// rapid-motion speed (thesis Sec. IV.1) and the box's screen rectangle for `cam` (the culling
+/// resolution), in one read of each instance. Returns the objects in the frustum (whose
+/// rectangle is not outside the image), increasing ids. Static objects skip the speed unless the
+/// camera's motion counts (their own speed is 0).
+pub(crate) fn prepass(scene: &Scene, bounds: &ObjectBounds, t: f32, cam: &Camera, rapid: &Rapid<'_>) -> Vec<Prepassed> {
+    let frustum = Frustum::from_camera(cam);
+    let vp = cam.view_proj();
+    (0..scene.instances.len() as u32)
+        .into_par_iter()
+        .with_min_len(OBJECT_CHUNK)
+        .filter_map(|id| {
+            let aabb = bounds.at(scene, id, t);
+            if !frustum.intersects(&aabb) {
+                return None;
+            }
+            if let Some(thr) = rapid.threshold {
+                let moving = rapid.includes_camera || bounds.is_animated(id);
+                if moving && screen_speed(scene, id, rapid.cam_a, rapid.t_a, rapid.cam_b, t) > thr {
+                    return Some(Prepassed { id, aabb, test: Test::Forced });
+                }
+            }
+            let test = match screen_rect_with(&aabb, &vp, cam.width, cam.height) {
+                ScreenRect::Outside => return None,
+                ScreenRect::CrossesNear => Test::Keep,
+                ScreenRect::Rect { rect, nearest } => Test::Rect(rect, nearest),
+            };
+            Some(Prepassed { id, aabb, test })
+        })
+        .collect()
+}
+
+/// The screen-space stage of [`woc`] over the [`prepass`]ed objects: ids (increasing) of those
+/// kept, i.e. forced, crossing the near plane, or whose rectangle is not occluded in `map`
+/// ([`DEPTH_TOLERANCE`] included) and, with `hull = Some((predicted depth, slack))`,
+/// whose silhouette still meets a pixel that could show them ([`WocParams::hull_test`]).
+pub(crate) fn test_prepassed(
+    objects: &[Prepassed],
+    cam: &Camera,
+    map: &impl MaxDepthQuery,
+    hull: Option<(&[f32], f32)>,
+) -> Vec<u32> {
+    let vp = cam.view_proj();
+    objects
+        .par_iter()
+        .with_min_len(OBJECT_CHUNK / 2)
+        .filter_map(|o| match o.test {
+            Test::Forced | Test::Keep => Some(o.id),
+            Test::Rect(rect, nearest) => {
+                let limit = nearest - DEPTH_TOLERANCE;
+                if map.is_occluded(rect, limit) {
+                    return None;
+                }
+                match hull {
+                    Some((depth, slack))
+                        if hull_hides(&o.aabb, rect, limit, &vp, (cam.width, cam.height), depth, slack) =>
+                    {
+                        None
+                    }
+                    _ => Some(o.id),
+                }
+            }
+        })
+        .collect()
+}
