@@ -292,10 +292,9 @@ struct CullStep {
 
 /// Pass 1 of [`run_sequence`], the engine's loop and the only timed one: each frame is culled
 /// and its kept set drawn, and that drawing is the next frame's previous frame. Nothing else
-/// runs in between: the full render of every object (evaluation only) used to come right
-/// before each cull, and its after-effects on this 2-core VM were charged to the cull (CB,
-/// 960x540: WOC's worst/median cull time 1.5-1.8 with it, 1.1-1.65 without, on the same
-/// machine; `results/woc_stability_s5.txt`). The oracles (`ideal`, `ref`) render the frame in
+/// runs in between: a full render of every object (evaluation only) placed before each cull
+/// leaves after-effects (caches, a busy second core) that a 2-core machine charges to the cull
+/// (CB, 960x540: WOC's worst/median cull time 1.5-1.8 with it, 1.1-1.65 without). The oracles (`ideal`, `ref`) render the frame in
 /// full here because that render is their input. With `repeat > 1` every frame is culled
 /// `repeat` times from the same inputs (the decision is deterministic) and the repetition with
 /// the median total time is kept: the cost of that frame, free of one-off machine hiccups.

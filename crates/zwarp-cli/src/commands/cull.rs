@@ -37,8 +37,8 @@ pub struct CullArgs {
     pub n: u32,
     /// Culling resolution divisor for WOC/AWOC (1 = full resolution; k = warp and test at
     /// 1/k of the size with conservative max reduction). Default: 4 on the CPU, 1 on the GPU
-    /// (whose WOC kernels run at full resolution). Measured on CB and BL (scale 1, 960x540 and
-    /// 1920x1080, crates/zwarp-cull/README.md): no divisor wins everywhere (CB prefers /4-/6,
+    /// (whose WOC kernels run at full resolution). Measured on CB and BL (scale 1, 960x540,
+    /// crates/zwarp-cull/README.md): no divisor wins everywhere (CB prefers /4-/6,
     /// BL /2-/3, whose draw time follows every point of culling ratio), /4 stays close to the
     /// best in each case, and full resolution is the slowest frame in every case (its warp
     /// costs more than drawing what it saves on this CPU).
