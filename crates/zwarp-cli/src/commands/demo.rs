@@ -88,11 +88,21 @@ pub fn run(args: DemoArgs) -> Result<()> {
     }
     let json = args.out.join("demo.json");
     crate::output::write_json(&json, "demo", &rows, serde_json::json!({ "scene": spec }))?;
+    let mut strips: Vec<String> = std::fs::read_dir(&images)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok()).map(|e| e.path().display().to_string()).filter(|p| p.ends_with(".png")).collect()
+        })
+        .unwrap_or_default();
+    strips.sort();
     println!(
-        "Images (source, warped, reference, difference heat-maps) in {}; results in {}.",
+        "Figure strips (source | ours | VFW | AFW | reference | error, depth in metres on the colour bars) in {}, e.g. {}; results in {}.",
         images.display(),
+        strips.first().map_or("-", String::as_str),
         json.display()
     );
     println!("Done in {:.1} s.", t0.elapsed().as_secs_f64());
+    println!(
+        "Next: `zwarp report --quick --out report` reproduces every table and figure of the papers (add --full for their protocol) and writes report/index.html."
+    );
     Ok(())
 }

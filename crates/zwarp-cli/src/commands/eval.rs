@@ -699,7 +699,10 @@ const PANEL_WIDTH: u32 = 480;
 fn write_strips(dir: &std::path::Path, scene: &str, speed: f32, firsts: &FirstPair) -> Result<()> {
     let Some((reference, cb)) = &firsts.reference else { return Ok(()) };
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create folder", dir.display()))?;
-    let safe: String = scene.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    // Named by the scene's file stem (`sponza` for `../scenes/sponza`, `cb` for cb).
+    let stem =
+        std::path::Path::new(scene.trim_end_matches('/')).file_stem().map_or(scene.into(), |s| s.to_string_lossy());
+    let safe: String = stem.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
     let shown = zwarp_viz::depth_range(reference, Some(cb)).unwrap_or((cb.near, cb.far));
     // The error on linear depth normalised like the headline metric, full scale at 1 % of the
     // reference's surface range.
