@@ -3,6 +3,7 @@
 
 mod args;
 mod commands;
+mod device;
 mod output;
 
 use clap::{Parser, Subcommand};

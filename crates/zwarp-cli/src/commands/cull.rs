@@ -6,10 +6,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::Args;
 use serde::Serialize;
-use zwarp_cull::{run_sequence_repeated, Method, WocParams};
+use zwarp_cull::{Method, WocParams};
 use zwarp_raster::{render_frame, FrameOptions};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
+use crate::device::Device;
 use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// `--downsample` when not given, on the CPU backend (see [`CullArgs::downsample`]).
@@ -154,16 +155,11 @@ pub fn run(args: CullArgs) -> Result<()> {
         .iter()
         .map(|m| Method::parse(m).map_err(anyhow::Error::from))
         .collect::<Result<Vec<_>>>()?;
-    let gpu = match args.backend {
-        Backend::Cpu => None,
-        Backend::Gpu => Some(zwarp_gpu::GpuContext::new()?),
-    };
-    if gpu.is_some() {
-        let skipped: Vec<&str> = methods.iter().filter(|m| !zwarp_gpu::gpu_supports(**m)).map(|m| m.name()).collect();
-        if !skipped.is_empty() {
-            eprintln!("zwarp cull: {} CPU-only, skipped on the GPU backend", skipped.join(", "));
-        }
-        methods.retain(|m| zwarp_gpu::gpu_supports(*m));
+    let device = Device::open(args.backend)?;
+    let skipped: Vec<&str> = methods.iter().filter(|m| !device.supports_cull(**m)).map(|m| m.name()).collect();
+    if !skipped.is_empty() {
+        eprintln!("zwarp cull: {} CPU-only, skipped on the GPU backend", skipped.join(", "));
+        methods.retain(|m| device.supports_cull(*m));
         if methods.is_empty() {
             bail!("none of the requested culling methods runs on the GPU backend");
         }
@@ -171,10 +167,10 @@ pub fn run(args: CullArgs) -> Result<()> {
     if args.repeat == 0 {
         bail!("--repeat must be at least 1");
     }
-    if gpu.is_some() && args.repeat != 1 {
+    if device.is_gpu() && args.repeat != 1 {
         bail!("--repeat is CPU-only (the GPU backend culls each frame once)");
     }
-    let downsample = args.downsample.unwrap_or(if gpu.is_some() { 1 } else { CPU_DOWNSAMPLE });
+    let downsample = args.downsample.unwrap_or(if device.is_gpu() { 1 } else { CPU_DOWNSAMPLE });
     if downsample == 0 {
         bail!("--downsample must be at least 1");
     }
@@ -183,19 +179,13 @@ pub fn run(args: CullArgs) -> Result<()> {
     params.validate()?;
     let loaded = args.scene.load()?;
     let (scene, path) = (&loaded.scene, &loaded.path);
-    let device = match &gpu {
-        Some(ctx) => format!("GPU {}", ctx.adapter),
-        None if args.repeat > 1 => {
-            format!(
-                "CPU with {} threads, each frame culled {} times (median kept)",
-                rayon::current_num_threads(),
-                args.repeat
-            )
-        }
-        None => format!("CPU with {} threads", rayon::current_num_threads()),
+    let device_line = if !device.is_gpu() && args.repeat > 1 {
+        format!("{}, each frame culled {} times (median kept)", device.describe(), args.repeat)
+    } else {
+        device.describe()
     };
     println!(
-        "zwarp cull: {} ({} objects, {} triangles), {}x{}, {device}",
+        "zwarp cull: {} ({} objects, {} triangles), {}x{}, {device_line}",
         args.scene.scene,
         scene.instances.len(),
         scene.triangle_count(),
@@ -225,10 +215,7 @@ pub fn run(args: CullArgs) -> Result<()> {
         bar.set_message(format!("cull {} {speed}x", args.scene.scene));
         let mut speed_rows = Vec::new();
         for &method in &methods {
-            let reports = match &gpu {
-                Some(ctx) => zwarp_gpu::run_gpu_sequence(ctx, scene, &frames, method, &params)?,
-                None => run_sequence_repeated(scene, &frames, method, &params, args.repeat)?,
-            };
+            let reports = device.cull_sequence(scene, &frames, method, &params, args.repeat)?;
             let steady: Vec<_> = reports.iter().filter(|r| !r.bootstrap).collect();
             let rs = if steady.is_empty() { reports.iter().collect() } else { steady };
             let nf = rs.len().max(1) as f64;
@@ -365,8 +352,8 @@ pub fn run(args: CullArgs) -> Result<()> {
         "cull",
         &rows,
         serde_json::json!({
-            "backend": if gpu.is_some() { "gpu" } else { "cpu" },
-            "adapter": gpu.as_ref().map(|c| c.adapter.to_string()),
+            "backend": if device.is_gpu() { "gpu" } else { "cpu" },
+            "adapter": device.adapter(),
             "threads": rayon::current_num_threads(),
             "width": args.size.width,
             "height": args.size.height,

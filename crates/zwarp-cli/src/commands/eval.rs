@@ -12,11 +12,12 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde::Serialize;
 use zwarp_core::{motion_field, Camera, Image, Motion, Scene};
-use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::CameraPath;
 use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
+use crate::device::Device;
 use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp eval`.
@@ -446,18 +447,9 @@ pub fn evaluate(
     progress: bool,
 ) -> Result<Vec<EvalRow>> {
     let max_l = *plan.ls.iter().max().unwrap_or(&1);
-    // GPU: the reference render and our warp run on one device, so their ratio is the figure.
-    let gpu = match plan.backend {
-        Backend::Cpu => None,
-        Backend::Gpu => {
-            let ctx = zwarp_gpu::GpuContext::new()?;
-            let renderer = zwarp_gpu::Renderer::new(&ctx)?;
-            let kernel = zwarp_gpu::WarpKernel::new(&ctx)?;
-            let fill = zwarp_gpu::HoleFillKernel::new(&ctx)?;
-            let uploaded = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
-            Some((ctx, renderer, (kernel, fill), uploaded))
-        }
-    };
+    // The reference render and our warp run on one device, so their ratio is the figure.
+    let device = Device::open(plan.backend)?;
+    let on_device = device.load(scene)?;
     let cores = rayon::current_num_threads() as f64;
     let mut rows = Vec::new();
     let configs_per_pair = plan
@@ -492,10 +484,7 @@ pub fn evaluate(
         // Motion-field time per multisampling factor m.
         let mut motion_samples: Vec<(u32, f64)> = Vec::new();
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
-            let (reference, samples) = output::time_repeated(plan.reps, || match &gpu {
-                Some((_, renderer, _, uploaded)) => Ok(renderer.render_depth(uploaded, cb, *tb)?),
-                None => Ok(render_depth(scene, cb, *tb)?),
-            })?;
+            let (reference, samples) = output::time_repeated(plan.reps, || device.render_depth(&on_device, cb, *tb))?;
             ref_samples.extend(samples);
             for &ms in &plan.multisamples {
                 // The source (and the motion's target space) on the m x m sample grid: the same
@@ -579,32 +568,19 @@ pub fn evaluate(
                                             // frames (the first, untimed run allocates them).
                                             let mut recycled = Vec::new();
                                             run(("ours".into(), l, n, t, Some(bound), ms), &layers, &mut |slot| {
-                                                let o = match &gpu {
-                                                    Some((_, _, (kernel, holes), _)) => {
-                                                        zwarp_gpu::predict(kernel, holes, &layers, &params)?
+                                                // The output buffers carry over too (an
+                                                // engine's steady state).
+                                                let mut o = match slot.take() {
+                                                    Some((depth, Some(state))) => {
+                                                        zwarp_warp::WarpOutput { depth, state, source: None }
                                                     }
-                                                    None => {
-                                                        // The output buffers carry over too (an
-                                                        // engine's steady state).
-                                                        let mut o = match slot.take() {
-                                                            Some((depth, Some(state))) => {
-                                                                zwarp_warp::WarpOutput { depth, state, source: None }
-                                                            }
-                                                            _ => zwarp_warp::WarpOutput {
-                                                                depth: Image::new(0, 0, 1.0),
-                                                                state: Image::new(0, 0, zwarp_warp::PixelState::Hole),
-                                                                source: None,
-                                                            },
-                                                        };
-                                                        recycled = zwarp_warp::predict_into(
-                                                            &layers,
-                                                            &params,
-                                                            std::mem::take(&mut recycled),
-                                                            &mut o,
-                                                        )?;
-                                                        o
-                                                    }
+                                                    _ => zwarp_warp::WarpOutput {
+                                                        depth: Image::new(0, 0, 1.0),
+                                                        state: Image::new(0, 0, zwarp_warp::PixelState::Hole),
+                                                        source: None,
+                                                    },
                                                 };
+                                                device.predict(&layers, &params, &mut recycled, &mut o)?;
                                                 *slot = Some((o.depth, Some(o.state)));
                                                 Ok(())
                                             })?;
@@ -790,7 +766,10 @@ pub fn run(args: EvalArgs) -> Result<()> {
         &args.json,
         "eval",
         &rows,
-        serde_json::json!({ "backend": "cpu", "threads": rayon::current_num_threads() }),
+        serde_json::json!({
+            "backend": if plan.backend == Backend::Gpu { "gpu" } else { "cpu" },
+            "threads": rayon::current_num_threads(),
+        }),
     )?;
     println!("wrote {}", args.json.display());
     if let Some(d) = &plan.images {

@@ -14,11 +14,11 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_core::Image;
 use zwarp_shadows::{
-    default_light, evaluate, light_to_json, load_light, EvalConfig, EvalRow, Grouping, Method, ShadowParams,
-    ShadowResult,
+    default_light, light_to_json, load_light, EvalConfig, EvalRow, Grouping, Method, ShadowParams, ShadowResult,
 };
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
+use crate::device::Device;
 use crate::output::{self, fmt, ser_f64, Table, Timing};
 
 /// Arguments of `zwarp shadows`.
@@ -139,6 +139,7 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
     if a.reps == 0 {
         bail!("--reps must be at least 1");
     }
+    let device = Device::open(a.backend)?;
     let loaded = a.scene.load()?;
     let scene = &loaded.scene;
     let n_frames = loaded.path.frame_count();
@@ -200,18 +201,10 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
         }
         Ok(())
     };
-    let rows = match a.backend {
-        Backend::Cpu => evaluate(scene, &cam, t, &light, &cfg, &mut on_result)?,
-        Backend::Gpu => {
-            let ctx = zwarp_gpu::GpuContext::new()?;
-            if cfg.methods.contains(&Method::Pcss) {
-                eprintln!("zwarp shadows: pcss is CPU-only, skipped on the GPU backend");
-            }
-            let gpu = zwarp_gpu::GpuShadows::new(&ctx)?;
-            let gpu_scene = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
-            zwarp_gpu::evaluate_gpu(&gpu, scene, &gpu_scene, &cam, t, &light, &cfg, &mut on_result)?
-        }
-    };
+    if device.is_gpu() && cfg.methods.contains(&Method::Pcss) {
+        eprintln!("zwarp shadows: pcss is CPU-only, skipped on the GPU backend");
+    }
+    let rows = device.shadows(&device.load(scene)?, &cam, t, &light, &cfg, &mut on_result)?;
 
     let out: Vec<ShadowRow> = rows
         .iter()
@@ -279,7 +272,8 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
             "reps": a.reps,
             "warmup": a.warmup,
             "threads": rayon::current_num_threads(),
-            "backend": if a.backend == Backend::Gpu { "gpu" } else { "cpu" },
+            "backend": if device.is_gpu() { "gpu" } else { "cpu" },
+            "adapter": device.adapter(),
         }),
     )?;
     Ok(())

@@ -1,0 +1,174 @@
+//! The one seam between a command and the backend it runs on: a command opens a [`Device`]
+//! from `--backend` and calls the same methods on either backend — render the reference,
+//! predict a view, run a culling sequence, evaluate soft shadows — so its loop, timing and
+//! comparisons are written once. Kernels are created on first use (shader compilation on
+//! lavapipe is not free).
+
+use std::cell::OnceCell;
+
+use anyhow::Result;
+use zwarp_core::{AreaLight, Camera, Image, Scene};
+use zwarp_cull::{run_sequence_repeated, FrameReport, Method, WocParams};
+use zwarp_shadows::{EvalConfig, EvalRow, ShadowResult};
+use zwarp_warp::{PreparedLayer, WarpLayer, WarpOutput, WarpParams};
+
+use crate::args::Backend;
+
+/// Where a command's work runs.
+pub enum Device {
+    /// zwarp-raster, zwarp-warp, zwarp-cull, zwarp-shadows on the CPU (rayon).
+    Cpu,
+    /// The wgpu twins on the first adapter (lavapipe without a GPU).
+    Gpu(Box<Gpu>),
+}
+
+/// A wgpu device and the kernels the commands use, created on first use.
+pub struct Gpu {
+    /// The device.
+    pub ctx: zwarp_gpu::GpuContext,
+    renderer: OnceCell<zwarp_gpu::Renderer>,
+    warp: OnceCell<(zwarp_gpu::WarpKernel, zwarp_gpu::HoleFillKernel)>,
+    shadows: OnceCell<zwarp_gpu::GpuShadows>,
+}
+
+/// `cell`'s value, made by `make` the first time.
+fn once<'a, T>(cell: &'a OnceCell<T>, make: impl FnOnce() -> zwarp_core::Result<T>) -> Result<&'a T> {
+    if cell.get().is_none() {
+        let _ = cell.set(make()?);
+    }
+    Ok(cell.get().expect("set above"))
+}
+
+/// A scene on a device: the scene itself and, on the GPU, its upload.
+pub struct DeviceScene<'s> {
+    /// The scene (CPU data: bounds, animation, what CPU-side stages read).
+    pub scene: &'s Scene,
+    gpu: Option<zwarp_gpu::GpuScene>,
+}
+
+impl Device {
+    /// Opens `backend`: one `error:` line when the GPU backend has no adapter.
+    pub fn open(backend: Backend) -> Result<Device> {
+        Ok(match backend {
+            Backend::Cpu => Device::Cpu,
+            Backend::Gpu => Device::Gpu(Box::new(Gpu {
+                ctx: zwarp_gpu::GpuContext::new()?,
+                renderer: OnceCell::new(),
+                warp: OnceCell::new(),
+                shadows: OnceCell::new(),
+            })),
+        })
+    }
+
+    /// Whether this is the GPU backend.
+    pub fn is_gpu(&self) -> bool {
+        matches!(self, Device::Gpu(_))
+    }
+
+    /// The GPU adapter's description, `None` on the CPU.
+    pub fn adapter(&self) -> Option<String> {
+        match self {
+            Device::Cpu => None,
+            Device::Gpu(g) => Some(g.ctx.adapter.to_string()),
+        }
+    }
+
+    /// One line for a command's header: `CPU with 2 threads` or `GPU <adapter>`.
+    pub fn describe(&self) -> String {
+        match self {
+            Device::Cpu => format!("CPU with {} threads", rayon::current_num_threads()),
+            Device::Gpu(g) => format!("GPU {}", g.ctx.adapter),
+        }
+    }
+
+    /// `scene` made ready for this device (uploaded on the GPU).
+    pub fn load<'s>(&self, scene: &'s Scene) -> Result<DeviceScene<'s>> {
+        let gpu = match self {
+            Device::Cpu => None,
+            Device::Gpu(g) => Some(zwarp_gpu::GpuScene::upload(&g.ctx, scene)?),
+        };
+        Ok(DeviceScene { scene, gpu })
+    }
+
+    /// The depth-only render of `cam` at time `t` (the reference a prediction replaces).
+    pub fn render_depth(&self, s: &DeviceScene<'_>, cam: &Camera, t: f32) -> Result<Image<f32>> {
+        match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
+                Ok(r.render_depth(up, cam, t)?)
+            }
+            _ => Ok(zwarp_raster::render_depth(s.scene, cam, t)?),
+        }
+    }
+
+    /// The complete depth prediction (preparation, search, hole protocol) of `layers` into
+    /// `out`. On the CPU the preparation buffers in `recycled` and the output's buffers carry
+    /// over between calls, as an engine keeps them across frames.
+    pub fn predict(
+        &self,
+        layers: &[WarpLayer<'_>],
+        params: &WarpParams,
+        recycled: &mut Vec<PreparedLayer>,
+        out: &mut WarpOutput,
+    ) -> Result<()> {
+        match self {
+            Device::Cpu => {
+                *recycled = zwarp_warp::predict_into(layers, params, std::mem::take(recycled), out)?;
+            }
+            Device::Gpu(g) => {
+                let (warp, fill) = once(&g.warp, || {
+                    Ok((zwarp_gpu::WarpKernel::new(&g.ctx)?, zwarp_gpu::HoleFillKernel::new(&g.ctx)?))
+                })?;
+                *out = zwarp_gpu::predict(warp, fill, layers, params)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether culling `method` runs on this device (two-phase is CPU-only).
+    pub fn supports_cull(&self, method: Method) -> bool {
+        !self.is_gpu() || zwarp_gpu::gpu_supports(method)
+    }
+
+    /// `method` along `frames` (the engine's loop timed alone, then the comparisons), each
+    /// frame culled `repeat` times on the CPU (the median-cost repetition kept).
+    pub fn cull_sequence(
+        &self,
+        scene: &Scene,
+        frames: &[(f32, Camera)],
+        method: Method,
+        params: &WocParams,
+        repeat: usize,
+    ) -> Result<Vec<FrameReport>> {
+        match self {
+            Device::Cpu => Ok(run_sequence_repeated(scene, frames, method, params, repeat)?),
+            Device::Gpu(g) => {
+                if repeat != 1 {
+                    anyhow::bail!("--repeat is CPU-only (the GPU backend culls each frame once)");
+                }
+                Ok(zwarp_gpu::run_gpu_sequence(&g.ctx, scene, frames, method, params)?)
+            }
+        }
+    }
+
+    /// Soft shadows of `light` seen from `cam` at time `t` for every S and map size of `cfg`
+    /// (seed 000 Sec. 6), `on_result` called with each result and its reference.
+    #[allow(clippy::too_many_arguments)]
+    pub fn shadows(
+        &self,
+        s: &DeviceScene<'_>,
+        cam: &Camera,
+        t: f32,
+        light: &AreaLight,
+        cfg: &EvalConfig,
+        on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> zwarp_core::Result<()>,
+    ) -> Result<Vec<EvalRow>> {
+        match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let gs = once(&g.shadows, || zwarp_gpu::GpuShadows::new(&g.ctx))?;
+                Ok(zwarp_gpu::evaluate_gpu(gs, s.scene, up, cam, t, light, cfg, on_result)?)
+            }
+            _ => Ok(zwarp_shadows::evaluate(s.scene, cam, t, light, cfg, on_result)?),
+        }
+    }
+}
