@@ -7,6 +7,7 @@
 use std::cell::OnceCell;
 
 use anyhow::Result;
+use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Subdivision};
 use zwarp_core::{AreaLight, Camera, Image, Scene};
 use zwarp_cull::{run_sequence_repeated, FrameReport, Method, WocParams};
 use zwarp_shadows::{EvalConfig, EvalRow, ShadowResult};
@@ -29,6 +30,7 @@ pub struct Gpu {
     renderer: OnceCell<zwarp_gpu::Renderer>,
     warp: OnceCell<(zwarp_gpu::WarpKernel, zwarp_gpu::HoleFillKernel)>,
     shadows: OnceCell<zwarp_gpu::GpuShadows>,
+    color: OnceCell<zwarp_gpu::ColorWarpKernel>,
 }
 
 /// `cell`'s value, made by `make` the first time.
@@ -56,6 +58,7 @@ impl Device {
                 renderer: OnceCell::new(),
                 warp: OnceCell::new(),
                 shadows: OnceCell::new(),
+                color: OnceCell::new(),
             })),
         })
     }
@@ -170,5 +173,71 @@ impl Device {
             }
             _ => Ok(zwarp_shadows::evaluate(s.scene, cam, t, light, cfg, on_result)?),
         }
+    }
+
+    /// Depth, item ids and textured linear colour of `cam` at time `t`.
+    pub fn render_view(
+        &self,
+        s: &DeviceScene<'_>,
+        cam: &Camera,
+        t: f32,
+    ) -> Result<(Image<f32>, Image<u32>, Option<Image<[f32; 3]>>)> {
+        match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
+                let f = r.render_frame(up, cam, t, &zwarp_gpu::FrameOptions { color: true, ..Default::default() })?;
+                Ok((f.depth, f.items, f.color))
+            }
+            _ => {
+                let opts = zwarp_raster::FrameOptions { color: true, objects: None };
+                let f = zwarp_raster::render_frame(s.scene, cam, t, &opts)?;
+                Ok((f.depth, f.items, f.color))
+            }
+        }
+    }
+
+    fn color_kernel(&self) -> Result<Option<&zwarp_gpu::ColorWarpKernel>> {
+        match self {
+            Device::Cpu => Ok(None),
+            Device::Gpu(g) => Ok(Some(once(&g.color, || zwarp_gpu::ColorWarpKernel::new(&g.ctx))?)),
+        }
+    }
+
+    /// Seed 001's heuristic colour warp into `out` (whose buffers a CPU warp reuses).
+    pub fn heuristic_into(
+        &self,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &HeuristicParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match self.color_kernel()? {
+            None => zwarp_color::heuristic_warp_into(field, color, p, out)?,
+            Some(k) => *out = k.heuristic(field, color, p)?,
+        }
+        Ok(())
+    }
+
+    /// Seed 001's robust colour warp with the subdivision `sub` (of this field, or shared by
+    /// several, as blur does) into `out`; `None` subdivides the field first.
+    pub fn robust_into(
+        &self,
+        sub: Option<&Subdivision>,
+        field: &Field<'_>,
+        color: &Image<[f32; 3]>,
+        p: &RobustParams,
+        out: &mut ColorWarpOutput,
+    ) -> Result<()> {
+        match (self.color_kernel()?, sub) {
+            (None, Some(sub)) => {
+                zwarp_color::robust_warp_with(sub, field, color, p, out)?;
+            }
+            (None, None) => {
+                zwarp_color::robust_warp_with(&Subdivision::of_field(field, p.tile)?, field, color, p, out)?;
+            }
+            (Some(k), Some(sub)) => *out = k.robust_with(sub, field, color, p)?,
+            (Some(k), None) => *out = k.robust(field, color, p)?,
+        }
+        Ok(())
     }
 }

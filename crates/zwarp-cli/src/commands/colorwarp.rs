@@ -10,6 +10,7 @@ use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Subdivi
 use zwarp_core::{Camera, Image, Motion, Scene};
 
 use crate::args::Backend;
+use crate::device::{Device, DeviceScene};
 use crate::output::ser_f64;
 
 /// A prediction method (JSON `method`).
@@ -80,68 +81,31 @@ pub struct View {
     pub items: Image<u32>,
 }
 
-/// The GPU side of a run: device, renderer, uploaded scene, colour-warp kernels.
-pub struct Gpu {
-    ctx: zwarp_gpu::GpuContext,
-    renderer: zwarp_gpu::Renderer,
-    scene: zwarp_gpu::GpuScene,
-    warp: zwarp_gpu::ColorWarpKernel,
-}
-
-/// Renders views and runs the two colour warps on the chosen backend (baselines stay on the
-/// CPU).
+/// Renders views and runs the two colour warps on the chosen backend through the
+/// [`Device`] seam (baselines stay on the CPU).
 pub struct Backends<'a> {
     /// The scene.
     pub scene: &'a Scene,
-    gpu: Option<Gpu>,
+    device: Device,
+    on_device: DeviceScene<'a>,
 }
 
 impl<'a> Backends<'a> {
     /// CPU, or the first GPU adapter (one clear error if there is none).
     pub fn new(scene: &'a Scene, backend: Backend) -> Result<Self> {
-        let gpu = match backend {
-            Backend::Cpu => None,
-            Backend::Gpu => {
-                let ctx = zwarp_gpu::GpuContext::new()?;
-                let renderer = zwarp_gpu::Renderer::new(&ctx)?;
-                let scene = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
-                let warp = zwarp_gpu::ColorWarpKernel::new(&ctx)?;
-                Some(Gpu { ctx, renderer, scene, warp })
-            }
-        };
-        Ok(Backends { scene, gpu })
+        let device = Device::open(backend)?;
+        let on_device = device.load(scene)?;
+        Ok(Backends { scene, device, on_device })
     }
 
     /// `"cpu"` or the adapter's name.
     pub fn name(&self) -> String {
-        match &self.gpu {
-            None => "cpu".into(),
-            Some(g) => format!("gpu ({})", g.ctx.adapter.name),
-        }
+        self.device.adapter().map_or("cpu".into(), |a| format!("gpu ({a})"))
     }
 
     /// Colour, depth and ids of the scene at `t` seen by `cam`.
     pub fn view(&self, cam: &Camera, t: f32) -> Result<View> {
-        let (depth, items, color) = match &self.gpu {
-            None => {
-                let f = zwarp_raster::render_frame(
-                    self.scene,
-                    cam,
-                    t,
-                    &zwarp_raster::FrameOptions { color: true, objects: None },
-                )?;
-                (f.depth, f.items, f.color)
-            }
-            Some(g) => {
-                let f = g.renderer.render_frame(
-                    &g.scene,
-                    cam,
-                    t,
-                    &zwarp_gpu::FrameOptions { color: true, ..Default::default() },
-                )?;
-                (f.depth, f.items, f.color)
-            }
-        };
+        let (depth, items, color) = self.device.render_view(&self.on_device, cam, t)?;
         let color = zwarp_color::require_color(color.as_ref(), "the rendered frame")?.clone();
         Ok(View { cam: *cam, t, color, depth, items })
     }
@@ -170,10 +134,9 @@ impl<'a> Backends<'a> {
         color: &Image<[f32; 3]>,
         p: &HeuristicParams,
     ) -> Result<ColorWarpOutput> {
-        match &self.gpu {
-            None => Ok(zwarp_color::heuristic_warp(field, color, p)?),
-            Some(g) => Ok(g.warp.heuristic(field, color, p)?),
-        }
+        let mut out = ColorWarpOutput::empty();
+        self.device.heuristic_into(field, color, p, &mut out)?;
+        Ok(out)
     }
 
     /// The heuristic warp into `out`, whose buffers a CPU warp reuses (an engine's steady state).
@@ -184,13 +147,7 @@ impl<'a> Backends<'a> {
         p: &HeuristicParams,
         out: &mut ColorWarpOutput,
     ) -> Result<()> {
-        match &self.gpu {
-            None => Ok(zwarp_color::heuristic_warp_into(field, color, p, out)?),
-            Some(g) => {
-                *out = g.warp.heuristic(field, color, p)?;
-                Ok(())
-            }
-        }
+        self.device.heuristic_into(field, color, p, out)
     }
 
     /// The robust warp (its subdivision included) into `out` (buffers reused on the CPU).
@@ -201,17 +158,7 @@ impl<'a> Backends<'a> {
         p: &RobustParams,
         out: &mut ColorWarpOutput,
     ) -> Result<()> {
-        match &self.gpu {
-            None => {
-                let sub = Subdivision::of_field(field, p.tile)?;
-                zwarp_color::robust_warp_with(&sub, field, color, p, out)?;
-                Ok(())
-            }
-            Some(g) => {
-                *out = g.warp.robust(field, color, p)?;
-                Ok(())
-            }
-        }
+        self.device.robust_into(None, field, color, p, out)
     }
 
     /// The robust warp with a given subdivision into `out` (WGSL twin on the GPU).
@@ -223,21 +170,14 @@ impl<'a> Backends<'a> {
         p: &RobustParams,
         out: &mut ColorWarpOutput,
     ) -> Result<()> {
-        match &self.gpu {
-            None => {
-                zwarp_color::robust_warp_with(sub, field, color, p, out)?;
-            }
-            Some(g) => *out = g.warp.robust_with(sub, field, color, p)?,
-        }
-        Ok(())
+        self.device.robust_into(Some(sub), field, color, p, out)
     }
 
     /// The robust warp including its subdivision.
     pub fn robust(&self, field: &Field<'_>, color: &Image<[f32; 3]>, p: &RobustParams) -> Result<ColorWarpOutput> {
-        match &self.gpu {
-            None => Ok(zwarp_color::robust_warp(field, color, p)?.0),
-            Some(g) => Ok(g.warp.robust(field, color, p)?),
-        }
+        let mut out = ColorWarpOutput::empty();
+        self.device.robust_into(None, field, color, p, &mut out)?;
+        Ok(out)
     }
 }
 
