@@ -1,5 +1,5 @@
 //! The frame-generation baselines the colour warps are measured against (seed 001 Sec. 2, 5,
-//! Table 1, Fig. 8; DESIGN.md "Lessons"):
+//! Table 1, Fig. 8; ARCHITECTURE.md "Pitfalls of public implementations"):
 //!
 //! - [`repeat`]: show the last frame again;
 //! - [`mesh_warp`]: the per-pixel forward mesh warp of Mark et al. 1997 — texel centres as

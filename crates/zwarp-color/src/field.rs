@@ -6,7 +6,7 @@
 //! acceleration `A`, the unit spatial shift `S`, the source depth that orders candidates); a
 //! [`Field`] is the basis evaluated at parameters `(t, u, v)` ([`FieldParams`]) without copying
 //! a plane: `V(q) = t M(q) + t^2 / 2 A(q) + (u S_x(q), v S_y(q))`, every term sampled at the same
-//! texels. Units: pixels of the source image, source -> target (DESIGN.md "Motion").
+//! texels. Units: pixels of the source image, source -> target (ARCHITECTURE.md "Motion").
 
 use glam::Vec2;
 use rayon::prelude::*;

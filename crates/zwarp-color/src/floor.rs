@@ -1,8 +1,8 @@
-//! The streaming floor of a colour warp (DESIGN.md "The floor is the yardstick"): the least
-//! memory traffic any colour warp of this field needs — read every term's motion planes, the
-//! source depth and the colour once, write one colour per target pixel — timed as a parallel
-//! pass that does exactly that. A warp's `floor_ratio` is its time over this pass's time in
-//! the same run.
+//! The streaming floor of a colour warp (ARCHITECTURE.md "The floor is the yardstick"): the
+//! least memory traffic any colour warp of this field needs — read every term's motion planes,
+//! the source depth and the colour once, write one colour per target pixel — timed as a parallel
+//! pass that does exactly that. A warp's `floor_ratio` is its time over this pass's time in the
+//! same run.
 
 use rayon::prelude::*;
 use zwarp_core::{Image, Result};

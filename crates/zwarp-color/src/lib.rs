@@ -16,14 +16,14 @@
 //! - [`baselines`]: repeat-the-last-frame, per-pixel forward mesh warp (Mark et al. 1997),
 //!   reverse reprojection caching (Nehab et al. 2007), an FSR3-like forward scatter with a
 //!   push-pull in-painting pyramid.
-//! - [`floor`]: the streaming floor of a colour warp (DESIGN.md).
+//! - [`floor`]: the streaming floor of a colour warp (ARCHITECTURE.md "The floor is the yardstick").
 //!
-//! Conventions (DESIGN.md): colour is linear RGB `f32`; depth is post-projection depth in
-//! `[0, 1]`, 1 = no surface (sky, a valid sample for colour: it moves with the camera); pixel
-//! `(x, y)` samples at `(x + 0.5, y + 0.5)`, row 0 on top; fields are in pixels, source ->
-//! target. Every warp returns a [`ColorWarpOutput`]: colour, the chosen sample's source depth,
-//! and the per-pixel residual that says how far the result is from a solution of eq. 1
-//! (its confidence).
+//! Conventions (ARCHITECTURE.md "Conventions", "Colour", "Motion"): colour is linear RGB `f32`;
+//! depth is post-projection depth in `[0, 1]`, 1 = no surface (sky, a valid sample for colour:
+//! it moves with the camera); pixel `(x, y)` samples at `(x + 0.5, y + 0.5)`, row 0 on top;
+//! fields are in pixels, source -> target. Every warp returns a [`ColorWarpOutput`]: colour, the
+//! chosen sample's source depth, and the per-pixel residual that says how far the result is from
+//! a solution of eq. 1 (its confidence).
 
 #![warn(missing_docs)]
 
@@ -50,7 +50,7 @@ pub use sampler::{ColorSampler, Continuity};
 use zwarp_core::{Error, Image, Result};
 
 /// The result of a colour warp (seed 001 eq. 1 solved per target pixel) with its per-pixel
-/// confidence (DESIGN.md "Every warp can output a per-pixel confidence").
+/// confidence (ARCHITECTURE.md "Colour").
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColorWarpOutput {
     /// Predicted linear RGB colour.

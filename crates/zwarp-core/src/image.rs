@@ -2,7 +2,7 @@
 
 use crate::{Error, Result};
 
-/// A 2-D buffer: `data[y * width + x]`, row 0 at the top (DESIGN.md conventions).
+/// A 2-D buffer: `data[y * width + x]`, row 0 at the top (ARCHITECTURE.md "Conventions").
 /// Depth buffers, item buffers, motion buffers, mip levels and N-buffer levels are all `Image`s.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image<T> {

@@ -1,6 +1,6 @@
 //! zwarp-core: the plain buffers and conventions every stage of zwarp shares.
 //!
-//! Conventions (DESIGN.md, kept everywhere):
+//! Conventions (ARCHITECTURE.md "Conventions", kept everywhere):
 //! - **Depth** is post-projection depth in `[0, 1]`, 0 = near plane, 1 = far plane. The value
 //!   `1.0` also means "no surface" (the paper's `s.z < 1` test for a valid sample). Use
 //!   [`Camera::linear_depth`] to get view-space distance.

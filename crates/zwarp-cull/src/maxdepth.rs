@@ -114,7 +114,8 @@ fn fmax(a: f32, b: f32) -> f32 {
 
 /// One max-reduction step of a mipmap: `ceil(w/2) x ceil(h/2)`, each texel the max of the (up
 /// to) 2x2 texels below it. Rounding the size *up* makes an odd last row/column its own texel,
-/// so no texel of the finer level is ever dropped (the Bevy bug named in DESIGN.md).
+/// so no texel of the finer level is ever dropped (the Bevy downsampler pitfall of
+/// ARCHITECTURE.md "Pitfalls of public implementations").
 pub fn reduce_max_2x2(src: &Image<f32>) -> Image<f32> {
     let (w, h) = src.size();
     let (nw, nh) = (w.div_ceil(2).max(1), h.div_ceil(2).max(1));

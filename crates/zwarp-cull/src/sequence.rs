@@ -1,10 +1,10 @@
-//! Runs a culling method along a camera path the way an engine would (seed 000 Sec. 5.3,
-//! thesis Sec. V): each frame is culled, the visible set is drawn (depth + item ids), and that
-//! drawing is the previous frame of the next one. Every frame is also rendered in full (REF /
-//! NOCULL) in the same run, so accuracy (object error, pixel error, culling ratio) and the
-//! draw-time ratio are measured side by side (DESIGN.md evaluation protocol). The engine's
-//! loop runs first, alone and timed; the full renders and comparisons follow in a second pass,
-//! so they never sit between a frame's draw and the next cull.
+//! Runs a culling method along a camera path the way an engine would (seed 000 Sec. 5.3, thesis
+//! Sec. V): each frame is culled, the visible set is drawn (depth + item ids), and that drawing
+//! is the previous frame of the next one. Every frame is also rendered in full (REF / NOCULL) in
+//! the same run, so accuracy (object error, pixel error, culling ratio) and the draw-time ratio
+//! are measured side by side (ARCHITECTURE.md "Evaluation protocol"). The engine's loop runs
+//! first, alone and timed; the full renders and comparisons follow in a second pass, so they
+//! never sit between a frame's draw and the next cull.
 
 use std::time::Instant;
 

@@ -1,9 +1,9 @@
 //! GPU culling figures at 1920x1080 on CB (scale 1, its recorded path) on the current adapter
-//! (lavapipe on a machine without GPU): the max-depth structures (seed 000 Sec. 5.2: max
-//! mipmap, N-buffer, Y-map), the AABB cull kernel against each, the whole GPU WOC pipeline
-//! (seed 000 Sec. 5, thesis seed 002) and the indirect draw of the kept objects, next to the
-//! GPU depth render of the same frame in the same run (DESIGN.md: ratios measured side by side
-//! are the figure). The CPU twins (zwarp-cull) are timed in the same run. Also prints the
+//! (lavapipe on a machine without GPU): the max-depth structures (seed 000 Sec. 5.2: max mipmap,
+//! N-buffer, Y-map), the AABB cull kernel against each, the whole GPU WOC pipeline (seed 000
+//! Sec. 5, thesis seed 002) and the indirect draw of the kept objects, next to the GPU depth
+//! render of the same frame in the same run (ARCHITECTURE.md "Timings": ratios measured side by
+//! side are the figure). The CPU twins (zwarp-cull) are timed in the same run. Also prints the
 //! minimum memory traffic of each kernel and what it would take at a GTX 1080's 320 GB/s (the
 //! paper's GPU), so the sub-millisecond claim can be judged on real hardware.
 //!

@@ -1,8 +1,8 @@
 //! Depth-only GPU render time of Crytek Sponza at 1920x1080 on the current adapter (lavapipe on
 //! a machine without GPU): the bar the CPU rasterizer is compared with (seed 000 Sec. 4, REF).
 //! The CPU rasterizer (`zwarp_raster::render_depth`) is timed in the same run on the same scene
-//! and camera, and the two depth buffers are compared (DESIGN.md: a ratio measured side by side
-//! is the figure).
+//! and camera, and the two depth buffers are compared (ARCHITECTURE.md "Timings": a
+//! ratio measured side by side is the figure).
 //!
 //! Usage: `cargo run --release -p zwarp-gpu --example gpu_raster_table -- /work/shared/scenes/sponza [runs]`
 //!

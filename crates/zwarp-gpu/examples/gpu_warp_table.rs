@@ -1,7 +1,8 @@
 //! GPU backward depth warp (seed 000 Sec. 3) vs GPU depth-only render of the same frame at
 //! 1920x1080 on the current adapter (lavapipe on a machine without GPU), with the CPU warp
 //! (`zwarp_warp::warp_depth`, same parameters) and the CPU rasterizer (`zwarp_raster::render_depth`)
-//! timed in the same run, interleaved (DESIGN.md: a ratio measured side by side is the figure).
+//! timed in the same run, interleaved (ARCHITECTURE.md "Timings": a ratio measured side by side
+//! is the figure).
 //!
 //! Frame pair: Crytek Sponza, source view eye (0,-11,2) -> (0,11,3), target view 10 cm to the
 //! right, eye (0.1,-11,2) -> (0.1,11,3) (up +z, fov 60, near 0.1, far 100; the pair of the

@@ -1,5 +1,5 @@
-//! The GPU context: instance, adapter, device and queue (DESIGN.md "Backends": headless wgpu,
-//! Mesa lavapipe on machines without a GPU).
+//! The GPU context: instance, adapter, device and queue (ARCHITECTURE.md "Backends": headless
+//! wgpu, Mesa lavapipe on machines without a GPU).
 
 use zwarp_core::{Error, Result};
 

@@ -1,4 +1,4 @@
-//! zwarp-gpu: the wgpu / WGSL backend of zwarp (DESIGN.md "Backends"), headless, tested on
+//! zwarp-gpu: the wgpu / WGSL backend of zwarp (ARCHITECTURE.md "Backends"), headless, tested on
 //! Mesa lavapipe.
 //!
 //! - [`GpuContext`]: device + queue ([`GpuContext::new`] or an engine's own via

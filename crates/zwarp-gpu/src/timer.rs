@@ -1,4 +1,4 @@
-//! Timing GPU work (DESIGN.md "Evaluation protocol": warm, repeated, median and spread).
+//! Timing GPU work (ARCHITECTURE.md "Timings": warm, repeated, median and spread).
 //!
 //! With `TIMESTAMP_QUERY` the GPU itself stamps the start and
 //! end of the recorded work; otherwise the wall clock measures submit + wait (fenced), which

@@ -3,7 +3,7 @@
 //! 2020, LDR; feature `flip`, through the `nv-flip` wrapper of the reference implementation),
 //! and [`color_quality`], which bundles them for one predicted frame against its reference.
 //!
-//! Inputs are linear RGB `f32` images (DESIGN.md "Colour"); FLIP sees them as 8-bit sRGB, as
+//! Inputs are linear RGB `f32` images (ARCHITECTURE.md "Colour"); FLIP sees them as 8-bit sRGB, as
 //! the reference tool sees PNG files.
 
 use rayon::prelude::*;

@@ -1,7 +1,7 @@
-//! The depth-quality protocol of DESIGN.md ("Evaluation protocol"): PSNR / SSIM of a predicted
-//! depth buffer against the reference rendered at the target view (seed 000 Sec. 7), on linear
-//! view depth normalized by the reference's own surface range, beside the same metrics on the
-//! stored buffer.
+//! The depth-quality protocol of ARCHITECTURE.md ("Evaluation protocol"): PSNR / SSIM of a
+//! predicted depth buffer against the reference rendered at the target view (seed 000 Sec. 7),
+//! on linear view depth normalized by the reference's own surface range, beside the same
+//! metrics on the stored buffer.
 
 use rayon::prelude::*;
 use zwarp_core::{is_surface, Camera, Error, Image, Result};
@@ -30,8 +30,8 @@ pub fn surface_range(reference: &Image<f32>, cam: &Camera) -> Option<(f32, f32)>
 }
 
 /// Linear view depth normalized to `[0, 1]` by `range = (nearest, farthest)` (from
-/// [`surface_range`] of the *reference* frame, DESIGN.md): `(linear - nearest) / (farthest -
-/// nearest)`, clamped to `[0, 1]`.
+/// [`surface_range`] of the *reference* frame, ARCHITECTURE.md "Evaluation protocol"):
+/// `(linear - nearest) / (farthest - nearest)`, clamped to `[0, 1]`.
 ///
 /// Empty pixels (stored depth `>= 1`, including far-plane hole fills) map to exactly 1, as do
 /// surfaces beyond `farthest`; surfaces nearer than `nearest` map to 0. A degenerate range
@@ -55,8 +55,8 @@ pub fn normalized_linear_depth(depth: &Image<f32>, cam: &Camera, range: (f32, f3
     out
 }
 
-/// Depth-warp quality against a reference render (DESIGN.md "Evaluation protocol"; the
-/// PSNR/SSIM pairs of seed 000 Sec. 7, Fig. 10-12, Tables 1-2).
+/// Depth-warp quality against a reference render (ARCHITECTURE.md "Evaluation protocol";
+/// the PSNR/SSIM pairs of seed 000 Sec. 7, Fig. 10-12, Tables 1-2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthQuality {
     /// Headline PSNR (dB) on linear depth normalized by the reference's surface range
@@ -79,7 +79,7 @@ pub struct DepthQuality {
 }
 
 /// Computes [`DepthQuality`] of `predicted` against `reference`, both stored depth buffers of
-/// the target camera `cam` (DESIGN.md "Evaluation protocol").
+/// the target camera `cam` (ARCHITECTURE.md "Evaluation protocol").
 ///
 /// The headline `psnr` / `ssim` compare [`normalized_linear_depth`] of both buffers with the
 /// range from [`surface_range`]`(reference)`; `*_buffer` compare the stored buffers clamped to
@@ -195,7 +195,7 @@ mod tests {
         let wrong = 12.0 * 19.0;
         let expect = 10.0 * (480.0f64 / (wrong * 0.25)).log10();
         assert!((q.psnr - expect).abs() < 0.01, "{} vs {expect}", q.psnr);
-        // The stored buffer hides the same error: its PSNR is far higher (DESIGN.md).
+        // The stored buffer hides the same error: its PSNR is far higher.
         let eb = (d3 - d25) as f64;
         let expect_buf = 10.0 * (480.0 / (wrong * eb * eb)).log10();
         assert!((q.psnr_buffer - expect_buf).abs() < 0.01);

@@ -1,5 +1,5 @@
-//! zwarp-metrics: the quality numbers every zwarp experiment reports (DESIGN.md "Evaluation
-//! protocol").
+//! zwarp-metrics: the quality numbers every zwarp experiment reports (ARCHITECTURE.md
+//! "Evaluation protocol").
 //!
 //! - [`psnr`] / [`mse`] and [`ssim`] / [`ssim_map`]: PSNR and SSIM (Wang et al. 2004) as the
 //!   depth-warping paper (seed 000, Sec. 7, Fig. 10, Tables 1-2) reports them, computed exactly

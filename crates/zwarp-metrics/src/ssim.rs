@@ -13,7 +13,7 @@
 //!   must be at least 11x11.
 //!
 //! Everything is computed in f64 from the f32 inputs: stored perspective depth crowds near 1
-//! (DESIGN.md), where `E[x^2] - E[x]^2` in f32 would lose most of its digits.
+//! (ARCHITECTURE.md "Conventions"), where `E[x^2] - E[x]^2` in f32 would lose most of its digits.
 
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Result};

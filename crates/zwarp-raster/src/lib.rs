@@ -2,13 +2,13 @@
 //!
 //! It produces the input buffers every warp uses (depth, item ids, colour, motion, peeled layers
 //! for the deep depth buffer of seed 000, Sec. 3.4) and the reference buffers every warp is judged
-//! against (DESIGN.md "Evaluation protocol": the reference is the buffer rendered directly at the
-//! target view).
+//! against (ARCHITECTURE.md "Evaluation protocol": the reference is the buffer rendered directly
+//! at the target view).
 //!
-//! Conventions (DESIGN.md): depth is post-projection depth in `[0, 1]`, 0 = near, 1 = far and
-//! also "no surface" ([`zwarp_core::EMPTY_DEPTH`]); pixel `(x, y)` samples at its centre
-//! `(x + 0.5, y + 0.5)`, row 0 at the top; the item id of a pixel is the instance index
-//! ([`zwarp_core::NO_ITEM`] where empty).
+//! Conventions (ARCHITECTURE.md "Conventions"): depth is post-projection depth in `[0, 1]`,
+//! 0 = near, 1 = far and also "no surface" ([`zwarp_core::EMPTY_DEPTH`]); pixel `(x, y)` samples
+//! at its centre `(x + 0.5, y + 0.5)`, row 0 at the top; the item id of a pixel is the instance
+//! index ([`zwarp_core::NO_ITEM`] where empty).
 //!
 //! Exactness: vertices are snapped to 1/256 pixel, coverage uses exact integer edge functions
 //! with the top-left fill rule (shared edges are drawn exactly once), depth is `z_clip / w`

@@ -16,7 +16,7 @@ use crate::setup::Binned;
 /// `depth.wgsl` holds the WGSL twin of every function here; a test compares the two).
 ///
 /// `colour = albedo * (AMBIENT + (1 - AMBIENT) * max(0, n . l))` with the headlight `l`
-/// ([`LIGHT_DIR_VIEW`]), `n` the interpolated vertex normal (flat triangle normal without
+/// ([`LIGHT_DIR_VIEW`](shading::LIGHT_DIR_VIEW)), `n` the interpolated vertex normal (flat triangle normal without
 /// normals) turned to the eye's side of the triangle, and
 /// `albedo = Instance::albedo * Material::base_color * (texture(uv) | pattern | 1)`.
 pub mod shading {

@@ -279,9 +279,9 @@ pub fn motion_profile(scene: &Scene, path: &CameraPath, width: u32, height: u32,
     Ok(MotionProfile { max_per_frame })
 }
 
-/// Street-level walk for a loaded city-like scene (DESIGN.md "Scenes": Munich wants "a
-/// street-level camera (eye ~1.8 m above the ground) walking along the streets"; seed 000
-/// Sec. 5 tests occlusion culling in such street canyons).
+/// Street-level walk for a loaded city-like scene: a camera about a person's eye height (~1.8 m)
+/// above the ground walking along the streets (seed 000 Sec. 5 tests occlusion culling in such
+/// street canyons).
 ///
 /// The scene's objects (boxes at t = 0, inflated by `clearance`) are rasterized into a
 /// horizontal occupancy grid at eye height; the straight axis-aligned free corridor of length

@@ -1,7 +1,7 @@
 //! The measurement protocol of seed 000, Table 8 / Fig. 15: for every shadow-map size and number
 //! of light samples S, the frame time of the reference, zwarp and PCSS (warm, repeated, median;
-//! DESIGN.md "Timings") and the quality of each shaded image against the reference with the same
-//! S (PSNR and SSIM on linear RGB in `[0, 1]`), with the speed-up measured side by side.
+//! ARCHITECTURE.md "Timings") and the quality of each shaded image against the reference with
+//! the same S (PSNR and SSIM on linear RGB in `[0, 1]`), with the speed-up measured side by side.
 
 use zwarp_core::{AreaLight, Camera, Error, Result, Scene};
 
@@ -18,8 +18,8 @@ pub struct EvalConfig {
     pub methods: Vec<Method>,
     /// Timed repetitions (>= 1; the median is reported).
     pub reps: usize,
-    /// Untimed warm-up runs before the timed ones (DESIGN.md "warm"; 0 leaves the median of
-    /// the repetitions to absorb a cold first run, for expensive configurations).
+    /// Untimed warm-up runs before the timed ones (ARCHITECTURE.md "Timings"; 0 leaves the
+    /// median of the repetitions to absorb a cold first run, for expensive configurations).
     pub warmup: usize,
     /// [`Method::ZwarpFull`] (every texel of every map) is measured only for S up to this
     /// (it costs up to S full warps; the before/after comparison needs a few S only).

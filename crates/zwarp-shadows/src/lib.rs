@@ -23,7 +23,8 @@
 //! parallax ([`light`]); the motion comes from `zwarp_core::motion_field` with the two light
 //! cameras. Shading is one function for all methods ([`Receivers::shade`]).
 //!
-//! Conventions (DESIGN.md): depth in `[0, 1]`, 1 = empty; pixel centres at `+0.5`; row 0 on top.
+//! Conventions (ARCHITECTURE.md "Conventions"): depth in `[0, 1]`, 1 = empty; pixel centres at
+//! `+0.5`; row 0 on top.
 
 pub mod eval;
 pub mod light;

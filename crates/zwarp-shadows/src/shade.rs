@@ -178,7 +178,8 @@ pub fn texel_xy(p_c: Vec2, g: f32, shift: Vec2, mw: u32, mh: u32) -> Option<(u32
     }
 }
 
-/// Marker of a receiver that reads no texel (outside the map) in [`Receivers::texels`].
+/// Marker of a receiver that reads no texel (its texel lies outside the map) in the per-receiver
+/// slots of a [`SparseMap`](crate::SparseMap).
 pub const OFF_MAP: u32 = u32::MAX;
 
 impl Receivers {

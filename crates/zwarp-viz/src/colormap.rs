@@ -55,10 +55,11 @@ pub fn depth_range(depth: &Image<f32>, cam: Option<&Camera>) -> Option<(f32, f32
 /// empty pixels (stored depth `>= 1`, the paper's `s.z < 1` test fails) and NaN black.
 ///
 /// With a camera the colours follow *linear* view depth (so equal colour steps are equal
-/// distances; stored perspective depth crowds near 1, DESIGN.md); without one they follow the
-/// stored value. The range is the image's own nearest..farthest surface ([`depth_range`]); a
-/// buffer with a single depth maps every surface to the nearest colour. To compare a warped
-/// buffer with its reference, use [`depth_to_rgb8_in_range`] with the reference's range.
+/// distances; stored perspective depth crowds near 1, ARCHITECTURE.md "Conventions"); without
+/// one they follow the stored value. The range is the image's own nearest..farthest surface
+/// ([`depth_range`]); a buffer with a single depth maps every surface to the nearest colour. To
+/// compare a warped buffer with its reference, use [`depth_to_rgb8_in_range`] with the
+/// reference's range.
 pub fn depth_to_rgb8(depth: &Image<f32>, cam: Option<&Camera>) -> Image<[u8; 3]> {
     let range = depth_range(depth, cam).unwrap_or((0.0, 0.0));
     depth_to_rgb8_in_range(depth, cam, range)

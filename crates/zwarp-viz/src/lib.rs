@@ -1,5 +1,5 @@
-//! zwarp-viz: the images a person looks at when judging a warp (DESIGN.md data flow ->
-//! "reports (tables, JSON, images, plots)").
+//! zwarp-viz: the images a person looks at when judging a warp (the last stage of the data flow
+//! in ARCHITECTURE.md: "reports (tables, JSON, images)").
 //!
 //! - Colour maps ([`colormap`]): depth ([`depth_to_rgb8`], turbo on linear depth), item ids
 //!   ([`items_to_rgb8`]), motion ([`motion_to_rgb8`], Middlebury flow wheel), linear colour

@@ -9,7 +9,8 @@ use zwarp_warp::synth::SynthScene;
 use zwarp_warp::*;
 
 fn stats(pred: &Image<f32>, reference: &Image<f32>, cam: &Camera) -> (f64, f64, f64) {
-    // PSNR on linear depth normalised by the reference's nearest/farthest surface (DESIGN.md).
+    // PSNR on linear depth normalised by the reference's nearest/farthest surface
+    // (ARCHITECTURE.md "Evaluation protocol").
     let lin: Vec<f32> = reference.data().iter().filter(|d| **d < 1.0).map(|d| cam.linear_depth(*d)).collect();
     let (lo, hi) = lin.iter().fold((f32::MAX, f32::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
     let norm = |d: f32| if d >= 1.0 { 1.0 } else { ((cam.linear_depth(d) - lo) / (hi - lo)).clamp(0.0, 1.0) };

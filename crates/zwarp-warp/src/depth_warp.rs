@@ -2,7 +2,7 @@
 //!
 //! For every target pixel and every layer: tighten the search bound in that layer's motion
 //! mipmap (skipping the layer at once when its region holds no valid sample — hidden layers are
-//! mostly empty), place seeds, run [`fixed_point_search`], and keep the candidate of minimal
+//! mostly empty), place seeds, run [`fixed_point_search`](crate::search::fixed_point_search), and keep the candidate of minimal
 //! target depth over all layers. Layers are the peeled depth layers of the source view, nearest
 //! first; the ground / background is best passed as a separate **last** layer (Sec. 3.4: it
 //! widens the connected search area at negligible cost).

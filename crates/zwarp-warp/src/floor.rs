@@ -1,9 +1,9 @@
 //! The streaming floor of a depth prediction: the least memory traffic any backward warp of L
-//! layers needs, timed as a pass that does exactly that and nothing else (DESIGN.md "The floor is
-//! the yardstick"). It reads every source sample of every layer once — its f32 depth and its
-//! [`Motion`] (motion and target depth), as a caller hands them — and writes one f32 per target
-//! pixel, in parallel over rows with all threads. A warp's `floor_ratio` is its time over this
-//! pass's time in the same run.
+//! layers needs, timed as a pass that does exactly that and nothing else (ARCHITECTURE.md "The
+//! floor is the yardstick"). It reads every source sample of every layer once — its f32 depth
+//! and its [`Motion`] (motion and target depth), as a caller hands them — and writes one f32 per
+//! target pixel, in parallel over rows with all threads. A warp's `floor_ratio` is its time over
+//! this pass's time in the same run.
 //!
 //! The pass keeps every value it reads alive (the minimum of the candidate depths, with the
 //! motion folded in), so the compiler cannot drop a load; an AVX2 build is chosen at run time

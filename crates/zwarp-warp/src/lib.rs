@@ -8,10 +8,10 @@
 //! (Bowles et al. 2012, seed 001) started from N seeds placed in a tight search region derived
 //! from a min-max motion mipmap (Sec. 3.3), over L peeled layers (Sec. 3.4).
 //!
-//! Conventions (DESIGN.md): depth is post-projection depth in `[0, 1]`, `1.0` = no surface;
-//! pixel `(x, y)` covers `[x, x+1) x [y, y+1)` with its sample at the centre; motion vectors are
-//! in pixels. A warp writes the moved sample's **target** depth (`Motion::depth`), never the
-//! source depth.
+//! Conventions (ARCHITECTURE.md "Conventions", "Motion"): depth is post-projection depth in
+//! `[0, 1]`, `1.0` = no surface; pixel `(x, y)` covers `[x, x+1) x [y, y+1)` with its sample at
+//! the centre; motion vectors are in pixels. A warp writes the moved sample's **target** depth
+//! (`Motion::depth`), never the source depth.
 //!
 //! Modules (one idea each):
 //! - [`bounds`]: min-max motion mipmap, iterative bound tightening (Fig. 5), PCA-oriented bounds.
@@ -277,7 +277,8 @@ impl WarpOutput {
         }
         (c[0], c[1], c[2])
     }
-    /// Fraction of pixels that are not [`PixelState::Converged`] (DESIGN.md metric).
+    /// Fraction of pixels that are not [`PixelState::Converged`] (ARCHITECTURE.md "Evaluation
+    /// protocol").
     pub fn non_converged_fraction(&self) -> f64 {
         let (c, _, _) = self.counts();
         1.0 - c as f64 / self.state.len().max(1) as f64

@@ -327,7 +327,7 @@ pub fn progress(len: u64, msg: String, show: bool) -> indicatif::ProgressBar {
 
 /// The camera `cam` moved by `(u, v)` world units along its right and up axes, with the
 /// projection sheared so that the plane at view distance `focus` maps to itself (a thin-lens
-/// sample for defocus; `None`: parallel cameras, the stereo eyes of DESIGN.md "Stereo/VR").
+/// sample for defocus; `None`: parallel cameras, the stereo eyes of ARCHITECTURE.md "Stereo/VR").
 pub fn offset_camera(cam: &Camera, u: f32, v: f32, focus: Option<f32>) -> Camera {
     let view = glam::Mat4::from_translation(glam::Vec3::new(-u, -v, 0.0)) * cam.view;
     let proj = match focus {

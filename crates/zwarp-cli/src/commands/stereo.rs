@@ -1,9 +1,9 @@
 //! `zwarp stereo`: stereoscopic views by colour warping (seed 001 Sec. 3.3 Fig. 2, 6: stereo
 //! post-conversion of a racing game). The eyes are the path's centre camera moved by `-E/2` and
-//! `+E/2` along its right axis (DESIGN.md "Stereo/VR"). Two strategies: `cyclops` warps the one
-//! rendered centre view to both eyes (spatial field, eq. 4), `alternate` warps the previous
-//! frame's other eye (temporal + spatial field, Sec. 4's linear combination). Every method is
-//! compared per eye with rendering that eye; anaglyph and side-by-side images.
+//! `+E/2` along its right axis (ARCHITECTURE.md "Stereo/VR"). Two strategies: `cyclops` warps
+//! the one rendered centre view to both eyes (spatial field, eq. 4), `alternate` warps the
+//! previous frame's other eye (temporal + spatial field, Sec. 4's linear combination). Every
+//! method is compared per eye with rendering that eye; anaglyph and side-by-side images.
 
 use std::path::PathBuf;
 

@@ -54,8 +54,8 @@ pub fn vfc_cull_with(scene: &Scene, bounds: &ObjectBounds, cam: &Camera, t: f32)
 }
 
 /// Baseline "last frame": the previous depth buffer used as the occlusion map **without
-/// reprojection** (a common shortcut, DESIGN.md). Unsafe: it culls objects that became
-/// visible; kept to show that error, never a default.
+/// reprojection** (a common shortcut; ARCHITECTURE.md "Pitfalls of public implementations").
+/// Unsafe: it culls objects that became visible; kept to show that error, never a default.
 pub fn lastframe(
     scene: &Scene,
     prev_depth: &Image<f32>,

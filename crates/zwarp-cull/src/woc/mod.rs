@@ -91,7 +91,7 @@ pub struct WocParams {
     /// Drop the *opening rims* of the previous frame before warping (see [`opening_rims`]):
     /// texels on the near side of a boundary between two objects whose screen motions pull
     /// them apart by more than this many pixels per frame become holes, so a disocclusion
-    /// narrower than a pixel stays far. `None` disables it (the pre-fix behaviour).
+    /// narrower than a pixel stays far. `None` disables it (every texel is warped, rims included).
     /// Default `Some(0.1)`. Measured (scale 0.25, 960x540, 23 frames, CR vs REF / culled
     /// visible objects): BL off 83.0% / 24, 0.4 px 76.3% / 7, 0.2 px 73.6% / 0, 0 px 72.8% / 0
     /// (VFC 68.9%, ideal 93.0%); CB off 95.9% / 1, 0.2 px 91.2% / 0, 0 px 85.6% / 0. 0 is the

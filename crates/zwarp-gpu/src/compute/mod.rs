@@ -1,5 +1,5 @@
-//! GPU compute kernels, each the WGSL twin of a CPU function (DESIGN.md "One kernel, many
-//! callers": tests compare them on the same inputs).
+//! GPU compute kernels, each the WGSL twin of a CPU function (ARCHITECTURE.md design rule 2,
+//! "One implementation of each idea": tests compare them on the same inputs).
 
 use zwarp_core::Result;
 

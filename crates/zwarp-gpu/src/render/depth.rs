@@ -12,7 +12,7 @@ use crate::readback::{copy_texture, read_buffer};
 use crate::GpuContext;
 
 /// Depth format of every render: 32-bit float, the same `[0, 1]` values the CPU rasterizer
-/// stores (DESIGN.md: 0 = near, 1 = far / empty).
+/// stores (ARCHITECTURE.md "Conventions": 0 = near, 1 = far / empty).
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Item-buffer format (object id per pixel, [`NO_ITEM`] where empty).
 pub const ITEM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
