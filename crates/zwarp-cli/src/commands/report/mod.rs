@@ -68,6 +68,9 @@ pub struct Machine {
     pub adapters: Vec<String>,
     /// 1-, 5- and 15-minute load averages when the run started.
     pub load_average: String,
+    /// The same when it finished (other work on the machine inflates and scatters timings).
+    #[serde(default)]
+    pub load_average_end: Option<String>,
     /// Operating system and architecture.
     pub os: String,
 }
@@ -147,11 +150,16 @@ pub fn machine() -> Machine {
             .into_iter()
             .map(|a| format!("{} ({}, {})", a.name, a.backend, a.device_type))
             .collect(),
-        load_average: std::fs::read_to_string("/proc/loadavg")
-            .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-            .unwrap_or_else(|_| "unknown".into()),
+        load_average: load_average(),
+        load_average_end: None,
         os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
     }
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".into())
 }
 
 fn now() -> String {
@@ -305,6 +313,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     report.finished = Some(now());
+    report.machine.load_average_end = Some(load_average());
     write_outputs(&report, &out, &markdown)?;
     println!(
         "wrote {}, {} and {}",

@@ -707,12 +707,13 @@ fn machine_lines(report: &Report) -> Vec<String> {
     vec![
         format!("zwarp {}, level `{}`: {}", report.zwarp, report.level, report.protocol),
         format!(
-            "Machine: {}, {} CPU threads, {}, GPU adapters: {}; load average at start {}",
+            "Machine: {}, {} CPU threads, {}, GPU adapters: {}; load average (1, 5, 15 min) at start {}{}",
             m.cpu,
             m.threads,
             m.os,
             if m.adapters.is_empty() { "none".to_string() } else { m.adapters.join(", ") },
-            m.load_average
+            m.load_average,
+            m.load_average_end.as_ref().map_or(String::new(), |l| format!(", at the end {l}"))
         ),
         format!(
             "Started {}, {}. Every speed figure is a ratio to the alternative measured in the same run; GPU figures \
