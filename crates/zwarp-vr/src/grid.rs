@@ -295,8 +295,11 @@ pub fn grid_cells(src: &Source<'_>, m: &WarpMatrix, tree: &QuadTree, max_error_p
 /// Depth of the vertex at pixel corner `(cx, cy)` for the cell pixel `(px, py)` (one of the
 /// four pixels around the corner): the pixels connected to it among the four, by union over
 /// the 6 links; one pixel -> its depth, two -> their mean (exact for a plane at the midpoint
-/// of adjacent or diagonal pixels), three -> the mean of its diagonal pair (whose midpoint is
-/// the corner), four -> the mean of all. `tree = None` connects all four (rubber sheets).
+/// of diagonal pixels), three -> the mean of its diagonal pair (whose midpoint is the corner),
+/// four -> the mean of all. A single pixel, or an adjacent pair, is extrapolated half a pixel
+/// along the axes it does not span with the slope of its surface (exact on planes: both sides
+/// of a crease meet, separate surfaces keep their own depth). `tree = None` connects all four
+/// without extrapolation (rubber sheets).
 pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u32, px: u32, py: u32) -> f32 {
     let (w, h) = depth.size();
     // Pixels a (top-left), b (top-right), c (bottom-left), d (bottom-right) of the corner.
@@ -333,16 +336,64 @@ pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u3
     let root = find(&mut parent, me);
     let comp: Vec<usize> = (0..4).filter(|&i| inside(i) && find(&mut parent, i) == root).collect();
     let d = |i: usize| *depth.get(pos[i].0 as u32, pos[i].1 as u32);
+    let cols = comp.iter().any(|&i| i % 2 == 0) && comp.iter().any(|&i| i % 2 == 1);
+    let rows = comp.iter().any(|&i| i < 2) && comp.iter().any(|&i| i >= 2);
+    // Half a pixel outwards along the surface of member `i` on axis (ax, ay): the slope from
+    // its inward neighbour when that one is connected (exact on a plane, so both sides of a
+    // crease meet), else none.
+    let extrapolate = |i: usize, ax: i32, ay: i32| -> f32 {
+        let Some(t) = tree else { return 0.0 };
+        let (mx, my) = pos[i];
+        // Outward points from the pixel centre to the corner.
+        let (ox, oy) = (
+            if ax != 0 {
+                if mx < cx as i32 {
+                    1
+                } else {
+                    -1
+                }
+            } else {
+                0
+            },
+            if ay != 0 {
+                if my < cy as i32 {
+                    1
+                } else {
+                    -1
+                }
+            } else {
+                0
+            },
+        );
+        if t.connected(mx, my, -ox, -oy) {
+            0.5 * (d(i) - *depth.get((mx - ox) as u32, (my - oy) as u32))
+        } else {
+            0.0
+        }
+    };
     match comp.len() {
         3 => {
-            // The diagonal pair of the three: (0, 3) or (1, 2).
+            // The diagonal pair of the three: (0, 3) or (1, 2); its midpoint is the corner.
             if comp.contains(&0) && comp.contains(&3) {
                 0.5 * (d(0) + d(3))
             } else {
                 0.5 * (d(1) + d(2))
             }
         }
-        n => comp.iter().map(|&i| d(i)).sum::<f32>() / n as f32,
+        n => {
+            let mut s = 0.0;
+            for &i in &comp {
+                let mut v = d(i);
+                if !cols {
+                    v += extrapolate(i, 1, 0);
+                }
+                if !rows {
+                    v += extrapolate(i, 0, 1);
+                }
+                s += v;
+            }
+            s / n as f32
+        }
     }
 }
 

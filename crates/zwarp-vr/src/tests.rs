@@ -218,6 +218,12 @@ fn corner_depths_share_connected_vertices_and_split_at_steps() {
     let left = corner_depth(&d, Some(&t), 4, 3, 3, 2);
     let right = corner_depth(&d, Some(&t), 4, 3, 4, 2);
     assert!((left - 0.325).abs() < 1e-6 && (right - 0.7).abs() < 1e-6, "{left} {right}");
+    // A slanted side of a step extrapolates its plane to the corner (exact, so creases close).
+    let s = Image::from_fn(8, 8, |x, _| if x < 4 { 0.3 + 0.01 * x as f32 } else { 0.9 });
+    let st = QuadTree::build(&s, Reduction::Irregular, &Collinearity::default()).unwrap();
+    let e = corner_depth(&s, Some(&st), 4, 3, 3, 2);
+    assert!((e - 0.335).abs() < 1e-6, "{e}");
+    assert!((corner_depth(&s, Some(&st), 4, 3, 4, 2) - 0.9).abs() < 1e-6);
     // Rubber sheets (no tree) average across the step.
     let rubber = corner_depth(&d, None, 4, 3, 3, 2);
     assert!((rubber - (0.32 + 0.33 + 1.4) / 4.0).abs() < 1e-6, "{rubber}");

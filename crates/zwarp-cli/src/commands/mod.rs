@@ -10,3 +10,4 @@ pub mod render;
 pub mod shadows;
 pub mod stereo;
 pub mod upsample;
+pub mod vr;
