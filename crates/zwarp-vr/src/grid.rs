@@ -126,11 +126,16 @@ pub struct WarpParams {
     pub max_error_px: f32,
     /// Didyk et al.'s split threshold: the largest disparity range (pixels) within one cell.
     pub didyk_px: f32,
+    /// A view-dependent bound added to seed 003's grid: a quadtree node whose disparity range
+    /// is at most this many pixels is one cell even across a discontinuity (it moves rigidly
+    /// to within the threshold), so the grid never needs more cells than Didyk et al. at the
+    /// same threshold. `None`: the paper's grid alone.
+    pub rigid_px: Option<f32>,
 }
 
 impl Default for WarpParams {
     fn default() -> Self {
-        WarpParams { collinearity: Collinearity::default(), max_error_px: 0.5, didyk_px: 0.5 }
+        WarpParams { collinearity: Collinearity::default(), max_error_px: 0.5, didyk_px: 0.5, rigid_px: Some(0.5) }
     }
 }
 
@@ -262,7 +267,7 @@ pub fn warp_with_tree(src: &Source<'_>, dst: &Camera, tree: &QuadTree, p: &WarpP
     }
     let m = WarpMatrix::new(src.cam, dst)?;
     let t = Instant::now();
-    let cells = grid_cells(src, &m, tree, p.max_error_px);
+    let cells = grid_cells(src, &m, tree, p);
     let grid = ms_since(t);
     let t = Instant::now();
     let mut out = raster_cells(src, dst, &m, &cells, Some(tree))?;
@@ -274,9 +279,10 @@ pub fn warp_with_tree(src: &Source<'_>, dst: &Camera, tree: &QuadTree, p: &WarpP
 
 /// The adaptive grid of `tree` for the warp `m`: a connected cell is split when its estimated
 /// plane deviation (`err * n^2 / 8` stored depth over `n` pixels, the sagitta of a curve with
-/// second difference `err`) moves it by more than `max_error_px` target pixels.
-pub fn grid_cells(src: &Source<'_>, m: &WarpMatrix, tree: &QuadTree, max_error_px: f32) -> Vec<Cell> {
-    tree.cells(|err, c| {
+/// second difference `err`) moves it by more than `p.max_error_px` target pixels; with
+/// `p.rigid_px`, nodes moving rigidly to within that many pixels are not split.
+pub fn grid_cells(src: &Source<'_>, m: &WarpMatrix, tree: &QuadTree, p: &WarpParams) -> Vec<Cell> {
+    let split = |err: f32, c: Cell| {
         if err <= 0.0 {
             return false;
         }
@@ -286,10 +292,21 @@ pub fn grid_cells(src: &Source<'_>, m: &WarpMatrix, tree: &QuadTree, max_error_p
         let d = *src.depth.get(cx.min(src.depth.width() - 1), cy.min(src.depth.height() - 1));
         let (px, py) = (cx as f32 + 0.5, cy as f32 + 0.5);
         match (m.project(px, py, d), m.project(px, py, (d + dev).min(1.0 + dev))) {
-            (Some(a), Some(b)) => (a.0 - b.0).hypot(a.1 - b.1) > max_error_px,
+            (Some(a), Some(b)) => (a.0 - b.0).hypot(a.1 - b.1) > p.max_error_px,
             _ => true,
         }
-    })
+    };
+    match p.rigid_px {
+        None => tree.cells(split),
+        Some(tau) => {
+            let lv = disparity_pyramid(src, m);
+            tree.cells_with(split, |level, x, y| {
+                let (lw, _, v) = &lv[level];
+                let r = v[(y * lw + x) as usize];
+                r[1] - r[0] <= tau && r[3] - r[2] <= tau
+            })
+        }
+    }
 }
 
 /// Depth of the vertex at pixel corner `(cx, cy)` for the cell pixel `(px, py)` (one of the
@@ -648,13 +665,12 @@ fn points(src: &Source<'_>, dst: &Camera, m: &WarpMatrix) -> Result<WarpOutput> 
     Ok(out)
 }
 
-/// Didyk et al. 2010's adaptive grid: a quadtree over 32x32 tiles split while the range of the
-/// per-pixel disparity (target minus source position, both axes) within a node exceeds
-/// `threshold` pixels.
-pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<Vec<Cell>> {
-    if !(threshold.is_finite() && threshold >= 0.0) {
-        return Err(Error::invalid(format!("didyk threshold must be >= 0 pixels, got {threshold}")));
-    }
+/// Per level (0 = pixels .. [`LEVELS`] = tiles): size and `[min x, max x, min y, max y]` of the
+/// per-pixel disparity (target minus source position) below each node.
+pub type DisparityPyramid = Vec<(u32, u32, Vec<[f32; 4]>)>;
+
+/// The disparity min-max pyramid of the warp `m` (Didyk et al.'s split criterion).
+pub fn disparity_pyramid(src: &Source<'_>, m: &WarpMatrix) -> DisparityPyramid {
     let (w, h) = src.depth.size();
     // Level 0: [min x, max x, min y, max y] of the disparity.
     let mut lv: Vec<(u32, u32, Vec<[f32; 4]>)> = Vec::new();
@@ -685,17 +701,20 @@ pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<V
         }
         lv.push((nw, nh, next));
     }
+    lv
+}
+
+/// Didyk et al. 2010's adaptive grid: a quadtree over 32x32 tiles split while the range of the
+/// per-pixel disparity (target minus source position, both axes) within a node exceeds
+/// `threshold` pixels.
+pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<Vec<Cell>> {
+    if !(threshold.is_finite() && threshold >= 0.0) {
+        return Err(Error::invalid(format!("didyk threshold must be >= 0 pixels, got {threshold}")));
+    }
+    let (w, h) = src.depth.size();
+    let lv = disparity_pyramid(src, m);
     let mut out = Vec::new();
-    fn emit(
-        lv: &[(u32, u32, Vec<[f32; 4]>)],
-        level: usize,
-        x: u32,
-        y: u32,
-        thr: f32,
-        w: u32,
-        h: u32,
-        out: &mut Vec<Cell>,
-    ) {
+    fn emit(lv: &DisparityPyramid, level: usize, x: u32, y: u32, thr: f32, w: u32, h: u32, out: &mut Vec<Cell>) {
         let s = 1u32 << level;
         let c = Cell { x0: x * s, y0: y * s, x1: ((x + 1) * s).min(w), y1: ((y + 1) * s).min(h) };
         if c.x0 >= c.x1 || c.y0 >= c.y1 {

@@ -167,8 +167,8 @@ fn read_level(l: &PyramidLevel, scale: f32, p: Vec2) -> Option<Vec4> {
 }
 
 /// The nearest non-hole pixel along `dir` from `p` with exponentially growing steps (1, 2, 4,
-/// ...; seed 003 Sec. 5.2): the conservative distance and that pixel's depth. `None` if the
-/// ray leaves the image first.
+/// ...; seed 003 Sec. 5.2), then bisected between the last two steps: the distance to the
+/// hole border and the border pixel's depth. `None` if the ray leaves the image first.
 fn border_exp(hole: &Image<bool>, depth: &Image<f32>, p: Vec2, dir: Vec2) -> Option<(f32, f32)> {
     let (w, h) = (hole.width() as f32, hole.height() as f32);
     let mut s = 1.0f32;
@@ -179,7 +179,20 @@ fn border_exp(hole: &Image<bool>, depth: &Image<f32>, p: Vec2, dir: Vec2) -> Opt
         }
         let (x, y) = (q.x as u32, q.y as u32);
         if !*hole.get(x, y) {
-            return Some((s, *depth.get(x, y)));
+            // Bisect (s/2, s] for the first non-hole pixel: the border itself, not just a
+            // bound (log2 s more reads).
+            let (mut lo, mut hi) = (s * 0.5, s);
+            while hi - lo > 1.0 {
+                let mid = (0.5 * (lo + hi)).floor();
+                let m = p + dir * mid;
+                if *hole.get(m.x as u32, m.y as u32) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let b = p + dir * hi;
+            return Some((hi, *depth.get(b.x as u32, b.y as u32)));
         }
         s *= 2.0;
     }
@@ -273,17 +286,23 @@ pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: H
                 let d = epipolar_dir(e, p);
                 let a = border_exp(hole, depth, p, d);
                 let b = border_exp(hole, depth, p, -d);
-                let r = match (a, b) {
-                    (Some(a), Some(b)) => Some(if a.1 >= b.1 { a.0 } else { b.0 }),
-                    (a, b) => a.or(b).map(|x| x.0),
+                // Read half way to the background border, at the level whose filter radius
+                // (2^(l-1) pixels) reaches it: the colour of the border, blurred more the farther
+                // the pixel is from it (Mark's blurred stripes, seed 003 Sec. 5.2). A hole that
+                // reaches the image border has no background side: it continues the surface at
+                // its inner border (read there, level 1).
+                let (mut lvl, at) = match (a, b) {
+                    (Some(a), Some(b)) => {
+                        let v = if a.1 >= b.1 { a.0 * d } else { -b.0 * d };
+                        ((0.5 * v.length()).log2().ceil().max(0.0) as usize + 1, p + 0.5 * v)
+                    }
+                    (Some(a), None) => (1, p + a.0 * d),
+                    (None, Some(b)) => (1, p - b.0 * d),
+                    (None, None) => (top, p),
                 };
-                // The filter radius doubles per level: level ceil(log2 r) + 1 reaches the border.
-                let mut lvl = match r {
-                    Some(r) => (r.log2().ceil() as usize + 1).min(top),
-                    None => top,
-                };
+                lvl = lvl.min(top);
                 loop {
-                    if let Some(t) = read_level(&pyr[lvl], (1u32 << lvl) as f32, p) {
+                    if let Some(t) = read_level(&pyr[lvl], (1u32 << lvl) as f32, at) {
                         *o = [t.x, t.y, t.z];
                         break;
                     }

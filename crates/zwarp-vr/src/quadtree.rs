@@ -392,6 +392,17 @@ impl QuadTree {
     /// other children are refined, down to single pixels. `split` returns `true` when the cell
     /// must be split (the caller converts the depth error into pixels of the target view).
     pub fn cells(&self, split: impl Fn(f32, Cell) -> bool + Sync) -> Vec<Cell> {
+        self.cells_with(split, |_, _, _| false)
+    }
+
+    /// [`QuadTree::cells`] where, in addition, a node for which `rigid(level, x, y)` holds is
+    /// one cell whatever its surface flag (a view-dependent bound: content that moves by less
+    /// than a threshold needs no split, Didyk et al.'s criterion).
+    pub fn cells_with(
+        &self,
+        split: impl Fn(f32, Cell) -> bool + Sync,
+        rigid: impl Fn(usize, u32, u32) -> bool + Sync,
+    ) -> Vec<Cell> {
         let (w, h) = self.size();
         let top = &self.levels[LEVELS];
         let tiles: Vec<(u32, u32)> = (0..top.height).flat_map(|y| (0..top.width).map(move |x| (x, y))).collect();
@@ -399,7 +410,7 @@ impl QuadTree {
             .par_iter()
             .flat_map_iter(|&(tx, ty)| {
                 let mut out = Vec::new();
-                self.emit(LEVELS, tx, ty, w, h, &split, &mut out);
+                self.emit(LEVELS, tx, ty, w, h, &split, &rigid, &mut out);
                 out
             })
             .collect()
@@ -420,11 +431,12 @@ impl QuadTree {
         w: u32,
         h: u32,
         split: &(impl Fn(f32, Cell) -> bool + Sync),
+        rigid: &(impl Fn(usize, u32, u32) -> bool + Sync),
         out: &mut Vec<Cell>,
     ) {
         let Some(rect) = Self::rect(level, x, y, w, h) else { return };
         let n = self.levels[level].get(x, y);
-        if level == 0 || (n.surface && !split(n.err, rect)) {
+        if level == 0 || (n.surface && !split(n.err, rect)) || rigid(level, x, y) {
             out.push(rect);
             return;
         }
@@ -449,7 +461,7 @@ impl QuadTree {
         }
         for (i, &(cx, cy)) in kids.iter().enumerate() {
             if !done[i] {
-                self.emit(level - 1, cx, cy, w, h, split, out);
+                self.emit(level - 1, cx, cy, w, h, split, rigid, out);
             }
         }
     }
