@@ -22,10 +22,12 @@
 
 #![deny(missing_docs)]
 
+pub mod abuffer;
 pub mod grid;
 pub mod holes;
 pub mod quadtree;
 
+pub use abuffer::{ray_cast, ABuffer, Fragment, MinMaxTree, RayCastParams, MAX_FRAGMENTS};
 pub use grid::{warp, Method, WarpMatrix, WarpOutput};
 pub use holes::{fill_holes, HoleMethod};
 pub use quadtree::{Collinearity, QuadTree, Reduction};

@@ -459,3 +459,137 @@ fn epipolar_directions_follow_the_eye_offset() {
     assert!(d.x.abs() > 0.999 && d.y.abs() < 1e-3, "{d:?}");
     let _: Option<WarpOutput> = None;
 }
+
+// --- A-buffer ---------------------------------------------------------------------------
+
+use crate::abuffer::{ray_cast, ABuffer, MinMaxTree, RayCastParams, MAX_FRAGMENTS};
+
+fn glass(item: u32) -> [f32; 4] {
+    match item {
+        1 => [0.5, 0.0, 0.0, 0.5],
+        2 => [0.0, 0.24, 0.0, 0.4],
+        _ => [0.0, 0.0, 0.09 * item as f32, 0.3],
+    }
+}
+
+#[test]
+fn a_buffer_keeps_the_bound_and_merges_the_rest_without_loss() {
+    // Pixel (0, 0) holds 11 fragments (items 3..14 at increasing depth); the opaque surface
+    // hides everything behind 0.85.
+    let n = MAX_FRAGMENTS + 3;
+    let layers: Vec<(Image<f32>, Image<u32>)> = (0..n + 1)
+        .map(|k| {
+            let d = 0.1 + 0.07 * k as f32;
+            (
+                Image::from_fn(2, 1, |x, _| if x == 0 { d } else { 1.0 }),
+                Image::from_fn(2, 1, |x, _| if x == 0 { 3 + k as u32 } else { NO }),
+            )
+        })
+        .collect();
+    const NO: u32 = zwarp_core::NO_ITEM;
+    let opaque_depth = Image::new(2, 1, 0.85f32);
+    let ab = ABuffer::from_layers(&layers, &opaque_depth, glass).unwrap();
+    // Layer 12 lies at 0.87, behind the opaque surface: dropped; 11 in front, 8 kept.
+    assert_eq!(ab.fragments(0, 0).len(), MAX_FRAGMENTS);
+    assert_eq!(ab.merged, n - MAX_FRAGMENTS);
+    assert!(ab.fragments(1, 0).is_empty());
+    let opaque = Image::new(2, 1, [0.2f32, 0.6, 0.4]);
+    let c = ab.composite(&opaque).unwrap();
+    // Every fragment in front of the opaque surface, composited in order.
+    let mut acc = [0.0f32; 4];
+    for k in 0..n {
+        let f = glass(3 + k as u32);
+        let r = 1.0 - acc[3];
+        for i in 0..4 {
+            acc[i] += r * f[i];
+        }
+    }
+    let want: Vec<f32> = (0..3).map(|i| acc[i] + (1.0 - acc[3]) * opaque.data()[0][i]).collect();
+    for i in 0..3 {
+        assert!((c.data()[0][i] - want[i]).abs() < 1e-6, "{:?} vs {want:?}", c.data()[0]);
+    }
+    assert_eq!(c.data()[1], opaque.data()[1]);
+    assert!(ABuffer::from_layers(&layers, &Image::new(3, 1, 0.9f32), glass).is_err());
+}
+
+#[test]
+fn ray_casting_the_source_view_itself_is_the_composite() {
+    let (w, h) = (40, 24);
+    let (cam, depth, color) = wall(w, h);
+    let l0 = (
+        Image::from_fn(w, h, |x, _| if x < 30 { 0.3 } else { 1.0 }),
+        Image::from_fn(w, h, |x, _| if x < 30 { 1 } else { zwarp_core::NO_ITEM }),
+    );
+    let l1 = (
+        Image::from_fn(w, h, |_, y| if y > 8 { 0.5 } else { 1.0 }),
+        Image::from_fn(w, h, |_, y| if y > 8 { 2 } else { zwarp_core::NO_ITEM }),
+    );
+    let od = Image::new(w, h, 0.999f32);
+    let ab = ABuffer::from_layers(&[l0, l1], &od, glass).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let root = tree.node(LEVELS, 0, 0);
+    assert!(root[0] < 0.3 && root[1] > 0.5, "{root:?}");
+    let r = ray_cast(&ab, &tree, &cam, &cam, &color, &od, &RayCastParams::default()).unwrap();
+    let want = ab.composite(&color).unwrap();
+    for (a, b) in r.color.data().iter().zip(want.data()) {
+        assert!((0..3).all(|i| (a[i] - b[i]).abs() < 1e-5), "{a:?} vs {b:?}");
+    }
+    let _ = depth;
+    // A ray through empty space skips it in a few steps.
+    let empty = ABuffer::from_layers(&[], &od, glass).unwrap();
+    assert!(empty.is_empty());
+}
+
+#[test]
+fn ray_casting_beats_warping_the_composite_as_if_opaque() {
+    let (w, h) = (96, 48);
+    let cam = camera(Vec3::ZERO, w, h);
+    let dst = shifted(&cam, 0.6);
+    // A wall whose colour varies slowly (resampling error stays out of the comparison).
+    fn gentle(p: Vec3) -> [f32; 3] {
+        [0.4 + 0.2 * (p.x * 0.05).sin(), 0.5 + 0.2 * (p.z * 0.07).cos(), 0.6]
+    }
+    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: gentle }];
+    let pane = [Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red }];
+    let layers_of = |c: &Camera| {
+        let (gd, _) = trace(c, &pane);
+        let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
+        (gd, items)
+    };
+    let (sd, sc) = trace(&cam, &wall);
+    let ab = ABuffer::from_layers(&[layers_of(&cam)], &sd, glass).unwrap();
+    let (td, tc) = trace(&dst, &wall);
+    let truth = ABuffer::from_layers(&[layers_of(&dst)], &td, glass).unwrap().composite(&tc).unwrap();
+    // Opaque part: the wall warped by the grid (no disocclusion behind glass).
+    let src = Source { cam: &cam, depth: &sd, color: &sc };
+    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
+    let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
+    // Without the A-buffer: the composited source warped with the wall's depth.
+    let comp = ab.composite(&sc).unwrap();
+    let flat = warp(
+        &Source { cam: &cam, depth: &sd, color: &comp },
+        &dst,
+        Method::Grid(Reduction::Irregular),
+        &WarpParams::default(),
+    )
+    .unwrap();
+    let flat = fill_holes(&flat, &src, &dst, HoleMethod::LowPass).unwrap();
+    // Away from the border strip the source did not see.
+    let seen = |i: usize| !warped.hole.data()[i];
+    let (e_rc, _) = mse(&rc.color, &truth, seen);
+    let (e_flat, _) = mse(&flat, &truth, seen);
+    assert!(e_rc * 10.0 < e_flat, "ray cast {e_rc} vs opaque warp {e_flat}");
+    assert!(10.0 * (1.0 / e_rc).log10() > 30.0, "{e_rc}");
+    assert!(ray_cast(
+        &ab,
+        &tree,
+        &cam,
+        &dst,
+        &base,
+        &warped.depth,
+        &RayCastParams { opacity: 0.0, ..RayCastParams::default() }
+    )
+    .is_err());
+}
