@@ -10,7 +10,7 @@
 //! stacklessly (Tevs et al.: descend where the ray's depth range meets a node's, advance past
 //! nodes it misses, ascend one level whenever the next node has no sibling in the ray
 //! direction). Leaf fragments are boxes extruded in depth, so neighbouring fragments form a
-//! closed surface; one surface is not hit twice within its thickness. Hits are composited front
+//! closed surface; one surface is not hit twice where the boxes of neighbouring pixels overlap. Hits are composited front
 //! to back until an opacity threshold or the opaque depth.
 
 use rayon::prelude::*;
@@ -66,8 +66,9 @@ impl ABuffer {
     /// Builds the A-buffer from depth-peeled layers of the transparent objects (front to back:
     /// layer `k + 1` lies behind layer `k`; depth 1 / [`NO_ITEM`] = no fragment), keeping the
     /// fragments in front of `opaque_depth`. `rgba(item)` gives an object's premultiplied
-    /// colour. The extrusion of a fragment is 0.75 of its largest depth step to a 4-neighbour
-    /// of the same object in the same layer (so neighbouring boxes overlap), at least `1e-6`.
+    /// colour. The extrusion of a fragment is 0.75 of its largest depth step to the nearest
+    /// fragment of the same object in a 4-neighbour (so neighbouring boxes overlap), at least
+    /// `1e-6`.
     pub fn from_layers(
         layers: &[(Image<f32>, Image<u32>)],
         opaque_depth: &Image<f32>,
@@ -90,12 +91,22 @@ impl ABuffer {
                     if item == NO_ITEM || fd >= 1.0 || fd >= od {
                         continue;
                     }
+                    // The same surface continues in a neighbour in any layer (peeling order
+                    // changes where other fragments lie in front): its nearest fragment of
+                    // the same object.
                     let mut half = 1e-6f32;
                     for (dx, dy) in [(1i32, 0i32), (-1, 0), (0, 1), (0, -1)] {
                         let (nx, ny) = (x as i32 + dx, y as i32 + dy);
-                        if nx >= 0 && ny >= 0 && nx < w as i32 && ny < h as i32 && *it.get(nx as u32, ny as u32) == item
-                        {
-                            half = half.max(0.75 * (*d.get(nx as u32, ny as u32) - fd).abs());
+                        if nx < 0 || ny < 0 || nx >= w as i32 || ny >= h as i32 {
+                            continue;
+                        }
+                        let step = layers
+                            .iter()
+                            .filter(|(_, li)| *li.get(nx as u32, ny as u32) == item)
+                            .map(|(ld, _)| (*ld.get(nx as u32, ny as u32) - fd).abs())
+                            .fold(f32::INFINITY, f32::min);
+                        if step.is_finite() {
+                            half = half.max(0.75 * step);
                         }
                     }
                     let f = Fragment { depth: fd, half, rgba: rgba(item), item };
@@ -349,7 +360,7 @@ fn cast_one(
         te.max(t)
     };
     let mut acc = [0.0f32; 4];
-    let mut last: Option<Fragment> = None;
+    let mut last: Option<(Fragment, (u32, u32))> = None;
     let mut level = LEVELS;
     let mut t = t0;
     let mut steps = 0u32;
@@ -372,14 +383,15 @@ fn cast_one(
                 if acc[3] >= p.opacity || !(lo <= f.depth + f.half && hi >= f.depth - f.half) {
                     return;
                 }
-                if let Some(l) = last {
-                    // The same surface again within its thickness (the neighbouring box).
-                    if l.item == f.item && (l.depth - f.depth).abs() <= 2.0 * (l.half + f.half) {
+                if let Some((l, px)) = last {
+                    // The same surface again in a neighbouring pixel within its thickness
+                    // (overlapping boxes). Fragments of one pixel are distinct surfaces.
+                    if px != (cx, cy) && l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
                         return;
                     }
                 }
                 over(&mut acc, &f.rgba);
-                last = Some(*f);
+                last = Some((*f, (cx, cy)));
             };
             if zb >= za {
                 fr.iter().for_each(&mut visit);

@@ -559,7 +559,7 @@ fn raster_cells(
             }
         },
     );
-    Ok(resolve(src, tw, th, &zbuf, &uv, tree.map_or(Filter::Bilinear, Filter::Adaptive)))
+    Ok(resolve(src, m, tw, th, &zbuf, &uv, tree.map_or(Filter::Bilinear, Filter::Adaptive)))
 }
 
 /// Texture filtering of the colour fetch.
@@ -609,16 +609,41 @@ fn sample(color: &Image<[f32; 3]>, uv: Vec2, filter: Filter<'_>) -> [f32; 3] {
     acc.map(|a| a / wsum)
 }
 
-fn resolve(src: &Source<'_>, tw: u32, th: u32, zbuf: &[f32], uv: &[Vec2], filter: Filter<'_>) -> WarpOutput {
+/// Colour fetch and output buffers. The depth of a covered pixel is its source texel
+/// reprojected by `m` (the surface's own depth, not the cell's interpolation, which is flat
+/// across a rigid cell), clamped to `[0, 1]`.
+fn resolve(
+    src: &Source<'_>,
+    m: &WarpMatrix,
+    tw: u32,
+    th: u32,
+    zbuf: &[f32],
+    uv: &[Vec2],
+    filter: Filter<'_>,
+) -> WarpOutput {
     let n = (tw * th) as usize;
-    let mut color = vec![[0.0f32; 3]; n];
-    color.par_iter_mut().enumerate().for_each(|(i, c)| {
-        if zbuf[i].is_finite() {
-            *c = sample(src.color, uv[i], filter);
-        }
-    });
+    let (sw, sh) = src.depth.size();
+    let px: Vec<([f32; 3], f32)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if !zbuf[i].is_finite() {
+                return ([0.0; 3], 1.0);
+            }
+            let q = uv[i];
+            let (nx, ny) = (
+                (q.x.floor() as i32).clamp(0, sw as i32 - 1) as u32,
+                (q.y.floor() as i32).clamp(0, sh as i32 - 1) as u32,
+            );
+            let d = match m.project(nx as f32 + 0.5, ny as f32 + 0.5, *src.depth.get(nx, ny)) {
+                Some((_, _, z)) if z.is_finite() => z.clamp(0.0, 1.0),
+                _ => zbuf[i].clamp(0.0, 1.0),
+            };
+            (sample(src.color, q, filter), d)
+        })
+        .collect();
+    let color: Vec<[f32; 3]> = px.iter().map(|p| p.0).collect();
+    let depth: Vec<f32> = px.iter().map(|p| p.1).collect();
     let hole: Vec<bool> = zbuf.iter().map(|z| !z.is_finite()).collect();
-    let depth: Vec<f32> = zbuf.iter().map(|&z| if z.is_finite() { z } else { 1.0 }).collect();
     WarpOutput {
         color: Image::from_vec(tw, th, color).expect("sized"),
         depth: Image::from_vec(tw, th, depth).expect("sized"),
@@ -660,7 +685,7 @@ fn points(src: &Source<'_>, dst: &Camera, m: &WarpMatrix) -> Result<WarpOutput> 
             uv[i] = Vec2::new((s % w) as f32 + 0.5, (s / w) as f32 + 0.5);
         }
     }
-    let mut out = resolve(src, tw, th, &zbuf, &uv, Filter::Nearest);
+    let mut out = resolve(src, m, tw, th, &zbuf, &uv, Filter::Nearest);
     out.primitives = (w * h) as usize;
     Ok(out)
 }

@@ -17,7 +17,7 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_core::{Camera, Image, Scene};
 use zwarp_vr::grid::{draw_cells, Source, WarpParams};
-use zwarp_vr::{fill_holes, HoleMethod, Method};
+use zwarp_vr::{fill_holes, ray_cast, ABuffer, HoleMethod, Method, MinMaxTree, RayCastParams};
 
 use super::colorwarp;
 use crate::args::{Backend, SceneArgs, SizeArgs};
@@ -130,7 +130,7 @@ pub fn eye_camera(cam: &Camera, side: f32, ipd: f32) -> Camera {
     colorwarp::offset_camera(cam, side * 0.5 * ipd, 0.0, None)
 }
 
-/// One rendered view: the opaque G-buffer and the colour an eye sees.
+/// One rendered view: the opaque G-buffer, the A-buffer and the colour an eye sees.
 pub struct EyeView {
     /// Camera.
     pub cam: Camera,
@@ -142,22 +142,102 @@ pub struct EyeView {
     pub items: Image<u32>,
     /// Opaque colour.
     pub opaque: Image<[f32; 3]>,
+    /// The transparent fragments (with `--transparent`).
+    pub abuf: Option<ABuffer>,
     /// What the eye sees: the opaque colour with the transparent fragments composited.
     pub seen: Image<[f32; 3]>,
 }
 
-/// Renders the views of a scene.
-pub struct Renderer<'a> {
-    scene: &'a Scene,
+/// Object `i`'s glass colour under `seed`, or `None` if it stays opaque: a fraction `f` of the
+/// objects, chosen by a hash of (seed, object), get alpha 0.3-0.6 and a light tint
+/// (premultiplied RGBA).
+pub fn glass_of(seed: u64, i: u32, f: f32) -> Option<[f32; 4]> {
+    let mut z = seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03;
+    let mut next = || {
+        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut x = z;
+        x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((x ^ (x >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    };
+    if next() >= f {
+        return None;
+    }
+    let a = 0.3 + 0.3 * next();
+    let tint = [0.5 + 0.5 * next(), 0.5 + 0.5 * next(), 0.5 + 0.5 * next()];
+    Some([tint[0] * a, tint[1] * a, tint[2] * a, a])
 }
 
-impl Renderer<'_> {
+/// Depth-peeling passes for the A-buffer at most (a pixel behind more transparent surfaces
+/// than this is an error, not a silent loss).
+const PEEL_LAYERS: usize = 64;
+
+/// Renders the views of a scene: opaque objects into the G-buffer, glass-like ones (by
+/// [`glass_of`]) depth-peeled into the A-buffer.
+pub struct Renderer<'a> {
+    scene: &'a Scene,
+    /// Opaque objects (`None`: all, no transparency).
+    opaque: Option<Vec<u32>>,
+    /// The transparent objects alone, and their colour by original id.
+    glass: Option<(Scene, Vec<u32>, Vec<[f32; 4]>)>,
+}
+
+impl<'a> Renderer<'a> {
+    /// A renderer of `scene` with a fraction `transparent` of glass objects chosen by `seed`.
+    pub fn new(scene: &'a Scene, transparent: f32, seed: u64) -> Self {
+        if transparent <= 0.0 {
+            return Renderer { scene, opaque: None, glass: None };
+        }
+        let n = scene.instances.len() as u32;
+        let colours: Vec<Option<[f32; 4]>> = (0..n).map(|i| glass_of(seed, i, transparent)).collect();
+        let opaque: Vec<u32> = (0..n).filter(|&i| colours[i as usize].is_none()).collect();
+        let ids: Vec<u32> = (0..n).filter(|&i| colours[i as usize].is_some()).collect();
+        let mut sub = Scene { name: format!("{} (glass)", scene.name), up: scene.up, ..Scene::default() };
+        let mut remap = vec![u32::MAX; scene.meshes.len()];
+        for &i in &ids {
+            let inst = &scene.instances[i as usize];
+            if remap[inst.mesh as usize] == u32::MAX {
+                remap[inst.mesh as usize] = sub.add_mesh(scene.meshes[inst.mesh as usize].clone());
+            }
+            let mut c = inst.clone();
+            c.mesh = remap[inst.mesh as usize];
+            sub.instances.push(c);
+        }
+        let rgba = colours.iter().map(|c| c.unwrap_or([0.0; 4])).collect();
+        Renderer { scene, opaque: Some(opaque), glass: Some((sub, ids, rgba)) }
+    }
+
+    /// Objects made transparent.
+    pub fn transparent_count(&self) -> usize {
+        self.glass.as_ref().map_or(0, |g| g.1.len())
+    }
+
     /// Renders `cam` at `t`.
     pub fn view(&self, cam: &Camera, t: f32) -> Result<EyeView> {
-        let f =
-            zwarp_raster::render_frame(self.scene, cam, t, &zwarp_raster::FrameOptions { color: true, objects: None })?;
+        let opts = zwarp_raster::FrameOptions { color: true, objects: self.opaque.as_deref() };
+        let f = zwarp_raster::render_frame(self.scene, cam, t, &opts)?;
         let opaque = zwarp_color::require_color(f.color.as_ref(), "the rendered frame")?.clone();
-        Ok(EyeView { cam: *cam, t, depth: f.depth, items: f.items, seen: opaque.clone(), opaque })
+        let abuf = match &self.glass {
+            Some((sub, ids, rgba)) if !sub.instances.is_empty() => {
+                let peel = zwarp_raster::PeelOptions { layers: PEEL_LAYERS, ground_separate: false, umbra: None };
+                let layers = zwarp_raster::render_layers(sub, cam, t, &peel)?;
+                if layers.last().is_some_and(|l| l.coverage() > 0) {
+                    bail!("A-buffer: some pixel lies behind {PEEL_LAYERS} or more transparent surfaces (the peeling bound)");
+                }
+                let layers: Vec<(Image<f32>, Image<u32>)> = layers
+                    .into_iter()
+                    .map(|l| (l.depth, l.items.map(|&i| if i == zwarp_core::NO_ITEM { i } else { ids[i as usize] })))
+                    .collect();
+                Some(ABuffer::from_layers(&layers, &f.depth, |i| rgba[i as usize])?)
+            }
+            Some(_) => Some(ABuffer::empty(cam.width, cam.height)),
+            None => None,
+        };
+        let seen = match &abuf {
+            Some(a) => a.composite(&opaque)?,
+            None => opaque.clone(),
+        };
+        Ok(EyeView { cam: *cam, t, depth: f.depth, items: f.items, opaque, abuf, seen })
     }
 }
 
@@ -264,7 +344,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
     let reps = args.reps.max(1);
     let ipd = args.ipd;
     let path = &loaded.path;
-    let r = Renderer { scene: &loaded.scene };
+    let r = Renderer::new(&loaded.scene, args.transparent, args.scene.seed);
     let total = path.frame_count_at(1.0);
     if total < 2 {
         bail!("the camera path is too short for zwarp vr ({total} frame; need 2)");
@@ -345,8 +425,26 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
                                 None => (out.color.clone(), vec![0.0]),
                             };
                             let ms_holes = Timing::of(&hs).median;
-                            let pred = filled;
-                            let ms_abuffer = 0.0;
+                            // Transparent fragments: min-max quadtree and ray casting over the
+                            // warped opaque image.
+                            let (pred, ms_abuffer) = match (&src.abuf, ab) {
+                                (Some(abuf), true) => {
+                                    let (rc, s) = report::time_repeated(reps, || {
+                                        let tree = MinMaxTree::build(abuf);
+                                        Ok(ray_cast(
+                                            abuf,
+                                            &tree,
+                                            &src.cam,
+                                            &reference.cam,
+                                            &filled,
+                                            &out.depth,
+                                            &RayCastParams::default(),
+                                        )?)
+                                    })?;
+                                    (rc.color, Timing::of(&s).median)
+                                }
+                                _ => (filled, 0.0),
+                            };
                             let hname = hm.map_or("builtin", |h| h.name()).to_string();
                             let psnr = zwarp_metrics::psnr_rgb(&reference.seen, &pred, 1.0)?;
                             let psnr_holes = if n_unseen > 0 {
@@ -514,7 +612,7 @@ pub fn run(args: VrArgs) -> Result<()> {
     let loaded = args.scene.load()?;
     let rows = evaluate(&args, &loaded, &p)?;
     println!(
-        "zwarp vr: {} ({} objects, {} triangles), {}x{}, IPD {}, {} transparent, {} frame(s), {} CPU threads",
+        "zwarp vr: {} ({} objects, {} triangles), {}x{}, IPD {}, {} transparent ({} objects), {} frame(s), {} CPU threads",
         args.scene.scene,
         loaded.scene.instances.len(),
         loaded.scene.triangle_count(),
@@ -522,6 +620,7 @@ pub fn run(args: VrArgs) -> Result<()> {
         args.size.height,
         args.ipd,
         args.transparent,
+        Renderer::new(&loaded.scene, args.transparent, args.scene.seed).transparent_count(),
         args.frames,
         rayon::current_num_threads()
     );
