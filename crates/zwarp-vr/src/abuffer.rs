@@ -223,6 +223,12 @@ impl MinMaxTree {
         MinMaxTree { levels }
     }
 
+    /// `[min, max]` extruded depth over the whole A-buffer.
+    pub fn range(&self) -> (f32, f32) {
+        let top = &self.levels[LEVELS].2;
+        top.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |r, n| (r.0.min(n[0]), r.1.max(n[1])))
+    }
+
     /// Node `(x, y)` of `level`: `[min, max]` extruded depth.
     #[inline]
     pub fn node(&self, level: usize, x: u32, y: u32) -> [f32; 2] {
@@ -319,6 +325,16 @@ fn cast_one(
     sh: f32,
     p: &RayCastParams,
 ) -> ([f32; 4], u32) {
+    // A ray entirely outside the source image (the border strip it did not see) continues the
+    // transparent surfaces at the image border, as the hole filling does for opaque ones: it is
+    // clamped onto the border.
+    let inside = |q: [f32; 3]| q[0] >= 0.0 && q[1] >= 0.0 && q[0] < sw && q[1] < sh;
+    let (a, b) = if !inside(a) && !inside(b) && !segment_meets_image(a, b, sw, sh) {
+        let c = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
+        (c(a), c(b))
+    } else {
+        (a, b)
+    };
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     // Clip to the source image (slabs in x and y).
     let (mut t0, mut t1) = (0.0f32, 1.0f32);
@@ -335,6 +351,15 @@ fn cast_one(
             t0 = t0.max(ta);
             t1 = t1.min(tb);
         }
+    }
+    // Empty-space skipping in depth: start where the ray reaches the nearest fragment.
+    let (zmin, zmax) = tree.range();
+    if d[2].abs() > 1e-12 {
+        let (ta, tb) = ((zmin - a[2]) / d[2], (zmax - a[2]) / d[2]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb) + 1e-6);
+    } else if a[2] < zmin || a[2] > zmax {
+        return ([0.0; 4], 0);
     }
     if t0 >= t1 {
         return ([0.0; 4], 0);
@@ -413,4 +438,21 @@ fn cast_one(
         t = next;
     }
     (acc, steps)
+}
+
+/// `true` if the 2-D segment `a`-`b` crosses the `sw x sh` image.
+fn segment_meets_image(a: [f32; 3], b: [f32; 3], sw: f32, sh: f32) -> bool {
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for (o, v, hi) in [(a[0], b[0] - a[0], sw), (a[1], b[1] - a[1], sh)] {
+        if v.abs() < 1e-12 {
+            if o < 0.0 || o >= hi {
+                return false;
+            }
+        } else {
+            let (ta, tb) = ((0.0 - o) / v, (hi - o) / v);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    t0 < t1
 }

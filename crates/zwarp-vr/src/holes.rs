@@ -316,3 +316,31 @@ pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: H
     }
     Ok(out)
 }
+
+/// The depth of `warped` with each hole pixel given the depth of its background border (the
+/// farther of the two hole borders along the epipolar line; at the image border the inner
+/// one): where the filled colour comes from, so a ray cast through the hole (Sec. 5.3) ends at
+/// the surface shown instead of the far plane.
+pub fn hole_depth(warped: &WarpOutput, src: &Camera, dst: &Camera) -> Result<Image<f32>> {
+    let (depth, hole) = (&warped.depth, &warped.hole);
+    depth.check_same_size(hole, "hole depth vs mask")?;
+    let e = epipole(src, dst);
+    let w = depth.width();
+    let data = (0..depth.len())
+        .into_par_iter()
+        .map(|i| {
+            if !hole.data()[i] {
+                return depth.data()[i];
+            }
+            let p = Vec2::new((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+            let d = epipolar_dir(e, p);
+            match (border_exp(hole, depth, p, d), border_exp(hole, depth, p, -d)) {
+                (Some(a), Some(b)) => a.1.max(b.1),
+                (Some(a), None) => a.1,
+                (None, Some(b)) => b.1,
+                (None, None) => 1.0,
+            }
+        })
+        .collect();
+    Image::from_vec(w, depth.height(), data)
+}

@@ -17,6 +17,7 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_core::{Camera, Image, Scene};
 use zwarp_vr::grid::{draw_cells, Source, WarpParams};
+use zwarp_vr::holes::hole_depth;
 use zwarp_vr::{fill_holes, ray_cast, ABuffer, HoleMethod, Method, MinMaxTree, RayCastParams};
 
 use super::colorwarp;
@@ -431,13 +432,14 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
                                 (Some(abuf), true) => {
                                     let (rc, s) = report::time_repeated(reps, || {
                                         let tree = MinMaxTree::build(abuf);
+                                        let ends = hole_depth(&out, &src.cam, &reference.cam)?;
                                         Ok(ray_cast(
                                             abuf,
                                             &tree,
                                             &src.cam,
                                             &reference.cam,
                                             &filled,
-                                            &out.depth,
+                                            &ends,
                                             &RayCastParams::default(),
                                         )?)
                                     })?;
