@@ -985,3 +985,53 @@ fn vr_rejects_bad_input_in_one_line() {
     }
     assert!(!j.exists(), "no JSON is written on bad input");
 }
+
+#[test]
+fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
+    let d = tmp("vrglass");
+    let j = d.join("vr.json");
+    let (ok, out, err) = zwarp(&[
+        "vr",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "grid",
+        "--holes",
+        "lowpass",
+        "--strategy",
+        "cyclops",
+        "--transparent",
+        "0.5",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("transparent"), "{out}");
+    let rows = json_rows(&j);
+    assert_eq!(rows.len(), 4, "{rows:?}");
+    for r in &rows {
+        let on = r["abuffer"].as_bool().unwrap();
+        let ms = r["ms_abuffer"].as_f64().unwrap();
+        assert!(if on { ms > 0.0 } else { ms == 0.0 }, "{r}");
+        assert_eq!(r["transparent"].as_f64().unwrap(), 0.5);
+    }
+    assert_eq!(rows.iter().filter(|r| r["abuffer"] == true).count(), 2);
+    // Only the A-buffer rows: --abuffer on.
+    let (ok, _, err) = zwarp(&[
+        "vr", "--scene", "cb", "--scale", "0.01", "--width", "64", "--height", "48", "--frames", "1", "--reps", "1",
+        "--method", "points", "--holes", "stretch", "--strategy", "alternate", "--transparent", "0.5", "--abuffer", "on",
+        "--json", j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(json_rows(&j).iter().all(|r| r["abuffer"] == true));
+}
