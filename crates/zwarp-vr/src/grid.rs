@@ -440,12 +440,13 @@ struct Tri {
 const EDGE_TOL_PX: f32 = 0.02;
 
 fn make_tri(v: [(Vec4, Vec2); 3], clamp: [f32; 4], tw: u32, th: u32) -> Option<Tri> {
-    if v.iter().any(|(h, _)| !(h.w > 1e-9) || !h.is_finite()) {
+    if v.iter().any(|(h, _)| h.w <= 1e-9 || !h.is_finite()) {
         return None;
     }
     let p = v.map(|(h, _)| Vec2::new(h.x / h.w, h.y / h.w));
     let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
-    if !(area.abs() > 1e-12) {
+    // NaN areas fail too.
+    if area.abs().partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let lo = p[0].min(p[1]).min(p[2]) - Vec2::splat(EDGE_TOL_PX);
@@ -529,14 +530,14 @@ fn raster_cells(
                         let q = Vec2::new(x as f32 + 0.5, py);
                         let mut l = [0.0f32; 3];
                         let mut inside = true;
-                        for i in 0..3 {
+                        for (i, li) in l.iter_mut().enumerate() {
                             let (a, bb) = (t.p[(i + 1) % 3], t.p[(i + 2) % 3]);
                             let e = (bb - a).perp_dot(q - a) * t.area.signum();
                             if e < -t.tol[i] {
                                 inside = false;
                                 break;
                             }
-                            l[i] = e * inv.abs();
+                            *li = e * inv.abs();
                         }
                         if !inside {
                             continue;
@@ -666,7 +667,7 @@ fn points(src: &Source<'_>, dst: &Camera, m: &WarpMatrix) -> Result<WarpOutput> 
         for x in 0..w {
             let d = *src.depth.get(x, y);
             let Some((tx, ty, tz)) = m.project(x as f32 + 0.5, y as f32 + 0.5, d) else { continue };
-            if !(tx >= 0.0 && ty >= 0.0 && tx < tw as f32 && ty < th as f32) || !tz.is_finite() {
+            if !(tx >= 0.0 && ty >= 0.0 && tx < tw as f32 && ty < th as f32 && tz.is_finite()) {
                 continue;
             }
             let k = ty as usize * tw as usize + tx as usize;
@@ -739,6 +740,7 @@ pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<V
     let (w, h) = src.depth.size();
     let lv = disparity_pyramid(src, m);
     let mut out = Vec::new();
+    #[allow(clippy::too_many_arguments)]
     fn emit(lv: &DisparityPyramid, level: usize, x: u32, y: u32, thr: f32, w: u32, h: u32, out: &mut Vec<Cell>) {
         let s = 1u32 << level;
         let c = Cell { x0: x * s, y0: y * s, x1: ((x + 1) * s).min(w), y1: ((y + 1) * s).min(h) };

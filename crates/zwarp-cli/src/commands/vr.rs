@@ -309,7 +309,7 @@ struct Acc {
 /// Row key: (alternate, right eye, method, holes name, abuffer).
 type Key = (bool, bool, String, String, bool);
 
-fn acc<'a>(accs: &'a mut Vec<(Key, Acc)>, key: Key) -> &'a mut Acc {
+fn acc(accs: &mut Vec<(Key, Acc)>, key: Key) -> &mut Acc {
     let i = match accs.iter().position(|(k, _)| *k == key) {
         Some(i) => i,
         None => {
@@ -353,13 +353,11 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
     let count = args.frames.min(total - 1);
     let ks: Vec<usize> =
         (0..count).map(|i| if count == 1 { 1 + (total - 2) / 2 } else { 1 + i * (total - 2) / (count - 1) }).collect();
-    let holes_rows = p.holes.len();
     let bar = colorwarp::progress(
         (ks.len() * p.strategies.len() * 2 * p.methods.len()) as u64,
         format!("vr {}", args.scene.scene),
         true,
     );
-    let _ = holes_rows;
     let wp = WarpParams::default();
     let mut accs: Vec<(Key, Acc)> = Vec::new();
     let mut shots: Vec<Shot> = Vec::new();
