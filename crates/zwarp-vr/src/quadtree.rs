@@ -258,6 +258,34 @@ fn pixel_node(depth: &Image<f32>, x: u32, y: u32, c: &Collinearity, reduction: R
     Node { links, surface, merge: if surface { Merge::Full } else { Merge::None }, err }
 }
 
+/// [`pixel_node`] for a pixel at least 2 pixels inside the image (every neighbour used
+/// exists): the same tests on direct slice reads, the hot path.
+#[inline]
+fn pixel_node_interior(d: &[f32], w: usize, x: usize, y: usize, c: &Collinearity, reduction: Reduction) -> Node {
+    let i = y * w + x;
+    let dp = d[i];
+    let mut links = 0u8;
+    let mut err = 0.0f32;
+    for (k, &(dx, dy)) in DIRS.iter().enumerate() {
+        let off = dy as isize * w as isize + dx as isize;
+        let q = (i as isize + off) as usize;
+        let (da, dq, db) = (d[(i as isize - off) as usize], d[q], d[(q as isize + off) as usize]);
+        let t1 = c.test(da, dp, dq);
+        let t2 = c.test(dp, dq, db);
+        if t1 || t2 {
+            links |= 1 << k;
+            let f1 = if t1 { Collinearity::deviation(da, dp, dq) } else { f32::INFINITY };
+            let f2 = if t2 { Collinearity::deviation(dp, dq, db) } else { f32::INFINITY };
+            err = err.max(f1.min(f2));
+        }
+    }
+    let surface = match reduction {
+        Reduction::Cross => c.test(d[i - 1], dp, d[i + 1]) && c.test(d[i - w], dp, d[i + w]),
+        Reduction::PartialCross | Reduction::Irregular => true,
+    };
+    Node { links, surface, merge: if surface { Merge::Full } else { Merge::None }, err }
+}
+
 /// The parent of four children (TL, TR, BL, BR) under `reduction`.
 fn reduce(ch: [Node; 4], reduction: Reduction) -> Node {
     let [tl, tr, bl, br] = ch;
@@ -317,8 +345,13 @@ impl QuadTree {
         let (w, h) = depth.size();
         let mut nodes = vec![ABSENT; (w * h) as usize];
         nodes.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+            let interior = y >= 2 && y + 2 < h as usize;
             for (x, n) in row.iter_mut().enumerate() {
-                *n = pixel_node(depth, x as u32, y as u32, c, reduction);
+                *n = if interior && x >= 2 && x + 2 < w as usize {
+                    pixel_node_interior(depth.data(), w as usize, x, y, c, reduction)
+                } else {
+                    pixel_node(depth, x as u32, y as u32, c, reduction)
+                };
             }
         });
         let mut levels = vec![Level { width: w, height: h, nodes }];
@@ -465,4 +498,10 @@ impl QuadTree {
             }
         }
     }
+}
+
+/// The general per-pixel path, for tests of the interior fast path.
+#[cfg(test)]
+pub(crate) fn pixel_node_general(depth: &Image<f32>, x: u32, y: u32, c: &Collinearity, reduction: Reduction) -> Node {
+    pixel_node(depth, x, y, c, reduction)
 }
