@@ -1028,9 +1028,31 @@ fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
     assert_eq!(rows.iter().filter(|r| r["abuffer"] == true).count(), 2);
     // Only the A-buffer rows: --abuffer on.
     let (ok, _, err) = zwarp(&[
-        "vr", "--scene", "cb", "--scale", "0.01", "--width", "64", "--height", "48", "--frames", "1", "--reps", "1",
-        "--method", "points", "--holes", "stretch", "--strategy", "alternate", "--transparent", "0.5", "--abuffer", "on",
-        "--json", j.to_str().unwrap(),
+        "vr",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "points",
+        "--holes",
+        "stretch",
+        "--strategy",
+        "alternate",
+        "--transparent",
+        "0.5",
+        "--abuffer",
+        "on",
+        "--json",
+        j.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
     assert!(json_rows(&j).iter().all(|r| r["abuffer"] == true));
