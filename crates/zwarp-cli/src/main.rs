@@ -32,6 +32,8 @@ enum Command {
     Upsample(commands::upsample::UpsampleArgs),
     /// Stereo views from one centre view or the previous frame's other eye (seed 001).
     Stereo(commands::stereo::StereoArgs),
+    /// Both eyes of a stereo / VR frame by hybrid image warping vs rendering each eye (seed 003).
+    Vr(commands::vr::VrArgs),
     /// Motion and defocus blur by accumulating warped views vs rendered ones (seed 001).
     Blur(commands::blur::BlurArgs),
     /// Run the protocol of every table and figure zwarp reproduces; write an HTML page, JSON and markdown.
@@ -61,6 +63,7 @@ fn main() {
         Command::Stereo(a) => commands::stereo::run(a),
         Command::Blur(a) => commands::blur::run(a),
         Command::Report(a) => commands::report::run(a),
+        Command::Vr(a) => commands::vr::run(a),
     };
     if let Err(e) = result {
         // One line: the error and its causes, joined.

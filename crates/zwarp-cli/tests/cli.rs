@@ -853,3 +853,207 @@ fn colour_commands_gpu_backend_matches_cpu() {
         assert!((pc - pg).abs() < 1.0, "{c} vs {g}");
     }
 }
+
+/// The JSON fields of every `zwarp vr` row.
+const VR_FIELDS: [&str; 23] = [
+    "method",
+    "strategy",
+    "holes",
+    "abuffer",
+    "eye",
+    "psnr",
+    "psnr_holes",
+    "ssim",
+    "flip",
+    "primitives",
+    "ms_quadtree",
+    "ms_grid",
+    "ms_warp",
+    "ms_holes",
+    "ms_abuffer",
+    "warp_ms",
+    "render_ms",
+    "speedup",
+    "scene",
+    "width",
+    "height",
+    "frames",
+    "ipd",
+];
+
+#[test]
+fn vr_writes_the_documented_fields() {
+    let d = tmp("vr");
+    let j = d.join("vr.json");
+    let img = d.join("img");
+    let (ok, out, err) = zwarp(&[
+        "vr",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "grid,points,didyk,fpi",
+        "--holes",
+        "lowpass,pushpull",
+        "--images",
+        img.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("| grid") && out.contains("speedup"), "{out}");
+    let rows = json_rows(&j);
+    // (3 methods x 2 holes + fpi) x 2 strategies x 2 eyes, no transparency: abuffer off only.
+    assert_eq!(rows.len(), 28, "{rows:?}");
+    for r in &rows {
+        for k in VR_FIELDS {
+            assert!(!r[k].is_null(), "field {k} missing in {r}");
+        }
+        assert_eq!(r["abuffer"], false);
+        assert!(["left", "right"].contains(&r["eye"].as_str().unwrap()), "{r}");
+        assert!(["cyclops", "alternate"].contains(&r["strategy"].as_str().unwrap()), "{r}");
+        let holes = r["holes"].as_str().unwrap();
+        if r["method"] == "fpi" {
+            assert_eq!(holes, "builtin");
+        } else {
+            assert!(["lowpass", "pushpull"].contains(&holes), "{r}");
+            assert!(r["primitives"].as_f64().unwrap() >= 1.0, "{r}");
+        }
+        let stages: f64 = ["ms_quadtree", "ms_grid", "ms_warp", "ms_holes", "ms_abuffer"]
+            .iter()
+            .map(|k| r[k].as_f64().unwrap())
+            .sum();
+        assert!((stages - r["warp_ms"].as_f64().unwrap()).abs() < 1e-9, "{r}");
+        let sp = r["render_ms"].as_f64().unwrap() / r["warp_ms"].as_f64().unwrap();
+        assert!((r["speedup"].as_f64().unwrap() - sp).abs() < 1e-6 * sp.max(1.0), "{r}");
+        let s = r["ssim"].as_f64().unwrap();
+        assert!(s > 0.3 && s <= 1.0, "{r}");
+        assert!(r["ipd"].as_f64().unwrap() == 0.064f32 as f64);
+        if r["method"] == "grid" {
+            assert!(r["ms_quadtree"].as_f64().unwrap() > 0.0, "{r}");
+        }
+    }
+    // Points draw one splat per pixel.
+    assert!(rows.iter().filter(|r| r["method"] == "points").all(|r| r["primitives"].as_f64().unwrap() == 64.0 * 48.0));
+    for f in [
+        "cb_reference_anaglyph.png",
+        "cb_cyclops_grid_lowpass_anaglyph.png",
+        "cb_cyclops_grid_grid.png",
+        "cb_alternate_grid_lowpass_left_flip.png",
+    ] {
+        assert!(img.join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn vr_rejects_bad_input_in_one_line() {
+    let d = tmp("vrbad");
+    let j = d.join("x.json");
+    let js = j.to_str().unwrap();
+    let small = ["--scale", "0.01", "--width", "64", "--height", "48", "--frames", "1", "--reps", "1"];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--ipd", "-0.01"], "--ipd"),
+        (vec!["--ipd", "NaN"], "--ipd"),
+        (vec!["--ipd", "inf"], "--ipd"),
+        (vec!["--transparent", "1.5"], "--transparent"),
+        (vec!["--transparent", "-0.1"], "--transparent"),
+        (vec!["--transparent", "NaN"], "--transparent"),
+        (vec!["--method", "splat"], "splat"),
+        (vec!["--holes", "inpaint"], "inpaint"),
+        (vec!["--strategy", "mono"], "mono"),
+        (vec!["--abuffer", "maybe"], "maybe"),
+        (vec!["--backend", "gpu"], "GPU"),
+    ];
+    for (extra, what) in cases {
+        let mut args = vec!["vr", "--scene", "cb", "--json", js];
+        args.extend(small);
+        args.extend(extra.iter().copied());
+        let (ok, _, err) = zwarp(&args);
+        assert!(!ok, "{extra:?} accepted");
+        let line = error_line(&err);
+        assert!(line.contains(what), "{extra:?}: {line}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    assert!(!j.exists(), "no JSON is written on bad input");
+}
+
+#[test]
+fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
+    let d = tmp("vrglass");
+    let j = d.join("vr.json");
+    let (ok, out, err) = zwarp(&[
+        "vr",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "grid",
+        "--holes",
+        "lowpass",
+        "--strategy",
+        "cyclops",
+        "--transparent",
+        "0.5",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("transparent"), "{out}");
+    let rows = json_rows(&j);
+    assert_eq!(rows.len(), 4, "{rows:?}");
+    for r in &rows {
+        let on = r["abuffer"].as_bool().unwrap();
+        let ms = r["ms_abuffer"].as_f64().unwrap();
+        assert!(if on { ms > 0.0 } else { ms == 0.0 }, "{r}");
+        assert_eq!(r["transparent"].as_f64().unwrap(), 0.5);
+    }
+    assert_eq!(rows.iter().filter(|r| r["abuffer"] == true).count(), 2);
+    // Only the A-buffer rows: --abuffer on.
+    let (ok, _, err) = zwarp(&[
+        "vr",
+        "--scene",
+        "cb",
+        "--scale",
+        "0.01",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "points",
+        "--holes",
+        "stretch",
+        "--strategy",
+        "alternate",
+        "--transparent",
+        "0.5",
+        "--abuffer",
+        "on",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(json_rows(&j).iter().all(|r| r["abuffer"] == true));
+}

@@ -11,3 +11,4 @@ pub mod report;
 pub mod shadows;
 pub mod stereo;
 pub mod upsample;
+pub mod vr;

@@ -1,0 +1,458 @@
+//! Transparency by A-buffer ray casting (seed 003 Sec. 4.2, 5.3, Fig. 7).
+//!
+//! The A-buffer holds, per source pixel, the transparent fragments in front of the opaque
+//! surface (depth, premultiplied RGBA, object id), front to back, at most [`MAX_FRAGMENTS`]:
+//! fragments beyond the bound are composited ("over") into the last kept one, which keeps its
+//! depth — the colour is never lost, only the depth order behind the bound is flattened. A
+//! min-max quadtree over the fragments' extruded depth ranges (32x32 roots) lets a ray skip
+//! empty space. For each target pixel the ray from the target eye to the warped opaque surface
+//! is mapped into the source image (a straight line in source pixel/depth space) and traversed
+//! stacklessly (Tevs et al.: descend where the ray's depth range meets a node's, advance past
+//! nodes it misses, ascend one level whenever the next node has no sibling in the ray
+//! direction). Leaf fragments are boxes extruded in depth, so neighbouring fragments form a
+//! closed surface; one surface is not hit twice where the boxes of neighbouring pixels overlap. Hits are composited front
+//! to back until an opacity threshold or the opaque depth.
+
+use rayon::prelude::*;
+use zwarp_core::{Camera, Error, Image, Result, NO_ITEM};
+
+use crate::grid::WarpMatrix;
+use crate::quadtree::LEVELS;
+
+/// Largest number of fragments stored per pixel (the documented bound; see [`ABuffer`]).
+pub const MAX_FRAGMENTS: usize = 8;
+
+/// One transparent fragment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    /// Source depth (`[0, 1]`).
+    pub depth: f32,
+    /// Half the extrusion in depth (Sec. 5.3): the box `depth +- half` stands for the pixel's
+    /// piece of surface.
+    pub half: f32,
+    /// Premultiplied linear RGBA.
+    pub rgba: [f32; 4],
+    /// Object id (one surface is not hit twice within its thickness).
+    pub item: u32,
+}
+
+/// `acc` over `f`, both premultiplied.
+#[inline]
+fn over(acc: &mut [f32; 4], f: &[f32; 4]) {
+    let k = 1.0 - acc[3];
+    for i in 0..4 {
+        acc[i] += k * f[i];
+    }
+}
+
+/// Per-pixel lists of transparent fragments, front to back (seed 003 Sec. 4.2).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ABuffer {
+    width: u32,
+    height: u32,
+    /// `start[i]..start[i + 1]` are pixel `i`'s fragments.
+    start: Vec<u32>,
+    frags: Vec<Fragment>,
+    /// Fragments composited into a kept one because a pixel held more than [`MAX_FRAGMENTS`].
+    pub merged: usize,
+}
+
+impl ABuffer {
+    /// An empty A-buffer of `w x h` pixels.
+    pub fn empty(w: u32, h: u32) -> Self {
+        ABuffer { width: w, height: h, start: vec![0; (w * h + 1) as usize], frags: Vec::new(), merged: 0 }
+    }
+
+    /// Builds the A-buffer from depth-peeled layers of the transparent objects (front to back:
+    /// layer `k + 1` lies behind layer `k`; depth 1 / [`NO_ITEM`] = no fragment), keeping the
+    /// fragments in front of `opaque_depth`. `rgba(item)` gives an object's premultiplied
+    /// colour. The extrusion of a fragment is 0.75 of its largest depth step to the nearest
+    /// fragment of the same object in a 4-neighbour (so neighbouring boxes overlap), at least
+    /// `1e-6`.
+    pub fn from_layers(
+        layers: &[(Image<f32>, Image<u32>)],
+        opaque_depth: &Image<f32>,
+        rgba: impl Fn(u32) -> [f32; 4] + Sync,
+    ) -> Result<Self> {
+        let (w, h) = opaque_depth.size();
+        for (d, it) in layers {
+            d.check_same_size(opaque_depth, "A-buffer layer vs opaque depth")?;
+            d.check_same_size(it, "A-buffer layer depth vs items")?;
+        }
+        let per_pixel: Vec<(Vec<Fragment>, usize)> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let od = *opaque_depth.get(x, y);
+                let mut v: Vec<Fragment> = Vec::new();
+                let mut merged = 0;
+                for (d, it) in layers {
+                    let (fd, item) = (*d.get(x, y), *it.get(x, y));
+                    if item == NO_ITEM || fd >= 1.0 || fd >= od {
+                        continue;
+                    }
+                    // The same surface continues in a neighbour in any layer (peeling order
+                    // changes where other fragments lie in front): its nearest fragment of
+                    // the same object.
+                    let mut half = 1e-6f32;
+                    for (dx, dy) in [(1i32, 0i32), (-1, 0), (0, 1), (0, -1)] {
+                        let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                        if nx < 0 || ny < 0 || nx >= w as i32 || ny >= h as i32 {
+                            continue;
+                        }
+                        let step = layers
+                            .iter()
+                            .filter(|(_, li)| *li.get(nx as u32, ny as u32) == item)
+                            .map(|(ld, _)| (*ld.get(nx as u32, ny as u32) - fd).abs())
+                            .fold(f32::INFINITY, f32::min);
+                        if step.is_finite() {
+                            half = half.max(0.75 * step);
+                        }
+                    }
+                    let f = Fragment { depth: fd, half, rgba: rgba(item), item };
+                    if v.len() < MAX_FRAGMENTS {
+                        v.push(f);
+                    } else {
+                        let last = v.last_mut().expect("full");
+                        over(&mut last.rgba, &f.rgba);
+                        merged += 1;
+                    }
+                }
+                (v, merged)
+            })
+            .collect();
+        let mut start = Vec::with_capacity((w * h + 1) as usize);
+        let mut frags = Vec::new();
+        let mut merged = 0;
+        start.push(0);
+        for (v, m) in per_pixel {
+            frags.extend(v);
+            merged += m;
+            start.push(frags.len() as u32);
+        }
+        Ok(ABuffer { width: w, height: h, start, frags, merged })
+    }
+
+    /// Size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Pixel `(x, y)`'s fragments, front to back.
+    #[inline]
+    pub fn fragments(&self, x: u32, y: u32) -> &[Fragment] {
+        let i = (y * self.width + x) as usize;
+        &self.frags[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+
+    /// Fragments stored.
+    pub fn len(&self) -> usize {
+        self.frags.len()
+    }
+
+    /// No fragment at all.
+    pub fn is_empty(&self) -> bool {
+        self.frags.is_empty()
+    }
+
+    /// The view itself: each pixel's fragments composited front to back over `opaque` (what
+    /// rendering with transparency shows, the reference).
+    pub fn composite(&self, opaque: &Image<[f32; 3]>) -> Result<Image<[f32; 3]>> {
+        if opaque.size() != self.size() {
+            return Err(Error::invalid("A-buffer composite: the opaque image has another size"));
+        }
+        let w = self.width;
+        let data = (0..self.width * self.height)
+            .into_par_iter()
+            .map(|i| {
+                let mut acc = [0.0f32; 4];
+                for f in self.fragments(i % w, i / w) {
+                    over(&mut acc, &f.rgba);
+                }
+                let o = opaque.data()[i as usize];
+                [acc[0] + (1.0 - acc[3]) * o[0], acc[1] + (1.0 - acc[3]) * o[1], acc[2] + (1.0 - acc[3]) * o[2]]
+            })
+            .collect();
+        Image::from_vec(self.width, self.height, data)
+    }
+}
+
+/// The min-max quadtree over the A-buffer (seed 003 Sec. 4.2): per node the smallest and
+/// largest extruded fragment depth below it (`[+inf, -inf]` where empty), levels 0 (pixels) to
+/// [`LEVELS`] (32x32 roots).
+#[derive(Clone, Debug)]
+pub struct MinMaxTree {
+    levels: Vec<(u32, u32, Vec<[f32; 2]>)>,
+}
+
+const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+
+impl MinMaxTree {
+    /// Builds the pyramid by parallel reductions.
+    pub fn build(ab: &ABuffer) -> Self {
+        let (w, h) = ab.size();
+        let base: Vec<[f32; 2]> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                ab.fragments(i % w, i / w)
+                    .iter()
+                    .fold(EMPTY, |r, f| [r[0].min(f.depth - f.half), r[1].max(f.depth + f.half)])
+            })
+            .collect();
+        let mut levels = vec![(w, h, base)];
+        for _ in 0..LEVELS {
+            let (pw, ph, prev) = levels.last().expect("level 0");
+            let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
+            let next = (0..nw * nh)
+                .into_par_iter()
+                .map(|i| {
+                    let (x, y) = (i % nw, i / nw);
+                    let mut r = EMPTY;
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (cx, cy) = (2 * x + dx, 2 * y + dy);
+                        if cx < *pw && cy < *ph {
+                            let c = prev[(cy * pw + cx) as usize];
+                            r = [r[0].min(c[0]), r[1].max(c[1])];
+                        }
+                    }
+                    r
+                })
+                .collect();
+            levels.push((nw, nh, next));
+        }
+        MinMaxTree { levels }
+    }
+
+    /// `[min, max]` extruded depth over the whole A-buffer.
+    pub fn range(&self) -> (f32, f32) {
+        let top = &self.levels[LEVELS].2;
+        top.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |r, n| (r.0.min(n[0]), r.1.max(n[1])))
+    }
+
+    /// Node `(x, y)` of `level`: `[min, max]` extruded depth.
+    #[inline]
+    pub fn node(&self, level: usize, x: u32, y: u32) -> [f32; 2] {
+        let (w, h, v) = &self.levels[level];
+        if x < *w && y < *h {
+            v[(y * w + x) as usize]
+        } else {
+            EMPTY
+        }
+    }
+}
+
+/// Parameters of [`ray_cast`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayCastParams {
+    /// Compositing stops once the accumulated opacity reaches this (Sec. 5.3).
+    pub opacity: f32,
+    /// Traversal steps per ray at most (a guard; a ray across a `w x h` image needs far fewer).
+    pub max_steps: u32,
+}
+
+impl Default for RayCastParams {
+    fn default() -> Self {
+        RayCastParams { opacity: 0.99, max_steps: 1 << 16 }
+    }
+}
+
+/// The result of [`ray_cast`].
+#[derive(Clone, Debug)]
+pub struct RayCast {
+    /// `base` with the transparent fragments composited over it.
+    pub color: Image<[f32; 3]>,
+    /// Quadtree nodes visited per pixel (Fig. 7b).
+    pub steps: Image<u32>,
+}
+
+/// Ray casts the A-buffer `ab` of the source view `src` for every pixel of `dst` (seed 003 Sec.
+/// 5.3) and composites the hits over `base`, the warped opaque image, front to back; each ray
+/// ends at the warped opaque depth `depth` (target depth, 1 = nothing).
+pub fn ray_cast(
+    ab: &ABuffer,
+    tree: &MinMaxTree,
+    src: &Camera,
+    dst: &Camera,
+    base: &Image<[f32; 3]>,
+    depth: &Image<f32>,
+    p: &RayCastParams,
+) -> Result<RayCast> {
+    if ab.size() != (src.width, src.height) {
+        return Err(Error::invalid("ray cast: the A-buffer does not have the source camera's size"));
+    }
+    base.check_same_size(depth, "ray cast base vs depth")?;
+    if base.size() != (dst.width, dst.height) {
+        return Err(Error::invalid("ray cast: the warped image does not have the target camera's size"));
+    }
+    if !(p.opacity > 0.0 && p.opacity <= 1.0) {
+        return Err(Error::invalid(format!("ray cast: opacity threshold must be in (0, 1], got {}", p.opacity)));
+    }
+    // Target pixel + depth -> source pixel + depth: the inverse of the forward warp.
+    let inv = WarpMatrix::new(dst, src)?;
+    let (tw, th) = base.size();
+    let (sw, sh) = (src.width as f32, src.height as f32);
+    let out: Vec<([f32; 3], u32)> = (0..tw * th)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % tw, i / tw);
+            let b = *base.get(x, y);
+            if ab.is_empty() {
+                return (b, 0);
+            }
+            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+            let end = depth.get(x, y).clamp(0.0, 1.0);
+            let (Some(a), Some(e)) = (inv.project(px, py, 0.0), inv.project(px, py, end)) else {
+                return (b, 0);
+            };
+            let (acc, steps) = cast_one([a.0, a.1, a.2], [e.0, e.1, e.2], ab, tree, sw, sh, p);
+            ([acc[0] + (1.0 - acc[3]) * b[0], acc[1] + (1.0 - acc[3]) * b[1], acc[2] + (1.0 - acc[3]) * b[2]], steps)
+        })
+        .collect();
+    Ok(RayCast {
+        color: Image::from_vec(tw, th, out.iter().map(|o| o.0).collect())?,
+        steps: Image::from_vec(tw, th, out.iter().map(|o| o.1).collect())?,
+    })
+}
+
+/// One ray from `a` to `b` (source pixel x, y, depth): premultiplied colour and steps.
+#[allow(clippy::too_many_arguments)]
+fn cast_one(
+    a: [f32; 3],
+    b: [f32; 3],
+    ab: &ABuffer,
+    tree: &MinMaxTree,
+    sw: f32,
+    sh: f32,
+    p: &RayCastParams,
+) -> ([f32; 4], u32) {
+    // A ray entirely outside the source image (the border strip it did not see) continues the
+    // transparent surfaces at the image border, as the hole filling does for opaque ones: it is
+    // clamped onto the border.
+    let inside = |q: [f32; 3]| q[0] >= 0.0 && q[1] >= 0.0 && q[0] < sw && q[1] < sh;
+    let (a, b) = if !inside(a) && !inside(b) && !segment_meets_image(a, b, sw, sh) {
+        let c = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
+        (c(a), c(b))
+    } else {
+        (a, b)
+    };
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    // Clip to the source image (slabs in x and y).
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
+        if v.abs() < 1e-12 {
+            if o < 0.0 || o >= hi {
+                return ([0.0; 4], 0);
+            }
+        } else {
+            let (mut ta, mut tb) = ((0.0 - o) / v, (hi - o) / v);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+        }
+    }
+    // Empty-space skipping in depth: start where the ray reaches the nearest fragment.
+    let (zmin, zmax) = tree.range();
+    if d[2].abs() > 1e-12 {
+        let (ta, tb) = ((zmin - a[2]) / d[2], (zmax - a[2]) / d[2]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb) + 1e-6);
+    } else if a[2] < zmin || a[2] > zmax {
+        return ([0.0; 4], 0);
+    }
+    if t0 >= t1 {
+        return ([0.0; 4], 0);
+    }
+    let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
+    // Cell index of the ray just after `t` (so a boundary point belongs to the next cell).
+    let nudge = 1e-5 / (d[0].abs() + d[1].abs()).max(1e-3);
+    let cell = |t: f32, level: usize| {
+        let q = at((t + nudge).min(t1));
+        let (x, y) = ((q[0].clamp(0.0, sw - 1e-3)) as u32, (q[1].clamp(0.0, sh - 1e-3)) as u32);
+        (x >> level, y >> level)
+    };
+    let exit = |t: f32, level: usize, cx: u32, cy: u32| {
+        let s = (1u32 << level) as f32;
+        let mut te = t1;
+        for (o, v, c) in [(a[0], d[0], cx), (a[1], d[1], cy)] {
+            if v > 1e-12 {
+                te = te.min(((c + 1) as f32 * s - o) / v);
+            } else if v < -1e-12 {
+                te = te.min((c as f32 * s - o) / v);
+            }
+        }
+        te.max(t)
+    };
+    let mut acc = [0.0f32; 4];
+    let mut last: Option<(Fragment, (u32, u32))> = None;
+    let mut level = LEVELS;
+    let mut t = t0;
+    let mut steps = 0u32;
+    while t < t1 && acc[3] < p.opacity && steps < p.max_steps {
+        steps += 1;
+        let (cx, cy) = cell(t, level);
+        let te = exit(t, level, cx, cy);
+        let (za, zb) = (at(t)[2], at(te)[2]);
+        let (lo, hi) = (za.min(zb), za.max(zb));
+        let n = tree.node(level, cx, cy);
+        let hit = lo <= n[1] && hi >= n[0];
+        if hit && level > 0 {
+            level -= 1;
+            continue;
+        }
+        if hit {
+            // A leaf: the fragments whose boxes the ray's depth span meets, in ray order.
+            let fr = ab.fragments(cx, cy);
+            let mut visit = |f: &Fragment| {
+                if acc[3] >= p.opacity || !(lo <= f.depth + f.half && hi >= f.depth - f.half) {
+                    return;
+                }
+                if let Some((l, px)) = last {
+                    // The same surface again in a neighbouring pixel within its thickness
+                    // (overlapping boxes). Fragments of one pixel are distinct surfaces.
+                    if px != (cx, cy) && l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
+                        return;
+                    }
+                }
+                over(&mut acc, &f.rgba);
+                last = Some((*f, (cx, cy)));
+            };
+            if zb >= za {
+                fr.iter().for_each(&mut visit);
+            } else {
+                fr.iter().rev().for_each(&mut visit);
+            }
+        }
+        // Advance past the node; ascend when the next node is no sibling (other parent).
+        let next = te.max(t + nudge);
+        if next >= t1 {
+            break;
+        }
+        if level < LEVELS {
+            let (nx, ny) = cell(next, level);
+            if (nx >> 1, ny >> 1) != (cx >> 1, cy >> 1) {
+                level += 1;
+            }
+        }
+        t = next;
+    }
+    (acc, steps)
+}
+
+/// `true` if the 2-D segment `a`-`b` crosses the `sw x sh` image.
+fn segment_meets_image(a: [f32; 3], b: [f32; 3], sw: f32, sh: f32) -> bool {
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for (o, v, hi) in [(a[0], b[0] - a[0], sw), (a[1], b[1] - a[1], sh)] {
+        if v.abs() < 1e-12 {
+            if o < 0.0 || o >= hi {
+                return false;
+            }
+        } else {
+            let (ta, tb) = ((0.0 - o) / v, (hi - o) / v);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    t0 < t1
+}

@@ -1,0 +1,821 @@
+//! Adaptive grid warping (seed 003 Sec. 4.1.4, 5.1) and its baselines.
+//!
+//! The grid's cells come from the surface-estimation quadtree; each cell is one quad (two
+//! triangles) whose corners sit on pixel corners. A corner's depth comes from the pixels
+//! around it that are connected to the cell's corner pixel (a union of the 6 links between the
+//! 4 pixels): where the surface continues, neighbouring cells share the vertex (no micro
+//! holes); across a discontinuity each side extrapolates its own surface (no rubber sheets).
+//! All vertices go through one combined warp matrix (source pixel + depth -> target clip, Sec.
+//! 5.1), the quads are rasterised on the CPU with a depth test, and colour is fetched with
+//! adaptive filtering: bilinear over the texels connected to the nearest one (surfaces),
+//! nearest across discontinuities.
+//!
+//! Baselines: `points` (one splat per pixel), `quads` (one quad per pixel, corners shared by
+//! all four pixels: rubber sheets), `didyk` (Didyk et al. 2010: a quadtree split while the
+//! disparity range of a node exceeds a threshold, connected corners), and `fpi`, zwarp's
+//! fixed-point colour warp (seed 001's heuristic warp on a camera-only motion field).
+
+use std::time::Instant;
+
+use glam::{Mat4, Vec2, Vec4};
+use rayon::prelude::*;
+use zwarp_color::{HeuristicParams, Seed, WarpBasis};
+use zwarp_core::{Camera, Error, Image, Result};
+
+use crate::quadtree::{Cell, Collinearity, QuadTree, Reduction, LEVELS};
+
+/// The combined warp matrix of seed 003 Sec. 5.1: source `(pixel x, pixel y, depth, 1)` ->
+/// target `(X w, Y w, z, w)` with `(X, Y)` target pixel coordinates and `z / w` target depth.
+/// It folds pixel -> NDC, the source's inverse view-projection, the target's view-projection
+/// and NDC -> pixel into one matrix, so a vertex costs one multiply.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarpMatrix(pub Mat4);
+
+impl WarpMatrix {
+    /// The warp from `src`'s image to `dst`'s image.
+    pub fn new(src: &Camera, dst: &Camera) -> Result<Self> {
+        let vp = src.view_proj();
+        if vp.determinant().abs() < 1e-30 || !vp.is_finite() {
+            return Err(Error::invalid("warp matrix: the source camera is not invertible"));
+        }
+        let (sw, sh) = (src.width as f32, src.height as f32);
+        let (tw, th) = (dst.width as f32, dst.height as f32);
+        let to_ndc = Mat4::from_cols(
+            Vec4::new(2.0 / sw, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, -2.0 / sh, 0.0, 0.0),
+            Vec4::Z,
+            Vec4::new(-1.0, 1.0, 0.0, 1.0),
+        );
+        let to_pixel = Mat4::from_cols(
+            Vec4::new(0.5 * tw, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, -0.5 * th, 0.0, 0.0),
+            Vec4::Z,
+            Vec4::new(0.5 * tw, 0.5 * th, 0.0, 1.0),
+        );
+        Ok(WarpMatrix(to_pixel * dst.view_proj() * vp.inverse() * to_ndc))
+    }
+
+    /// The homogeneous target of a source point.
+    #[inline]
+    pub fn apply(&self, px: f32, py: f32, d: f32) -> Vec4 {
+        self.0 * Vec4::new(px, py, d, 1.0)
+    }
+
+    /// Target pixel position and depth of a source point (`None` behind the target eye).
+    #[inline]
+    pub fn project(&self, px: f32, py: f32, d: f32) -> Option<(f32, f32, f32)> {
+        let h = self.apply(px, py, d);
+        (h.w > 1e-9).then(|| (h.x / h.w, h.y / h.w, h.z / h.w))
+    }
+}
+
+/// A warp method (JSON `method`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Seed 003's adaptive grid from the quadtree built with this reduction.
+    Grid(Reduction),
+    /// One quad per pixel, corners shared by all neighbours (rubber sheets everywhere).
+    Quads,
+    /// One splat per pixel.
+    Points,
+    /// Didyk et al. 2010: disparity-range quadtree, connected corners.
+    Didyk,
+    /// zwarp's fixed-point colour warp (seed 001, heuristic variant with a fixed seed offset).
+    Fpi,
+}
+
+impl Method {
+    /// CLI / JSON name (`grid` is the irregular-grid reduction, the paper's best).
+    pub fn name(self) -> String {
+        match self {
+            Method::Grid(Reduction::Irregular) => "grid".into(),
+            Method::Grid(r) => format!("grid-{}", r.name()),
+            Method::Quads => "quads".into(),
+            Method::Points => "points".into(),
+            Method::Didyk => "didyk".into(),
+            Method::Fpi => "fpi".into(),
+        }
+    }
+
+    /// Parses a name of [`Method::name`].
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(match s {
+            "grid" => Method::Grid(Reduction::Irregular),
+            "grid-partial" => Method::Grid(Reduction::PartialCross),
+            "grid-cross" => Method::Grid(Reduction::Cross),
+            "quads" => Method::Quads,
+            "points" => Method::Points,
+            "didyk" => Method::Didyk,
+            "fpi" => Method::Fpi,
+            o => {
+                return Err(Error::invalid(format!(
+                    "unknown warp method '{o}' (grid, grid-partial, grid-cross, quads, points, didyk, fpi)"
+                )))
+            }
+        })
+    }
+}
+
+/// Parameters of [`warp`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarpParams {
+    /// The collinearity tolerance of the quadtree (eq. 2).
+    pub collinearity: Collinearity,
+    /// A connected cell is split when its estimated deviation from a plane moves its content by
+    /// more than this many target pixels (Sec. 4.1.4's estimation error threshold).
+    pub max_error_px: f32,
+    /// Didyk et al.'s split threshold: the largest disparity range (pixels) within one cell.
+    pub didyk_px: f32,
+    /// A view-dependent bound added to seed 003's grid: a quadtree node whose disparity range
+    /// is at most this many pixels is one cell even across a discontinuity (it moves rigidly
+    /// to within the threshold), so the grid never needs more cells than Didyk et al. at the
+    /// same threshold. `None`: the paper's grid alone.
+    pub rigid_px: Option<f32>,
+}
+
+impl Default for WarpParams {
+    fn default() -> Self {
+        WarpParams { collinearity: Collinearity::default(), max_error_px: 0.5, didyk_px: 0.5, rigid_px: Some(0.5) }
+    }
+}
+
+/// The source view of a warp.
+#[derive(Clone, Copy, Debug)]
+pub struct Source<'a> {
+    /// Camera the source was rendered with.
+    pub cam: &'a Camera,
+    /// Its depth, `[0, 1]`, 1 = sky.
+    pub depth: &'a Image<f32>,
+    /// Its linear RGB colour.
+    pub color: &'a Image<[f32; 3]>,
+}
+
+impl Source<'_> {
+    fn check(&self) -> Result<()> {
+        self.depth.check_nonempty("warp source depth")?;
+        self.depth.check_same_size(self.color, "warp source depth vs colour")?;
+        if self.depth.size() != (self.cam.width, self.cam.height) {
+            return Err(Error::invalid(format!(
+                "warp source is {}x{} but its camera renders {}x{}",
+                self.depth.width(),
+                self.depth.height(),
+                self.cam.width,
+                self.cam.height
+            )));
+        }
+        if self.depth.data().iter().any(|d| !d.is_finite()) {
+            return Err(Error::invalid("warp source depth holds NaN or infinite values"));
+        }
+        Ok(())
+    }
+}
+
+/// Time of each stage of one warp (ms).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageMs {
+    /// Building the surface-estimation quadtree (Sec. 4.1).
+    pub quadtree: f64,
+    /// Building the grid / mesh for this view (Sec. 4.1.4).
+    pub grid: f64,
+    /// Warping and rasterising, colour fetch included (Sec. 5.1).
+    pub warp: f64,
+}
+
+/// The result of a warp.
+#[derive(Clone, Debug)]
+pub struct WarpOutput {
+    /// Linear RGB; black where `hole`.
+    pub color: Image<[f32; 3]>,
+    /// Target depth of the surface shown (`[0, 1]`); 1 where `hole`.
+    pub depth: Image<f32>,
+    /// Pixels no primitive covered (disocclusions, image borders).
+    pub hole: Image<bool>,
+    /// Primitives drawn (grid cells, quads or splats).
+    pub primitives: usize,
+    /// The grid cells in source pixels (grid and Didyk methods; empty otherwise).
+    pub cells: Vec<Cell>,
+    /// Stage times.
+    pub ms: StageMs,
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Warps `src` to the view of `dst` with `method`. The quadtree, when the method needs one, is
+/// built here (pass a prebuilt one to [`warp_with_tree`] to share it between eyes).
+pub fn warp(src: &Source<'_>, dst: &Camera, method: Method, p: &WarpParams) -> Result<WarpOutput> {
+    src.check()?;
+    match method {
+        Method::Grid(r) => {
+            let t = Instant::now();
+            let tree = QuadTree::build(src.depth, r, &p.collinearity)?;
+            let q = ms_since(t);
+            let mut out = warp_with_tree(src, dst, &tree, p)?;
+            out.ms.quadtree = q;
+            Ok(out)
+        }
+        Method::Quads => {
+            let t = Instant::now();
+            let (w, h) = src.depth.size();
+            let cells: Vec<Cell> =
+                (0..h).flat_map(|y| (0..w).map(move |x| Cell { x0: x, y0: y, x1: x + 1, y1: y + 1 })).collect();
+            let grid = ms_since(t);
+            let m = WarpMatrix::new(src.cam, dst)?;
+            let t = Instant::now();
+            let mut out = raster_cells(src, dst, &m, &cells, None)?;
+            out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
+            out.primitives = cells.len();
+            Ok(out)
+        }
+        Method::Didyk => {
+            let m = WarpMatrix::new(src.cam, dst)?;
+            let t = Instant::now();
+            let cells = didyk_cells(src, &m, p.didyk_px)?;
+            let grid = ms_since(t);
+            let t = Instant::now();
+            let mut out = raster_cells(src, dst, &m, &cells, None)?;
+            out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
+            out.primitives = cells.len();
+            out.cells = cells;
+            Ok(out)
+        }
+        Method::Points => {
+            let m = WarpMatrix::new(src.cam, dst)?;
+            let t = Instant::now();
+            let mut out = points(src, dst, &m)?;
+            out.ms = StageMs { quadtree: 0.0, grid: 0.0, warp: ms_since(t) };
+            Ok(out)
+        }
+        Method::Fpi => {
+            let t = Instant::now();
+            let mut out = fpi(src, dst)?;
+            out.ms = StageMs { quadtree: 0.0, grid: 0.0, warp: ms_since(t) };
+            Ok(out)
+        }
+    }
+}
+
+/// The grid warp with a quadtree built by the caller (stage times: grid and warp).
+pub fn warp_with_tree(src: &Source<'_>, dst: &Camera, tree: &QuadTree, p: &WarpParams) -> Result<WarpOutput> {
+    src.check()?;
+    if tree.size() != src.depth.size() {
+        return Err(Error::invalid("grid warp: the quadtree was built for another image size"));
+    }
+    if !(p.max_error_px.is_finite() && p.max_error_px >= 0.0) {
+        return Err(Error::invalid(format!("grid warp: max error must be >= 0 pixels, got {}", p.max_error_px)));
+    }
+    let m = WarpMatrix::new(src.cam, dst)?;
+    let t = Instant::now();
+    let cells = grid_cells(src, &m, tree, p);
+    let grid = ms_since(t);
+    let t = Instant::now();
+    let mut out = raster_cells(src, dst, &m, &cells, Some(tree))?;
+    out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
+    out.primitives = cells.len();
+    out.cells = cells;
+    Ok(out)
+}
+
+/// The adaptive grid of `tree` for the warp `m`: a connected cell is split when its estimated
+/// plane deviation (`err * n^2 / 8` stored depth over `n` pixels, the sagitta of a curve with
+/// second difference `err`) moves it by more than `p.max_error_px` target pixels; with
+/// `p.rigid_px`, nodes moving rigidly to within that many pixels are not split.
+pub fn grid_cells(src: &Source<'_>, m: &WarpMatrix, tree: &QuadTree, p: &WarpParams) -> Vec<Cell> {
+    let split = |err: f32, c: Cell| {
+        if err <= 0.0 {
+            return false;
+        }
+        let n = (c.x1 - c.x0).max(c.y1 - c.y0) as f32;
+        let dev = err * n * n / 8.0;
+        let (cx, cy) = ((c.x0 + c.x1) / 2, (c.y0 + c.y1) / 2);
+        let d = *src.depth.get(cx.min(src.depth.width() - 1), cy.min(src.depth.height() - 1));
+        let (px, py) = (cx as f32 + 0.5, cy as f32 + 0.5);
+        match (m.project(px, py, d), m.project(px, py, (d + dev).min(1.0 + dev))) {
+            (Some(a), Some(b)) => (a.0 - b.0).hypot(a.1 - b.1) > p.max_error_px,
+            _ => true,
+        }
+    };
+    match p.rigid_px {
+        None => tree.cells(split),
+        Some(tau) => {
+            let lv = disparity_pyramid(src, m);
+            tree.cells_with(split, |level, x, y| {
+                let (lw, _, v) = &lv[level];
+                let r = v[(y * lw + x) as usize];
+                r[1] - r[0] <= tau && r[3] - r[2] <= tau
+            })
+        }
+    }
+}
+
+/// Depth of the vertex at pixel corner `(cx, cy)` for the cell pixel `(px, py)` (one of the
+/// four pixels around the corner): the pixels connected to it among the four, by union over
+/// the 6 links; one pixel -> its depth, two -> their mean (exact for a plane at the midpoint
+/// of diagonal pixels), three -> the mean of its diagonal pair (whose midpoint is the corner),
+/// four -> the mean of all. A single pixel, or an adjacent pair, is extrapolated half a pixel
+/// along the axes it does not span with the slope of its surface (exact on planes: both sides
+/// of a crease meet, separate surfaces keep their own depth). `tree = None` connects all four
+/// without extrapolation (rubber sheets).
+pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u32, px: u32, py: u32) -> f32 {
+    let (w, h) = depth.size();
+    // Pixels a (top-left), b (top-right), c (bottom-left), d (bottom-right) of the corner.
+    let pos = [
+        (cx as i32 - 1, cy as i32 - 1),
+        (cx as i32, cy as i32 - 1),
+        (cx as i32 - 1, cy as i32),
+        (cx as i32, cy as i32),
+    ];
+    let inside = |i: usize| pos[i].0 >= 0 && pos[i].1 >= 0 && pos[i].0 < w as i32 && pos[i].1 < h as i32;
+    let me = pos.iter().position(|&q| q == (px as i32, py as i32)).expect("the cell pixel touches its corner");
+    let mut parent = [0usize, 1, 2, 3];
+    fn find(p: &mut [usize; 4], i: usize) -> usize {
+        let mut i = i;
+        while p[i] != i {
+            i = p[i];
+        }
+        i
+    }
+    let links = [(0, 1), (2, 3), (0, 2), (1, 3), (0, 3), (1, 2)];
+    for &(i, j) in &links {
+        if !(inside(i) && inside(j)) {
+            continue;
+        }
+        let ok = match tree {
+            None => true,
+            Some(t) => t.connected(pos[i].0, pos[i].1, pos[j].0 - pos[i].0, pos[j].1 - pos[i].1),
+        };
+        if ok {
+            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+            parent[a] = b;
+        }
+    }
+    let root = find(&mut parent, me);
+    let comp: Vec<usize> = (0..4).filter(|&i| inside(i) && find(&mut parent, i) == root).collect();
+    let d = |i: usize| *depth.get(pos[i].0 as u32, pos[i].1 as u32);
+    let cols = comp.iter().any(|&i| i % 2 == 0) && comp.iter().any(|&i| i % 2 == 1);
+    let rows = comp.iter().any(|&i| i < 2) && comp.iter().any(|&i| i >= 2);
+    // Half a pixel outwards along the surface of member `i` on axis (ax, ay): the slope from
+    // its inward neighbour when that one is connected (exact on a plane, so both sides of a
+    // crease meet), else none.
+    let extrapolate = |i: usize, ax: i32, ay: i32| -> f32 {
+        let Some(t) = tree else { return 0.0 };
+        let (mx, my) = pos[i];
+        // Outward points from the pixel centre to the corner.
+        let (ox, oy) = (
+            if ax != 0 {
+                if mx < cx as i32 {
+                    1
+                } else {
+                    -1
+                }
+            } else {
+                0
+            },
+            if ay != 0 {
+                if my < cy as i32 {
+                    1
+                } else {
+                    -1
+                }
+            } else {
+                0
+            },
+        );
+        if t.connected(mx, my, -ox, -oy) {
+            0.5 * (d(i) - *depth.get((mx - ox) as u32, (my - oy) as u32))
+        } else {
+            0.0
+        }
+    };
+    match comp.len() {
+        3 => {
+            // The diagonal pair of the three: (0, 3) or (1, 2); its midpoint is the corner.
+            if comp.contains(&0) && comp.contains(&3) {
+                0.5 * (d(0) + d(3))
+            } else {
+                0.5 * (d(1) + d(2))
+            }
+        }
+        n => {
+            let mut s = 0.0;
+            for &i in &comp {
+                let mut v = d(i);
+                if !cols {
+                    v += extrapolate(i, 1, 0);
+                }
+                if !rows {
+                    v += extrapolate(i, 0, 1);
+                }
+                s += v;
+            }
+            s / n as f32
+        }
+    }
+}
+
+/// One warped triangle ready for rasterisation.
+#[derive(Clone, Copy, Debug)]
+struct Tri {
+    /// Screen positions.
+    p: [Vec2; 3],
+    /// Target depth `z / w`.
+    z: [f32; 3],
+    /// `1 / w`, `u / w`, `v / w` (perspective-correct texture coordinates).
+    iw: [f32; 3],
+    uw: [f32; 3],
+    vw: [f32; 3],
+    /// The cell's source rectangle (texture coordinates stay inside it).
+    clamp: [f32; 4],
+    /// Coverage tolerance per edge (edge-function units, ~0.02 px).
+    tol: [f32; 3],
+    /// Pixel bounding box.
+    bb: [i32; 4],
+    area: f32,
+}
+
+/// Covers a pixel centre whose distance outside an edge is below this (pixels): closes the
+/// sub-pixel slivers that T-junctions on nearly flat surfaces leave; overlaps are resolved by
+/// the depth test.
+const EDGE_TOL_PX: f32 = 0.02;
+
+fn make_tri(v: [(Vec4, Vec2); 3], clamp: [f32; 4], tw: u32, th: u32) -> Option<Tri> {
+    if v.iter().any(|(h, _)| h.w <= 1e-9 || !h.is_finite()) {
+        return None;
+    }
+    let p = v.map(|(h, _)| Vec2::new(h.x / h.w, h.y / h.w));
+    let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+    // NaN areas fail too.
+    if area.abs().partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let lo = p[0].min(p[1]).min(p[2]) - Vec2::splat(EDGE_TOL_PX);
+    let hi = p[0].max(p[1]).max(p[2]) + Vec2::splat(EDGE_TOL_PX);
+    let bb = [
+        ((lo.x - 0.5).ceil() as i32).max(0),
+        ((lo.y - 0.5).ceil() as i32).max(0),
+        ((hi.x - 0.5).floor() as i32).min(tw as i32 - 1),
+        ((hi.y - 0.5).floor() as i32).min(th as i32 - 1),
+    ];
+    if bb[0] > bb[2] || bb[1] > bb[3] {
+        return None;
+    }
+    let e = |i: usize| (p[(i + 2) % 3] - p[(i + 1) % 3]).length() * EDGE_TOL_PX;
+    Some(Tri {
+        p,
+        z: v.map(|(h, _)| h.z / h.w),
+        iw: v.map(|(h, _)| 1.0 / h.w),
+        uw: v.map(|(h, t)| t.x / h.w),
+        vw: v.map(|(h, t)| t.y / h.w),
+        clamp,
+        tol: [e(0), e(1), e(2)],
+        bb,
+        area,
+    })
+}
+
+/// Rows per raster band (the parallel unit; bands never share pixels).
+const BAND: u32 = 16;
+
+/// Warps the quads of `cells` (corners by [`corner_depth`], `tree = None`: all connected) and
+/// rasterises them with a depth test, then fetches colour with [`sample`].
+fn raster_cells(
+    src: &Source<'_>,
+    dst: &Camera,
+    m: &WarpMatrix,
+    cells: &[Cell],
+    tree: Option<&QuadTree>,
+) -> Result<WarpOutput> {
+    let (tw, th) = (dst.width, dst.height);
+    let tris: Vec<Tri> = cells
+        .par_iter()
+        .flat_map_iter(|c| {
+            let corners = [
+                (c.x0, c.y0, c.x0, c.y0),
+                (c.x1, c.y0, c.x1 - 1, c.y0),
+                (c.x0, c.y1, c.x0, c.y1 - 1),
+                (c.x1, c.y1, c.x1 - 1, c.y1 - 1),
+            ];
+            let v = corners.map(|(cx, cy, px, py)| {
+                let d = corner_depth(src.depth, tree, cx, cy, px, py);
+                (m.apply(cx as f32, cy as f32, d), Vec2::new(cx as f32, cy as f32))
+            });
+            let clamp = [c.x0 as f32, c.y0 as f32, c.x1 as f32, c.y1 as f32];
+            [make_tri([v[0], v[1], v[3]], clamp, tw, th), make_tri([v[0], v[3], v[2]], clamp, tw, th)]
+                .into_iter()
+                .flatten()
+        })
+        .collect();
+    let bands = th.div_ceil(BAND) as usize;
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (i, t) in tris.iter().enumerate() {
+        for b in (t.bb[1] as u32 / BAND)..=(t.bb[3] as u32 / BAND) {
+            lists[b as usize].push(i as u32);
+        }
+    }
+    // Per target pixel: depth, source texture coordinate.
+    let n = (tw * th) as usize;
+    let mut zbuf = vec![f32::INFINITY; n];
+    let mut uv = vec![Vec2::ZERO; n];
+    zbuf.par_chunks_mut((BAND * tw) as usize).zip(uv.par_chunks_mut((BAND * tw) as usize)).enumerate().for_each(
+        |(b, (zb, uvb))| {
+            let y0 = b as i32 * BAND as i32;
+            let y1 = (y0 + BAND as i32).min(th as i32) - 1;
+            for &ti in &lists[b] {
+                let t = &tris[ti as usize];
+                let inv = 1.0 / t.area;
+                for y in t.bb[1].max(y0)..=t.bb[3].min(y1) {
+                    let py = y as f32 + 0.5;
+                    for x in t.bb[0]..=t.bb[2] {
+                        let q = Vec2::new(x as f32 + 0.5, py);
+                        let mut l = [0.0f32; 3];
+                        let mut inside = true;
+                        for (i, li) in l.iter_mut().enumerate() {
+                            let (a, bb) = (t.p[(i + 1) % 3], t.p[(i + 2) % 3]);
+                            let e = (bb - a).perp_dot(q - a) * t.area.signum();
+                            if e < -t.tol[i] {
+                                inside = false;
+                                break;
+                            }
+                            *li = e * inv.abs();
+                        }
+                        if !inside {
+                            continue;
+                        }
+                        let z = l[0] * t.z[0] + l[1] * t.z[1] + l[2] * t.z[2];
+                        let k = ((y - y0) as u32 * tw + x as u32) as usize;
+                        if z < zb[k] {
+                            zb[k] = z;
+                            let iw = l[0] * t.iw[0] + l[1] * t.iw[1] + l[2] * t.iw[2];
+                            let u = (l[0] * t.uw[0] + l[1] * t.uw[1] + l[2] * t.uw[2]) / iw;
+                            let v = (l[0] * t.vw[0] + l[1] * t.vw[1] + l[2] * t.vw[2]) / iw;
+                            // Inside the cell, off its border by a hair (nearest texel stays in it).
+                            uvb[k] = Vec2::new(
+                                u.clamp(t.clamp[0] + 1e-3, t.clamp[2] - 1e-3),
+                                v.clamp(t.clamp[1] + 1e-3, t.clamp[3] - 1e-3),
+                            );
+                        }
+                    }
+                }
+            }
+        },
+    );
+    Ok(resolve(src, m, tw, th, &zbuf, &uv, tree.map_or(Filter::Bilinear, Filter::Adaptive)))
+}
+
+/// Texture filtering of the colour fetch.
+#[derive(Clone, Copy)]
+enum Filter<'a> {
+    /// Nearest texel (points).
+    Nearest,
+    /// Bilinear over all four texels (quads, Didyk: everything is connected).
+    Bilinear,
+    /// Seed 003 Sec. 5.1: bilinear over the texels connected to the nearest one.
+    Adaptive(&'a QuadTree),
+}
+
+/// Colour of `color` at source position `uv` (pixel units) with `filter`.
+fn sample(color: &Image<[f32; 3]>, uv: Vec2, filter: Filter<'_>) -> [f32; 3] {
+    let (w, h) = (color.width() as i32, color.height() as i32);
+    let nx = (uv.x.floor() as i32).clamp(0, w - 1);
+    let ny = (uv.y.floor() as i32).clamp(0, h - 1);
+    if let Filter::Nearest = filter {
+        return *color.get(nx as u32, ny as u32);
+    }
+    let (fx, fy) = (uv.x - 0.5, uv.y - 0.5);
+    let (x0, y0) = (fx.floor() as i32, fy.floor() as i32);
+    let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
+    let mut acc = [0.0f32; 3];
+    let mut wsum = 0.0f32;
+    for (dx, dy, wt) in
+        [(0, 0, (1.0 - ax) * (1.0 - ay)), (1, 0, ax * (1.0 - ay)), (0, 1, (1.0 - ax) * ay), (1, 1, ax * ay)]
+    {
+        let (tx, ty) = ((x0 + dx).clamp(0, w - 1), (y0 + dy).clamp(0, h - 1));
+        let ok = (tx, ty) == (nx, ny)
+            || match filter {
+                Filter::Adaptive(t) => t.connected(nx, ny, tx - nx, ty - ny),
+                _ => true,
+            };
+        if ok && wt > 0.0 {
+            let c = color.get(tx as u32, ty as u32);
+            for i in 0..3 {
+                acc[i] += wt * c[i];
+            }
+            wsum += wt;
+        }
+    }
+    if wsum <= 0.0 {
+        return *color.get(nx as u32, ny as u32);
+    }
+    acc.map(|a| a / wsum)
+}
+
+/// Colour fetch and output buffers. The depth of a covered pixel is its source texel
+/// reprojected by `m` (the surface's own depth, not the cell's interpolation, which is flat
+/// across a rigid cell), clamped to `[0, 1]`.
+fn resolve(
+    src: &Source<'_>,
+    m: &WarpMatrix,
+    tw: u32,
+    th: u32,
+    zbuf: &[f32],
+    uv: &[Vec2],
+    filter: Filter<'_>,
+) -> WarpOutput {
+    let n = (tw * th) as usize;
+    let (sw, sh) = src.depth.size();
+    let px: Vec<([f32; 3], f32)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if !zbuf[i].is_finite() {
+                return ([0.0; 3], 1.0);
+            }
+            let q = uv[i];
+            let (nx, ny) = (
+                (q.x.floor() as i32).clamp(0, sw as i32 - 1) as u32,
+                (q.y.floor() as i32).clamp(0, sh as i32 - 1) as u32,
+            );
+            let d = match m.project(nx as f32 + 0.5, ny as f32 + 0.5, *src.depth.get(nx, ny)) {
+                Some((_, _, z)) if z.is_finite() => z.clamp(0.0, 1.0),
+                _ => zbuf[i].clamp(0.0, 1.0),
+            };
+            (sample(src.color, q, filter), d)
+        })
+        .collect();
+    let color: Vec<[f32; 3]> = px.iter().map(|p| p.0).collect();
+    let depth: Vec<f32> = px.iter().map(|p| p.1).collect();
+    let hole: Vec<bool> = zbuf.iter().map(|z| !z.is_finite()).collect();
+    WarpOutput {
+        color: Image::from_vec(tw, th, color).expect("sized"),
+        depth: Image::from_vec(tw, th, depth).expect("sized"),
+        hole: Image::from_vec(tw, th, hole).expect("sized"),
+        primitives: 0,
+        cells: Vec::new(),
+        ms: StageMs::default(),
+    }
+}
+
+/// One splat per pixel: each source pixel centre is warped and written to the target pixel it
+/// lands in, with a depth test (nearest colour).
+fn points(src: &Source<'_>, dst: &Camera, m: &WarpMatrix) -> Result<WarpOutput> {
+    let (w, h) = src.depth.size();
+    let (tw, th) = (dst.width, dst.height);
+    let n = (tw * th) as usize;
+    // Pack depth and source index into one u64 so a parallel atomic min keeps the nearest.
+    let buf: Vec<std::sync::atomic::AtomicU64> = (0..n).map(|_| std::sync::atomic::AtomicU64::new(u64::MAX)).collect();
+    (0..h).into_par_iter().for_each(|y| {
+        for x in 0..w {
+            let d = *src.depth.get(x, y);
+            let Some((tx, ty, tz)) = m.project(x as f32 + 0.5, y as f32 + 0.5, d) else { continue };
+            if !(tx >= 0.0 && ty >= 0.0 && tx < tw as f32 && ty < th as f32 && tz.is_finite()) {
+                continue;
+            }
+            let k = ty as usize * tw as usize + tx as usize;
+            // Positive f32 bit patterns order like the values; negative depths clamp to 0.
+            let key = ((tz.max(0.0).to_bits() as u64) << 32) | (y * w + x) as u64;
+            buf[k].fetch_min(key, std::sync::atomic::Ordering::Relaxed);
+        }
+    });
+    let mut zbuf = vec![f32::INFINITY; n];
+    let mut uv = vec![Vec2::ZERO; n];
+    for (i, a) in buf.iter().enumerate() {
+        let v = a.load(std::sync::atomic::Ordering::Relaxed);
+        if v != u64::MAX {
+            zbuf[i] = f32::from_bits((v >> 32) as u32);
+            let s = (v & 0xFFFF_FFFF) as u32;
+            uv[i] = Vec2::new((s % w) as f32 + 0.5, (s / w) as f32 + 0.5);
+        }
+    }
+    let mut out = resolve(src, m, tw, th, &zbuf, &uv, Filter::Nearest);
+    out.primitives = (w * h) as usize;
+    Ok(out)
+}
+
+/// Per level (0 = pixels .. [`LEVELS`] = tiles): size and `[min x, max x, min y, max y]` of the
+/// per-pixel disparity (target minus source position) below each node.
+pub type DisparityPyramid = Vec<(u32, u32, Vec<[f32; 4]>)>;
+
+/// The disparity min-max pyramid of the warp `m` (Didyk et al.'s split criterion).
+pub fn disparity_pyramid(src: &Source<'_>, m: &WarpMatrix) -> DisparityPyramid {
+    let (w, h) = src.depth.size();
+    // Level 0: [min x, max x, min y, max y] of the disparity.
+    let mut lv: Vec<(u32, u32, Vec<[f32; 4]>)> = Vec::new();
+    let base: Vec<[f32; 4]> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            match m.project(x, y, *src.depth.get(i % w, i / w)) {
+                Some((tx, ty, _)) => [tx - x, tx - x, ty - y, ty - y],
+                None => [f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY],
+            }
+        })
+        .collect();
+    lv.push((w, h, base));
+    for _ in 0..LEVELS {
+        let (pw, ph, prev) = lv.last().expect("level 0");
+        let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
+        let mut next = vec![[f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY]; (nw * nh) as usize];
+        for y in 0..*ph {
+            for x in 0..*pw {
+                let s = prev[(y * pw + x) as usize];
+                let t = &mut next[((y / 2) * nw + x / 2) as usize];
+                t[0] = t[0].min(s[0]);
+                t[1] = t[1].max(s[1]);
+                t[2] = t[2].min(s[2]);
+                t[3] = t[3].max(s[3]);
+            }
+        }
+        lv.push((nw, nh, next));
+    }
+    lv
+}
+
+/// Didyk et al. 2010's adaptive grid: a quadtree over 32x32 tiles split while the range of the
+/// per-pixel disparity (target minus source position, both axes) within a node exceeds
+/// `threshold` pixels.
+pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<Vec<Cell>> {
+    if !(threshold.is_finite() && threshold >= 0.0) {
+        return Err(Error::invalid(format!("didyk threshold must be >= 0 pixels, got {threshold}")));
+    }
+    let (w, h) = src.depth.size();
+    let lv = disparity_pyramid(src, m);
+    let mut out = Vec::new();
+    #[allow(clippy::too_many_arguments)]
+    fn emit(lv: &DisparityPyramid, level: usize, x: u32, y: u32, thr: f32, w: u32, h: u32, out: &mut Vec<Cell>) {
+        let s = 1u32 << level;
+        let c = Cell { x0: x * s, y0: y * s, x1: ((x + 1) * s).min(w), y1: ((y + 1) * s).min(h) };
+        if c.x0 >= c.x1 || c.y0 >= c.y1 {
+            return;
+        }
+        let (lw, _, v) = &lv[level];
+        let r = v[(y * lw + x) as usize];
+        if level == 0 || (r[1] - r[0] <= thr && r[3] - r[2] <= thr) {
+            out.push(c);
+            return;
+        }
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            emit(lv, level - 1, 2 * x + dx, 2 * y + dy, thr, w, h, out);
+        }
+    }
+    let (tw, th, _) = &lv[LEVELS];
+    for ty in 0..*th {
+        for tx in 0..*tw {
+            emit(&lv, LEVELS, tx, ty, threshold, w, h, &mut out);
+        }
+    }
+    Ok(out)
+}
+
+/// zwarp's fixed-point colour warp (seed 001 heuristic, 3 iterations, orbit in-painting) on
+/// the camera-only motion field from `src` to `dst`, seeded with a fixed offset: minus the
+/// field at the 2nd-percentile depth, towards where near surfaces come from (seed 001 Sec.
+/// 3.3). It fills disocclusions itself, so its hole mask is empty.
+fn fpi(src: &Source<'_>, dst: &Camera) -> Result<WarpOutput> {
+    if (dst.width, dst.height) != src.depth.size() {
+        return Err(Error::invalid("fpi warp: source and target must have the same size"));
+    }
+    let motion = zwarp_core::motion_field(src.depth, None, src.cam, dst, &[])?;
+    let basis = WarpBasis::temporal(src.depth, &motion)?;
+    let field = basis.field(zwarp_color::FieldParams::temporal(1.0))?;
+    let d = field.depth();
+    let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
+    let offset = if idx.is_empty() {
+        Vec2::ZERO
+    } else {
+        let k = idx.len() / 50;
+        idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
+        let v = -field.v(idx[k] as usize);
+        if v.is_finite() && v.length() < 1e4 {
+            v
+        } else {
+            Vec2::ZERO
+        }
+    };
+    let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
+    let o = zwarp_color::heuristic_warp(&field, src.color, &hp)?;
+    let (w, h) = o.color.size();
+    Ok(WarpOutput {
+        color: o.color,
+        depth: o.depth,
+        hole: Image::new(w, h, false),
+        primitives: 0,
+        cells: Vec::new(),
+        ms: StageMs::default(),
+    })
+}
+
+/// The grid drawn over an image (seed 003 Fig. 12-13 style): cell outlines in `line` over
+/// `color` (both in the source's pixels).
+pub fn draw_cells(color: &Image<[f32; 3]>, cells: &[Cell], line: [f32; 3]) -> Image<[f32; 3]> {
+    let mut out = color.clone();
+    let (w, h) = color.size();
+    for c in cells {
+        for x in c.x0..c.x1.min(w) {
+            *out.get_mut(x, c.y0) = line;
+        }
+        for y in c.y0..c.y1.min(h) {
+            *out.get_mut(c.x0, y) = line;
+        }
+    }
+    out
+}

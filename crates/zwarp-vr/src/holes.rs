@@ -1,0 +1,346 @@
+//! Hole filling (seed 003 Sec. 5.2, Table 2).
+//!
+//! [`HoleMethod::LowPass`] is the paper's depth-aware low-pass pyramid: each level halves the
+//! resolution and averages, per 2x2 kernel, only the non-hole texels at or behind the kernel's
+//! mean depth, so foreground dissolves and background spreads into holes (Fig. 9). A hole pixel
+//! finds its distance to the background border by an epipolar search with exponentially
+//! growing steps and reads the level whose filter radius covers that distance.
+//!
+//! Baselines: rubber sheets (the warp with quads connecting every pixel, shown in the holes),
+//! stretch in-painting (the background border pixel repeated along the epipolar line) and a
+//! depth-unaware push-pull (what FSR3 does).
+
+use glam::{Vec2, Vec4};
+use rayon::prelude::*;
+use zwarp_core::{Camera, Error, Image, Result};
+
+use crate::grid::{warp, Method, Source, WarpOutput, WarpParams};
+
+/// A hole-filling method (JSON `holes`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HoleMethod {
+    /// Seed 003 Sec. 5.2: depth-aware low-pass pyramid, level from the epipolar border distance.
+    LowPass,
+    /// Rubber sheets: the per-pixel connected quad warp shown in the holes.
+    Rubber,
+    /// Stretch in-painting along the epipolar direction (seed 003 Table 2).
+    Stretch,
+    /// Depth-unaware push-pull pyramid.
+    PushPull,
+}
+
+impl HoleMethod {
+    /// CLI / JSON name.
+    pub fn name(self) -> &'static str {
+        match self {
+            HoleMethod::LowPass => "lowpass",
+            HoleMethod::Rubber => "rubber",
+            HoleMethod::Stretch => "stretch",
+            HoleMethod::PushPull => "pushpull",
+        }
+    }
+
+    /// Parses a name of [`HoleMethod::name`].
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(match s {
+            "lowpass" => HoleMethod::LowPass,
+            "rubber" => HoleMethod::Rubber,
+            "stretch" => HoleMethod::Stretch,
+            "pushpull" => HoleMethod::PushPull,
+            o => return Err(Error::invalid(format!("unknown hole method '{o}' (lowpass, rubber, stretch, pushpull)"))),
+        })
+    }
+}
+
+/// The epipole of the source eye in the target image as homogeneous pixel coordinates
+/// `(X w, Y w, w)`: every point of the source moves along the line through it.
+pub fn epipole(src: &Camera, dst: &Camera) -> glam::Vec3 {
+    let e = dst.view_proj() * src.eye().extend(1.0);
+    let (w, h) = (dst.width as f32, dst.height as f32);
+    glam::Vec3::new((e.x + e.w) * 0.5 * w, (e.w - e.y) * 0.5 * h, e.w)
+}
+
+/// Unit epipolar direction at pixel centre `p` for the homogeneous epipole `e` (horizontal
+/// where undefined, i.e. at the epipole itself).
+#[inline]
+pub fn epipolar_dir(e: glam::Vec3, p: Vec2) -> Vec2 {
+    let d = Vec2::new(p.x * e.z - e.x, p.y * e.z - e.y);
+    let l = d.length();
+    if l > 1e-6 * (1.0 + e.truncate().length()) {
+        d / l
+    } else {
+        Vec2::X
+    }
+}
+
+/// One level of the low-pass pyramid: colour, depth, validity.
+#[derive(Clone, Debug)]
+pub struct PyramidLevel {
+    /// Texels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row-major `(r, g, b, depth)`.
+    pub texels: Vec<Vec4>,
+    /// Texel holds background colour.
+    pub valid: Vec<bool>,
+}
+
+/// The depth-aware low-pass pyramid of seed 003 Sec. 5.2 (Fig. 9).
+pub fn lowpass_pyramid(color: &Image<[f32; 3]>, depth: &Image<f32>, hole: &Image<bool>) -> Result<Vec<PyramidLevel>> {
+    color.check_same_size(depth, "low-pass pyramid colour vs depth")?;
+    color.check_same_size(hole, "low-pass pyramid colour vs hole mask")?;
+    let (w, h) = color.size();
+    let texels = color.data().iter().zip(depth.data()).map(|(c, &d)| Vec4::new(c[0], c[1], c[2], d)).collect();
+    let mut levels =
+        vec![PyramidLevel { width: w, height: h, texels, valid: hole.data().iter().map(|&x| !x).collect() }];
+    while levels.last().is_some_and(|l| l.width > 1 || l.height > 1) {
+        let p = levels.last().expect("a level");
+        let (nw, nh) = (p.width.div_ceil(2), p.height.div_ceil(2));
+        let out: Vec<(Vec4, bool)> = (0..nw * nh)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % nw, i / nw);
+                let mut kid = [(Vec4::ZERO, false); 4];
+                let mut n = 0;
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let (cx, cy) = (2 * x + dx, 2 * y + dy);
+                    if cx < p.width && cy < p.height {
+                        let k = (cy * p.width + cx) as usize;
+                        kid[n] = (p.texels[k], p.valid[k]);
+                        n += 1;
+                    }
+                }
+                let valid: Vec<Vec4> = kid[..n].iter().filter(|k| k.1).map(|k| k.0).collect();
+                if valid.is_empty() {
+                    return (Vec4::ZERO, false);
+                }
+                let mean = valid.iter().map(|t| t.w).sum::<f32>() / valid.len() as f32;
+                // Only texels at or behind the mean depth (a hair of slack for equal depths).
+                let slack = 1e-6 * mean.abs().max(1.0);
+                let sel: Vec<&Vec4> = valid.iter().filter(|t| t.w >= mean - slack).collect();
+                (sel.iter().copied().sum::<Vec4>() / sel.len() as f32, true)
+            })
+            .collect();
+        levels.push(PyramidLevel {
+            width: nw,
+            height: nh,
+            texels: out.iter().map(|o| o.0).collect(),
+            valid: out.iter().map(|o| o.1).collect(),
+        });
+    }
+    Ok(levels)
+}
+
+/// Reads level `l` at full-resolution pixel centre `p`: bilinear over the valid texels at or
+/// behind their mean depth (the kernel rule again, so a foreground-only texel next to the hole
+/// does not bleed in). `None` if no texel is valid.
+fn read_level(l: &PyramidLevel, scale: f32, p: Vec2) -> Option<Vec4> {
+    let q = p / scale - Vec2::splat(0.5);
+    let (x0, y0) = (q.x.floor() as i32, q.y.floor() as i32);
+    let (ax, ay) = (q.x - x0 as f32, q.y - y0 as f32);
+    let mut taps = [(Vec4::ZERO, 0.0f32); 4];
+    let mut n = 0;
+    for (dx, dy, wt) in
+        [(0, 0, (1.0 - ax) * (1.0 - ay)), (1, 0, ax * (1.0 - ay)), (0, 1, (1.0 - ax) * ay), (1, 1, ax * ay)]
+    {
+        let (tx, ty) = ((x0 + dx).clamp(0, l.width as i32 - 1), (y0 + dy).clamp(0, l.height as i32 - 1));
+        let k = (ty as u32 * l.width + tx as u32) as usize;
+        if l.valid[k] {
+            taps[n] = (l.texels[k], wt.max(1e-4));
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return None;
+    }
+    let mean = taps[..n].iter().map(|t| t.0.w).sum::<f32>() / n as f32;
+    let slack = 1e-6 * mean.abs().max(1.0);
+    let (mut acc, mut ws) = (Vec4::ZERO, 0.0);
+    for t in &taps[..n] {
+        if t.0.w >= mean - slack {
+            acc += t.0 * t.1;
+            ws += t.1;
+        }
+    }
+    Some(acc / ws)
+}
+
+/// The nearest non-hole pixel along `dir` from `p` with exponentially growing steps (1, 2, 4,
+/// ...; seed 003 Sec. 5.2), then bisected between the last two steps: the distance to the
+/// hole border and the border pixel's depth. `None` if the ray leaves the image first.
+fn border_exp(hole: &Image<bool>, depth: &Image<f32>, p: Vec2, dir: Vec2) -> Option<(f32, f32)> {
+    let (w, h) = (hole.width() as f32, hole.height() as f32);
+    let mut s = 1.0f32;
+    loop {
+        let q = p + dir * s;
+        if !(q.x >= 0.0 && q.y >= 0.0 && q.x < w && q.y < h) {
+            return None;
+        }
+        let (x, y) = (q.x as u32, q.y as u32);
+        if !*hole.get(x, y) {
+            // Bisect (s/2, s] for the first non-hole pixel: the border itself, not just a
+            // bound (log2 s more reads).
+            let (mut lo, mut hi) = (s * 0.5, s);
+            while hi - lo > 1.0 {
+                let mid = (0.5 * (lo + hi)).floor();
+                let m = p + dir * mid;
+                if *hole.get(m.x as u32, m.y as u32) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let b = p + dir * hi;
+            return Some((hi, *depth.get(b.x as u32, b.y as u32)));
+        }
+        s *= 2.0;
+    }
+}
+
+/// The nearest non-hole pixel along `dir` from `p`, pixel by pixel: its position and depth.
+fn border_linear(hole: &Image<bool>, depth: &Image<f32>, p: Vec2, dir: Vec2) -> Option<((u32, u32), f32)> {
+    let (w, h) = (hole.width() as f32, hole.height() as f32);
+    let mut s = 1.0f32;
+    loop {
+        let q = p + dir * s;
+        if !(q.x >= 0.0 && q.y >= 0.0 && q.x < w && q.y < h) {
+            return None;
+        }
+        let (x, y) = (q.x as u32, q.y as u32);
+        if !*hole.get(x, y) {
+            return Some(((x, y), *depth.get(x, y)));
+        }
+        s += 1.0;
+    }
+}
+
+/// Fills the holes of `warped` (a warp of `src` to `dst`) with `method`; pixels outside the
+/// holes keep their colour. Rubber sheets run the connected quad warp of `src`; holes it leaves
+/// at the image border get the push-pull.
+pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: HoleMethod) -> Result<Image<[f32; 3]>> {
+    let (color, depth, hole) = (&warped.color, &warped.depth, &warped.hole);
+    color.check_same_size(hole, "hole filling colour vs mask")?;
+    color.check_same_size(depth, "hole filling colour vs depth")?;
+    if color.size() != (dst.width, dst.height) {
+        return Err(Error::invalid("hole filling: the warp does not have the target camera's size"));
+    }
+    let (w, _) = color.size();
+    if !hole.data().iter().any(|&x| x) {
+        return Ok(color.clone());
+    }
+    let e = epipole(src.cam, dst);
+    let mut out = color.clone();
+    match method {
+        HoleMethod::PushPull => {
+            zwarp_color::push_pull(&mut out, &hole.map(|&x| !x))?;
+        }
+        HoleMethod::Rubber => {
+            let q = warp(src, dst, Method::Quads, &WarpParams::default())?;
+            let mut still = hole.clone();
+            for (i, (o, &hl)) in out.data_mut().iter_mut().zip(hole.data()).enumerate() {
+                if hl && !q.hole.data()[i] {
+                    *o = q.color.data()[i];
+                    still.data_mut()[i] = false;
+                }
+            }
+            zwarp_color::push_pull(&mut out, &still.map(|&x| !x))?;
+        }
+        HoleMethod::Stretch => {
+            let fill: Vec<Option<[f32; 3]>> = (0..hole.len())
+                .into_par_iter()
+                .map(|i| {
+                    if !hole.data()[i] {
+                        return None;
+                    }
+                    let p = Vec2::new((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+                    let d = epipolar_dir(e, p);
+                    let a = border_linear(hole, depth, p, d);
+                    let b = border_linear(hole, depth, p, -d);
+                    // The background side: the farther border.
+                    let pick = match (a, b) {
+                        (Some(a), Some(b)) => Some(if a.1 >= b.1 { a } else { b }),
+                        (a, b) => a.or(b),
+                    };
+                    pick.map(|((x, y), _)| *color.get(x, y))
+                })
+                .collect();
+            let mut valid = hole.map(|&x| !x);
+            for (i, f) in fill.iter().enumerate() {
+                if let Some(c) = f {
+                    out.data_mut()[i] = *c;
+                    valid.data_mut()[i] = true;
+                }
+            }
+            // Pixels whose epipolar line leaves the image on both sides.
+            zwarp_color::push_pull(&mut out, &valid)?;
+        }
+        HoleMethod::LowPass => {
+            let pyr = lowpass_pyramid(color, depth, hole)?;
+            let top = pyr.len() - 1;
+            out.data_mut().par_iter_mut().enumerate().for_each(|(i, o)| {
+                if !hole.data()[i] {
+                    return;
+                }
+                let p = Vec2::new((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+                let d = epipolar_dir(e, p);
+                let a = border_exp(hole, depth, p, d);
+                let b = border_exp(hole, depth, p, -d);
+                // Read half way to the background border, at the level whose filter radius
+                // (2^(l-1) pixels) reaches it: the colour of the border, blurred more the farther
+                // the pixel is from it (Mark's blurred stripes, seed 003 Sec. 5.2). A hole that
+                // reaches the image border has no background side: it continues the surface at
+                // its inner border (read there, level 1).
+                let (mut lvl, at) = match (a, b) {
+                    (Some(a), Some(b)) => {
+                        let v = if a.1 >= b.1 { a.0 * d } else { -b.0 * d };
+                        ((0.5 * v.length()).log2().ceil().max(0.0) as usize + 1, p + 0.5 * v)
+                    }
+                    (Some(a), None) => (1, p + a.0 * d),
+                    (None, Some(b)) => (1, p - b.0 * d),
+                    (None, None) => (top, p),
+                };
+                lvl = lvl.min(top);
+                loop {
+                    if let Some(t) = read_level(&pyr[lvl], (1u32 << lvl) as f32, at) {
+                        *o = [t.x, t.y, t.z];
+                        break;
+                    }
+                    if lvl == top {
+                        break;
+                    }
+                    lvl += 1;
+                }
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The depth of `warped` with each hole pixel given the depth of its background border (the
+/// farther of the two hole borders along the epipolar line; at the image border the inner
+/// one): where the filled colour comes from, so a ray cast through the hole (Sec. 5.3) ends at
+/// the surface shown instead of the far plane.
+pub fn hole_depth(warped: &WarpOutput, src: &Camera, dst: &Camera) -> Result<Image<f32>> {
+    let (depth, hole) = (&warped.depth, &warped.hole);
+    depth.check_same_size(hole, "hole depth vs mask")?;
+    let e = epipole(src, dst);
+    let w = depth.width();
+    let data = (0..depth.len())
+        .into_par_iter()
+        .map(|i| {
+            if !hole.data()[i] {
+                return depth.data()[i];
+            }
+            let p = Vec2::new((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+            let d = epipolar_dir(e, p);
+            match (border_exp(hole, depth, p, d), border_exp(hole, depth, p, -d)) {
+                (Some(a), Some(b)) => a.1.max(b.1),
+                (Some(a), None) => a.1,
+                (None, Some(b)) => b.1,
+                (None, None) => 1.0,
+            }
+        })
+        .collect();
+    Image::from_vec(w, depth.height(), data)
+}
