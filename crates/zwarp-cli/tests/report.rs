@@ -51,7 +51,7 @@ fn every_section_runs_and_is_on_the_page() {
     assert_eq!(r["level"], "smoke");
     assert!(r["machine"]["threads"].as_u64().unwrap() >= 1);
     let jobs = r["jobs"].as_array().unwrap();
-    for section in ["quality", "bounds_speed", "iterations", "culling", "shadows", "colour"] {
+    for section in ["quality", "bounds_speed", "iterations", "culling", "shadows", "colour", "vr"] {
         let js: Vec<_> = jobs.iter().filter(|j| j["section"] == section).collect();
         assert!(!js.is_empty(), "no {section} job");
         for j in js {
@@ -67,6 +67,7 @@ fn every_section_runs_and_is_on_the_page() {
         "seed 000 Table 5",
         "seed 000 Table 8",
         "seed 001",
+        "seed 003",
     ] {
         assert!(html.contains(h), "page lacks the section '{h}'");
     }
@@ -101,6 +102,28 @@ fn an_interrupted_run_keeps_its_rows_and_the_page_says_what_is_missing() {
     assert!(html.contains("Incomplete sections"));
     assert!(html.contains("culling_cb did not run"));
     assert!(html.contains("not finished"));
+}
+
+#[test]
+fn one_section_runs_again_into_an_earlier_report() {
+    let dir = tmp("rerun");
+    std::fs::create_dir_all(&dir).unwrap();
+    let before = results(smoke());
+    std::fs::write(dir.join("results.json"), serde_json::to_string(&before).unwrap()).unwrap();
+    let (ok, _, err) =
+        zwarp(&["report", "--smoke", "--scenes", "cb", "--sections", "iterations", "--out", dir.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let after = results(&dir);
+    let ids = |r: &serde_json::Value| -> Vec<String> {
+        r["jobs"].as_array().unwrap().iter().map(|j| j["id"].as_str().unwrap().to_string()).collect()
+    };
+    // The same jobs in the same order, the other sections' rows untouched, the rerun stated.
+    assert_eq!(ids(&before), ids(&after));
+    let quality =
+        |r: &serde_json::Value| r["jobs"].as_array().unwrap().iter().find(|j| j["section"] == "quality").cloned();
+    assert_eq!(quality(&before), quality(&after));
+    assert_eq!(after["reruns"].as_array().unwrap().len(), 1);
+    assert!(std::fs::read_to_string(dir.join("index.html")).unwrap().contains("Run again separately: iterations"));
 }
 
 #[test]

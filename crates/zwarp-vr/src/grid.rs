@@ -142,7 +142,7 @@ impl Default for WarpParams {
 /// The source view of a warp.
 #[derive(Clone, Copy, Debug)]
 pub struct Source<'a> {
-    /// Camera the source was rendered with.
+    /// Camera of the source render.
     pub cam: &'a Camera,
     /// Its depth, `[0, 1]`, 1 = sky.
     pub depth: &'a Image<f32>,

@@ -1,5 +1,5 @@
 //! `zwarp report`: runs the protocol of every table and figure zwarp reproduces (seed 000
-//! Tables 1, 2, 3, 5, 8 and Fig. 11; seed 001's applications) and writes `DIR/index.html` (one
+//! Tables 1, 2, 3, 5, 8 and Fig. 11; seed 001's applications; seed 003's VR warps) and writes `DIR/index.html` (one
 //! self-contained page: tables with the paper's numbers beside ours, inline SVG plots, figure
 //! strips as PNG files next to it), `DIR/results.json` (every row of every command) and
 //! `DIR/RESULTS.md` (the same tables for a repository).
@@ -45,7 +45,8 @@ pub struct ReportArgs {
     #[arg(long, default_value = "yr,mo,bl,cb")]
     pub scenes: String,
     /// Only these sections (comma list of quality, bounds_speed, iterations, culling, shadows,
-    /// colour); default all.
+    /// colour, vr); default all. An earlier report of the same level in DIR keeps its other
+    /// sections.
     #[arg(long)]
     pub sections: Option<String>,
     /// Rebuild index.html and RESULTS.md from DIR/results.json without running anything.
@@ -127,6 +128,10 @@ pub struct Report {
     pub finished: Option<String>,
     /// Every planned job, in order.
     pub jobs: Vec<JobRecord>,
+    /// Sections run again into this report by a later `--sections` run, with when and the
+    /// load average then.
+    #[serde(default)]
+    pub reruns: Vec<String>,
 }
 
 impl Report {
@@ -231,27 +236,49 @@ pub fn run(args: ReportArgs) -> Result<()> {
         std::fs::create_dir_all(out.join(sub))
             .with_context(|| format!("{}: cannot create folder", out.join(sub).display()))?;
     }
-    let mut report = Report {
-        zwarp: env!("CARGO_PKG_VERSION").to_string(),
-        level: serde_json::to_value(level)?.as_str().unwrap_or("quick").to_string(),
-        protocol: protocol::describe(level),
-        machine: machine(),
-        started: now(),
-        finished: None,
-        jobs: jobs
-            .iter()
-            .map(|j| JobRecord {
-                id: j.id.clone(),
-                section: j.section.id().to_string(),
-                scene: j.scene.clone(),
-                command: j.args.clone(),
-                status: Status::Pending,
-                seconds: 0.0,
-                error: None,
-                images: None,
-                result: None,
-            })
-            .collect(),
+    let planned: Vec<JobRecord> = jobs
+        .iter()
+        .map(|j| JobRecord {
+            id: j.id.clone(),
+            section: j.section.id().to_string(),
+            scene: j.scene.clone(),
+            command: j.args.clone(),
+            status: Status::Pending,
+            seconds: 0.0,
+            error: None,
+            images: None,
+            result: None,
+        })
+        .collect();
+    let level_name = serde_json::to_value(level)?.as_str().unwrap_or("quick").to_string();
+    // With --sections, an earlier report of the same level in DIR keeps its other sections: one
+    // section can be run again (or added) without repeating the rest.
+    let earlier: Option<Report> = args
+        .sections
+        .as_ref()
+        .and_then(|_| std::fs::read_to_string(out.join("results.json")).ok())
+        .and_then(|t| serde_json::from_str::<Report>(&t).ok())
+        .filter(|r| r.level == level_name);
+    let mut report = if let Some(mut r) = earlier {
+        let ids: Vec<&str> = sections.iter().map(|s| s.id()).collect();
+        r.jobs.retain(|j| !ids.contains(&j.section.as_str()));
+        r.jobs.extend(planned);
+        let order = |j: &JobRecord| Section::ALL.iter().position(|s| s.id() == j.section).unwrap_or(usize::MAX);
+        r.jobs.sort_by_key(order);
+        r.reruns.push(format!("{} at {}, load average {}", ids.join(", "), now(), load_average()));
+        r.finished = None;
+        r
+    } else {
+        Report {
+            zwarp: env!("CARGO_PKG_VERSION").to_string(),
+            level: level_name,
+            protocol: protocol::describe(level),
+            machine: machine(),
+            started: now(),
+            finished: None,
+            jobs: planned,
+            reruns: Vec::new(),
+        }
     };
     write_outputs(&report, &out, &markdown)?;
     println!(
@@ -268,7 +295,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         indicatif::ProgressStyle::with_template("report [{bar:30}] {pos}/{len} {elapsed} {msg}")?.progress_chars("=> "),
     );
     let mut failed = 0usize;
-    for (k, job) in jobs.iter().enumerate() {
+    for job in &jobs {
         bar.set_message(job.id.clone());
         let json = out.join("raw").join(format!("{}.json", job.id));
         let log_path = out.join("logs").join(format!("{}.log", job.id));
@@ -289,7 +316,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
             .stderr(log)
             .status()
             .with_context(|| format!("cannot start {}", exe.display()))?;
-        let rec = &mut report.jobs[k];
+        let rec = report.jobs.iter_mut().find(|r| r.id == job.id).expect("every job has a record");
         rec.command = argv;
         rec.seconds = t0.elapsed().as_secs_f64();
         if status.success() {

@@ -33,17 +33,20 @@ pub enum Section {
     Shadows,
     /// Seed 001: frame-rate upsampling, stereo and blur by colour warping.
     Colour,
+    /// Seed 003: hybrid image warping of both eyes (adaptive grid, hole filling, A-buffer).
+    Vr,
 }
 
 impl Section {
     /// Every section, in page order.
-    pub const ALL: [Section; 6] = [
+    pub const ALL: [Section; 7] = [
         Section::Quality,
         Section::BoundsSpeed,
         Section::Iterations,
         Section::Culling,
         Section::Shadows,
         Section::Colour,
+        Section::Vr,
     ];
 
     /// The section's heading on the page.
@@ -55,6 +58,7 @@ impl Section {
             Section::Culling => "Occlusion culling (seed 000 Table 5)",
             Section::Shadows => "Soft shadows (seed 000 Table 8)",
             Section::Colour => "Colour warping: upsampling, stereo, blur (seed 001)",
+            Section::Vr => "Stereo and VR: hybrid image warping of both eyes (seed 003)",
         }
     }
 
@@ -67,6 +71,7 @@ impl Section {
             Section::Culling => "culling",
             Section::Shadows => "shadows",
             Section::Colour => "colour",
+            Section::Vr => "vr",
         }
     }
 }
@@ -370,6 +375,39 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
             &s.blur_samples.to_string(),
         ]));
         out.push(job(format!("blur_{}", sc.label), Section::Colour, sc, "blur", a, true));
+        // Seed 003 Tables 1-2 on the opaque scene, Fig. 7 with a fifth of the objects glass.
+        let mut a = size(s.colour);
+        a.extend(strings(&[
+            "--frames",
+            "1",
+            "--reps",
+            &reps,
+            "--method",
+            "grid,quads,points,didyk,fpi",
+            "--strategy",
+            "cyclops,alternate",
+            "--holes",
+            "lowpass,rubber,stretch,pushpull",
+        ]));
+        out.push(job(format!("vr_{}", sc.label), Section::Vr, sc, "vr", a, true));
+        let mut a = size(s.colour);
+        a.extend(strings(&[
+            "--frames",
+            "1",
+            "--reps",
+            &reps,
+            "--method",
+            "grid",
+            "--strategy",
+            "cyclops,alternate",
+            "--holes",
+            "lowpass",
+            "--transparent",
+            "0.2",
+            "--abuffer",
+            "on,off",
+        ]));
+        out.push(job(format!("vr_glass_{}", sc.label), Section::Vr, sc, "vr", a, false));
     }
     out
 }
