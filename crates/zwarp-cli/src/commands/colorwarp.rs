@@ -376,19 +376,20 @@ pub fn add_panel(
     Ok(())
 }
 
-/// Writes one strip (predictions above their FLIP maps) as `dir/name.png`.
+/// Width in pixels of one panel of a strip: full-size frames side by side make files of tens of
+/// megabytes that no page shows at that size.
+const PANEL_WIDTH: u32 = 480;
+
+/// Writes one strip (predictions above their FLIP maps, each panel reduced to at most
+/// [`PANEL_WIDTH`] pixels) as `dir/name.png`.
 pub fn write_strip(dir: &Path, name: &str, panels: &Panels) -> Result<()> {
-    let top = zwarp_viz::side_by_side(&panels.0.iter().collect::<Vec<_>>())?;
-    let bottom = zwarp_viz::side_by_side(&panels.1.iter().collect::<Vec<_>>())?;
-    let (w, h) = (top.width(), top.height() + bottom.height() + zwarp_viz::GAP);
-    let mut out = Image::new(w, h, zwarp_viz::GAP_COLOR);
-    for y in 0..top.height() {
-        out.row_mut(y).copy_from_slice(top.row(y));
-    }
-    for y in 0..bottom.height() {
-        let oy = top.height() + zwarp_viz::GAP + y;
-        out.row_mut(oy)[..bottom.width() as usize].copy_from_slice(bottom.row(y));
-    }
+    let row = |images: &[Image<[u8; 3]>]| -> Result<Image<[u8; 3]>> {
+        let fitted =
+            images.iter().map(|i| zwarp_viz::fit_width(i, PANEL_WIDTH)).collect::<zwarp_core::Result<Vec<_>>>()?;
+        Ok(zwarp_viz::strip(&fitted)?)
+    };
+    let gap = Image::new(1, zwarp_viz::GAP, zwarp_viz::GAP_COLOR);
+    let out = zwarp_viz::stacked(&[&row(&panels.0)?, &gap, &row(&panels.1)?])?;
     zwarp_viz::write_png(dir.join(format!("{name}.png")), &out)?;
     Ok(())
 }

@@ -340,7 +340,10 @@ pub fn run(args: ReportArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     report.finished = Some(now());
-    report.machine.load_average_end = Some(load_average());
+    // A rerun of some sections records its load in `reruns`; the machine line keeps the run's.
+    if report.reruns.is_empty() {
+        report.machine.load_average_end = Some(load_average());
+    }
     write_outputs(&report, &out, &markdown)?;
     println!(
         "wrote {}, {} and {}",
