@@ -4,7 +4,8 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-const SHORT: [&str; 11] = ["core", "scene", "raster", "metrics", "warp", "color", "cull", "shadows", "gpu", "viz", "vr"];
+const SHORT: [&str; 11] =
+    ["core", "scene", "raster", "metrics", "warp", "color", "cull", "shadows", "gpu", "viz", "vr"];
 
 /// zwarp crates in a Cargo.toml's `[dependencies]` (short names: `zwarp-warp` -> `warp`).
 fn cargo_deps(manifest: &Path) -> BTreeSet<String> {
