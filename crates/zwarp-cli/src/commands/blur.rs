@@ -298,7 +298,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
                     let base = colorwarp::safe_name(&args.scene.scene);
                     colorwarp::write_color(dir, &format!("{base}_blur_reference"), &reference.color)?;
                     colorwarp::write_color(dir, &format!("{base}_blur_{}", m.name()), &out.color)?;
-                    colorwarp::add_panel(&mut strips, (false, 0), &reference.color, &out.color)?;
+                    colorwarp::add_panel(&mut strips, (false, 0), &reference.color, &out.color, m.name())?;
                 }
             }
             let idx = match accs.iter().position(|(m2, _)| *m2 == m) {

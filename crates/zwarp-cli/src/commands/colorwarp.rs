@@ -353,26 +353,39 @@ pub type Strips = Vec<((bool, u32), Panels)>;
 /// One strip: predictions (the reference first) above their FLIP maps.
 pub type Panels = (Vec<Image<[u8; 3]>>, Vec<Image<[u8; 3]>>);
 
-/// Appends `pred` (and its FLIP map) to the strip of `key`, starting it with `reference`.
+/// Appends `pred` (labelled `label`, and its FLIP map with the map's colour bar) to the strip of
+/// `key`, starting it with `reference`. Panels are reduced to at most [`PANEL_WIDTH`] pixels
+/// before they are labelled, so the text stays legible.
 pub fn add_panel(
     strips: &mut Strips,
     key: (bool, u32),
     reference: &Image<[f32; 3]>,
     pred: &Image<[f32; 3]>,
+    label: &str,
 ) -> Result<()> {
+    let panel = |img: &Image<[f32; 3]>, label: &str| -> Result<Image<[u8; 3]>> {
+        let small = zwarp_viz::fit_width(&zwarp_viz::color_to_rgb8(img), PANEL_WIDTH)?;
+        Ok(zwarp_viz::labelled(&small, label, zwarp_viz::figure::label_scale(small.width()))?)
+    };
     let i = match strips.iter().position(|(k, _)| *k == key) {
         Some(i) => i,
         None => {
-            let r = zwarp_viz::color_to_rgb8(reference);
-            let black = Image::new(r.width(), r.height(), [0u8; 3]);
+            let r = panel(reference, "reference (render)")?;
+            let black = Image::new(r.width(), r.height(), [255u8; 3]);
             strips.push((key, (vec![r], vec![black])));
             strips.len() - 1
         }
     };
     let f = zwarp_metrics::flip(reference, pred, zwarp_metrics::FLIP_DEFAULT_PPD)?;
+    let map = zwarp_viz::fit_width(&zwarp_viz::scalar_to_rgb8(&f.map, 0.0, 1.0)?, PANEL_WIDTH)?;
+    let s = zwarp_viz::figure::label_scale(map.width());
+    let ticks = [(0.0, "0".to_string()), (0.5, "0.5".to_string()), (1.0, "1".to_string())];
+    let bar = zwarp_viz::colorbar(map.width(), s, zwarp_viz::turbo, &ticks)?;
+    let flip =
+        zwarp_viz::labelled(&zwarp_viz::stacked(&[&map, &bar])?, &format!("FLIP {label} (mean {:.3})", f.mean), s)?;
     let (a, b) = &mut strips[i].1;
-    a.push(zwarp_viz::color_to_rgb8(pred));
-    b.push(zwarp_viz::scalar_to_rgb8(&f.map, 0.0, 1.0)?);
+    a.push(panel(pred, label)?);
+    b.push(flip);
     Ok(())
 }
 

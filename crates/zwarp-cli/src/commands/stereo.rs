@@ -242,7 +242,13 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                     };
                     let q = colorwarp::quality(&reference.color, &out, Some(&unseen))?;
                     if ki == 0 && args.images.is_some() {
-                        colorwarp::add_panel(&mut strips, (alternate, ei as u32), &reference.color, &out.color)?;
+                        colorwarp::add_panel(
+                            &mut strips,
+                            (alternate, ei as u32),
+                            &reference.color,
+                            &out.color,
+                            m.name(),
+                        )?;
                         preds[ei].push((m, out.color.clone()));
                     }
                     let key = (alternate, ei == 1, m);

@@ -344,7 +344,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                                 &reference.color,
                                 &out.color,
                             )?;
-                            colorwarp::add_panel(&mut strips, (interp, 0), &reference.color, &out.color)?;
+                            colorwarp::add_panel(&mut strips, (interp, 0), &reference.color, &out.color, m.name())?;
                         }
                     }
                     let idx = match accs.iter().position(|(key, _)| *key == (interp, m)) {
