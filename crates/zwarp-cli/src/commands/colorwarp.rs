@@ -286,8 +286,13 @@ pub fn mean_quality(qs: &[Quality]) -> Quality {
 
 /// The pixels of the target view `target` the source view did not see: its depth reprojected
 /// into the source (`to_source`) lands off-screen or behind another surface.
-pub fn unseen(target_depth: &Image<f32>, to_source: &Image<Motion>, source: &View) -> Result<Image<bool>> {
-    Ok(zwarp_color::source_visibility(target_depth, to_source, &source.depth, &source.cam)?.map(|&v| !v))
+pub fn unseen(
+    target_depth: &Image<f32>,
+    to_source: &Image<Motion>,
+    source_depth: &Image<f32>,
+    source_cam: &Camera,
+) -> Result<Image<bool>> {
+    Ok(zwarp_color::source_visibility(target_depth, to_source, source_depth, source_cam)?.map(|&v| !v))
 }
 
 /// Writes a linear RGB image as sRGB PNG `dir/name.png`.

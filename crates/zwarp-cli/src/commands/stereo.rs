@@ -204,7 +204,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
                 let rp = RobustParams { fallback: hp, ..RobustParams::default() };
                 let to_src = be.motion(reference, &src.cam, src.t)?;
-                let unseen = colorwarp::unseen(&reference.depth, &to_src, src)?;
+                let unseen = colorwarp::unseen(&reference.depth, &to_src, &src.depth, &src.cam)?;
                 let floor = zwarp_color::floor::floor_ms(&field, &src.color, reps)?.0;
                 for &m in &methods {
                     let (out, samples) = output::time_repeated(reps, || -> Result<_> {

@@ -242,8 +242,8 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
             let target_view = View { cam: ct, t: tt, color: reference.color.clone(), depth: tdepth, items: titems };
             let to_src = be.motion(&target_view, &src.cam, src.t)?;
             let to_next = be.motion(&target_view, &next.cam, next.t)?;
-            let unseen_src = colorwarp::unseen(&target_view.depth, &to_src, &src)?;
-            let unseen_next = colorwarp::unseen(&target_view.depth, &to_next, &next)?;
+            let unseen_src = colorwarp::unseen(&target_view.depth, &to_src, &src.depth, &src.cam)?;
+            let unseen_next = colorwarp::unseen(&target_view.depth, &to_next, &next.depth, &next.cam)?;
             let unseen_both = Image::from_fn(w, h, |x, y| *unseen_src.get(x, y) && *unseen_next.get(x, y));
             let exact = match &history {
                 Some(_) => None,

@@ -126,11 +126,6 @@ pub struct VrRow {
     pub speedup: f64,
 }
 
-/// The camera of one eye: `cam` moved by `side * ipd / 2` along its right axis.
-pub fn eye_camera(cam: &Camera, side: f32, ipd: f32) -> Camera {
-    colorwarp::offset_camera(cam, side * 0.5 * ipd, 0.0, None)
-}
-
 /// One rendered view: the opaque G-buffer, the A-buffer and the colour an eye sees.
 pub struct EyeView {
     /// Camera.
@@ -329,7 +324,7 @@ fn unseen(scene: &Scene, reference: &EyeView, source: &EyeView) -> Result<Image<
         &source.cam,
         &scene.object_deltas(reference.t, source.t),
     )?;
-    Ok(zwarp_color::source_visibility(&reference.depth, &to_src, &source.depth, &source.cam)?.map(|&v| !v))
+    super::colorwarp::unseen(&reference.depth, &to_src, &source.depth, &source.cam)
 }
 
 /// A prediction of the first frame kept for the images.
@@ -375,7 +370,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
         // The eyes, rendered and timed.
         let mut refs = Vec::new();
         for side in [-1.0f32, 1.0] {
-            let ce = eye_camera(&c, side, ipd);
+            let ce = super::stereo::eye_camera(&c, side, ipd);
             refs.push(output::time_repeated(reps, || r.view(&ce, t))?);
         }
         for &alternate in &p.strategies {
@@ -385,7 +380,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
                 let (reference, render_samples) = &refs[ei];
                 let prev;
                 let src: &EyeView = if alternate {
-                    prev = r.view(&eye_camera(&cp, side, ipd), tp)?;
+                    prev = r.view(&super::stereo::eye_camera(&cp, side, ipd), tp)?;
                     &prev
                 } else {
                     &centre
