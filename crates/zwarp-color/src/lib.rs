@@ -25,7 +25,7 @@
 //! chosen sample's source depth, and the per-pixel residual that says how far the result is from
 //! a solution of eq. 1 (its confidence).
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod baselines;
 pub mod combine;

@@ -12,6 +12,7 @@
 //! - **Matrices** are column-major glam types; projections map view-space depth to `[0, 1]`
 //!   (`perspective_rh` / `orthographic_rh`).
 
+#![deny(missing_docs)]
 pub mod camera;
 pub mod error;
 pub mod geom;

@@ -15,7 +15,7 @@
 //! Depth follows the zwarp convention: post-projection depth in `[0, 1]`, 0 = near, 1 = far
 //! and "no surface"; holes of a warped buffer are kept at 1 and never occlude.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod bounds;
 pub mod diagnose;

@@ -34,7 +34,7 @@
 //! with a compute copy (GLES cannot copy depth textures to buffers) and colour falls back to
 //! half floats where 32-bit float targets are not renderable. Device errors while building
 //! pipelines come back as `Error::Unavailable` instead of wgpu's default panic.
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod compute;
 pub mod context;

@@ -21,6 +21,7 @@
 //! All functions validate their input (same size, non-empty, finite values, positive data range)
 //! and return [`zwarp_core::Error::Invalid`] with a one-line message instead of panicking.
 
+#![deny(missing_docs)]
 mod color;
 mod depth;
 mod diff;

@@ -36,7 +36,7 @@
 //! Entry points: [`render_depth`], [`render_frame`], [`render_motion`], [`render_layers`],
 //! [`draw_into`], [`any_fragment_visible`].
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 mod kernel;
 mod peel;

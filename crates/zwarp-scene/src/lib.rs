@@ -16,7 +16,7 @@
 //! soups, untextured files) is coloured by the renderer's triplanar pattern
 //! ([`zwarp_core::ColorMap::Pattern`]) tinted per object.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod loaders;
 pub mod path;

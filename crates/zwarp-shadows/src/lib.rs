@@ -26,6 +26,7 @@
 //! Conventions (ARCHITECTURE.md "Conventions"): depth in `[0, 1]`, 1 = empty; pixel centres at
 //! `+0.5`; row 0 on top.
 
+#![deny(missing_docs)]
 pub mod eval;
 pub mod light;
 pub mod lookups;

@@ -17,6 +17,7 @@
 //!   `vx`, `vy`, `depth`) writers plus readers for round trips. Errors are
 //!   [`zwarp_core::Error::Io`] / [`zwarp_core::Error::Parse`] naming the file.
 
+#![deny(missing_docs)]
 pub mod colormap;
 pub mod figure;
 pub mod io;

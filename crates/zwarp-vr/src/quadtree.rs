@@ -179,7 +179,7 @@ pub struct Level {
 }
 
 impl Level {
-    /// Node `(x, y)`, [`ABSENT`]-like neutral outside.
+    /// Node `(x, y)`; outside the level a neutral node (all links, a surface, fully merged, no error).
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> Node {
         if x < self.width && y < self.height {

@@ -22,6 +22,7 @@
 //! - [`synth`]: an analytic ray-cast scene (ground + boxes) producing peeled layers, used by
 //!   tests and benchmarks.
 
+#![deny(missing_docs)]
 pub mod baselines;
 pub mod bounds;
 pub mod depth_warp;
