@@ -22,6 +22,7 @@ pub mod diagnose;
 pub mod frustum;
 pub mod holebound;
 pub mod maxdepth;
+pub mod objects;
 pub mod screen;
 pub mod sequence;
 pub mod woc;
@@ -33,6 +34,7 @@ pub use holebound::{bound_far_pixels, StaticRays};
 pub use maxdepth::{
     erode_max, max_in_rect, reduce_max_2x2, MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, YMap,
 };
+pub use objects::{object_screen_speed, BoxObject, CullObjects, SceneObjects};
 pub use screen::{
     hull_of_corners, hull_x_range_in_strip, project_corner_lanes, project_corners, rect_of_corners, screen_hull_with,
     screen_rect, screen_rect_with, square_meets_hull, CornerLanes, PixelRect, ScreenRect,
@@ -42,6 +44,7 @@ pub use woc::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, cull_against_depth_with, downsample_max, hybrid_cull,
     ideal_screen_space, lastframe, max_over_footprints, nocull, open_rims_in_target, opening_rim_dirs, opening_rims,
     reference, screen_speed, twophase, twophase_with, vfc_cull, vfc_cull_with, visible_from_items, woc,
-    woc_motion_field, woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode, TwoPhaseResult,
-    WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE, NEIGHBOURS, RIM_MARGIN,
+    woc_motion_field, woc_objects, woc_with, CullAccuracy, CullResult, CullStats, CullTimings, PrevFrame, RimMode,
+    TwoPhaseResult, WocParams, DEPTH_TOLERANCE, HOLE_BOUND_RADIUS, HULL_TEST_MAX_AREA, MAX_DOWNSAMPLE, NEIGHBOURS,
+    RIM_MARGIN,
 };

@@ -7,7 +7,7 @@ use zwarp_cull::{
     aabb_triangles, accuracy, coarse_camera, cull_against_depth, culled_visible, downsample_max, hybrid_cull,
     ideal_screen_space, lastframe, nocull, open_rims_in_target, opening_rim_dirs, opening_rims, reference,
     run_sequence, run_sequence_repeated, screen_rect, screen_speed, summarize, twophase, vfc_cull, visible_from_items,
-    woc, woc_motion_field, MaxDepthKind, Method, PrevFrame, RimMode, ScreenRect, WocParams,
+    woc, woc_motion_field, woc_objects, BoxObject, MaxDepthKind, Method, PrevFrame, RimMode, ScreenRect, WocParams,
 };
 use zwarp_raster::{any_fragment_visible, render_frame, FrameOptions};
 use zwarp_warp::{warp_depth, WarpLayer, WarpParams};
@@ -207,6 +207,62 @@ fn woc_is_conservative_along_a_camera_path_at_odd_sizes() {
         }
         assert!(culled_any, "seed {seed}: occlusion culling removed nothing beyond VFC");
     }
+}
+
+/// An engine's plain boxes (`woc_objects` over [`BoxObject`]s: object-space box, previous and
+/// current transform, ids = the item buffer's) cull exactly as the scene they bound wherever
+/// the scene pipeline takes no step that needs triangles, and stay conservative with the
+/// rapid-motion test on (rapid objects kept visible without being drawn).
+#[test]
+fn plain_boxes_cull_like_the_scene_they_bound() {
+    for seed in [1u64, 2, 3] {
+        let s = random_scene(seed);
+        let cams: Vec<Camera> = (0..4)
+            .map(|k| {
+                let a = 0.4 + k as f32 * 0.06;
+                let eye = Vec3::new(18.0 * a.cos(), 2.5, 18.0 * a.sin());
+                Camera::perspective(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 1.0, 0.1, 100.0, 97, 61).unwrap()
+            })
+            .collect();
+        for k in 1..cams.len() {
+            let (tp, t) = ((k - 1) as f32 * DT, k as f32 * DT);
+            let boxes: Vec<BoxObject> = s
+                .instances
+                .iter()
+                .map(|i| BoxObject {
+                    bounds: s.meshes[i.mesh as usize].bounds,
+                    prev_transform: i.transform_at(tp),
+                    transform: i.transform_at(t),
+                })
+                .collect();
+            let prev = render_frame(&s, &cams[k - 1], tp, &FrameOptions::default()).unwrap();
+            let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cams[k - 1], t: tp };
+            let truth = reference(&s, &cams[k], t).unwrap();
+            for downsample in [1, 2] {
+                let params = WocParams { rapid_motion: None, hybrid_objects: 0, downsample, ..WocParams::default() };
+                let by_scene = woc(&s, &pf, &cams[k], t, &params).unwrap();
+                let by_boxes = woc_objects(boxes.as_slice(), &pf, &cams[k], &params).unwrap();
+                assert_eq!(by_boxes.visible, by_scene.visible, "seed {seed} frame {k} /{downsample}");
+                assert_eq!(by_boxes.occlusion_map, by_scene.occlusion_map);
+                assert_eq!(by_boxes.stats, by_scene.stats);
+            }
+            // Every moving object in view is rapid at this threshold.
+            let rapid = WocParams { rapid_motion: Some(1e-6), ..WocParams::default() };
+            let r = woc_objects(boxes.as_slice(), &pf, &cams[k], &rapid).unwrap();
+            assert_eq!(accuracy(&r.visible, &truth.visible, s.instances.len()).false_negatives, 0);
+            assert!(r.stats.rapid > 0, "seed {seed} frame {k}: no rapid object");
+            assert!(r.predrawn.iter().all(|id| r.visible.binary_search(id).is_ok()), "rapid objects are kept");
+        }
+    }
+    // No objects: nothing to test, nothing visible.
+    let cam = cam_at(Vec3::new(0.0, 2.0, 8.0), Vec3::ZERO);
+    let depth = Image::new(W, H, 1.0f32);
+    let items = Image::new(W, H, zwarp_core::NO_ITEM);
+    let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
+    let none: &[BoxObject] = &[];
+    assert!(woc_objects(none, &pf, &cam, &WocParams::default()).unwrap().visible.is_empty());
+    let bad = WocParams { downsample: 0, ..WocParams::default() };
+    assert!(woc_objects(none, &pf, &cam, &bad).is_err());
 }
 
 #[test]

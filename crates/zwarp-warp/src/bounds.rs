@@ -208,6 +208,9 @@ fn ceil_log2(n: u32) -> u32 {
     }
 }
 
+/// [`MotionPyramid::raw`]: the texels of every level and their layout.
+pub(crate) type RawPyramid<'a, L> = (&'a [[f32; 4]], &'a [f32], L);
+
 impl MotionPyramid {
     /// Builds the axis-aligned pyramid of `motion` (valid samples as in [`is_valid_sample`]).
     /// Errors on a zero-size buffer or NaN motion / depth.
@@ -320,9 +323,9 @@ impl MotionPyramid {
         MotionPyramid { width: w, height: h, frame, levels, data, zmin }
     }
 
-    /// The raw layout for the AVX2 tightening: texels, and per level (1..=top) its width,
-    /// height and first texel.
-    pub(crate) fn raw(&self) -> (&[[f32; 4]], &[f32], impl Iterator<Item = (u32, u32, usize)> + '_) {
+    /// The raw layout for the AVX2 tightening: min-max texels, min-depth texels, and per level
+    /// (1..=top) its width, height and first texel.
+    pub(crate) fn raw(&self) -> RawPyramid<'_, impl Iterator<Item = (u32, u32, usize)> + '_> {
         (&self.data, &self.zmin, self.levels.iter().map(|l| (l.w, l.h, l.off)))
     }
 

@@ -29,14 +29,46 @@
 //! assert!(prediction.converged_fraction() > 0.95);
 //! # Ok::<(), zwarp::Error>(())
 //! ```
+//!
+//! Occlusion culling by warping (seed 000 Sec. 5, WOC) takes the engine's objects as plain
+//! boxes ([`BoxObject`]: object-space box, previous and current transform; its index is the id
+//! the item buffer stores) and last frame's depth and item buffers ([`PrevFrame`]), and returns
+//! the objects to draw, without a hierarchy and without zwarp's scene type:
+//!
+//! ```
+//! use zwarp::{woc_objects, Aabb, BoxObject, Camera, PrevFrame, Vec3, WocParams};
+//! use zwarp::warp::synth::SynthScene;
+//!
+//! let (w, h) = (128, 72);
+//! let cam = |x: f32| Camera::perspective(Vec3::new(x, 1.0, 16.0), Vec3::new(x, 1.0, 0.0), Vec3::Y, 1.0, 0.5, 100.0, w, h);
+//! let (a, b) = (cam(0.0)?, cam(0.3)?);
+//! let city = SynthScene::city(6);
+//! // The engine's objects: the boxes, then the ground (id = number of boxes) as a thin slab.
+//! let mut objects: Vec<BoxObject> = city.boxes.iter().map(|b| BoxObject::fixed(b.aabb)).collect();
+//! objects.push(BoxObject::fixed(Aabb::new(Vec3::new(-40.0, -0.01, -40.0), Vec3::new(40.0, 0.0, 40.0))));
+//!
+//! // Last frame's depth and item buffers, as the renderer left them.
+//! let last = city.render(&a, 0.0, 1, false);
+//! let previous = PrevFrame { depth: &last.depth[0], items: &last.items[0], cam: &a, t: 0.0 };
+//! let culled = woc_objects(objects.as_slice(), &previous, &b, &WocParams::default())?;
+//!
+//! // Every object the new view shows is kept; most boxes behind the front rows are not.
+//! let truth = city.render(&b, 0.0, 1, false);
+//! assert!(truth.items[0].data().iter().filter(|&&id| id != zwarp::core::NO_ITEM).all(|id| culled.visible.contains(id)));
+//! assert!(culled.stats.occlusion_culled >= 10);
+//! # Ok::<(), zwarp::Error>(())
+//! ```
 #![deny(missing_docs)]
 
 pub use glam::{Mat4, Vec2, Vec3};
-pub use zwarp_core::{Camera, Error, Image, Motion, Result};
+pub use zwarp_core::{Aabb, Camera, Error, Image, Motion, Result};
+pub use zwarp_cull::{woc_objects, BoxObject, CullResult, PrevFrame, WocParams};
 pub use zwarp_warp::{HolePolicy, PixelState, WarpParams};
 
 /// The building blocks: depth buffers, cameras, motion fields.
 pub use zwarp_core as core;
+/// Occlusion culling by warping and the baselines it is measured against (seed 000 Sec. 5).
+pub use zwarp_cull as cull;
 /// The GPU twins (wgpu compute kernels) and the wgpu version they are built against.
 pub use zwarp_gpu as gpu;
 /// The warp itself, stage by stage: preparation, search, baselines, hole protocol.

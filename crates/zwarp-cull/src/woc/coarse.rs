@@ -4,7 +4,7 @@
 
 use glam::Vec2;
 use rayon::prelude::*;
-use zwarp_core::{Camera, Error, Image, Result, Scene, EMPTY_DEPTH, NO_ITEM};
+use zwarp_core::{Camera, Error, Image, Result, EMPTY_DEPTH, NO_ITEM};
 
 /// The same view volume rendered at `1/factor` of the resolution (rounded up): projection and
 /// view are unchanged, only the pixel grid is coarser.
@@ -156,7 +156,8 @@ pub(crate) fn reduce_prev(
 
 /// Coarse texels whose footprint holds an *internal opening*: two different objects (the
 /// nearest and the farthest fine pixel of the footprint) whose own screen motions, from
-/// `prev_cam` at `t_a` to `cam` at `t_b` in fine pixels, pull them apart by more than
+/// `prev_cam` to `cam` with each object's world-space motion `delta(id)`, in fine pixels, pull
+/// them apart by more than
 /// `min_separation` px/frame. Returns one flag per coarse texel (row-major, `cw x ch` of
 /// [`coarse_camera`]).
 ///
@@ -169,15 +170,12 @@ pub(crate) fn reduce_prev(
 /// the far pixel to the near one; any relative motion within 120 degrees of it counts, so a
 /// boundary running obliquely through the footprint is still caught. `pairs` comes from
 /// [`reduce_prev`] (fine pixel coordinates in a `fw x fh` image).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn coarse_internal_openings(
-    scene: &Scene,
+    delta: impl Fn(u32) -> glam::Mat4 + Sync,
     pairs: &[Option<(Px, Px)>],
     (fw, fh): (u32, u32),
     prev_cam: &Camera,
     cam: &Camera,
-    t_a: f32,
-    t_b: f32,
     min_separation: f32,
 ) -> Vec<bool> {
     // Object matrices of the items involved, computed once each.
@@ -185,7 +183,7 @@ pub(crate) fn coarse_internal_openings(
     ids.sort_unstable();
     ids.dedup();
     let vp_b = cam.view_proj();
-    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * scene.instances[id as usize].delta(t_a, t_b)).collect();
+    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
     let mat = |id: u32| &mats[ids.binary_search(&id).expect("collected above")];
     let inv_a = prev_cam.view_proj().inverse();
     let motion = |p: &Px| {

@@ -33,6 +33,7 @@ use zwarp_warp::{warp_depth, HolePolicy, PixelState, Sampling, WarpLayer, WarpPa
 
 use crate::bounds::ObjectBounds;
 use crate::maxdepth::{MaxDepthKind, MaxDepthMap};
+use crate::objects::{CullObjects, SceneObjects};
 
 pub mod accuracy;
 pub mod baselines;
@@ -383,9 +384,27 @@ pub fn woc_with(
     params: &WocParams,
 ) -> Result<CullResult> {
     bounds.check(scene)?;
-    params.validate()?;
     check_time(t)?;
     check_time(prev.t)?;
+    woc_objects(&SceneObjects { scene, bounds, t_prev: prev.t, t }, prev, cam, params)
+}
+
+/// WOC for one frame over any [`CullObjects`]: the pipeline of [`woc_with`], which calls it with
+/// a scene's instances. For bounds-only objects (an engine's [`crate::BoxObject`]s, whose ids
+/// are what `prev.items` holds) the steps that need triangles are skipped: rapid-motion objects
+/// are kept visible without being drawn into the predicted depth, and the hybrid query and the
+/// hole bounds do not run. `prev.t` is not read.
+///
+/// Errors: as [`woc`], and an item buffer naming objects beyond `objects.len()` is not an
+/// error (such pixels move with the camera, as empty ones do).
+pub fn woc_objects(
+    objects: &(impl CullObjects + ?Sized),
+    prev: &PrevFrame<'_>,
+    cam: &Camera,
+    params: &WocParams,
+) -> Result<CullResult> {
+    params.validate()?;
+    let geometry = objects.geometry();
     let f = params.downsample;
     // At a coarse resolution the NaN scan is part of the reduction's single pass (below).
     if f > 1 {
@@ -408,7 +427,7 @@ pub fn woc_with(
     //    the reduced depth + items and the near/far pairs of the internal openings.
     let t0 = Instant::now();
     let (full_prev_cam, full_cam) = (prev.cam, cam);
-    let n = scene.instances.len();
+    let n = objects.len();
     let mut pairs = Vec::new();
     let coarse = if f > 1 {
         let (ca, cb) = (coarse_camera(prev.cam, f), coarse_camera(cam, f));
@@ -427,9 +446,9 @@ pub fn woc_with(
     };
 
     // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
-    let n_obj = bounds.len();
-    let animated = |id: u32| (id as usize) < n_obj && bounds.is_animated(id);
-    let motion = motion_field_animated(scene, animated, prev_depth, prev_items, (prev_cam, cam), (prev.t, t))?;
+    let animated = |id: u32| (id as usize) < n && objects.is_animated(id);
+    let delta = |id: u32| objects.delta(id);
+    let motion = motion_field_animated(animated, delta, prev_depth, prev_items, (prev_cam, cam))?;
     tm.motion_ms = ms(t0);
 
     // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
@@ -454,7 +473,7 @@ pub fn woc_with(
     // Coarse culling: openings inside one coarse texel are invisible to the coarse rim test.
     let inner_open = match (params.open_rims, f > 1) {
         (Some(sep), true) => {
-            Some(coarse_internal_openings(scene, &pairs, prev.depth.size(), full_prev_cam, full_cam, prev.t, t, sep))
+            Some(coarse_internal_openings(delta, &pairs, prev.depth.size(), full_prev_cam, full_cam, sep))
         }
         _ => None,
     };
@@ -500,15 +519,15 @@ pub fn woc_with(
     //    Rapid-motion objects are drawn exactly into the predicted depth, last (their
     //    rasterized depth needs no margin and no rim can hide a gap in it), and kept visible.
     let t0 = Instant::now();
-    let objects = prepass(scene, bounds, t, cam, &Rapid::of(params, full_prev_cam, full_cam, prev.t));
-    let predrawn: Vec<u32> = objects.iter().filter(|o| o.test == Test::Forced).map(|o| o.id).collect();
-    if !predrawn.is_empty() {
+    let in_frustum = prepass(objects, cam, &Rapid::of(params, full_prev_cam, full_cam));
+    let predrawn: Vec<u32> = in_frustum.iter().filter(|o| o.test == Test::Forced).map(|o| o.id).collect();
+    if let (false, Some((scene, t))) = (predrawn.is_empty(), geometry) {
         draw_exact(&mut predicted, scene, full_cam, t, &predrawn)?;
     }
     tm.draw_ms = ms(t0);
 
     // 4c. Far pixels near surfaces: bounded by static surfaces their ray crosses.
-    if params.hole_bound && f == 1 {
+    if let (true, 1, Some((scene, _))) = (params.hole_bound, f, geometry) {
         let t0 = Instant::now();
         let rays = crate::holebound::StaticRays::new(scene, prev.depth, prev.items, prev.cam, cam)?;
         let candidates = near_surface(&predicted, HOLE_BOUND_RADIUS);
@@ -525,17 +544,18 @@ pub fn woc_with(
     //    structure, then the silhouette of the survivors.
     let t0 = Instant::now();
     let hull = params.hull_test.then_some((predicted.data(), hull_slack(cam, full_cam)));
-    let kept = test_prepassed(&objects, cam, &map, hull);
+    let kept = test_prepassed(&in_frustum, cam, &map, hull);
     tm.test_ms = ms(t0);
 
     // 7. Hybrid object-space query of the heaviest survivors (not the predrawn ones).
     let t0 = Instant::now();
     let k = if f > 1 { 0 } else { params.hybrid_objects };
-    let (hidden, tested) = if k > 0 {
-        let candidates: Vec<u32> = kept.iter().copied().filter(|id| predrawn.binary_search(id).is_err()).collect();
-        hybrid_cull(scene, &predicted, cam, t, &candidates, k, params.hybrid_min_triangles)?
-    } else {
-        (Vec::new(), 0)
+    let (hidden, tested) = match geometry {
+        Some((scene, t)) if k > 0 => {
+            let candidates: Vec<u32> = kept.iter().copied().filter(|id| predrawn.binary_search(id).is_err()).collect();
+            hybrid_cull(scene, &predicted, cam, t, &candidates, k, params.hybrid_min_triangles)?
+        }
+        _ => (Vec::new(), 0),
     };
     let visible: Vec<u32> = if hidden.is_empty() {
         kept
@@ -544,11 +564,11 @@ pub fn woc_with(
     };
     tm.hybrid_ms = ms(t0);
 
-    let crosses_near = objects.iter().filter(|o| o.test == Test::Keep).count();
+    let crosses_near = in_frustum.iter().filter(|o| o.test == Test::Keep).count();
     let stats = CullStats {
         objects: n,
-        frustum_culled: n - objects.len(),
-        occlusion_culled: objects.len() - visible.len() - hidden.len(),
+        frustum_culled: n - in_frustum.len(),
+        occlusion_culled: in_frustum.len() - visible.len() - hidden.len(),
         hybrid_culled: hidden.len(),
         hybrid_tested: tested,
         crosses_near,

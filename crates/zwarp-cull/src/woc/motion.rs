@@ -23,21 +23,21 @@ pub fn woc_motion_field(
 ) -> Result<Image<zwarp_core::Motion>> {
     let n = scene.instances.len();
     let animated = |id: u32| (id as usize) < n && scene.instances[id as usize].animation.is_animated();
-    motion_field_animated(scene, animated, depth, items, (cam_a, cam_b), (t_a, t_b))
+    motion_field_animated(animated, |id| scene.instances[id as usize].delta(t_a, t_b), depth, items, (cam_a, cam_b))
 }
 
-/// [`woc_motion_field`] with the animation flags given by `animated` (from [`ObjectBounds`]
-/// in [`woc_with`], so a frame reads no instance of a static object). The animated ids on
+/// [`woc_motion_field`] with the animation flags given by `animated` and each animated
+/// object's world-space motion by `delta` (from [`crate::CullObjects`] in [`woc_with`], so a
+/// frame reads no instance of a static object). The animated ids on
 /// screen are gathered from the item buffer itself (sorted, deduplicated: a few per frame),
 /// with no per-frame array over all objects (at 1M objects those were 5 MB to allocate, clear
 /// and scan every frame).
 pub(crate) fn motion_field_animated(
-    scene: &Scene,
     animated: impl Fn(u32) -> bool + Sync,
+    delta: impl Fn(u32) -> glam::Mat4 + Sync,
     depth: &Image<f32>,
     items: &Image<u32>,
     (cam_a, cam_b): (&Camera, &Camera),
-    (t_a, t_b): (f32, f32),
 ) -> Result<Image<zwarp_core::Motion>> {
     zwarp_core::motion::check_motion_inputs(depth, Some(items), cam_a)?;
     let (w, h) = depth.size();
@@ -62,7 +62,7 @@ pub(crate) fn motion_field_animated(
     ids.sort_unstable();
     ids.dedup();
     let vp_b = cam_b.view_proj();
-    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * scene.instances[id as usize].delta(t_a, t_b)).collect();
+    let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
     let inv_a = cam_a.view_proj().inverse();
     let mut out = Image::new(w, h, zwarp_core::Motion::default());
     out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {

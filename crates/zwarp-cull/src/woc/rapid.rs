@@ -2,42 +2,24 @@
 //! threshold are drawn exactly into the predicted depth instead of being warped.
 
 use super::{hull_hides, max_over_footprints, WocParams, DEPTH_TOLERANCE};
-use crate::bounds::ObjectBounds;
 use crate::frustum::Frustum;
 use crate::maxdepth::MaxDepthQuery;
+use crate::objects::{corner_speed, object_screen_speed, CullObjects};
 use crate::screen::{screen_rect_with, PixelRect, ScreenRect};
 use rayon::prelude::*;
 use zwarp_core::{Aabb, Camera, Image, Result, Scene, EMPTY_DEPTH};
 use zwarp_raster::draw_into;
 
-/// Screen-space speed (pixels per frame) of an instance between two views: the largest
-/// displacement of its object-space bounding-box corners, each moved with the instance's
-/// transform at each time (so rotating objects are tracked point by point). Infinite when a
-/// corner is behind or in front of the near plane in either view. Pass the same camera twice
-/// for the object's own motion only (0 for static objects).
+/// Screen-space speed (pixels per frame) of instance `id` of `scene` between view `cam_a` at
+/// time `t_a` and view `cam_b` at `t_b` ([`crate::objects::object_screen_speed`] of the
+/// scene's objects).
 pub fn screen_speed(scene: &Scene, id: u32, cam_a: &Camera, t_a: f32, cam_b: &Camera, t_b: f32) -> f32 {
     let inst = &scene.instances[id as usize];
     if !inst.animation.is_animated() && cam_a == cam_b {
         return 0.0;
     }
-    let bounds = scene.meshes[inst.mesh as usize].bounds;
-    if bounds.is_empty() {
-        return 0.0;
-    }
-    let (ma, mb) = (inst.transform_at(t_a), inst.transform_at(t_b));
-    let (vpa, vpb) = (cam_a.view_proj(), cam_b.view_proj());
-    let mut speed = 0.0f32;
-    for c in bounds.corners() {
-        let pa = zwarp_core::camera::project_with(&vpa, cam_a.width, cam_a.height, ma.transform_point3(c));
-        let pb = zwarp_core::camera::project_with(&vpb, cam_b.width, cam_b.height, mb.transform_point3(c));
-        match (pa, pb) {
-            (Some(a), Some(b)) if a.z >= 0.0 && b.z >= 0.0 => {
-                speed = speed.max((b.truncate() - a.truncate()).length());
-            }
-            _ => return f32::INFINITY,
-        }
-    }
-    speed
+    let local = scene.meshes[inst.mesh as usize].bounds;
+    corner_speed((local, inst.transform_at(t_a), inst.transform_at(t_b)), cam_a, cam_b)
 }
 
 /// Draws `objects` at time `t` exactly into `predicted`, which has the size of the culling
@@ -91,17 +73,15 @@ pub(crate) struct Rapid<'a> {
     pub(crate) cam_a: &'a Camera,
     /// Current full-resolution camera.
     pub(crate) cam_b: &'a Camera,
-    pub(crate) t_a: f32,
     pub(crate) includes_camera: bool,
 }
 
 impl<'a> Rapid<'a> {
-    pub(crate) fn of(params: &WocParams, full_prev_cam: &'a Camera, full_cam: &'a Camera, t_a: f32) -> Self {
+    pub(crate) fn of(params: &WocParams, full_prev_cam: &'a Camera, full_cam: &'a Camera) -> Self {
         Rapid {
             threshold: params.rapid_threshold_px(full_cam.width),
             cam_a: if params.rapid_includes_camera { full_prev_cam } else { full_cam },
             cam_b: full_cam,
-            t_a,
             includes_camera: params.rapid_includes_camera,
         }
     }
@@ -111,25 +91,25 @@ impl<'a> Rapid<'a> {
 /// task per object costs more than the test of a culled one).
 pub(crate) const OBJECT_CHUNK: usize = 512;
 
-/// The per-object pass of [`woc`] before the occlusion map exists: bounds at `t`, VFC, the
+/// The per-object pass of [`woc`] before the occlusion map exists: current boxes, VFC, the
 /// rapid-motion speed (thesis Sec. IV.1) and the box's screen rectangle for `cam` (the culling
-/// resolution), in one read of each instance. Returns the objects in the frustum (whose
+/// resolution), in one read of each object. Returns the objects in the frustum (whose
 /// rectangle is not outside the image), increasing ids. Static objects skip the speed unless the
 /// camera's motion counts (their own speed is 0).
-pub(crate) fn prepass(scene: &Scene, bounds: &ObjectBounds, t: f32, cam: &Camera, rapid: &Rapid<'_>) -> Vec<Prepassed> {
+pub(crate) fn prepass(objects: &(impl CullObjects + ?Sized), cam: &Camera, rapid: &Rapid<'_>) -> Vec<Prepassed> {
     let frustum = Frustum::from_camera(cam);
     let vp = cam.view_proj();
-    (0..scene.instances.len() as u32)
+    (0..objects.len() as u32)
         .into_par_iter()
         .with_min_len(OBJECT_CHUNK)
         .filter_map(|id| {
-            let aabb = bounds.at(scene, id, t);
+            let aabb = objects.world_box(id);
             if !frustum.intersects(&aabb) {
                 return None;
             }
             if let Some(thr) = rapid.threshold {
-                let moving = rapid.includes_camera || bounds.is_animated(id);
-                if moving && screen_speed(scene, id, rapid.cam_a, rapid.t_a, rapid.cam_b, t) > thr {
+                let moving = rapid.includes_camera || objects.is_animated(id);
+                if moving && object_screen_speed(objects, id, rapid.cam_a, rapid.cam_b) > thr {
                     return Some(Prepassed { id, aabb, test: Test::Forced });
                 }
             }
