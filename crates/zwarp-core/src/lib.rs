@@ -26,7 +26,7 @@ pub use error::{Error, Result};
 pub use geom::Aabb;
 pub use image::Image;
 pub use material::{linear_to_srgb, srgb_to_linear, ColorMap, Material, MeshPart, Texture, Wrap, DEFAULT_MATERIAL};
-pub use motion::{check_motion_inputs, motion_field, Motion};
+pub use motion::{check_motion_inputs, motion_field, motion_field_with, Motion};
 pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
 
 /// Depth value that means "no surface here" (the far plane).

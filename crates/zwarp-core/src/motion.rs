@@ -71,18 +71,62 @@ pub fn motion_field(
     cam_b: &Camera,
     object_deltas: &[Mat4],
 ) -> Result<Image<Motion>> {
+    let n = object_deltas.len();
+    motion_field_with(depth, items, cam_a, cam_b, |id| (id as usize) < n, |id| object_deltas[id as usize])
+}
+
+/// [`motion_field`] with each object's motion given by functions: `moving(id)` says whether
+/// object `id` moves on its own, `delta(id)` is then its world-space motion `M(t_b) *
+/// M(t_a)^-1`. Only the moving ids that appear on a surface pixel of the item buffer are
+/// looked up, each once, so a frame costs nothing per object it does not show (a scene of a
+/// million objects needs no per-frame array of matrices). Bit-identical to [`motion_field`]
+/// with the full slice of deltas.
+pub fn motion_field_with(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    moving: impl Fn(u32) -> bool + Sync,
+    delta: impl Fn(u32) -> Mat4 + Sync,
+) -> Result<Image<Motion>> {
     check_motion_inputs(depth, items, cam_a)?;
-    let inv_a = cam_a.view_proj().inverse();
-    let vp_b = cam_b.view_proj();
-    let deltas: Vec<Mat4> = object_deltas.iter().map(|d| vp_b * *d).collect();
     let (w, h) = depth.size();
+    let wu = w as usize;
+    // The moving ids on screen, sorted and unique (empty pixels move with the camera, whatever
+    // their id).
+    let mut ids: Vec<u32> = match items {
+        Some(items) => items
+            .data()
+            .par_chunks(wu)
+            .zip(depth.data().par_chunks(wu))
+            .flat_map_iter(|(ir, dr)| {
+                let mut last = NO_ITEM;
+                let mut seen = Vec::new();
+                for (&id, &d) in ir.iter().zip(dr) {
+                    if id != last && d < 1.0 && moving(id) {
+                        seen.push(id);
+                        last = id;
+                    }
+                }
+                seen
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    ids.sort_unstable();
+    ids.dedup();
+    let vp_b = cam_b.view_proj();
+    let mats: Vec<Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
+    let inv_a = cam_a.view_proj().inverse();
     let mut out = Image::new(w, h, Motion::default());
-    out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+    out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
         for (x, o) in row.iter_mut().enumerate() {
-            let i = y * w as usize + x;
+            let i = y * wu + x;
             let d = depth.data()[i];
-            let id = items.map_or(NO_ITEM, |it| it.data()[i]);
-            let m = if d < 1.0 { deltas.get(id as usize).unwrap_or(&vp_b) } else { &vp_b };
+            let m = match (d < 1.0 && !ids.is_empty(), items) {
+                (true, Some(items)) => ids.binary_search(&items.data()[i]).map_or(&vp_b, |k| &mats[k]),
+                _ => &vp_b,
+            };
             *o = reproject_pixel(&inv_a, m, (w, h), (cam_b.width, cam_b.height), x as u32, y as u32, d);
         }
     });
@@ -93,6 +137,31 @@ pub fn motion_field(
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// The per-id form gives the slice form's field bit for bit: moving and static objects,
+    /// ids beyond the slice, `NO_ITEM` and empty pixels.
+    #[test]
+    fn motion_by_id_equals_the_slice_of_deltas() {
+        let (w, h) = (23, 17);
+        let a = Camera::perspective(Vec3::new(0.0, 1.0, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 0.1, 50.0, w, h).unwrap();
+        let b = Camera::perspective(Vec3::new(0.3, 1.1, 5.8), Vec3::X * 0.1, Vec3::Y, 1.0, 0.1, 50.0, w, h).unwrap();
+        let depth = Image::from_fn(w, h, |x, y| if (x + y) % 7 == 0 { 1.0 } else { 0.9 + 0.004 * x as f32 });
+        let items = Image::from_fn(w, h, |x, y| match (x / 5 + y) % 5 {
+            4 => NO_ITEM,
+            k => k,
+        });
+        let deltas = [Mat4::IDENTITY, Mat4::from_translation(Vec3::new(0.2, 0.0, -0.1)), Mat4::from_rotation_y(0.05)];
+        let by_slice = motion_field(&depth, Some(&items), &a, &b, &deltas).unwrap();
+        let by_id =
+            motion_field_with(&depth, Some(&items), &a, &b, |id| id == 1 || id == 2, |id| deltas[id as usize]).unwrap();
+        let bits =
+            |m: &Image<Motion>| m.data().iter().map(|s| [s.v.x, s.v.y, s.depth].map(f32::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(&by_id), bits(&by_slice));
+        // Object 1 moves on its own: its pixels differ from the camera-only field.
+        let still = motion_field(&depth, Some(&items), &a, &b, &[]).unwrap();
+        let i = items.data().iter().zip(depth.data()).position(|(&id, &d)| id == 1 && d < 1.0).unwrap();
+        assert_ne!(by_id.data()[i], still.data()[i]);
+    }
 
     #[test]
     fn zero_motion_for_identical_cameras() {

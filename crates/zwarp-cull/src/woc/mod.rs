@@ -448,7 +448,7 @@ pub fn woc_objects(
     // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
     let animated = |id: u32| (id as usize) < n && objects.is_animated(id);
     let delta = |id: u32| objects.delta(id);
-    let motion = motion_field_animated(animated, delta, prev_depth, prev_items, (prev_cam, cam))?;
+    let motion = zwarp_core::motion_field_with(prev_depth, Some(prev_items), prev_cam, cam, animated, delta)?;
     tm.motion_ms = ms(t0);
 
     // 2. Single-layer warp; holes at the far depth (or AWOC's approximate fill).
