@@ -268,6 +268,7 @@ fn eval_writes_the_documented_fields() {
             "psnr",
             "ssim",
             "converged",
+            "converged_seen",
             "warp_ms",
             "ref_ms",
             "speedup",
@@ -286,6 +287,7 @@ fn eval_writes_the_documented_fields() {
         let mean = detail.iter().map(|f| f["psnr"].as_f64().unwrap()).sum::<f64>() / detail.len() as f64;
         assert!((mean - r["psnr"].as_f64().unwrap()).abs() < 1e-9, "{r}");
         assert!(detail.iter().all(|f| f["ssim"].as_f64().unwrap() <= 1.0 && f["converged"].as_f64().unwrap() <= 1.0));
+        assert!(detail.iter().all(|f| (0.0..=1.0).contains(&f["converged_seen"].as_f64().unwrap())), "{r}");
         let s = r["ssim"].as_f64().unwrap();
         assert!(s > 0.5 && s <= 1.0, "{r}");
         let sp = r["speedup"].as_f64().unwrap();

@@ -128,6 +128,10 @@ pub struct EvalRow {
     /// Mean fraction of the reference's surface pixels where the method produced a depth
     /// (ours: a converged search; forward warps: a splat landed).
     pub converged: f64,
+    /// [`EvalRow::converged`] over the reference's surface pixels that the source view saw
+    /// (their point reprojected into the source lands on its nearest surface): disocclusions
+    /// and the strip entering at the border, which no single-layer search can solve, left out.
+    pub converged_seen: f64,
     /// Median warp time (ms) including the motion min-max mipmap; excluding the motion field.
     pub warp_ms: f64,
     /// Spread of the warp time (min, max ms).
@@ -163,6 +167,8 @@ pub struct FrameDetail {
     pub ssim: f64,
     /// Converged (ours) or covered (forward warps) fraction of the reference's surfaces.
     pub converged: f64,
+    /// The same over the surfaces the source view saw ([`EvalRow::converged_seen`]).
+    pub converged_seen: f64,
 }
 
 /// The parsed evaluation plan.
@@ -395,6 +401,16 @@ fn source_buffers(
     Ok((PairBuffers { single: (frame.depth, single_motion), peeled: with_motion, ground }, motion_ms))
 }
 
+/// The target pixels (view `cb` at `tb`) whose surface the source view (`ca` at `ta`) saw:
+/// the target's depth moved into the source (camera and object motion back from `tb` to `ta`)
+/// lands on the source's nearest surface (`zwarp_color::source_visibility`).
+fn seen_by_source(scene: &Scene, ca: &Camera, ta: f32, cb: &Camera, tb: f32) -> Result<Image<bool>> {
+    let source = render_frame(scene, ca, ta, &FrameOptions::default())?;
+    let target = render_frame(scene, cb, tb, &FrameOptions::default())?;
+    let back = motion_field(&target.depth, Some(&target.items), cb, ca, &scene.object_deltas(tb, ta))?;
+    Ok(zwarp_color::source_visibility(&target.depth, &back, &source.depth, ca)?)
+}
+
 /// Per-configuration accumulator over frame pairs.
 #[derive(Default)]
 struct Acc {
@@ -403,6 +419,7 @@ struct Acc {
     psnr_buffer: Vec<f64>,
     ssim_buffer: Vec<f64>,
     converged: Vec<f64>,
+    converged_seen: Vec<f64>,
     warp_ms: Vec<f64>,
     floor_ms: Vec<f64>,
     detail: Vec<FrameDetail>,
@@ -417,12 +434,17 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 /// Fraction of the reference's surface pixels where `predicted` holds a surface (and, for our
-/// warp, the search converged).
-fn coverage(predicted: &Image<f32>, reference: &Image<f32>, converged: Option<&Image<zwarp_warp::PixelState>>) -> f64 {
+/// warp, the search converged); with `seen`, only over the pixels it marks.
+fn coverage(
+    predicted: &Image<f32>,
+    reference: &Image<f32>,
+    converged: Option<&Image<zwarp_warp::PixelState>>,
+    seen: Option<&Image<bool>>,
+) -> f64 {
     let mut surf = 0usize;
     let mut hit = 0usize;
     for (i, (&p, &r)) in predicted.data().iter().zip(reference.data()).enumerate() {
-        if r < 1.0 {
+        if r < 1.0 && seen.is_none_or(|s| s.data()[i]) {
             surf += 1;
             let ok = match converged {
                 Some(s) => s.data()[i] == zwarp_warp::PixelState::Converged,
@@ -486,6 +508,7 @@ pub fn evaluate(
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
             let (reference, samples) = output::time_repeated(plan.reps, || device.render_depth(&on_device, cb, *tb))?;
             ref_samples.extend(samples);
+            let seen = seen_by_source(scene, ca, *ta, cb, *tb)?;
             for &ms in &plan.multisamples {
                 // The source (and the motion's target space) on the m x m sample grid: the same
                 // views at m times the resolution, so target pixel centres sit at m (x + 0.5).
@@ -533,11 +556,19 @@ pub fn evaluate(
                     a.ssim.push(q.ssim);
                     a.psnr_buffer.push(q.psnr_buffer);
                     a.ssim_buffer.push(q.ssim_buffer);
-                    let conv = coverage(&out.0, &reference, out.1.as_ref());
+                    let conv = coverage(&out.0, &reference, out.1.as_ref(), None);
+                    let conv_seen = coverage(&out.0, &reference, out.1.as_ref(), Some(&seen));
                     a.converged.push(conv);
+                    a.converged_seen.push(conv_seen);
                     a.warp_ms.extend(samples);
                     a.floor_ms.push(floor);
-                    a.detail.push(FrameDetail { pair: pi, psnr: q.psnr, ssim: q.ssim, converged: conv });
+                    a.detail.push(FrameDetail {
+                        pair: pi,
+                        psnr: q.psnr,
+                        ssim: q.ssim,
+                        converged: conv,
+                        converged_seen: conv_seen,
+                    });
                     if pi == 0 && plan.images.is_some() {
                         firsts.predictions.push((key.clone(), out.0.clone()));
                     }
@@ -636,6 +667,7 @@ pub fn evaluate(
                 psnr_buffer: mean(&a.psnr_buffer),
                 ssim_buffer: mean(&a.ssim_buffer),
                 converged: mean(&a.converged),
+                converged_seen: mean(&a.converged_seen),
                 warp_ms: wt.median,
                 warp_ms_min: wt.min,
                 warp_ms_max: wt.max,
@@ -720,8 +752,8 @@ fn write_strips(dir: &std::path::Path, scene: &str, speed: f32, firsts: &FirstPa
 /// Prints the rows as a table.
 pub fn table(rows: &[EvalRow]) -> String {
     let mut t = Table::new(&[
-        "method", "L", "N", "T", "bound", "m", "speed", "PSNR", "SSIM", "conv", "warp ms", "floor ms", "x floor",
-        "ref ms", "speedup",
+        "method", "L", "N", "T", "bound", "m", "speed", "PSNR", "SSIM", "conv", "seen", "warp ms", "floor ms",
+        "x floor", "ref ms", "speedup",
     ]);
     for r in rows {
         t.row(vec![
@@ -735,6 +767,7 @@ pub fn table(rows: &[EvalRow]) -> String {
             fmt(r.psnr, 2),
             fmt(r.ssim, 4),
             fmt(r.converged, 4),
+            fmt(r.converged_seen, 4),
             fmt(r.warp_ms, 2),
             fmt(r.floor_ms, 2),
             fmt(r.floor_ratio, 1),
