@@ -1,6 +1,6 @@
 //! Criterion benchmark of the CPU rasterizer at 1920x1080: depth-only renders of the four
 //! procedural scenes of seed 000 Sec. 4 (`zwarp_scene`, reduced scale so the benchmark stays
-//! quick: `raster_table` runs them at full scale) from the frame at 1/3 of their recorded camera
+//! quick: the `raster_table` tool runs them at full scale) from the frame at 1/3 of their recorded camera
 //! paths, and, if `ZWARP_SPONZA` points at `shared/scenes/sponza`, Crytek Sponza from the
 //! committed `sponza_court.json` walk (depth only, frame with colour, peeling L = 4).
 

@@ -4,7 +4,7 @@
 //! A 1080p layer allocates ~45 MB per preparation (samples and level-1 mipmaps) and ~10 MB per
 //! warp (depth and state). Freshly mapped memory is faulted in page by page on first write:
 //! ~11 000 faults of 4 KiB per layer, which profiled at a quarter of all CPU time of the
-//! `scenes` example at L = 4 (the preparation at L >= 3 is a quarter of prepare + warp). Linux
+//! `scenes` tool at L = 4 (the preparation at L >= 3 is a quarter of prepare + warp). Linux
 //! keeps transparent huge pages for regions advised with `madvise(MADV_HUGEPAGE)` (the common
 //! `enabled = madvise` setting), which turns those into a few dozen 2 MiB faults. The advice is
 //! given before the buffer is first written; it is only a hint (ignored elsewhere or on error).

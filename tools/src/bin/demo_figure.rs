@@ -1,5 +1,5 @@
 //! Writes a demo figure of every colour map to look at:
-//! `cargo run -p zwarp-viz --example demo_figure -- /tmp/zwarp-viz-demo.png`.
+//! `cargo run -p zwarp-tools --bin demo_figure -- /tmp/zwarp-viz-demo.png`.
 //!
 //! Panels: depth (turbo, linear), item ids, motion (Middlebury wheel) for a camera moving right
 //! and forward, colour (sRGB), signed depth difference of a one-pixel-shifted prediction with a

@@ -1,14 +1,14 @@
 //! Pipeline statistics of one scene (set-up vs raster split), for profiling. Reports process CPU
 //! time (all threads, Linux schedstat) per call, which stays meaningful on a loaded machine.
 //!
-//! `cargo run --release -p zwarp-raster --example raster_stats -- [SPEC]` with SPEC anything
+//! `cargo run --release -p zwarp-tools --bin raster_stats -- [SPEC]` with SPEC anything
 //! `zwarp_scene::load_scene` accepts (default `/work/shared/scenes/sponza`). The camera is the
 //! frame at 1/3 of the scene's path: the recorded one of the procedural scenes, the committed
 //! `sponza_court.json` for a folder named `sponza`, else `CameraPath::default_for`.
 
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
 
-const SPONZA_COURT: &str = include_str!("../../zwarp-scene/paths/sponza_court.json");
+const SPONZA_COURT: &str = include_str!("../../../crates/zwarp-scene/paths/sponza_court.json");
 
 fn cpu_ms() -> f64 {
     let mut total = 0u64;

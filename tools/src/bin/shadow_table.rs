@@ -1,10 +1,9 @@
 //! Measures reference / zwarp / PCSS soft shadows on one frame of a scene (seed 000, Table 8)
 //! and prints per-stage times. Usage:
-//! `cargo run --release -p zwarp-shadows --example shadow_table -- SCENE SCALE WIDTH HEIGHT S,S.. SM,SM.. [REPS] [OUTDIR] [JSON]`
+//! `cargo run --release -p zwarp-tools --bin shadow_table -- SCENE SCALE WIDTH HEIGHT S,S.. SM,SM.. [REPS] [OUTDIR] [JSON]`
 //! (OUTDIR: shaded images, visibility and difference heat-maps as `zwarp shadows --images`;
 //! JSON: the rows in the format of `zwarp shadows --json`; env `ZW_WARMUP` = untimed runs,
-//! default 1; `ZW_GROUPING` = auto | never | always; `ZW_UMBRA=0`: peel without umbra culling). Needs only this crate's dependencies, so
-//! it builds while other crates of the workspace are being edited.
+//! default 1; `ZW_GROUPING` = auto | never | always; `ZW_UMBRA=0`: peel without umbra culling).
 use zwarp_shadows::*;
 
 fn list(s: &str) -> Vec<u32> {
@@ -107,7 +106,7 @@ fn main() -> zwarp_core::Result<()> {
             "reps": reps, "warmup": warmup, "threads": rayon::current_num_threads(), "backend": "cpu",
             "grouping": format!("{grouping:?}").to_ascii_lowercase(),
             "objects": loaded.scene.instances.len(), "triangles": loaded.scene.triangle_count(),
-            "tool": "cargo run --release -p zwarp-shadows --example shadow_table",
+            "tool": "cargo run --release -p zwarp-tools --bin shadow_table",
         });
         let text = serde_json::to_string_pretty(&doc).map_err(|e| zwarp_core::Error::invalid(e.to_string()))?;
         std::fs::write(path, text).map_err(|e| zwarp_core::Error::io(path, e))?;

@@ -2,7 +2,7 @@
 //! along the scene's recorded camera path, with the full render of each frame measured in the
 //! same run.
 //!
-//! `cargo run --release -p zwarp-cull --example woc_eval -- [scene] [width] [height] [frames]
+//! `cargo run --release -p zwarp-tools --bin woc_eval -- [scene] [width] [height] [frames]
 //! [scale] [speed] [methods] [options]` (defaults: `cb 640 360 20 0.1 1 all -`; `methods` is a
 //! comma list of nocull,vfc,woc,awoc,lastframe,twophase,ideal; `options` a comma list of WOC
 //! variants: `bilinear` (adaptive bilinear motion sampling instead of nearest), `n4` (N = 4 seeds), `noerode`, `norapid`, `verbose` (per-frame lines), `down2` / `down4` (coarse culling resolution),

@@ -7,7 +7,7 @@
 //! minimum memory traffic of each kernel and what it would take at a GTX 1080's 320 GB/s (the
 //! paper's GPU), so the sub-millisecond claim can be judged on real hardware.
 //!
-//! Usage: `cargo run --release -p zwarp-gpu --example gpu_cull_table -- [runs] [frame]`
+//! Usage: `cargo run --release -p zwarp-tools --bin gpu_cull_table -- [runs] [frame]`
 
 use std::time::{Duration, Instant};
 

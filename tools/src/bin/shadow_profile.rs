@@ -1,6 +1,6 @@
 //! Times one method of the soft-shadow pipeline alone (for profilers: no reference runs) and
 //! prints its stage times and the texels warped. Usage:
-//! `cargo run --release -p zwarp-shadows --example shadow_profile -- SCENE SCALE S SM [METHOD] [REPS]`
+//! `cargo run --release -p zwarp-tools --bin shadow_profile -- SCENE SCALE S SM [METHOD] [REPS]`
 //! (640x360 camera, frame 0, default light; METHOD = zwarp | zwarp-full | reference | pcss;
 //! `ZW_SHARED=0` gives every sample its own motion mipmap; `ZW_GROUPING=auto|never|always`
 //! chooses how the receivers are tested, [`Grouping`]).

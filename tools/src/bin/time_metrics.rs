@@ -1,5 +1,5 @@
 //! Times the per-frame metrics at 1920x1080 (release build): warm, repeated, median and spread
-//! (ARCHITECTURE.md "Timings"). `cargo run --release -p zwarp-metrics --example time_metrics`.
+//! (ARCHITECTURE.md "Timings"). `cargo run --release -p zwarp-tools --bin time_metrics`.
 
 use std::time::Instant;
 

@@ -6,7 +6,7 @@
 //! protocol's 24), the median, the worst frame and their ratio, then how many windows exceed
 //! 1.5x.
 //!
-//! `cargo run --release -p zwarp-cull --example jitter_control -- [frames] [windows] [ms] [regions]`
+//! `cargo run --release -p zwarp-tools --bin jitter_control -- [frames] [windows] [ms] [regions]`
 //! (defaults `24 10 8 30`). Compare with `RAYON_NUM_THREADS=1` and with
 //! `woc_eval ... verbose` (per-frame WOC cull times) run alongside.
 

@@ -4,12 +4,10 @@
 //! and camera, and the two depth buffers are compared (ARCHITECTURE.md "Timings": a
 //! ratio measured side by side is the figure).
 //!
-//! Usage: `cargo run --release -p zwarp-gpu --example gpu_raster_table -- /work/shared/scenes/sponza [runs]`
+//! Usage: `cargo run --release -p zwarp-tools --bin gpu_raster_table -- /work/shared/scenes/sponza [runs]`
 //!
 //! The sponza folder holds the raw buffers of rawrunprotected/rasterizer: `VertexBuffer.bin`
 //! (f32 x, y, z, w per vertex) and `IndexBuffer.bin` (u32, 3 per triangle).
-
-mod common;
 
 use std::time::{Duration, Instant};
 
@@ -18,6 +16,7 @@ use zwarp_gpu::{
     DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, MotionInput, MotionKernel, PeelOptions, PyramidKernel,
     Renderer, TimingStats,
 };
+use zwarp_tools::common;
 
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3

@@ -3,7 +3,7 @@
 //! Table 3's depth-warp vs depth-render ratios at N = 4, L = 3 — 2.9, 6.7, 24.7, 76.6 for YR,
 //! MO, BL, CB — measured on a GPU).
 //!
-//! `cargo run --release -p zwarp-warp --example traffic_floor -- [scenes=yr,mo,bl,cb] [w=1920]
+//! `cargo run --release -p zwarp-tools --bin traffic_floor -- [scenes=yr,mo,bl,cb] [w=1920]
 //! [h=1080] [scale=1] [l=3] [reps=9]`
 //!
 //! Any backward warp of L source layers must at least read every layer's depth and motion

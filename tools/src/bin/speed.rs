@@ -1,5 +1,5 @@
 //! Times the colour warps on a synthetic 1280x720 frame (smooth motion with discontinuous
-//! blocks) next to the streaming floor: `cargo run --release -p zwarp-color --example speed`.
+//! blocks) next to the streaming floor: `cargo run --release -p zwarp-tools --bin speed`.
 
 use glam::Vec2;
 use zwarp_color::*;

@@ -2,7 +2,7 @@
 //! 1920x1080) from each scene's camera path, warm, repeated.
 //!
 //! ```text
-//! cargo run --release -p zwarp-raster --example raster_table -- yr mo bl cb /work/shared/scenes/sponza
+//! cargo run --release -p zwarp-tools --bin raster_table -- yr mo bl cb /work/shared/scenes/sponza
 //! ```
 //!
 //! Scene specs are anything [`zwarp_scene::load_scene`] accepts: `yr|mo|bl|cb` (the procedural
@@ -35,7 +35,7 @@ use zwarp_scene::{load_scene, CameraPath, SceneOptions, SplitMode};
 
 /// The committed Sponza walk (see `crates/zwarp-scene/paths/README.md`), compiled in so the
 /// binary does not depend on the working directory.
-const SPONZA_COURT: &str = include_str!("../../zwarp-scene/paths/sponza_court.json");
+const SPONZA_COURT: &str = include_str!("../../../crates/zwarp-scene/paths/sponza_court.json");
 
 /// One scene of the table: its spec and an optional camera path file.
 struct Job {

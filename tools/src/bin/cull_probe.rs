@@ -1,4 +1,8 @@
 //! Debug probe: neighbourhoods of one culling error (prev / warped / true buffers).
+//!
+//! `cargo run --release -p zwarp-tools --bin cull_probe -- FRAME ID`: BL at scale 0.25, 960x540,
+//! the 7x7 pixels around the first pixel of object ID in frame FRAME's full render (an object
+//! `cull_diag` reports), the previous frame drawn with VFC's visible set.
 use zwarp_core::{motion_field, Image};
 use zwarp_cull::{vfc_cull, WocParams};
 use zwarp_raster::{render_frame, FrameOptions};

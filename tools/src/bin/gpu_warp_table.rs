@@ -12,7 +12,7 @@
 //! clock (`GpuTimer::new`; lavapipe's timestamps miss compute work); CPU warp time =
 //! `warp_depth` (validation, mipmaps, warp) on all cores.
 //!
-//! Usage: `cargo run --release -p zwarp-gpu --example gpu_warp_table -- /work/shared/scenes/sponza [runs]`
+//! Usage: `cargo run --release -p zwarp-tools --bin gpu_warp_table -- /work/shared/scenes/sponza [runs]`
 //!
 //! Measured on the shared 2-core box (lavapipe, default `WarpParams`: N=8, T=3, oriented bounds;
 //! the GPU result is bit-identical to the CPU one), median of 7: L=1 GPU warp 1242 ms vs GPU
@@ -21,14 +21,13 @@
 //! slower than the CPU code. The GPU time excludes `WarpKernel::frames` (the CPU's PCA frame
 //! choice, done once per frame pair on the CPU), which the CPU warp time includes.
 
-mod common;
-
 use std::time::{Duration, Instant};
 
 use zwarp_core::{motion_field, Image, Motion, Result};
 use zwarp_gpu::{
     DepthTarget, GpuContext, GpuScene, GpuTimer, GpuWarpLayer, PeelOptions, Renderer, TimingStats, WarpKernel,
 };
+use zwarp_tools::common;
 use zwarp_warp::{warp_depth, PixelState, WarpLayer, WarpParams};
 
 fn ms(d: Duration) -> f64 {

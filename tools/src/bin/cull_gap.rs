@@ -3,7 +3,7 @@
 //! is what a safe method draws) and prints, per variant, the culling ratio vs REF and the visible
 //! objects culled, next to the ideal test and the ideal test against the *eroded* true depth.
 //!
-//! `cargo run --release -p zwarp-cull --example cull_gap -- [scene] [scale] [width] [height] [frames] [speed]`
+//! `cargo run --release -p zwarp-tools --bin cull_gap -- [scene] [scale] [width] [height] [frames] [speed]`
 
 use zwarp_core::motion_field;
 use zwarp_cull::{

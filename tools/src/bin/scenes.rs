@@ -2,7 +2,7 @@
 //! renders them (frame k -> k+1 along the recorded path, umbra peeling, ground as the last
 //! layer, the paper's hole protocol), without the CLI: a fast loop for optimising the warp.
 //!
-//! `cargo run --release -p zwarp-warp --example scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
+//! `cargo run --release -p zwarp-tools --bin scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
 //! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3] [ms=1]`
 //!
 //! `ms=m` warps from sources rendered on an m x m sample grid per pixel

@@ -2,7 +2,7 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample] [speed]`
+//! `cargo run --release -p zwarp-tools --bin cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample] [speed]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};

@@ -2,7 +2,7 @@
 //! next to VFC and two-phase in the same run, as `zwarp cull` measures them (cull + draw of the
 //! kept objects; medians over the non-bootstrap frames).
 //!
-//! `cargo run --release -p zwarp-cull --example cull_profile -- [scene] [scale] [width] [height] [frames] [speed] [downsample list]`
+//! `cargo run --release -p zwarp-tools --bin cull_profile -- [scene] [scale] [width] [height] [frames] [speed] [downsample list]`
 
 use zwarp_cull::{run_sequence, summarize, FrameReport, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};

@@ -1,6 +1,6 @@
 //! Prints object / triangle / mesh counts and load (generation) times of scenes.
 //!
-//! `cargo run --release -p zwarp-scene --example scene_stats -- yr mo bl cb /path/to/sponza /path/to/munich`
+//! `cargo run --release -p zwarp-tools --bin scene_stats -- yr mo bl cb /path/to/sponza /path/to/munich`
 //! Optional `--scale S`, `--seed N`, `--write-paths DIR` (writes `<name>.path.json`),
 //! `--street` (files: street-level walk instead of the default flight), `--path FILE.json`,
 //! `--split none|components|K` (triangle soups).

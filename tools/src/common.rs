@@ -1,4 +1,4 @@
-//! Set-up shared by the GPU examples: the Crytek Sponza scene and the atrium view pair used
+//! Set-up shared by the GPU tools: the Crytek Sponza scene and the atrium view pair used
 //! for every side-by-side table (seed 000 Sec. 4 measures at 1920x1080).
 
 use glam::Vec3;
@@ -6,7 +6,7 @@ use zwarp_core::{Camera, Result, Scene};
 use zwarp_scene::{load_scene, SceneOptions, SplitMode};
 
 /// The Sponza folder (raw `VertexBuffer.bin` + `IndexBuffer.bin`, see `shared/scenes/README.md`)
-/// as ONE object: the examples time whole-scene draws, not per-object culling.
+/// as ONE object: the tools time whole-scene draws, not per-object culling.
 pub fn load_sponza(dir: &str) -> Result<Scene> {
     Ok(load_scene(dir, &SceneOptions { split: SplitMode::None, ..Default::default() })?.scene)
 }

@@ -1,6 +1,6 @@
 //! Prints warp quality on the synthetic city (seed 000 Sec. 4.2 style): non-converged fraction
 //! and linear-depth error against the directly rendered target, for several N, L, hole policies
-//! and the VFW/AFW baselines. `cargo run --release -p zwarp-warp --example city [w h speed T plain|newton bound_iterations]`.
+//! and the VFW/AFW baselines. `cargo run --release -p zwarp-tools --bin city -- [w h speed T plain|newton bound_iterations]`.
 
 use glam::Vec3;
 use std::time::Instant;

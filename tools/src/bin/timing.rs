@@ -1,5 +1,5 @@
 //! Quick timing breakdown on the synthetic city at 1920x1080 (release):
-//! `cargo run --release -p zwarp-warp --example timing [threads]`.
+//! `cargo run --release -p zwarp-tools --bin timing -- [threads]`.
 use glam::Vec3;
 use std::time::Instant;
 use zwarp_core::{motion_field, Camera};

@@ -2,7 +2,7 @@
 //! scene's path, one line per culling resolution: a speed-up of the pipeline that must not
 //! change any decision is checked by diffing this output before and after.
 //!
-//! `cargo run --release -p zwarp-cull --example cull_fingerprint -- [scene] [scale] [width] [height] [frames] [downsample list]`
+//! `cargo run --release -p zwarp-tools --bin cull_fingerprint -- [scene] [scale] [width] [height] [frames] [downsample list]`
 
 use zwarp_cull::{run_sequence, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
