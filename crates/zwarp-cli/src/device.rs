@@ -28,6 +28,7 @@ pub struct Gpu {
     /// The device.
     pub ctx: zwarp_gpu::GpuContext,
     renderer: OnceCell<zwarp_gpu::Renderer>,
+    motion: OnceCell<zwarp_gpu::MotionKernel>,
     warp: OnceCell<(zwarp_gpu::WarpKernel, zwarp_gpu::HoleFillKernel)>,
     shadows: OnceCell<zwarp_gpu::GpuShadows>,
     color: OnceCell<zwarp_gpu::ColorWarpKernel>,
@@ -56,6 +57,7 @@ impl Device {
             Backend::Gpu => Device::Gpu(Box::new(Gpu {
                 ctx: zwarp_gpu::GpuContext::new()?,
                 renderer: OnceCell::new(),
+                motion: OnceCell::new(),
                 warp: OnceCell::new(),
                 shadows: OnceCell::new(),
                 color: OnceCell::new(),
@@ -102,6 +104,69 @@ impl Device {
             }
             _ => Ok(zwarp_raster::render_depth(s.scene, cam, t)?),
         }
+    }
+
+    /// Times of `reps` depth-only renders of `cam` at `t` (ms; on the GPU fenced on the device,
+    /// without reading the depth back).
+    pub fn time_depth_only(&self, s: &DeviceScene<'_>, cam: &Camera, t: f32, reps: usize) -> Result<Vec<f64>> {
+        let samples = match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
+                let target = zwarp_gpu::DepthTarget::new(&g.ctx, cam.width, cam.height)?;
+                crate::output::time_repeated(reps, || {
+                    let mut enc = g.ctx.device.create_command_encoder(&Default::default());
+                    r.encode_depth(&mut enc, up, cam, t, &target)?;
+                    g.ctx.queue.submit([enc.finish()]);
+                    Ok(g.ctx.wait()?)
+                })?
+                .1
+            }
+            _ => crate::output::time_repeated(reps, || Ok(zwarp_raster::render_depth(s.scene, cam, t)?))?.1,
+        };
+        Ok(samples)
+    }
+
+    /// The motion field (seed 000 Sec. 3.1) of a view of `s` (`depth`, `items` seen by `cam_a`
+    /// at `t_a`) towards `cam_b` at `t_b`, with each object's own motion.
+    #[allow(clippy::too_many_arguments)]
+    pub fn motion_field(
+        &self,
+        s: &DeviceScene<'_>,
+        depth: &Image<f32>,
+        items: &Image<u32>,
+        (cam_a, t_a): (&Camera, f32),
+        (cam_b, t_b): (&Camera, f32),
+    ) -> Result<Image<zwarp_core::Motion>> {
+        match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let k = once(&g.motion, || zwarp_gpu::MotionKernel::new(&g.ctx))?;
+                Ok(k.motion_field(depth, Some(items), cam_a, cam_b, &up.object_deltas(t_a, t_b))?)
+            }
+            _ => Ok(zwarp_core::motion_field(depth, Some(items), cam_a, cam_b, &s.scene.object_deltas(t_a, t_b))?),
+        }
+    }
+
+    /// The depth of `layers` layers peeled from `cam` at `t` (standard peeling; with
+    /// `ground_separate` the ground alone as one more, last layer).
+    pub fn peel_depths(
+        &self,
+        s: &DeviceScene<'_>,
+        cam: &Camera,
+        t: f32,
+        layers: usize,
+        ground_separate: bool,
+    ) -> Result<Vec<Image<f32>>> {
+        Ok(match (self, &s.gpu) {
+            (Device::Gpu(g), Some(up)) => {
+                let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
+                let opts = zwarp_gpu::PeelOptions { layers: layers as u32, ground_separate, ..Default::default() };
+                r.render_layers(up, cam, t, &opts)?.into_iter().map(|l| l.depth).collect()
+            }
+            _ => {
+                let opts = zwarp_raster::PeelOptions { layers, ground_separate, umbra: None };
+                zwarp_raster::render_layers(s.scene, cam, t, &opts)?.into_iter().map(|l| l.depth).collect()
+            }
+        })
     }
 
     /// The complete depth prediction (preparation, search, hole protocol) of `layers` into

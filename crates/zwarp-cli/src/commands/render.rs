@@ -3,10 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::device::Device;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde::Serialize;
-use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions};
 
 use crate::args::{Backend, SceneArgs, SizeArgs};
 use crate::output::{self, Timing};
@@ -62,69 +62,17 @@ struct RenderJob<'a> {
     has_ground: bool,
 }
 
-/// The CPU backend: zwarp-raster and the CPU motion field.
-fn render_cpu(job: &RenderJob<'_>) -> Result<Rendered> {
+/// The buffers of `job` on `device` (zwarp-raster and the CPU motion field, or the wgpu
+/// renderer, the WGSL motion kernel and GPU depth peeling; the depth-only time on the GPU
+/// fenced on the device).
+fn render(device: &Device, job: &RenderJob<'_>) -> Result<Rendered> {
     let RenderJob { scene, cam, t, cam_next, t_next, layers, has_ground } = *job;
-    let (_, depth_samples) = output::time_repeated(3, || Ok(zwarp_raster::render_depth(scene, cam, t)?))?;
-    let frame = render_frame(scene, cam, t, &FrameOptions { color: true, objects: None })?;
-    let motion =
-        zwarp_core::motion_field(&frame.depth, Some(&frame.items), cam, cam_next, &scene.object_deltas(t, t_next))?;
-    let layers = if layers > 0 {
-        render_layers(scene, cam, t, &PeelOptions { layers, ground_separate: has_ground, umbra: None })?
-            .into_iter()
-            .map(|l| l.depth)
-            .collect()
-    } else {
-        Vec::new()
-    };
-    Ok(Rendered {
-        depth: frame.depth,
-        items: frame.items,
-        color: frame.color,
-        motion,
-        layers,
-        depth_samples,
-        adapter: None,
-    })
-}
-
-/// The GPU backend: the wgpu renderer (depth-only time fenced on the device), the WGSL motion
-/// kernel and GPU depth peeling.
-fn render_gpu(job: &RenderJob<'_>) -> Result<Rendered> {
-    let RenderJob { scene, cam, t, cam_next, t_next, layers, has_ground } = *job;
-    let ctx = zwarp_gpu::GpuContext::new()?;
-    let r = zwarp_gpu::Renderer::new(&ctx)?;
-    let gs = zwarp_gpu::GpuScene::upload(&ctx, scene)?;
-    let target = zwarp_gpu::DepthTarget::new(&ctx, cam.width, cam.height)?;
-    let (_, depth_samples) = output::time_repeated(3, || {
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        r.encode_depth(&mut enc, &gs, cam, t, &target)?;
-        ctx.queue.submit([enc.finish()]);
-        Ok(ctx.wait()?)
-    })?;
-    let frame = r.render_frame(&gs, cam, t, &zwarp_gpu::FrameOptions { color: true, ..Default::default() })?;
-    let motion = zwarp_gpu::MotionKernel::new(&ctx)?.motion_field(
-        &frame.depth,
-        Some(&frame.items),
-        cam,
-        cam_next,
-        &gs.object_deltas(t, t_next),
-    )?;
-    let layers = if layers > 0 {
-        let opts = zwarp_gpu::PeelOptions { layers: layers as u32, ground_separate: has_ground, ..Default::default() };
-        r.render_layers(&gs, cam, t, &opts)?.into_iter().map(|l| l.depth).collect()
-    } else {
-        Vec::new()
-    };
-    Ok(Rendered {
-        depth: frame.depth,
-        items: frame.items,
-        color: frame.color,
-        motion,
-        layers,
-        depth_samples,
-        adapter: Some(ctx.adapter.to_string()),
-    })
+    let on_device = device.load(scene)?;
+    let depth_samples = device.time_depth_only(&on_device, cam, t, 3)?;
+    let (depth, items, color) = device.render_view(&on_device, cam, t)?;
+    let motion = device.motion_field(&on_device, &depth, &items, (cam, t), (cam_next, t_next))?;
+    let layers = if layers > 0 { device.peel_depths(&on_device, cam, t, layers, has_ground)? } else { Vec::new() };
+    Ok(Rendered { depth, items, color, motion, layers, depth_samples, adapter: device.adapter() })
 }
 
 /// JSON summary of a render.
@@ -166,10 +114,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
     let has_ground = scene.instances.iter().any(|i| i.is_ground);
     let job = RenderJob { scene, cam: &cam, t, cam_next: &cam_next, t_next, layers: args.layers, has_ground };
-    let rendered = match args.backend {
-        Backend::Cpu => render_cpu(&job)?,
-        Backend::Gpu => render_gpu(&job)?,
-    };
+    let rendered = render(&Device::open(args.backend)?, &job)?;
     let (frame, motion) = (&rendered, &rendered.motion);
 
     let p = out("depth.png");
