@@ -213,7 +213,9 @@ fn quality(report: &Report, out: &Path) -> Vec<Block> {
                 .and_then(|n| n.split("_l").nth(1))
                 .and_then(|t| t.split('_').next())
                 .unwrap_or("?");
-            images.push(Block::Image { caption: format!("{}, L = {l}, N = 16", j.scene), path: p });
+            let m = p.rsplit("_m").next().and_then(|t| t.strip_suffix(".png")).unwrap_or("1");
+            let samples = if m == "1" { String::new() } else { format!(", source {m} x {m} samples per pixel") };
+            images.push(Block::Image { caption: format!("{}, L = {l}, N = 16{samples}", j.scene), path: p });
         }
     }
     let mut v = vec![Block::Table(t)];
