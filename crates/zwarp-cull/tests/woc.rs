@@ -261,6 +261,17 @@ fn plain_boxes_cull_like_the_scene_they_bound() {
     let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
     let none: &[BoxObject] = &[];
     assert!(woc_objects(none, &pf, &cam, &WocParams::default()).unwrap().visible.is_empty());
+    // Item ids the objects do not cover (a renderer's extra draws) move with the camera, at
+    // full and coarse resolution, with or without rims.
+    let depth = Image::from_fn(W, H, |x, _| if x < W / 2 + 1 { 0.5 } else { 0.9 });
+    let items = Image::from_fn(W, H, |x, _| if x < W / 2 + 1 { 7 } else { 9 });
+    let moved = cam_at(Vec3::new(0.3, 2.0, 8.0), Vec3::ZERO);
+    let pf = PrevFrame { depth: &depth, items: &items, cam: &cam, t: 0.0 };
+    let one = [BoxObject::fixed(Aabb::new(Vec3::splat(-0.5), Vec3::splat(0.5)))];
+    for downsample in [1, 2, 4] {
+        let p = WocParams { downsample, ..WocParams::default() };
+        assert!(woc_objects(&one[..], &pf, &moved, &p).is_ok(), "/{downsample}");
+    }
     let bad = WocParams { downsample: 0, ..WocParams::default() };
     assert!(woc_objects(none, &pf, &cam, &bad).is_err());
 }

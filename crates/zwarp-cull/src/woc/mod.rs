@@ -447,7 +447,8 @@ pub fn woc_objects(
 
     // 1. Motion buffer with object motion through the item buffer (Sec. 3.1).
     let animated = |id: u32| (id as usize) < n && objects.is_animated(id);
-    let delta = |id: u32| objects.delta(id);
+    // Ids beyond the objects (and NO_ITEM) move with the camera only.
+    let delta = |id: u32| if (id as usize) < n { objects.delta(id) } else { glam::Mat4::IDENTITY };
     let motion = zwarp_core::motion_field_with(prev_depth, Some(prev_items), prev_cam, cam, animated, delta)?;
     tm.motion_ms = ms(t0);
 
