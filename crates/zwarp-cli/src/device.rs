@@ -35,12 +35,15 @@ pub struct Gpu {
 }
 
 /// `cell`'s value, made by `make` the first time.
-fn once<'a, T>(cell: &'a OnceCell<T>, make: impl FnOnce() -> zwarp_core::Result<T>) -> Result<&'a T> {
+fn once<T>(cell: &OnceCell<T>, make: impl FnOnce() -> zwarp_core::Result<T>) -> Result<&T> {
     if cell.get().is_none() {
         let _ = cell.set(make()?);
     }
     Ok(cell.get().expect("set above"))
 }
+
+/// Depth, item ids and (when rendered) linear colour of one view.
+pub type ViewBuffers = (Image<f32>, Image<u32>, Option<Image<[f32; 3]>>);
 
 /// A scene on a device: the scene itself and, on the GPU, its upload.
 pub struct DeviceScene<'s> {
@@ -241,12 +244,7 @@ impl Device {
     }
 
     /// Depth, item ids and textured linear colour of `cam` at time `t`.
-    pub fn render_view(
-        &self,
-        s: &DeviceScene<'_>,
-        cam: &Camera,
-        t: f32,
-    ) -> Result<(Image<f32>, Image<u32>, Option<Image<[f32; 3]>>)> {
+    pub fn render_view(&self, s: &DeviceScene<'_>, cam: &Camera, t: f32) -> Result<ViewBuffers> {
         match (self, &s.gpu) {
             (Device::Gpu(g), Some(up)) => {
                 let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;

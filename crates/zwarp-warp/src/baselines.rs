@@ -504,7 +504,7 @@ mod tests {
                 });
                 let m = Image::from_fn(w, h, |x, y| {
                     let t = hash(x + 1000 * y + 77 * k);
-                    let jump = if (x / 9 + k) % 3 == 0 { 7.0 } else { 0.0 };
+                    let jump = if (x / 9 + k).is_multiple_of(3) { 7.0 } else { 0.0 };
                     let v = Vec2::new(
                         0.3 * x as f32 - 4.0 + jump + (t % 100) as f32 * 0.004,
                         -0.2 * y as f32 + 40.0 * (k as f32 - 0.5) + ((t >> 8) % 100) as f32 * 0.004,

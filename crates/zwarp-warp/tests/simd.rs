@@ -9,7 +9,10 @@ use zwarp_core::{motion_field, Camera, Image, Motion};
 use zwarp_warp::synth::{SynthBox, SynthScene};
 use zwarp_warp::*;
 
-fn bits(out: &WarpOutput) -> (Vec<u32>, Vec<u8>, Option<Vec<(u32, u32, u32)>>) {
+/// Depth bits, states and source positions (bits) of a warp.
+type Bits = (Vec<u32>, Vec<u8>, Option<Vec<(u32, u32, u32)>>);
+
+fn bits(out: &WarpOutput) -> Bits {
     (
         out.depth.data().iter().map(|z| z.to_bits()).collect(),
         out.state.data().iter().map(|s| *s as u8).collect(),

@@ -65,7 +65,7 @@ fn text<'a>(r: &'a Value, k: &str) -> &'a str {
     r.get(k).and_then(Value::as_str).unwrap_or("")
 }
 
-fn ok_jobs<'a>(report: &'a Report, s: Section) -> impl Iterator<Item = &'a JobRecord> {
+fn ok_jobs(report: &Report, s: Section) -> impl Iterator<Item = &JobRecord> {
     report.section(s).filter(|j| j.status == Status::Ok)
 }
 
