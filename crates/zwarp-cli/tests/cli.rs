@@ -36,6 +36,17 @@ fn eval_small(extra: &[&str], json: &std::path::Path) -> (bool, String, String) 
     zwarp(&args)
 }
 
+/// `zwarp vr` on a tiny scene (cb at scale 0.01, 64x48, one frame, one timed run) with
+/// `extra` flags, JSON to `json`: (success, stdout, stderr).
+fn vr_small(extra: &[&str], json: &std::path::Path) -> (bool, String, String) {
+    let mut args = vec![
+        "vr", "--scene", "cb", "--scale", "0.01", "--width", "64", "--height", "48", "--frames", "1", "--reps", "1",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--json", json.to_str().unwrap()]);
+    zwarp(&args)
+}
+
 /// The `rows` of a JSON report.
 fn json_rows(path: &std::path::Path) -> Vec<serde_json::Value> {
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
@@ -888,29 +899,10 @@ fn vr_writes_the_documented_fields() {
     let d = tmp("vr");
     let j = d.join("vr.json");
     let img = d.join("img");
-    let (ok, out, err) = zwarp(&[
-        "vr",
-        "--scene",
-        "cb",
-        "--scale",
-        "0.01",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "--frames",
-        "1",
-        "--reps",
-        "1",
-        "--method",
-        "grid,points,didyk,fpi",
-        "--holes",
-        "lowpass,pushpull",
-        "--images",
-        img.to_str().unwrap(),
-        "--json",
-        j.to_str().unwrap(),
-    ]);
+    let (ok, out, err) = vr_small(
+        &["--method", "grid,points,didyk,fpi", "--holes", "lowpass,pushpull", "--images", img.to_str().unwrap()],
+        &j,
+    );
     assert!(ok, "{err}");
     assert!(out.contains("| grid") && out.contains("speedup"), "{out}");
     let rows = json_rows(&j);
@@ -992,31 +984,8 @@ fn vr_rejects_bad_input_in_one_line() {
 fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
     let d = tmp("vrglass");
     let j = d.join("vr.json");
-    let (ok, out, err) = zwarp(&[
-        "vr",
-        "--scene",
-        "cb",
-        "--scale",
-        "0.01",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "--frames",
-        "1",
-        "--reps",
-        "1",
-        "--method",
-        "grid",
-        "--holes",
-        "lowpass",
-        "--strategy",
-        "cyclops",
-        "--transparent",
-        "0.5",
-        "--json",
-        j.to_str().unwrap(),
-    ]);
+    let (ok, out, err) =
+        vr_small(&["--method", "grid", "--holes", "lowpass", "--strategy", "cyclops", "--transparent", "0.5"], &j);
     assert!(ok, "{err}");
     assert!(out.contains("transparent"), "{out}");
     let rows = json_rows(&j);
@@ -1029,33 +998,21 @@ fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
     }
     assert_eq!(rows.iter().filter(|r| r["abuffer"] == true).count(), 2);
     // Only the A-buffer rows: --abuffer on.
-    let (ok, _, err) = zwarp(&[
-        "vr",
-        "--scene",
-        "cb",
-        "--scale",
-        "0.01",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "--frames",
-        "1",
-        "--reps",
-        "1",
-        "--method",
-        "points",
-        "--holes",
-        "stretch",
-        "--strategy",
-        "alternate",
-        "--transparent",
-        "0.5",
-        "--abuffer",
-        "on",
-        "--json",
-        j.to_str().unwrap(),
-    ]);
+    let (ok, _, err) = vr_small(
+        &[
+            "--method",
+            "points",
+            "--holes",
+            "stretch",
+            "--strategy",
+            "alternate",
+            "--transparent",
+            "0.5",
+            "--abuffer",
+            "on",
+        ],
+        &j,
+    );
     assert!(ok, "{err}");
     assert!(json_rows(&j).iter().all(|r| r["abuffer"] == true));
 }
