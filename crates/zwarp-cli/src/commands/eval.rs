@@ -401,14 +401,20 @@ fn source_buffers(
     Ok((PairBuffers { single: (frame.depth, single_motion), peeled: with_motion, ground }, motion_ms))
 }
 
-/// The target pixels (view `cb` at `tb`) whose surface the source view (`ca` at `ta`) saw:
-/// the target's depth moved into the source (camera and object motion back from `tb` to `ta`)
-/// lands on the source's nearest surface (`zwarp_color::source_visibility`).
-fn seen_by_source(scene: &Scene, ca: &Camera, ta: f32, cb: &Camera, tb: f32) -> Result<Image<bool>> {
-    let source = render_frame(scene, ca, ta, &FrameOptions::default())?;
+/// The target pixels (view `cb` at `tb`) whose surface the source view (`ca` at `ta`, depth
+/// `source`) saw: the target's depth moved into the source (camera and object motion back from
+/// `tb` to `ta`) lands on the source's nearest surface (`zwarp_color::source_visibility`).
+fn seen_by_source(
+    scene: &Scene,
+    source: &Image<f32>,
+    ca: &Camera,
+    ta: f32,
+    cb: &Camera,
+    tb: f32,
+) -> Result<Image<bool>> {
     let target = render_frame(scene, cb, tb, &FrameOptions::default())?;
     let back = motion_field(&target.depth, Some(&target.items), cb, ca, &scene.object_deltas(tb, ta))?;
-    Ok(zwarp_color::source_visibility(&target.depth, &back, &source.depth, ca)?)
+    Ok(zwarp_color::source_visibility(&target.depth, &back, source, ca)?)
 }
 
 /// Per-configuration accumulator over frame pairs.
@@ -508,7 +514,9 @@ pub fn evaluate(
         for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
             let (reference, samples) = output::time_repeated(plan.reps, || device.render_depth(&on_device, cb, *tb))?;
             ref_samples.extend(samples);
-            let seen = seen_by_source(scene, ca, *ta, cb, *tb)?;
+            let (plain_a, plain_b) = (*ca, *cb);
+            // Computed once per pair, from the single-sample source when the plan renders it.
+            let mut seen: Option<Image<bool>> = None;
             for &ms in &plan.multisamples {
                 // The source (and the motion's target space) on the m x m sample grid: the same
                 // views at m times the resolution, so target pixel centres sit at m (x + 0.5).
@@ -520,6 +528,17 @@ pub fn evaluate(
                 };
                 let (bufs, motion_ms) = source_buffers(scene, &ca, *ta, &cb_grid, *tb, max_l, plan.umbra)?;
                 motion_samples.push((ms, motion_ms));
+                if seen.is_none() {
+                    let plain;
+                    let source = if ms == 1 {
+                        &bufs.single.0
+                    } else {
+                        plain = render_frame(scene, &plain_a, *ta, &FrameOptions::default())?.depth;
+                        &plain
+                    };
+                    seen = Some(seen_by_source(scene, source, &plain_a, *ta, &plain_b, *tb)?);
+                }
+                let seen = seen.as_ref().expect("set above");
                 if pi == 0 && plan.images.is_some() {
                     firsts.sources.push((ms, bufs.single.0.clone(), ca));
                     firsts.reference = Some((reference.clone(), *cb));
@@ -557,7 +576,7 @@ pub fn evaluate(
                     a.psnr_buffer.push(q.psnr_buffer);
                     a.ssim_buffer.push(q.ssim_buffer);
                     let conv = coverage(&out.0, &reference, out.1.as_ref(), None);
-                    let conv_seen = coverage(&out.0, &reference, out.1.as_ref(), Some(&seen));
+                    let conv_seen = coverage(&out.0, &reference, out.1.as_ref(), Some(seen));
                     a.converged.push(conv);
                     a.converged_seen.push(conv_seen);
                     a.warp_ms.extend(samples);
