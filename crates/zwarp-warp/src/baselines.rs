@@ -191,8 +191,7 @@ pub fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
     let (w, h, reach) = check_layers(layers)?;
     // A corner moves within CONTINUITY_PX of its quad's pixel; corners lie one pixel apart,
     // pushed out by the expansion.
-    let margin = 1.0 + CONTINUITY_PX + FORWARD_SUPPORT_EXPANSION + 1.0;
-    forward(w, h, &reach, margin, |band, y0, k, y| {
+    forward(w, h, &reach, VFW_ROW_REACH, |band, y0, k, y| {
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
@@ -253,13 +252,25 @@ fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: us
     };
     let rows = band.len() / w as usize;
     let clip = (y0 as f32, (y0 + rows) as f32 - 1.0);
+    let cy = y as f32 + 0.5;
     for x in 0..w as usize {
         let Some(m) = at(x as i64, y as i64) else { continue };
+        // The quad's corners lie within 2 px of the pixel's moved centre (corner motion within
+        // CONTINUITY_PX of its own, half a pixel of expansion), so its rows lie within 2.5 px:
+        // quads that cannot reach the band are skipped before their corners are averaged.
+        let c = cy + m.v.y;
+        if c + VFW_ROW_REACH < clip.0 || c - VFW_ROW_REACH > clip.1 {
+            continue;
+        }
         let q = vfw_quad(&at, x as i64, y as i64, m.v);
         raster_triangle(band, y0, w, h, clip, [q[0], q[1], q[2]], m.depth);
         raster_triangle(band, y0, w, h, clip, [q[0], q[2], q[3]], m.depth);
     }
 }
+
+/// A bound of the target rows a VFW quad covers around its pixel's moved centre (2.5 px, with
+/// room for rounding).
+const VFW_ROW_REACH: f32 = 1.0 + CONTINUITY_PX + FORWARD_SUPPORT_EXPANSION + 1.0;
 
 #[inline]
 fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {

@@ -26,6 +26,10 @@ use crate::search::{
 };
 use crate::{BoundKind, PixelState, SourcePos, WarpParams, MAX_SEEDS};
 
+/// How many tiles ahead the AVX2 band asks the caches for layer 0's samples.
+#[cfg(target_arch = "x86_64")]
+const PREFETCH_TILES: usize = 16;
+
 /// Side of a tile of the tile stage (target pixels).
 pub const TILE: u32 = 4;
 
@@ -425,6 +429,7 @@ impl<'a> Kernel<'a> {
             (0..self.layers.len()).map(|k| self.tile_stages(&pvs[k], k, ty, rows)).collect();
         for (t, x0) in (0..self.tw).step_by(TILE as usize).enumerate() {
             let x1 = (x0 + TILE).min(self.tw);
+            self.prefetch_tile(ls, &stages[0], t + PREFETCH_TILES, y0, rows);
             for yy in (y0..y0 + rows).step_by(2) {
                 let r = (yy - y0) as usize * w;
                 let (d0, d1) = depth[r..].split_at_mut(w);
@@ -439,6 +444,40 @@ impl<'a> Kernel<'a> {
                 let two = yy + 1 < y0 + rows;
                 let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
                 self.lanes8(ls, pvs, &stages, t, x0, x1, yy, out);
+            }
+        }
+    }
+
+    /// Asks the caches for layer 0's samples around tile `t`'s source region (the centre of its
+    /// motion bound): the planes are read tile by tile over many rows at once, a pattern the
+    /// hardware prefetchers do not follow, so without this the search waits on memory.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn prefetch_tile(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        stages: &[Option<StageBound>],
+        t: usize,
+        y0: u32,
+        rows: u32,
+    ) {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let Some(Some(s)) = stages.get(t) else { return };
+        let frame = self.layers[0].pyramid().frame();
+        let v = frame.from_frame((s.motion.lo + s.motion.hi) * 0.5);
+        let c = self.target_pos(t as u32 * TILE, y0) - v;
+        let (w, h) = (self.w as i64, self.h as i64);
+        let x = (c.x as i64 - 1).clamp(0, w - 1) as usize;
+        let (ya, yb) = ((c.y as i64 - 1).clamp(0, h - 1), (c.y as i64 + rows as i64 + 1).clamp(0, h - 1));
+        for plane in &ls.layers[..1] {
+            for p in [plane.vx, plane.vy, plane.z] {
+                for y in ya..=yb {
+                    // SAFETY: the index is clamped into the plane; prefetching has no effect on
+                    // memory contents.
+                    unsafe {
+                        _mm_prefetch::<_MM_HINT_T0>(p.as_ptr().add(y as usize * self.w as usize + x) as *const i8)
+                    };
+                }
             }
         }
     }

@@ -3,7 +3,7 @@
 //! layer, the paper's hole protocol), without the CLI: a fast loop for optimising the warp.
 //!
 //! `cargo run --release -p zwarp-tools --bin scenes -- [scenes=mo,bl,cb,yr] [w=960] [h=540]
-//! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3] [ms=1]`
+//! [scale=0.5] [frames=2] [l=1,3,4] [n=4,16] [threads=1] [reps=3] [ms=1] [speed=1]`
 //!
 //! `ms=m` warps from sources rendered on an m x m sample grid per pixel
 //! (`WarpParams::multisample`); the render and the quality are at `w x h`.
@@ -69,6 +69,7 @@ fn main() {
     let threads: usize = get("threads", "1").parse().unwrap();
     let reps: usize = get("reps", "3").parse().unwrap();
     let ms: u32 = get("ms", "1").parse().unwrap();
+    let speed: f32 = get("speed", "1").parse().unwrap();
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
     let max_l = *ls.iter().max().unwrap() as usize;
     println!(
@@ -79,8 +80,8 @@ fn main() {
         let loaded = zwarp_scene::load_scene(name, &opts).unwrap();
         let path = loaded.path_or_default();
         let scene = loaded.scene;
-        // Frame pairs as `zwarp eval` (evenly spread along the path, 1x speed).
-        let total = path.frame_count_at(1.0);
+        // Frame pairs as `zwarp eval` (evenly spread along the path).
+        let total = path.frame_count_at(speed);
         let last = total - 2;
         let count = frames.min(last + 1);
         // (L, N) -> (prepare ms, warp ms, render ms, psnr, ssim, converged, bytes per pixel)
@@ -89,7 +90,7 @@ fn main() {
         let mut hashes: HashMap<(u32, u32), u64> = HashMap::new();
         for i in 0..count {
             let k = if count == 1 { 0 } else { i * last / (count - 1) };
-            let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
+            let (ta, tb) = (path.time_of_frame(k, speed), path.time_of_frame(k + 1, speed));
             let cb = path.camera_at(tb, w, h).unwrap();
             // The source views (and the motion's target space) on the ms x ms sample grid.
             let (ca, cb_src) =
@@ -129,6 +130,38 @@ fn main() {
                     let holes = if l == 1 { HolePolicy::Background { radius: 4 } } else { HolePolicy::FarDepth };
                     let params = WarpParams { n_seeds: n, holes, multisample: ms, ..Default::default() };
                     let (out, warp_ms, _) = time(reps, || warp_prepared(&prepared, &params).unwrap());
+                    if l == 1 {
+                        // `zwarp eval`'s single-layer protocol (`predict_into`: preparation into
+                        // recycled buffers, the warp, `holes::fill_background`), whole and by step.
+                        let params = WarpParams { n_seeds: n, multisample: ms, ..Default::default() };
+                        let mut o = WarpOutput {
+                            depth: Image::new(0, 0, 1.0),
+                            state: Image::new(0, 0, PixelState::Hole),
+                            source: None,
+                        };
+                        let mut rec = Vec::new();
+                        let (_, all, _) = time(reps, || {
+                            rec = predict_into(&layers, &params, std::mem::take(&mut rec), &mut o).unwrap();
+                        });
+                        let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
+                        let (_, prep, _) = time(reps, || {
+                            rec = PreparedLayer::prepare_stack_recycling(&layers, far.bound, std::mem::take(&mut rec))
+                                .unwrap();
+                        });
+                        let (_, warp, _) = time(reps, || warp_prepared_into(&rec, &far, &mut o).unwrap());
+                        let warped = o.clone();
+                        let (tw, th) = o.depth.size();
+                        let (_, fill, _) = time(reps, || {
+                            let mut f = warped.clone();
+                            let limits = holes::BackgroundLimits::of_prepared(&rec, tw, th, ms, 4).unwrap();
+                            holes::fill_background_with(&layers, &mut f, limits, &far.search()).unwrap();
+                        });
+                        let (_, copy, _) = time(reps, || warped.clone());
+                        eprintln!(
+                            "  {name} L=1 N={n} predict_into: {all:.1} CPU ms (prepare {prep:.1}, warp {warp:.1}, fill {:.1})",
+                            fill - copy
+                        );
+                    }
                     // One more run for the counters (`--features stats`): bytes touched / pixel.
                     stats::take();
                     let _ = warp_prepared(&prepared, &params).unwrap();
