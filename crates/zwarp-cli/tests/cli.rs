@@ -980,6 +980,94 @@ fn vr_rejects_bad_input_in_one_line() {
     assert!(!j.exists(), "no JSON is written on bad input");
 }
 
+/// Writes a glTF scene to `dir`: an opaque wall (z = 0, 4 x 4) behind a glass pane (z = 1,
+/// 2 x 2, `alphaMode: BLEND`, alpha 0.5), and a camera path looking at them from z = 6.
+fn glass_pane_scene(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let mut bin: Vec<u8> = Vec::new();
+    for (s, z) in [(2.0f32, 0.0f32), (1.0, 1.0)] {
+        for p in [[-s, -s, z], [s, -s, z], [s, s, z], [-s, s, z]] {
+            p.iter().for_each(|v| bin.extend_from_slice(&v.to_le_bytes()));
+        }
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    std::fs::write(dir.join("panes.bin"), &bin).unwrap();
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0, "name": "wall"}, {"mesh": 1, "name": "pane"}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": 1}, "indices": 2, "material": 1}]}
+        ],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0]}},
+            {"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.6, 1.0, 0.5]}}
+        ],
+        "buffers": [{"byteLength": bin.len(), "uri": "panes.bin"}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-2.0, -2.0, 0.0], "max": [2.0, 2.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1.0, -1.0, 1.0], "max": [1.0, 1.0, 1.0]},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ]
+    });
+    let scene = dir.join("panes.gltf");
+    std::fs::write(&scene, serde_json::to_string(&json).unwrap()).unwrap();
+    let path = dir.join("panes.path.json");
+    let keys = serde_json::json!({
+        "fov_y_deg": 50.0, "near": 0.1, "far": 50.0, "up": [0.0, 1.0, 0.0], "fps": 30.0,
+        "keys": [{"t": 0.0, "eye": [0.0, 0.0, 6.0], "target": [0.0, 0.0, 0.0]},
+                 {"t": 1.0, "eye": [0.6, 0.0, 6.0], "target": [0.0, 0.0, 0.0]}]
+    });
+    std::fs::write(&path, serde_json::to_string(&keys).unwrap()).unwrap();
+    (scene, path)
+}
+
+#[test]
+fn vr_puts_the_files_blend_materials_in_the_a_buffer() {
+    let d = tmp("vrblend");
+    let (scene, path) = glass_pane_scene(&d);
+    let j = d.join("vr.json");
+    let (ok, out, err) = zwarp(&[
+        "vr",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--path",
+        path.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--frames",
+        "1",
+        "--reps",
+        "1",
+        "--method",
+        "grid",
+        "--holes",
+        "lowpass",
+        "--strategy",
+        "cyclops",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("0 transparent (1 objects)"), "{out}");
+    let rows = json_rows(&j);
+    assert_eq!(rows.iter().filter(|r| r["abuffer"] == true).count(), 2, "{rows:?}");
+    assert_eq!(rows.iter().filter(|r| r["abuffer"] == false).count(), 2, "{rows:?}");
+    for r in rows.iter().filter(|r| r["abuffer"] == true) {
+        assert!(r["ms_abuffer"].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
+
 #[test]
 fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
     let d = tmp("vrglass");

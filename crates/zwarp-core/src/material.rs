@@ -168,6 +168,11 @@ pub struct Material {
     pub base_color: Vec3,
     /// Texture, pattern or nothing.
     pub map: ColorMap,
+    /// How much of the light behind the surface it blocks: 1 opaque, below 1 translucent (glTF
+    /// `alphaMode: BLEND` with the `baseColorFactor` alpha). The renderers draw every surface
+    /// opaque; `zwarp vr` puts mostly translucent meshes in the A-buffer (seed 003 Sec. 4.2,
+    /// [`crate::Mesh::translucent_color`]).
+    pub opacity: f32,
 }
 
 impl Default for Material {
@@ -177,20 +182,28 @@ impl Default for Material {
 }
 
 /// The material of triangles no [`MeshPart`] covers: white base colour with the pattern.
-pub const DEFAULT_MATERIAL: Material = Material { base_color: Vec3::ONE, map: ColorMap::Pattern };
+pub const DEFAULT_MATERIAL: Material = Material { base_color: Vec3::ONE, map: ColorMap::Pattern, opacity: 1.0 };
 
 impl Material {
     /// A material with base colour `base_color` and the triplanar pattern.
     pub fn pattern(base_color: Vec3) -> Self {
-        Material { base_color, map: ColorMap::Pattern }
+        Material { base_color, map: ColorMap::Pattern, opacity: 1.0 }
     }
     /// A material with a plain base colour.
     pub fn uniform(base_color: Vec3) -> Self {
-        Material { base_color, map: ColorMap::Uniform }
+        Material { base_color, map: ColorMap::Uniform, opacity: 1.0 }
     }
     /// A textured material (`base_color` multiplies the texture).
     pub fn textured(base_color: Vec3, texture: Arc<Texture>) -> Self {
-        Material { base_color, map: ColorMap::Texture(texture) }
+        Material { base_color, map: ColorMap::Texture(texture), opacity: 1.0 }
+    }
+    /// The material with `opacity` (see [`Material::opacity`]).
+    pub fn with_opacity(self, opacity: f32) -> Self {
+        Material { opacity, ..self }
+    }
+    /// `true` if the surface lets light through (opacity below 1).
+    pub fn is_translucent(&self) -> bool {
+        self.opacity < 1.0
     }
     /// The texture, if the map is one.
     pub fn texture(&self) -> Option<&Arc<Texture>> {
@@ -202,6 +215,9 @@ impl Material {
     pub(crate) fn validate(&self) -> Result<()> {
         if !self.base_color.is_finite() {
             return Err(Error::invalid(format!("material base colour is not finite ({})", self.base_color)));
+        }
+        if !(0.0..=1.0).contains(&self.opacity) {
+            return Err(Error::invalid(format!("material opacity {} is outside [0, 1]", self.opacity)));
         }
         Ok(())
     }
@@ -295,6 +311,22 @@ mod tests {
         bad.normals = Some(vec![Vec3::Z]);
         assert!(bad.validate().is_err());
         assert!(!e.contains('\n'));
+    }
+
+    #[test]
+    fn mostly_translucent_meshes_have_one_premultiplied_colour() {
+        let m = Mesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]; 4]).unwrap();
+        assert_eq!(m.translucent_color(), None);
+        let glass = Material::uniform(Vec3::new(1.0, 0.5, 0.0)).with_opacity(0.5);
+        let part = |f, material: &Material| MeshPart { first_triangle: f, material: material.clone() };
+        // Three of four triangles at opacity 0.5: premultiplied (0.5, 0.25, 0, 0.5).
+        let t = m.clone().with_parts(vec![part(0, &Material::default()), part(1, &glass)]).unwrap();
+        assert_eq!(t.translucent_color(), Some([0.5, 0.25, 0.0, 0.5]));
+        // Half of the triangles is not most of them.
+        let h = m.clone().with_parts(vec![part(0, &Material::default()), part(2, &glass)]).unwrap();
+        assert_eq!(h.translucent_color(), None);
+        let e = m.with_parts(vec![part(0, &glass.with_opacity(1.5))]).unwrap_err().to_string();
+        assert!(e.contains("opacity 1.5 is outside [0, 1]"), "{e}");
     }
 
     #[test]

@@ -135,6 +135,28 @@ impl Mesh {
             None => &DEFAULT_MATERIAL,
         }
     }
+    /// The colour of a mostly translucent mesh as one premultiplied RGBA (linear), or `None`
+    /// when translucent parts ([`Material::is_translucent`]) cover at most half of its triangles:
+    /// the triangle-weighted mean of those parts' `base_color * opacity` and opacity. The
+    /// A-buffer keeps one flat colour per object (seed 003 Sec. 4.2), so a mesh is translucent
+    /// or opaque as a whole.
+    pub fn translucent_color(&self) -> Option<[f32; 4]> {
+        let nt = self.indices.len();
+        let (mut sum, mut n) = ([0.0f64; 4], 0usize);
+        for (k, p) in self.parts.iter().enumerate() {
+            if !p.material.is_translucent() {
+                continue;
+            }
+            let end = self.parts.get(k + 1).map_or(nt, |q| q.first_triangle as usize);
+            let count = end.saturating_sub(p.first_triangle as usize);
+            let (c, a) = (p.material.base_color, p.material.opacity);
+            for (s, v) in sum.iter_mut().zip([c.x * a, c.y * a, c.z * a, a]) {
+                *s += v as f64 * count as f64;
+            }
+            n += count;
+        }
+        (2 * n > nt).then(|| sum.map(|s| (s / n as f64) as f32))
+    }
     /// Recomputes [`Mesh::bounds`] from the positions.
     pub fn compute_bounds(&mut self) {
         self.bounds = Aabb::from_points(self.positions.iter().copied());

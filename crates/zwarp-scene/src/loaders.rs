@@ -202,7 +202,7 @@ fn obj_material(m: &tobj::Material, mtl: &Path, cache: &mut HashMap<PathBuf, Arc
 /// A textured material on a mesh without UVs shows the pattern instead (with its base colour).
 fn fallback_without_uvs(m: Material, has_uvs: bool) -> Material {
     match m.map {
-        ColorMap::Texture(_) if !has_uvs => Material::pattern(m.base_color),
+        ColorMap::Texture(_) if !has_uvs => Material::pattern(m.base_color).with_opacity(m.opacity),
         _ => m,
     }
 }
@@ -353,16 +353,21 @@ impl GltfTextures<'_> {
     }
 }
 
-/// The material of a glTF primitive: `baseColorFactor` (RGB; alpha ignored: opaque) times
-/// `baseColorTexture` when the primitive has the texture's `TEXCOORD_n`, else the pattern.
+/// The material of a glTF primitive: `baseColorFactor` times `baseColorTexture` when the
+/// primitive has the texture's `TEXCOORD_n`, else the pattern. `alphaMode: BLEND` makes it
+/// translucent with the factor's alpha as opacity ([`Material::opacity`]); `OPAQUE` and `MASK`
+/// are opaque (the texture's alpha is not read).
 fn gltf_material(path: &Path, prim: &gltf::Primitive, textures: &mut GltfTextures) -> Result<(Material, Option<u32>)> {
-    let pbr = prim.material().pbr_metallic_roughness();
+    let mat = prim.material();
+    let pbr = mat.pbr_metallic_roughness();
     let c = pbr.base_color_factor();
     let base = Vec3::new(c[0], c[1], c[2]);
-    match pbr.base_color_texture() {
-        Some(info) => Ok((Material::textured(base, textures.get(path, &info.texture())?), Some(info.tex_coord()))),
-        None => Ok((Material::pattern(base), None)),
-    }
+    let opacity = if mat.alpha_mode() == gltf::material::AlphaMode::Blend { c[3].clamp(0.0, 1.0) } else { 1.0 };
+    let (m, uv) = match pbr.base_color_texture() {
+        Some(info) => (Material::textured(base, textures.get(path, &info.texture())?), Some(info.tex_coord())),
+        None => (Material::pattern(base), None),
+    };
+    Ok((m.with_opacity(opacity), uv))
 }
 
 fn gltf_mesh(

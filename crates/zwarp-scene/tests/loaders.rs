@@ -463,6 +463,34 @@ fn gltf_normals_uvs_and_embedded_png_texture() {
 }
 
 #[test]
+fn gltf_blend_materials_are_translucent() {
+    let d = temp_dir("gltf-blend");
+    let uri = format!("data:image/png;base64,{}", encode_b64(&test_png()));
+    let mut json: serde_json::Value =
+        serde_json::from_str(&textured_quad_gltf(serde_json::json!({ "uri": uri }), 4)).unwrap();
+    let load = |json: &serde_json::Value, name: &str| {
+        let f = d.join(name);
+        std::fs::write(&f, serde_json::to_string(json).unwrap()).unwrap();
+        load_scene(f.to_str().unwrap(), &SceneOptions::default()).unwrap().scene
+    };
+    // Without alphaMode (OPAQUE) the factor's alpha is ignored.
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = serde_json::json!([1.0, 0.5, 1.0, 0.4]);
+    let s = load(&json, "opaque.gltf");
+    assert_eq!(s.meshes[0].material_of(0).opacity, 1.0);
+    assert_eq!(s.meshes[0].translucent_color(), None);
+    json["materials"][0]["alphaMode"] = serde_json::json!("BLEND");
+    let s = load(&json, "blend.gltf");
+    let m = s.meshes[0].material_of(0);
+    assert!(m.is_translucent() && (m.opacity - 0.4).abs() < 1e-6, "{}", m.opacity);
+    let c = s.meshes[0].translucent_color().expect("every triangle is translucent");
+    for (got, want) in c.iter().zip([0.4, 0.2, 0.4, 0.4]) {
+        assert!((got - want).abs() < 1e-6, "{c:?}");
+    }
+    json["materials"][0]["alphaMode"] = serde_json::json!("MASK");
+    assert_eq!(load(&json, "mask.gltf").meshes[0].material_of(0).opacity, 1.0);
+}
+
+#[test]
 fn obj_with_mtl_map_kd_relative_to_the_mtl() {
     let d = temp_dir("obj-tex");
     std::fs::create_dir_all(d.join("mat/tex")).unwrap();

@@ -44,7 +44,8 @@ pub struct VrArgs {
     /// Hole filling (comma list of lowpass, rubber, stretch, pushpull).
     #[arg(long, default_value = "lowpass,rubber,stretch,pushpull")]
     pub holes: String,
-    /// Fraction of the scene's objects made glass-like (alpha 0.3-0.6, chosen by --seed).
+    /// Fraction of the scene's other objects made glass-like (alpha 0.3-0.6, chosen by --seed);
+    /// translucent materials of the file (glTF `alphaMode: BLEND`) are transparent anyway.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub transparent: f32,
     /// Interpupillary distance in world units (metres); default 64 mm.
@@ -138,7 +139,7 @@ pub struct EyeView {
     pub items: Image<u32>,
     /// Opaque colour.
     pub opaque: Image<[f32; 3]>,
-    /// The transparent fragments (with `--transparent`).
+    /// The transparent fragments (with translucent objects).
     pub abuf: Option<ABuffer>,
     /// What the eye sees: the opaque colour with the transparent fragments composited.
     pub seen: Image<[f32; 3]>,
@@ -168,8 +169,18 @@ pub fn glass_of(seed: u64, i: u32, f: f32) -> Option<[f32; 4]> {
 /// than this is an error, not a silent loss).
 const PEEL_LAYERS: usize = 64;
 
-/// Renders the views of a scene: opaque objects into the G-buffer, glass-like ones (by
-/// [`glass_of`]) depth-peeled into the A-buffer.
+/// Object `i`'s colour from the scene file, or `None` if it is opaque: a mostly translucent
+/// mesh ([`zwarp_core::Mesh::translucent_color`], e.g. glTF `alphaMode: BLEND`) tinted by the
+/// instance's albedo (premultiplied RGBA).
+pub fn file_glass_of(scene: &Scene, i: u32) -> Option<[f32; 4]> {
+    let inst = &scene.instances[i as usize];
+    let [r, g, b, a] = scene.meshes[inst.mesh as usize].translucent_color()?;
+    Some([r * inst.albedo.x, g * inst.albedo.y, b * inst.albedo.z, a])
+}
+
+/// Renders the views of a scene: opaque objects into the G-buffer, translucent ones (the
+/// file's, [`file_glass_of`], and glass-like ones by [`glass_of`]) depth-peeled into the
+/// A-buffer.
 pub struct Renderer<'a> {
     scene: &'a Scene,
     /// Opaque objects (`None`: all, no transparency).
@@ -179,13 +190,15 @@ pub struct Renderer<'a> {
 }
 
 impl<'a> Renderer<'a> {
-    /// A renderer of `scene` with a fraction `transparent` of glass objects chosen by `seed`.
+    /// A renderer of `scene` with its translucent objects and a fraction `transparent` of the
+    /// others made glass by `seed`.
     pub fn new(scene: &'a Scene, transparent: f32, seed: u64) -> Self {
-        if transparent <= 0.0 {
+        let n = scene.instances.len() as u32;
+        let colours: Vec<Option<[f32; 4]>> =
+            (0..n).map(|i| file_glass_of(scene, i).or_else(|| glass_of(seed, i, transparent))).collect();
+        if colours.iter().all(Option::is_none) {
             return Renderer { scene, opaque: None, glass: None };
         }
-        let n = scene.instances.len() as u32;
-        let colours: Vec<Option<[f32; 4]>> = (0..n).map(|i| glass_of(seed, i, transparent)).collect();
         let opaque: Vec<u32> = (0..n).filter(|&i| colours[i as usize].is_none()).collect();
         let ids: Vec<u32> = (0..n).filter(|&i| colours[i as usize].is_some()).collect();
         let mut sub = Scene { name: format!("{} (glass)", scene.name), up: scene.up, ..Scene::default() };
@@ -203,7 +216,7 @@ impl<'a> Renderer<'a> {
         Renderer { scene, opaque: Some(opaque), glass: Some((sub, ids, rgba)) }
     }
 
-    /// Objects made transparent.
+    /// Translucent objects (the file's and the glass ones).
     pub fn transparent_count(&self) -> usize {
         self.glass.as_ref().map_or(0, |g| g.1.len())
     }
@@ -357,7 +370,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan) -> Result<Vec
     let mut accs: Vec<(Key, Acc)> = Vec::new();
     let mut shots: Vec<Shot> = Vec::new();
     let mut grids: Vec<(String, Image<[f32; 3]>)> = Vec::new();
-    let abuffers: Vec<bool> = if args.transparent > 0.0 { p.abuffer.clone() } else { vec![false] };
+    let abuffers: Vec<bool> = if r.transparent_count() > 0 { p.abuffer.clone() } else { vec![false] };
     for (ki, &k) in ks.iter().enumerate() {
         let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
         let (c, cp) = (path.camera_at(t, w, h)?, path.camera_at(tp, w, h)?);
