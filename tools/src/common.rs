@@ -1,4 +1,4 @@
-//! Set-up shared by the GPU tools: the Crytek Sponza scene and the atrium view pair used
+//! Set-up shared by the tools: the culling tools' arguments, the Crytek Sponza scene and the atrium view pair used
 //! for every side-by-side table (seed 000 Sec. 4 measures at 1920x1080).
 
 use glam::Vec3;
@@ -24,4 +24,44 @@ pub fn atrium_camera(dx: f32) -> Result<Camera> {
         1920,
         1080,
     )
+}
+
+/// The leading positional arguments of the culling tools, `scene scale width height frames`
+/// (defaults: `scene`, 0.25, 960, 540, `frames`), and the rest by position.
+pub struct CullArgs {
+    args: Vec<String>,
+    /// Scene name or path.
+    pub scene: String,
+    /// Procedural scale.
+    pub scale: f32,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Frames along the path.
+    pub frames: usize,
+}
+
+impl CullArgs {
+    /// Reads the process arguments with the tool's default scene and frame count.
+    pub fn from_env(scene: &str, frames: &str) -> std::result::Result<Self, Box<dyn std::error::Error>> {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        let get = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
+        Ok(CullArgs {
+            scene: get(0, scene),
+            scale: get(1, "0.25").parse()?,
+            width: get(2, "960").parse()?,
+            height: get(3, "540").parse()?,
+            frames: get(4, frames).parse()?,
+            args,
+        })
+    }
+    /// Argument `i` (from 0), or `default`.
+    pub fn arg(&self, i: usize, default: &str) -> String {
+        self.args.get(i).cloned().unwrap_or_else(|| default.to_string())
+    }
+    /// Argument `i` if given.
+    pub fn get(&self, i: usize) -> Option<&str> {
+        self.args.get(i).map(String::as_str)
+    }
 }

@@ -8,12 +8,9 @@ use zwarp_cull::{run_sequence, Method, WocParams};
 use zwarp_scene::{load_scene, SceneOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
-    let scene_name = arg(0, "cb");
-    let scale: f32 = arg(1, "0.25").parse()?;
-    let (w, h): (u32, u32) = (arg(2, "960").parse()?, arg(3, "540").parse()?);
-    let n_frames: usize = arg(4, "8").parse()?;
+    let a = zwarp_tools::common::CullArgs::from_env("cb", "8")?;
+    let arg = |i: usize, d: &str| a.arg(i, d);
+    let (scene_name, scale, w, h, n_frames) = (a.scene.clone(), a.scale, a.width, a.height, a.frames);
     let downs: Vec<u32> = arg(5, "1,2,4").split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
     let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
     let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;

@@ -16,12 +16,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
-    let scene_name = arg(0, "cb");
-    let scale: f32 = arg(1, "0.25").parse()?;
-    let (w, h): (u32, u32) = (arg(2, "960").parse()?, arg(3, "540").parse()?);
-    let n_frames: usize = arg(4, "12").parse()?;
+    let a = zwarp_tools::common::CullArgs::from_env("cb", "12")?;
+    let arg = |i: usize, d: &str| a.arg(i, d);
+    let (scene_name, scale, w, h, n_frames) = (a.scene.clone(), a.scale, a.width, a.height, a.frames);
     let speed: f32 = arg(5, "1").parse()?;
     let downs: Vec<u32> = arg(6, "1,4").split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
     // Optional 8th argument: comma list of WOC variants (`n4`, `n2`, `tight`, `global`, `bi<k>`
@@ -98,7 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     // `reps<k>` mode (9th argument): WOC on one frame pair (frame 1 from the full render of
     // frame 0), repeated k times; the minimum of each stage filters out machine load.
-    if let Some(k) = args.get(8).and_then(|a| a.strip_prefix("reps")) {
+    if let Some(k) = a.get(8).and_then(|s| s.strip_prefix("reps")) {
         let k: usize = k.parse()?;
         let prev = zwarp_raster::render_frame(scene, &frames[0].1, frames[0].0, &Default::default())?;
         let pf = zwarp_cull::PrevFrame { depth: &prev.depth, items: &prev.items, cam: &frames[0].1, t: frames[0].0 };
