@@ -32,6 +32,7 @@ pub struct Gpu {
     warp: OnceCell<(zwarp_gpu::WarpKernel, zwarp_gpu::HoleFillKernel)>,
     shadows: OnceCell<zwarp_gpu::GpuShadows>,
     color: OnceCell<zwarp_gpu::ColorWarpKernel>,
+    grid: OnceCell<zwarp_gpu::GridWarpKernel>,
 }
 
 /// `cell`'s value, made by `make` the first time.
@@ -64,6 +65,7 @@ impl Device {
                 warp: OnceCell::new(),
                 shadows: OnceCell::new(),
                 color: OnceCell::new(),
+                grid: OnceCell::new(),
             })),
         })
     }
@@ -257,6 +259,30 @@ impl Device {
                 Ok((f.depth, f.items, f.color))
             }
         }
+    }
+
+    /// Seed 003's warp of `src` to the view `dst` with `method` (`zwarp_vr::warp`): on the GPU
+    /// the mesh (quadtree, cells) is built on the CPU and drawn by the GPU's rasteriser, and
+    /// `fpi` runs the GPU heuristic colour warp.
+    pub fn vr_warp(
+        &self,
+        src: &zwarp_vr::grid::Source<'_>,
+        dst: &Camera,
+        method: zwarp_vr::Method,
+        p: &zwarp_vr::grid::WarpParams,
+    ) -> Result<zwarp_vr::WarpOutput> {
+        let Device::Gpu(g) = self else { return Ok(zwarp_vr::warp(src, dst, method, p)?) };
+        if method == zwarp_vr::Method::Fpi {
+            let k = self.color_kernel()?.expect("the GPU device has a colour kernel");
+            let t = std::time::Instant::now();
+            let (basis, hp) = zwarp_vr::grid::fpi_setup(src, dst)?;
+            let o = k.heuristic(&basis.field(zwarp_color::FieldParams::temporal(1.0))?, src.color, &hp)?;
+            let mut out = zwarp_vr::WarpOutput::filled(o.color, o.depth);
+            out.ms.warp = t.elapsed().as_secs_f64() * 1e3;
+            return Ok(out);
+        }
+        let k = once(&g.grid, || zwarp_gpu::GridWarpKernel::new(&g.ctx))?;
+        Ok(k.raster(src, dst, &zwarp_vr::grid::Mesh::build(src, dst, method, p)?)?)
     }
 
     fn color_kernel(&self) -> Result<Option<&zwarp_gpu::ColorWarpKernel>> {

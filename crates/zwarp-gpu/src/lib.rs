@@ -23,6 +23,8 @@
 //!   device, textures and matrices, no CPU round trip; the twin of `zwarp_cull::woc`.
 //! - [`GpuShadows`]: soft shadows (seed 000 Sec. 6) — reference and zwarp sample maps with the
 //!   visibility accumulated on the GPU, the twin of `zwarp_shadows::run_shadows`.
+//! - [`GridWarpKernel`]: seed 003's adaptive grid warp (and its quads / Didyk / points
+//!   baselines) drawn by the GPU's rasteriser, the twin of `zwarp_vr::grid::raster`.
 //! - [`run_gpu_sequence`]: a culling method along a camera path on one device, the twin of
 //!   `zwarp_cull::run_sequence` (`zwarp cull --backend gpu`).
 //! - [`GpuTimer`]: GPU timestamps where supported, else fenced wall clock.
@@ -52,7 +54,8 @@ pub use compute::{
 };
 pub use context::{list_adapters, test_context, AdapterSummary, GpuContext};
 pub use render::{
-    DepthTarget, FrameOptions, GpuFrame, GpuScene, IndirectMode, LayerTargets, PeelOptions, Renderer, Shading, Umbra,
+    DepthTarget, FrameOptions, GpuFrame, GpuScene, GridWarpKernel, IndirectMode, LayerTargets, PeelOptions, Renderer,
+    Shading, Umbra,
 };
 pub use sequence::{gpu_supports, run_gpu_sequence};
 pub use shadows::{evaluate_gpu, run_shadows_gpu, GpuReceivers, GpuShadowLayers, GpuShadows};

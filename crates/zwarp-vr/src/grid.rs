@@ -151,7 +151,8 @@ pub struct Source<'a> {
 }
 
 impl Source<'_> {
-    fn check(&self) -> Result<()> {
+    /// Errors unless depth, colour and camera have one size and the depth is finite.
+    pub fn check(&self) -> Result<()> {
         self.depth.check_nonempty("warp source depth")?;
         self.depth.check_same_size(self.color, "warp source depth vs colour")?;
         if self.depth.size() != (self.cam.width, self.cam.height) {
@@ -202,78 +203,144 @@ fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-/// Warps `src` to the view of `dst` with `method`. The quadtree, when the method needs one, is
-/// built here (pass a prebuilt one to [`warp_with_tree`] to share it between eyes).
-pub fn warp(src: &Source<'_>, dst: &Camera, method: Method, p: &WarpParams) -> Result<WarpOutput> {
-    src.check()?;
-    match method {
-        Method::Grid(r) => {
-            let t = Instant::now();
-            let tree = QuadTree::build(src.depth, r, &p.collinearity)?;
-            let q = ms_since(t);
-            let mut out = warp_with_tree(src, dst, &tree, p)?;
-            out.ms.quadtree = q;
-            Ok(out)
+/// What a warp method draws for one view, built on the CPU: seed 003's grid cells with the
+/// quadtree whose connectivity gives the corner depths and the colour filter, one quad per pixel,
+/// Didyk et al.'s cells, or one splat per pixel. [`raster`] draws it on the CPU;
+/// `zwarp_gpu::GridWarpKernel` draws the same mesh with the GPU's rasteriser.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    /// The method it was built for.
+    pub method: Method,
+    /// The primitives.
+    pub primitives: Primitives,
+    /// The surface-estimation quadtree (grid methods): connected corners share vertices and
+    /// the colour fetch filters adaptively. `None`: every corner is shared and the fetch is
+    /// bilinear (quads, Didyk), or nearest (points).
+    pub tree: Option<QuadTree>,
+    /// The combined warp matrix from the source to the target view.
+    pub matrix: WarpMatrix,
+    /// Time of building the quadtree and the cells (ms; `warp` is 0 here).
+    pub ms: StageMs,
+}
+
+/// The primitives of a [`Mesh`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum Primitives {
+    /// Quads over source pixel rectangles (two triangles each).
+    Cells(Vec<Cell>),
+    /// One splat per source pixel.
+    Points,
+}
+
+impl Mesh {
+    /// The mesh of `method` (any but [`Method::Fpi`], which draws nothing) for the warp from
+    /// `src` to `dst`.
+    pub fn build(src: &Source<'_>, dst: &Camera, method: Method, p: &WarpParams) -> Result<Self> {
+        src.check()?;
+        let matrix = WarpMatrix::new(src.cam, dst)?;
+        let (w, h) = src.depth.size();
+        let t = Instant::now();
+        match method {
+            Method::Grid(r) => {
+                let tree = QuadTree::build(src.depth, r, &p.collinearity)?;
+                let quadtree = ms_since(t);
+                let mut mesh = Mesh::grid(src, dst, tree, p)?;
+                mesh.ms.quadtree = quadtree;
+                Ok(mesh)
+            }
+            Method::Quads => {
+                let cells =
+                    (0..h).flat_map(|y| (0..w).map(move |x| Cell { x0: x, y0: y, x1: x + 1, y1: y + 1 })).collect();
+                let ms = StageMs { grid: ms_since(t), ..StageMs::default() };
+                Ok(Mesh { method, primitives: Primitives::Cells(cells), tree: None, matrix, ms })
+            }
+            Method::Didyk => {
+                let cells = didyk_cells(src, &matrix, p.didyk_px)?;
+                let ms = StageMs { grid: ms_since(t), ..StageMs::default() };
+                Ok(Mesh { method, primitives: Primitives::Cells(cells), tree: None, matrix, ms })
+            }
+            Method::Points => {
+                Ok(Mesh { method, primitives: Primitives::Points, tree: None, matrix, ms: StageMs::default() })
+            }
+            Method::Fpi => Err(Error::invalid("the fpi warp is a per-pixel search: it draws no mesh")),
         }
-        Method::Quads => {
-            let t = Instant::now();
-            let (w, h) = src.depth.size();
-            let cells: Vec<Cell> =
-                (0..h).flat_map(|y| (0..w).map(move |x| Cell { x0: x, y0: y, x1: x + 1, y1: y + 1 })).collect();
-            let grid = ms_since(t);
-            let m = WarpMatrix::new(src.cam, dst)?;
-            let t = Instant::now();
-            let mut out = raster_cells(src, dst, &m, &cells, None)?;
-            out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
-            out.primitives = cells.len();
-            Ok(out)
+    }
+
+    /// The adaptive grid of a quadtree built by the caller (e.g. once for both eyes).
+    pub fn grid(src: &Source<'_>, dst: &Camera, tree: QuadTree, p: &WarpParams) -> Result<Self> {
+        src.check()?;
+        if tree.size() != src.depth.size() {
+            return Err(Error::invalid("grid warp: the quadtree was built for another image size"));
         }
-        Method::Didyk => {
-            let m = WarpMatrix::new(src.cam, dst)?;
-            let t = Instant::now();
-            let cells = didyk_cells(src, &m, p.didyk_px)?;
-            let grid = ms_since(t);
-            let t = Instant::now();
-            let mut out = raster_cells(src, dst, &m, &cells, None)?;
-            out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
-            out.primitives = cells.len();
-            out.cells = cells;
-            Ok(out)
+        if !(p.max_error_px.is_finite() && p.max_error_px >= 0.0) {
+            return Err(Error::invalid(format!("grid warp: max error must be >= 0 pixels, got {}", p.max_error_px)));
         }
-        Method::Points => {
-            let m = WarpMatrix::new(src.cam, dst)?;
-            let t = Instant::now();
-            let mut out = points(src, dst, &m)?;
-            out.ms = StageMs { quadtree: 0.0, grid: 0.0, warp: ms_since(t) };
-            Ok(out)
+        let matrix = WarpMatrix::new(src.cam, dst)?;
+        let t = Instant::now();
+        let cells = grid_cells(src, &matrix, &tree, p);
+        let ms = StageMs { grid: ms_since(t), ..StageMs::default() };
+        Ok(Mesh {
+            method: Method::Grid(tree.reduction),
+            primitives: Primitives::Cells(cells),
+            tree: Some(tree),
+            matrix,
+            ms,
+        })
+    }
+
+    /// Primitives drawn: cells (quads) or splats.
+    pub fn count(&self, src: &Source<'_>) -> usize {
+        match &self.primitives {
+            Primitives::Cells(c) => c.len(),
+            Primitives::Points => src.depth.len(),
         }
-        Method::Fpi => {
-            let t = Instant::now();
-            let mut out = fpi(src, dst)?;
-            out.ms = StageMs { quadtree: 0.0, grid: 0.0, warp: ms_since(t) };
-            Ok(out)
+    }
+
+    /// The cells [`WarpOutput::cells`] reports, for drawing the grid over the image: all of
+    /// them, except for one quad per pixel (no picture) and points.
+    pub fn outline(&self) -> Vec<Cell> {
+        if self.method == Method::Quads {
+            Vec::new()
+        } else {
+            self.cells().to_vec()
+        }
+    }
+
+    /// The grid cells (empty for points).
+    pub fn cells(&self) -> &[Cell] {
+        match &self.primitives {
+            Primitives::Cells(c) => c,
+            Primitives::Points => &[],
         }
     }
 }
 
-/// The grid warp with a quadtree built by the caller (stage times: grid and warp).
-pub fn warp_with_tree(src: &Source<'_>, dst: &Camera, tree: &QuadTree, p: &WarpParams) -> Result<WarpOutput> {
+/// Warps `src` to the view of `dst` with `method`: its [`Mesh`] drawn by [`raster`] (`fpi`: the
+/// fixed-point colour warp).
+pub fn warp(src: &Source<'_>, dst: &Camera, method: Method, p: &WarpParams) -> Result<WarpOutput> {
     src.check()?;
-    if tree.size() != src.depth.size() {
-        return Err(Error::invalid("grid warp: the quadtree was built for another image size"));
+    if method == Method::Fpi {
+        let t = Instant::now();
+        let mut out = fpi(src, dst)?;
+        out.ms = StageMs { quadtree: 0.0, grid: 0.0, warp: ms_since(t) };
+        return Ok(out);
     }
-    if !(p.max_error_px.is_finite() && p.max_error_px >= 0.0) {
-        return Err(Error::invalid(format!("grid warp: max error must be >= 0 pixels, got {}", p.max_error_px)));
-    }
-    let m = WarpMatrix::new(src.cam, dst)?;
+    let mesh = Mesh::build(src, dst, method, p)?;
+    raster(src, dst, &mesh)
+}
+
+/// Draws `mesh` on the CPU: warped quads rasterised with a depth test (or splats), then the
+/// colour fetch (stage `warp`; the mesh's own stage times are kept).
+pub fn raster(src: &Source<'_>, dst: &Camera, mesh: &Mesh) -> Result<WarpOutput> {
+    src.check()?;
     let t = Instant::now();
-    let cells = grid_cells(src, &m, tree, p);
-    let grid = ms_since(t);
-    let t = Instant::now();
-    let mut out = raster_cells(src, dst, &m, &cells, Some(tree))?;
-    out.ms = StageMs { quadtree: 0.0, grid, warp: ms_since(t) };
-    out.primitives = cells.len();
-    out.cells = cells;
+    let mut out = match &mesh.primitives {
+        Primitives::Cells(cells) => raster_cells(src, dst, &mesh.matrix, cells, mesh.tree.as_ref())?,
+        Primitives::Points => points(src, dst, &mesh.matrix)?,
+    };
+    out.ms = StageMs { warp: ms_since(t), ..mesh.ms };
+    out.primitives = mesh.count(src);
+    out.cells = mesh.outline();
     Ok(out)
 }
 
@@ -414,6 +481,19 @@ pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u3
     }
 }
 
+/// The depths of the four corners of cell `c` in the order of [`Cell::corner`], each by
+/// [`corner_depth`] from the cell pixel at that corner.
+pub fn corner_depths(depth: &Image<f32>, tree: Option<&QuadTree>, c: &Cell) -> [f32; 4] {
+    let px = [(c.x0, c.y0), (c.x1 - 1, c.y0), (c.x0, c.y1 - 1), (c.x1 - 1, c.y1 - 1)];
+    std::array::from_fn(|i| {
+        let (cx, cy) = c.corner(i);
+        corner_depth(depth, tree, cx, cy, px[i].0, px[i].1)
+    })
+}
+
+/// The two triangles of a cell as corner indices of [`Cell::corner`] (shared with the GPU twin).
+pub const CELL_TRIANGLES: [[usize; 3]; 2] = [[0, 1, 3], [0, 3, 2]];
+
 /// One warped triangle ready for rasterisation.
 #[derive(Clone, Copy, Debug)]
 struct Tri {
@@ -490,20 +570,13 @@ fn raster_cells(
     let tris: Vec<Tri> = cells
         .par_iter()
         .flat_map_iter(|c| {
-            let corners = [
-                (c.x0, c.y0, c.x0, c.y0),
-                (c.x1, c.y0, c.x1 - 1, c.y0),
-                (c.x0, c.y1, c.x0, c.y1 - 1),
-                (c.x1, c.y1, c.x1 - 1, c.y1 - 1),
-            ];
-            let v = corners.map(|(cx, cy, px, py)| {
-                let d = corner_depth(src.depth, tree, cx, cy, px, py);
-                (m.apply(cx as f32, cy as f32, d), Vec2::new(cx as f32, cy as f32))
+            let d = corner_depths(src.depth, tree, c);
+            let v: [(Vec4, Vec2); 4] = std::array::from_fn(|i| {
+                let (cx, cy) = c.corner(i);
+                (m.apply(cx as f32, cy as f32, d[i]), Vec2::new(cx as f32, cy as f32))
             });
             let clamp = [c.x0 as f32, c.y0 as f32, c.x1 as f32, c.y1 as f32];
-            [make_tri([v[0], v[1], v[3]], clamp, tw, th), make_tri([v[0], v[3], v[2]], clamp, tw, th)]
-                .into_iter()
-                .flatten()
+            CELL_TRIANGLES.into_iter().filter_map(move |[a, b, c]| make_tri([v[a], v[b], v[c]], clamp, tw, th))
         })
         .collect();
     let bands = th.div_ceil(BAND) as usize;
@@ -766,42 +839,41 @@ pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<V
     Ok(out)
 }
 
-/// zwarp's fixed-point colour warp (seed 001 heuristic, 3 iterations, orbit in-painting) on
-/// the camera-only motion field from `src` to `dst`, seeded with a fixed offset: minus the
-/// field at the 2nd-percentile depth, towards where near surfaces come from (seed 001 Sec.
-/// 3.3). It fills disocclusions itself, so its hole mask is empty.
-fn fpi(src: &Source<'_>, dst: &Camera) -> Result<WarpOutput> {
+/// The inputs of `fpi`, zwarp's fixed-point colour warp (seed 001 heuristic, 3 iterations,
+/// orbit in-painting): the camera-only warp basis from `src` to `dst` (take its field at
+/// `FieldParams::temporal(1.0)`) and the heuristic's parameters, seeded with the fixed offset of
+/// Sec. 3.3 ([`Seed::fixed_offset`]).
+pub fn fpi_setup(src: &Source<'_>, dst: &Camera) -> Result<(WarpBasis, HeuristicParams)> {
     if (dst.width, dst.height) != src.depth.size() {
         return Err(Error::invalid("fpi warp: source and target must have the same size"));
     }
     let motion = zwarp_core::motion_field(src.depth, None, src.cam, dst, &[])?;
     let basis = WarpBasis::temporal(src.depth, &motion)?;
-    let field = basis.field(zwarp_color::FieldParams::temporal(1.0))?;
-    let d = field.depth();
-    let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
-    let offset = if idx.is_empty() {
-        Vec2::ZERO
-    } else {
-        let k = idx.len() / 50;
-        idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
-        let v = -field.v(idx[k] as usize);
-        if v.is_finite() && v.length() < 1e4 {
-            v
-        } else {
-            Vec2::ZERO
+    let seed = Seed::fixed_offset(&basis.field(zwarp_color::FieldParams::temporal(1.0))?);
+    Ok((basis, HeuristicParams { seed, ..HeuristicParams::default() }))
+}
+
+impl WarpOutput {
+    /// The output of a warp that fills its own disocclusions (fpi): no hole, no primitive.
+    pub fn filled(color: Image<[f32; 3]>, depth: Image<f32>) -> Self {
+        let (w, h) = color.size();
+        WarpOutput {
+            color,
+            depth,
+            hole: Image::new(w, h, false),
+            primitives: 0,
+            cells: Vec::new(),
+            ms: StageMs::default(),
         }
-    };
-    let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
-    let o = zwarp_color::heuristic_warp(&field, src.color, &hp)?;
-    let (w, h) = o.color.size();
-    Ok(WarpOutput {
-        color: o.color,
-        depth: o.depth,
-        hole: Image::new(w, h, false),
-        primitives: 0,
-        cells: Vec::new(),
-        ms: StageMs::default(),
-    })
+    }
+}
+
+/// The fpi warp on the CPU ([`fpi_setup`]). It fills disocclusions itself, so its hole mask is
+/// empty.
+fn fpi(src: &Source<'_>, dst: &Camera) -> Result<WarpOutput> {
+    let (basis, hp) = fpi_setup(src, dst)?;
+    let o = zwarp_color::heuristic_warp(&basis.field(zwarp_color::FieldParams::temporal(1.0))?, src.color, &hp)?;
+    Ok(WarpOutput::filled(o.color, o.depth))
 }
 
 /// The grid drawn over an image (seed 003 Fig. 12-13 style): cell outlines in `line` over

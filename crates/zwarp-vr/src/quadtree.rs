@@ -412,6 +412,13 @@ pub struct Cell {
 }
 
 impl Cell {
+    /// Corner `i` (pixel-corner coordinates): 0 top-left, 1 top-right, 2 bottom-left,
+    /// 3 bottom-right.
+    #[inline]
+    pub fn corner(&self, i: usize) -> (u32, u32) {
+        (if i.is_multiple_of(2) { self.x0 } else { self.x1 }, if i < 2 { self.y0 } else { self.y1 })
+    }
+
     /// Pixels covered.
     pub fn area(&self) -> u32 {
         (self.x1 - self.x0) * (self.y1 - self.y0)

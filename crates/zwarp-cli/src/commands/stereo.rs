@@ -96,24 +96,6 @@ pub fn eye_camera(cam: &Camera, side: f32, sep: f32) -> Camera {
     colorwarp::offset_camera(cam, side * 0.5 * sep, 0.0, None)
 }
 
-/// The heuristic's fixed offset (Sec. 3.3: "a simple fixed offset worked well"): minus the
-/// field at the texel of the 2nd-percentile depth, i.e. towards where near surfaces come from.
-fn seed_offset(field: &Field<'_>) -> Vec2 {
-    let d = field.depth();
-    let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
-    if idx.is_empty() {
-        return Vec2::ZERO;
-    }
-    let k = idx.len() / 50;
-    idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
-    let v = -field.v(idx[k] as usize);
-    if v.is_finite() && v.length() < 1.0e4 {
-        v
-    } else {
-        Vec2::ZERO
-    }
-}
-
 /// Red-cyan anaglyph of two linear RGB views (red from the left eye, green and blue from the
 /// right), as sRGB.
 pub fn anaglyph(left: &Image<[f32; 3]>, right: &Image<[f32; 3]>) -> Image<[u8; 3]> {
@@ -200,8 +182,9 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 } else {
                     (&centre, centre_basis.field(FieldParams::spatial(side * 0.5 * sep, 0.0))?)
                 };
-                let offset = seed_offset(&field);
-                let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
+                let seed = Seed::fixed_offset(&field);
+                let offset = if let Seed::Offset(d) = seed { d } else { Vec2::ZERO };
+                let hp = HeuristicParams { seed, ..HeuristicParams::default() };
                 let rp = RobustParams { fallback: hp, ..RobustParams::default() };
                 let to_src = be.motion(reference, &src.cam, src.t)?;
                 let unseen = colorwarp::unseen(&reference.depth, &to_src, &src.depth, &src.cam)?;
