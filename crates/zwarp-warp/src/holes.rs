@@ -31,10 +31,11 @@ pub enum HolePolicy {
     Awoc,
     /// Sec. 4 protocol for single-layer quality ("the single-layer solution keeps holes (filled
     /// with the background depth)"): a hole bracketed by converged pixels within `radius` on both
-    /// sides of at least one of the four directions takes the *farthest* of the nearest converged
-    /// pixels found along the eight probes ([`PixelState::Filled`]). A disocclusion sliver lies
-    /// between the occluder and the surface it uncovers; the uncovered surface is the farther
-    /// side. Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
+    /// sides of at least one of the four directions takes the *farther* of the two nearest
+    /// converged pixels across its narrowest bracket ([`PixelState::Filled`]). A disocclusion
+    /// sliver lies between the occluder and the surface it uncovers; the uncovered surface is
+    /// the farther side, and the narrow axis is the one that crosses the sliver (a probe along a
+    /// long crack runs on to unrelated surfaces). Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
     /// for culling. This is the part of the protocol that needs only the warped buffer (the
     /// WGSL twin does the same); the complete protocol, which also keeps sky seen through a hole
     /// far and fills the strips a moving camera uncovers at the image border, needs the source
@@ -56,7 +57,8 @@ impl HolePolicy {
 pub enum FillRule {
     /// [`HolePolicy::Dilate`]: surrounded in all four directions, nearest neighbour wins.
     Nearest,
-    /// [`HolePolicy::Background`]: bracketed in one direction, farthest neighbour wins.
+    /// [`HolePolicy::Background`]: bracketed in one direction; the farther side of the
+    /// narrowest bracket wins.
     Background,
 }
 
@@ -162,16 +164,21 @@ pub fn hole_fill(rule: FillRule, probe: impl Fn(i64, i64) -> Option<(i64, f32)>)
             best.map(|(_, z)| z)
         }
         FillRule::Background => {
-            let mut farthest: Option<f32> = None;
-            let mut bracketed = false;
+            // The direction across which the hole is narrowest (shortest bracket, in pixels;
+            // ties: the farther fill), then the farther of its two sides. A probe along a
+            // hole's long axis (a crack between two layers' samples) runs to unrelated
+            // surfaces; the narrow axis finds the surfaces the hole separates.
+            let mut best: Option<(f32, f32)> = None; // (span, depth)
             for (dx, dy) in FILL_DIRECTIONS {
-                let (a, b) = (probe(dx, dy), probe(-dx, -dy));
-                bracketed |= a.is_some() && b.is_some();
-                for (_, z) in a.into_iter().chain(b) {
-                    farthest = Some(farthest.map_or(z, |f: f32| f.max(z)));
-                }
+                let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
+                let (Some(a), Some(b)) = (probe(dx, dy), probe(-dx, -dy)) else { continue };
+                let (span, z) = ((a.0 + b.0) as f32 * step, a.1.max(b.1));
+                best = match best {
+                    Some((bs, bz)) if bs < span || (bs == span && bz >= z) => Some((bs, bz)),
+                    _ => Some((span, z)),
+                };
             }
-            farthest.filter(|_| bracketed)
+            best.map(|(_, z)| z)
         }
     }
 }
@@ -607,6 +614,18 @@ mod tests {
         let (mut d3, mut s3) = grid(&["55...", "55...", "55..."]);
         fill_holes(&mut d3, &mut s3, 4, FillRule::Background);
         assert!(s3.data().iter().filter(|&&st| st == PixelState::Filled).count() == 0);
+    }
+
+    #[test]
+    fn background_fill_crosses_a_crack_along_its_narrow_axis() {
+        // A 1-px crack down a surface at 0.4 whose ends touch a far surface (0.9): across the
+        // crack both sides are 0.4 (span 2); along it the probes reach 0.9 (span 5). The crack
+        // belongs to the surface it splits.
+        let (mut d, mut s) = grid(&["9999999", "444.444", "444.444", "444.444", "444.444", "9999999"]);
+        fill_holes(&mut d, &mut s, 8, FillRule::Background);
+        for y in 1..5 {
+            assert_eq!((*s.get(3, y), *d.get(3, y)), (PixelState::Filled, 0.4), "row {y}");
+        }
     }
 
     /// A `w x h` source layer from per-pixel `(depth, motion x)` (motion y = 0); a pixel's

@@ -265,7 +265,7 @@ impl<'a> Kernel<'a> {
         }
         // A deeper layer's candidate behind a front surface that covers p is hidden
         // (WarpParams::cover_radius): the pixel goes to the hole policy.
-        if best.is_some_and(|c| crate::hidden_behind(c.depth, cover)) {
+        if best.is_some_and(|c| crate::hidden_behind(c.depth, cover) || self.covered_at_source(&c, p)) {
             best = None;
         }
         if let Some(c) = best {
@@ -288,6 +288,21 @@ impl<'a> Kernel<'a> {
             }
         }
         (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+
+    /// `true` if a layer in front of candidate `c`'s own (its tag) has, at `c`'s source position,
+    /// a surface that lands within the coverage radius of `p` ([`crate::WarpParams::cover_radius`])
+    /// and that `c` lies [`crate::hidden_behind`]: the front surface still covers `p` at the very
+    /// place the deeper layer was seen from, so `c` is hidden (its own search only missed, e.g. on
+    /// a crack between two layers' samples). Decided from the source alone (seed 000 Sec. 3.4:
+    /// a deeper layer fills what the front layer disoccludes, nothing else).
+    #[inline]
+    pub fn covered_at_source(&self, c: &Candidate, p: Vec2) -> bool {
+        let cover2 = self.params.cover_radius * self.params.cover_radius;
+        self.samplers[..(c.tag as usize).min(self.samplers.len())].iter().any(|s| {
+            s.fetch(c.q)
+                .is_some_and(|f| ((c.q + f.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, f.depth))
+        })
     }
 
     /// Seeds (N in the region `tb`, plus an earlier layer's converged position) and the
@@ -701,6 +716,8 @@ impl<'a> Kernel<'a> {
             _mm256_sub_ps(one, cover),
         );
         has = _mm256_andnot_ps(hidden, has);
+        // Kernel::covered_at_source for the lanes whose candidate comes from a deeper layer.
+        has = _mm256_andnot_ps(sw::covered_at_source8(ls, px, py, bqx, bqy, bz, btag, has, cover2), has);
         self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
     }
 

@@ -176,7 +176,11 @@ pub struct WarpParams {
     /// the front layer's walks end on nearest samples at the occluder's edge, far from `p`, or
     /// on the background next to the gap at the revealed surface's own depth, and deeper layers
     /// fill it as in the paper — except within the radius of an occluder's trailing edge, where
-    /// the pixel goes to the hole policy too. Default 3.5.
+    /// the pixel goes to the hole policy too. The same radius decides the second test, made at
+    /// the candidate's own source position: a front layer whose sample *there* lands within
+    /// the radius of `p` and is nearer by [`COVER_DEPTH_RATIO`] still covers `p` (its search
+    /// only missed, e.g. on a crack between the samples of two layers), so the candidate is
+    /// hidden too. Default 3.5.
     pub cover_radius: f32,
 }
 

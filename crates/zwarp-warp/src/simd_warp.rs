@@ -208,6 +208,51 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, qx: __m256, qy: __m256, live: 
     }
 }
 
+/// `Kernel::covered_at_source` per lane: of the `live` lanes, those whose candidate (source
+/// position `(qx, qy)`, target depth `z`, layer `tag`) a layer in front of `tag` covers — a
+/// sample at the candidate's position landing within `sqrt(cover2)` of `(px, py)` that the
+/// candidate lies `hidden_behind`. The layers are tested in order, as the scalar `any`.
+///
+/// # Safety
+/// The CPU must support AVX2; the planes must be `w * h` long and the live lanes' `q` inside.
+#[inline]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn covered_at_source8(
+    ls: &LaneSearch<'_>,
+    px: __m256,
+    py: __m256,
+    qx: __m256,
+    qy: __m256,
+    z: __m256,
+    tag: __m256i,
+    live: __m256,
+    cover2: __m256,
+) -> __m256 {
+    let mut covered = _mm256_setzero_ps();
+    let deep = _mm256_and_ps(live, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_setzero_si256())));
+    if _mm256_movemask_ps(deep) == 0 {
+        return covered;
+    }
+    let one = splat(1.0);
+    let hidden_z = _mm256_mul_ps(_mm256_sub_ps(one, z), splat(crate::COVER_DEPTH_RATIO));
+    for (j, pl) in ls.layers.iter().enumerate() {
+        let front = _mm256_and_ps(deep, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(j as i32))));
+        if _mm256_movemask_ps(front) == 0 {
+            break;
+        }
+        let s = fetch8(pl, ls.w, ls.h, qx, qy, front);
+        // (q + v) - p, then x * x + y * y (glam's length_squared).
+        let dx = _mm256_sub_ps(_mm256_add_ps(qx, s.vx), px);
+        let dy = _mm256_sub_ps(_mm256_add_ps(qy, s.vy), py);
+        let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
+        let near = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
+        let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(one, s.z));
+        covered = _mm256_or_ps(covered, _mm256_and_ps(_mm256_and_ps(s.has, front), _mm256_and_ps(near, behind)));
+    }
+    covered
+}
+
 /// `search::hash_u32` per lane (wrapping products, as the portable one).
 #[inline]
 #[target_feature(enable = "avx2")]

@@ -88,26 +88,28 @@ fn nearest_fill(x: i32, y: i32) -> vec2<f32> {
 }
 
 // Sec. 4 background fill (FillRule::Background) at hole (x, y): (depth, 1) when bracketed along
-// at least one direction, the farthest probe result winning; (0, 0) otherwise.
+// at least one direction, the farther side of the narrowest bracket (ties: the farther depth)
+// winning; (0, 0) otherwise.
 fn background_fill(x: i32, y: i32) -> vec2<f32> {
-    var found = false;
-    var farthest = 0.0;
-    var bracketed = false;
+    var best_s = -1.0;
+    var best_z = 0.0;
     for (var j = 0; j < 4; j++) {
         let dir = DIRS[j];
+        let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
         let a = probe(x, y, dir.x, dir.y);
         let b = probe(x, y, -dir.x, -dir.y);
-        bracketed = bracketed || (a.x != 0.0 && b.x != 0.0);
-        if (a.x != 0.0) {
-            farthest = select(a.y, max(farthest, a.y), found);
-            found = true;
+        if (a.x == 0.0 || b.x == 0.0) {
+            continue;
         }
-        if (b.x != 0.0) {
-            farthest = select(b.y, max(farthest, b.y), found);
-            found = true;
+        let span = (a.x + b.x) * step;
+        let z = max(a.y, b.y);
+        let keep = best_s >= 0.0 && (best_s < span || (best_s == span && best_z >= z));
+        if (!keep) {
+            best_s = span;
+            best_z = z;
         }
     }
-    return vec2<f32>(farthest, select(0.0, 1.0, found && bracketed));
+    return vec2<f32>(best_z, select(0.0, 1.0, best_s >= 0.0));
 }
 
 // Step 3 of fill_background (zwarp_warp::holes::fill_border_holes) at hole (x, y): a hole whose

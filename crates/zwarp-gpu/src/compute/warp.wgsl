@@ -727,6 +727,19 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     if (best.ok && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - cover) {
         best.ok = false;
     }
+    // depth_warp::Kernel::covered_at_source: a front layer's surface at the candidate's own
+    // source position lands within the coverage radius of p and hides the candidate.
+    if (best.ok) {
+        for (var j = 0u; j < min(best.tag, params.layers); j++) {
+            let s = fetch(j, best.q);
+            let d = (best.q + s.v) - p;
+            if (s.ok && d.x * d.x + d.y * d.y < params.cover2
+                && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - s.depth) {
+                best.ok = false;
+                break;
+            }
+        }
+    }
     let i = y * tw + x;
     if (best.ok) {
         out_depth[i] = best.depth;
@@ -766,7 +779,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
 // holes::fill_holes. Fig. 8 (FillRule::Nearest): a hole with a converged pixel within the radius
 // on both sides along all four directions takes the depth of the nearest one (ties: the farther
 // depth). FLAG_BACKGROUND (FillRule::Background): a hole bracketed along at least one direction
-// takes the farthest of the nearest converged pixels along the eight probes. On the target grid.
+// takes the farther side of the narrowest bracket (ties: the farther depth). On the target grid.
 @compute @workgroup_size(8, 8, 1)
 fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w = params.target_size.x;
@@ -785,9 +798,9 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     var best_ok = false;
     var best_d = 0.0;
     var best_z = 0.0;
-    var far_ok = false;
-    var far_z = 0.0;
-    var bracketed = false;
+    // FillRule::Background: the narrowest bracket so far (span, farther side).
+    var bg_s = -1.0;
+    var bg_z = 0.0;
     for (var dir = 0; dir < 4; dir++) {
         var dx = 1;
         var dy = 0;
@@ -804,6 +817,8 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
             step = 1.4142135;
         }
         var hits = 0;
+        var span = 0.0;
+        var side_z = 0.0;
         for (var side = 0; side < 2; side++) {
             let sx = select(-dx, dx, side == 0);
             let sy = select(-dy, dy, side == 0);
@@ -823,10 +838,8 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                         best_d = d;
                         best_z = z;
                     }
-                    if (!far_ok || z > far_z) {
-                        far_ok = true;
-                        far_z = z;
-                    }
+                    span += f32(kk);
+                    side_z = select(z, max(side_z, z), side == 1);
                     hit = true;
                     break;
                 }
@@ -838,12 +851,16 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         if (hits == 2) {
-            bracketed = true;
+            let sp = span * step;
+            if (!(bg_s >= 0.0 && (bg_s < sp || (bg_s == sp && bg_z >= side_z)))) {
+                bg_s = sp;
+                bg_z = side_z;
+            }
         }
     }
     if (background) {
-        if (bracketed) {
-            fill_depth[i] = far_z;
+        if (bg_s >= 0.0) {
+            fill_depth[i] = bg_z;
             fill_state[i] = 1u;
         }
     } else if (best_ok) {

@@ -1,0 +1,158 @@
+//! Where L = b layers lose to L = a on one frame pair of a path (issue: more layers must never
+//! hurt): per-pixel depth error of both predictions against the render, a histogram of
+//! (state, chosen layer) for the pixels where b is worse by more than 5 % of the depth, and a
+//! sample of them. Frames as `zwarp eval --frames 4` picks them (`which` in 0..=3), the paper's
+//! hole protocol, umbra peeling, ground layer last when the scene has ground.
+//!
+//! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y).
+use zwarp_core::{motion_field, Image};
+use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_scene::{load_scene, CameraPath, SceneOptions};
+use zwarp_warp::{predict_into, PixelState, WarpLayer, WarpOutput, WarpParams};
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    if a.len() != 9 {
+        eprintln!("usage: layer_diag SCENE PATH.json W H N a b which");
+        std::process::exit(1);
+    }
+    let (spec, pathf, w, h, n, la, lb, which): (&str, &str, u32, u32, u32, usize, usize, usize) = (
+        &a[1],
+        &a[2],
+        a[3].parse().unwrap(),
+        a[4].parse().unwrap(),
+        a[5].parse().unwrap(),
+        a[6].parse().unwrap(),
+        a[7].parse().unwrap(),
+        a[8].parse().unwrap(),
+    );
+    let loaded = load_scene(spec, &SceneOptions::default()).unwrap();
+    let scene = &loaded.scene;
+    let path = CameraPath::from_json_file(pathf).unwrap();
+    let total = path.frame_count_at(1.0);
+    let last = total - 2;
+    let k = which * last / 3;
+    let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
+    let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
+    let deltas = scene.object_deltas(ta, tb);
+    let frame = render_frame(scene, &ca, ta, &FrameOptions::default()).unwrap();
+    let reference = render_frame(scene, &cb, tb, &FrameOptions::default()).unwrap().depth;
+    let e = (cb.eye() - ca.eye()).length() * 1.5;
+    let has_ground = scene.instances.iter().any(|i| i.is_ground);
+    let maxl = la.max(lb);
+    let peel = PeelOptions {
+        layers: if has_ground { maxl - 1 } else { maxl },
+        ground_separate: has_ground,
+        umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
+    };
+    let layers = render_layers(scene, &ca, ta, &peel).unwrap();
+    let lm: Vec<(Image<f32>, Image<zwarp_core::Motion>)> = layers
+        .iter()
+        .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb, &deltas).unwrap()))
+        .collect();
+    let single = (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb, &deltas).unwrap());
+    let prefix = |l: usize| -> Vec<WarpLayer<'_>> {
+        if l == 1 {
+            return vec![WarpLayer { depth: &single.0, motion: &single.1 }];
+        }
+        let mut v: Vec<WarpLayer<'_>> = if has_ground {
+            lm[..l - 1]
+                .iter()
+                .chain(std::iter::once(lm.last().unwrap()))
+                .map(|(d, m)| WarpLayer { depth: d, motion: m })
+                .collect()
+        } else {
+            lm[..l].iter().map(|(d, m)| WarpLayer { depth: d, motion: m }).collect()
+        };
+        v.truncate(l);
+        v
+    };
+    let run = |l: usize| {
+        let params = WarpParams {
+            n_seeds: n,
+            record_source: true,
+            holes: zwarp_warp::HolePolicy::PAPER,
+            ..WarpParams::default()
+        };
+        let mut o =
+            WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
+        predict_into(&prefix(l), &params, Vec::new(), &mut o).unwrap();
+        o
+    };
+    let (oa, ob) = (run(la), run(lb));
+    for l in [la, lb] {
+        println!("L{l} limits {:?}", zwarp_warp::holes::BackgroundLimits::of(&prefix(l), w, h, 64).unwrap());
+    }
+    let lin = |d: f32| if d >= 1.0 { cb.far } else { cb.linear_depth(d) };
+    let qa = zwarp_metrics::depth_quality(&oa.depth, &reference, &cb).unwrap();
+    let qb = zwarp_metrics::depth_quality(&ob.depth, &reference, &cb).unwrap();
+    println!(
+        "frame k={k}: L{la} psnr {:.3} ssim {:.5} | L{lb} psnr {:.3} ssim {:.5}",
+        qa.psnr, qa.ssim, qb.psnr, qb.ssim
+    );
+    // pixels where b is worse
+    let mut worse = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let r = lin(*reference.get(x, y));
+            let ea = (lin(*oa.depth.get(x, y)) - r).abs();
+            let eb = (lin(*ob.depth.get(x, y)) - r).abs();
+            if eb > ea + 0.05 * r {
+                worse.push((x, y, ea, eb));
+            }
+        }
+    }
+    let better = (0..w * h)
+        .filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            let r = lin(*reference.get(x, y));
+            (lin(*oa.depth.get(x, y)) - r).abs() > (lin(*ob.depth.get(x, y)) - r).abs() + 0.05 * r
+        })
+        .count();
+    println!("worse pixels: {} better pixels: {}", worse.len(), better);
+    let sa = oa.source.as_ref().unwrap();
+    let sb = ob.source.as_ref().unwrap();
+    let mut hist = std::collections::BTreeMap::new();
+    for &(x, y, _, _) in &worse {
+        let key = (
+            format!("{:?}", oa.state.get(x, y)),
+            sa.get(x, y).layer as i64,
+            format!("{:?}", ob.state.get(x, y)),
+            sb.get(x, y).layer as i64,
+        );
+        *hist.entry(key).or_insert(0) += 1;
+    }
+    for (k, v) in &hist {
+        println!("  a {:?}/{} -> b {:?}/{}: {v}", k.0, k.1, k.2, k.3);
+    }
+    if let Ok(row) = std::env::var("ROW") {
+        let y: u32 = row.parse().unwrap();
+        for x in 178..216 {
+            let st = |o: &WarpOutput| format!("{:?}", o.state.get(x, y)).chars().next().unwrap();
+            println!(
+                "  x{x}: ref {:.2} | a {:.2} {} l{:>2} | b {:.2} {} l{:>2}",
+                lin(*reference.get(x, y)),
+                lin(*oa.depth.get(x, y)),
+                st(&oa),
+                sa.get(x, y).layer as i32,
+                lin(*ob.depth.get(x, y)),
+                st(&ob),
+                sb.get(x, y).layer as i32
+            );
+        }
+    }
+    for &(x, y, ea, eb) in worse.iter().step_by((worse.len() / 12).max(1)) {
+        let r = lin(*reference.get(x, y));
+        println!(
+            "  ({x},{y}) ref {r:.3} a {:.3} ({:?} l{} q {:?}) b {:.3} ({:?} l{} q {:?}) err {ea:.3} -> {eb:.3}",
+            lin(*oa.depth.get(x, y)),
+            oa.state.get(x, y),
+            sa.get(x, y).layer,
+            sa.get(x, y).q,
+            lin(*ob.depth.get(x, y)),
+            ob.state.get(x, y),
+            sb.get(x, y).layer,
+            sb.get(x, y).q
+        );
+    }
+}
