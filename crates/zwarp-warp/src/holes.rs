@@ -31,11 +31,11 @@ pub enum HolePolicy {
     Awoc,
     /// Sec. 4 protocol for single-layer quality ("the single-layer solution keeps holes (filled
     /// with the background depth)"): a hole bracketed by converged pixels within `radius` on both
-    /// sides of at least one of the four directions takes the *farther* of the two nearest
-    /// converged pixels across its narrowest bracket ([`PixelState::Filled`]). A disocclusion
-    /// sliver lies between the occluder and the surface it uncovers; the uncovered surface is
-    /// the farther side, and the narrow axis is the one that crosses the sliver (a probe along a
-    /// long crack runs on to unrelated surfaces). Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
+    /// sides of at least one of the four directions takes the *farthest* of the nearest
+    /// converged pixels along the directions that cross it — bracketed within
+    /// [`BRACKET_SPAN_RATIO`] times its narrowest bracket ([`PixelState::Filled`]). A
+    /// disocclusion sliver lies between the occluder and the surface it uncovers; the uncovered
+    /// surface is the farther side (a probe along a long crack runs on to unrelated surfaces). Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
     /// for culling. This is the part of the protocol that needs only the warped buffer (the
     /// WGSL twin does the same); the complete protocol, which also keeps sky seen through a hole
     /// far and fills the strips a moving camera uncovers at the image border, needs the source
@@ -57,8 +57,8 @@ impl HolePolicy {
 pub enum FillRule {
     /// [`HolePolicy::Dilate`]: surrounded in all four directions, nearest neighbour wins.
     Nearest,
-    /// [`HolePolicy::Background`]: bracketed in one direction; the farther side of the
-    /// narrowest bracket wins.
+    /// [`HolePolicy::Background`]: bracketed in one direction; the farthest side of the
+    /// directions bracketed within [`BRACKET_SPAN_RATIO`] times the narrowest bracket wins.
     Background,
 }
 
@@ -137,6 +137,10 @@ fn fill_holes_listed(
     }
 }
 
+/// [`FillRule::Background`] takes the farthest side among the directions bracketed within this
+/// many times the narrowest bracket of the hole.
+pub const BRACKET_SPAN_RATIO: f32 = 4.0;
+
 /// The four probe directions of [`fill_holes`] (each probed both ways): horizontal, vertical and
 /// both diagonals.
 pub const FILL_DIRECTIONS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
@@ -164,21 +168,23 @@ pub fn hole_fill(rule: FillRule, probe: impl Fn(i64, i64) -> Option<(i64, f32)>)
             best.map(|(_, z)| z)
         }
         FillRule::Background => {
-            // The direction across which the hole is narrowest (shortest bracket, in pixels;
-            // ties: the farther fill), then the farther of its two sides. A probe along a
-            // hole's long axis (a crack between two layers' samples) runs to unrelated
-            // surfaces; the narrow axis finds the surfaces the hole separates.
-            let mut best: Option<(f32, f32)> = None; // (span, depth)
-            for (dx, dy) in FILL_DIRECTIONS {
+            // The farthest side of the directions that cross the hole: those bracketed within
+            // BRACKET_SPAN_RATIO times the narrowest bracket. A probe that runs much farther
+            // goes along the hole (a crack between two layers' samples, a long sliver) to
+            // surfaces the hole does not separate.
+            let mut spans = [(f32::INFINITY, 0.0f32); 4];
+            for (i, (dx, dy)) in FILL_DIRECTIONS.into_iter().enumerate() {
                 let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
-                let (Some(a), Some(b)) = (probe(dx, dy), probe(-dx, -dy)) else { continue };
-                let (span, z) = ((a.0 + b.0) as f32 * step, a.1.max(b.1));
-                best = match best {
-                    Some((bs, bz)) if bs < span || (bs == span && bz >= z) => Some((bs, bz)),
-                    _ => Some((span, z)),
-                };
+                if let (Some(a), Some(b)) = (probe(dx, dy), probe(-dx, -dy)) {
+                    spans[i] = ((a.0 + b.0) as f32 * step, a.1.max(b.1));
+                }
             }
-            best.map(|(_, z)| z)
+            let narrowest = spans.iter().map(|s| s.0).fold(f32::INFINITY, f32::min);
+            spans
+                .iter()
+                .filter(|s| s.0.is_finite() && s.0 <= BRACKET_SPAN_RATIO * narrowest)
+                .map(|s| s.1)
+                .reduce(f32::max)
         }
     }
 }
@@ -619,13 +625,21 @@ mod tests {
     #[test]
     fn background_fill_crosses_a_crack_along_its_narrow_axis() {
         // A 1-px crack down a surface at 0.4 whose ends touch a far surface (0.9): across the
-        // crack both sides are 0.4 (span 2); along it the probes reach 0.9 (span 5). The crack
-        // belongs to the surface it splits.
-        let (mut d, mut s) = grid(&["9999999", "444.444", "444.444", "444.444", "444.444", "9999999"]);
-        fill_holes(&mut d, &mut s, 8, FillRule::Background);
-        for y in 1..5 {
+        // crack both sides are 0.4 (span 2); along it the probes reach 0.9 (span 11, more than
+        // BRACKET_SPAN_RATIO times 2). The crack belongs to the surface it splits (its end rows
+        // touch the far surface diagonally, within the ratio).
+        let mut rows = vec!["9999999"];
+        rows.extend(std::iter::repeat_n("444.444", 10));
+        rows.push("9999999");
+        let (mut d, mut s) = grid(&rows);
+        fill_holes(&mut d, &mut s, 16, FillRule::Background);
+        for y in 2..10 {
             assert_eq!((*s.get(3, y), *d.get(3, y)), (PixelState::Filled, 0.4), "row {y}");
         }
+        // A short hole (span 5 along, 2 across) is crossed both ways: the farthest side wins.
+        let (mut d, mut s) = grid(&["9999999", "444.444", "444.444", "444.444", "444.444", "9999999"]);
+        fill_holes(&mut d, &mut s, 8, FillRule::Background);
+        assert_eq!((*s.get(3, 2), *d.get(3, 2)), (PixelState::Filled, 0.9));
     }
 
     /// A `w x h` source layer from per-pixel `(depth, motion x)` (motion y = 0); a pixel's

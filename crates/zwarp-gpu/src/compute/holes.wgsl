@@ -44,6 +44,9 @@ const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 
 
 // Nearest converged pixel from (x, y) along (dx, dy) within the radius: (k, depth), k = 0 if
 // none (the image edge or the radius ends the probe).
+// zwarp_warp::holes::BRACKET_SPAN_RATIO.
+const BRACKET_SPAN_RATIO: f32 = 4.0;
+
 fn probe(x: i32, y: i32, dx: i32, dy: i32) -> vec2<f32> {
     let w = i32(params.width);
     let h = i32(params.height);
@@ -88,11 +91,12 @@ fn nearest_fill(x: i32, y: i32) -> vec2<f32> {
 }
 
 // Sec. 4 background fill (FillRule::Background) at hole (x, y): (depth, 1) when bracketed along
-// at least one direction, the farther side of the narrowest bracket (ties: the farther depth)
-// winning; (0, 0) otherwise.
+// at least one direction, the farthest side of the directions bracketed within
+// BRACKET_SPAN_RATIO times the narrowest bracket winning; (0, 0) otherwise.
 fn background_fill(x: i32, y: i32) -> vec2<f32> {
-    var best_s = -1.0;
-    var best_z = 0.0;
+    var span = array<f32, 4>(-1.0, -1.0, -1.0, -1.0);
+    var far = array<f32, 4>(0.0, 0.0, 0.0, 0.0);
+    var narrowest = -1.0;
     for (var j = 0; j < 4; j++) {
         let dir = DIRS[j];
         let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
@@ -101,15 +105,19 @@ fn background_fill(x: i32, y: i32) -> vec2<f32> {
         if (a.x == 0.0 || b.x == 0.0) {
             continue;
         }
-        let span = (a.x + b.x) * step;
-        let z = max(a.y, b.y);
-        let keep = best_s >= 0.0 && (best_s < span || (best_s == span && best_z >= z));
-        if (!keep) {
-            best_s = span;
-            best_z = z;
+        span[j] = (a.x + b.x) * step;
+        far[j] = max(a.y, b.y);
+        narrowest = select(span[j], min(narrowest, span[j]), narrowest >= 0.0);
+    }
+    var found = false;
+    var z = 0.0;
+    for (var j = 0; j < 4; j++) {
+        if (span[j] >= 0.0 && span[j] <= BRACKET_SPAN_RATIO * narrowest) {
+            z = select(far[j], max(z, far[j]), found);
+            found = true;
         }
     }
-    return vec2<f32>(best_z, select(0.0, 1.0, best_s >= 0.0));
+    return vec2<f32>(z, select(0.0, 1.0, found));
 }
 
 // Step 3 of fill_background (zwarp_warp::holes::fill_border_holes) at hole (x, y): a hole whose

@@ -59,6 +59,8 @@ const FLAG_AWOC: u32 = 128u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
+// zwarp_warp::holes::BRACKET_SPAN_RATIO.
+const BRACKET_SPAN_RATIO: f32 = 4.0;
 // zwarp_warp::search::CONTINUITY_PX.
 const CONTINUITY: f32 = 1.0;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
@@ -779,7 +781,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
 // holes::fill_holes. Fig. 8 (FillRule::Nearest): a hole with a converged pixel within the radius
 // on both sides along all four directions takes the depth of the nearest one (ties: the farther
 // depth). FLAG_BACKGROUND (FillRule::Background): a hole bracketed along at least one direction
-// takes the farther side of the narrowest bracket (ties: the farther depth). On the target grid.
+// takes the farthest side of the directions bracketed within BRACKET_SPAN_RATIO times the
+// narrowest bracket. On the target grid.
 @compute @workgroup_size(8, 8, 1)
 fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w = params.target_size.x;
@@ -798,9 +801,11 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     var best_ok = false;
     var best_d = 0.0;
     var best_z = 0.0;
-    // FillRule::Background: the narrowest bracket so far (span, farther side).
-    var bg_s = -1.0;
-    var bg_z = 0.0;
+    // FillRule::Background: per direction the bracket's span (-1: not bracketed) and farther
+    // side, and the narrowest span.
+    var bg_span = array<f32, 4>(-1.0, -1.0, -1.0, -1.0);
+    var bg_far = array<f32, 4>(0.0, 0.0, 0.0, 0.0);
+    var bg_min = -1.0;
     for (var dir = 0; dir < 4; dir++) {
         var dx = 1;
         var dy = 0;
@@ -852,15 +857,22 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if (hits == 2) {
             let sp = span * step;
-            if (!(bg_s >= 0.0 && (bg_s < sp || (bg_s == sp && bg_z >= side_z)))) {
-                bg_s = sp;
-                bg_z = side_z;
-            }
+            bg_span[dir] = sp;
+            bg_far[dir] = side_z;
+            bg_min = select(sp, min(bg_min, sp), bg_min >= 0.0);
         }
     }
     if (background) {
-        if (bg_s >= 0.0) {
-            fill_depth[i] = bg_z;
+        var found = false;
+        var z = 0.0;
+        for (var j = 0; j < 4; j++) {
+            if (bg_span[j] >= 0.0 && bg_span[j] <= BRACKET_SPAN_RATIO * bg_min) {
+                z = select(bg_far[j], max(z, bg_far[j]), found);
+                found = true;
+            }
+        }
+        if (found) {
+            fill_depth[i] = z;
             fill_state[i] = 1u;
         }
     } else if (best_ok) {
