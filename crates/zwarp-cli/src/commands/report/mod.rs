@@ -265,7 +265,15 @@ pub fn run(args: ReportArgs) -> Result<()> {
         r.jobs.extend(planned);
         let order = |j: &JobRecord| Section::ALL.iter().position(|s| s.id() == j.section).unwrap_or(usize::MAX);
         r.jobs.sort_by_key(order);
-        r.reruns.push(format!("{} at {}, load average {}", ids.join(", "), now(), load_average()));
+        let m = machine();
+        r.reruns.push(format!(
+            "{} at {} on {} ({} threads), load average {}",
+            ids.join(", "),
+            now(),
+            m.cpu,
+            m.threads,
+            load_average()
+        ));
         r.finished = None;
         r
     } else {
