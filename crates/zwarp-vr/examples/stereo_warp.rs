@@ -29,7 +29,7 @@ pub struct Report {
     pub pixels: usize,
 }
 
-/// `cam` moved by `u` world units along its right axis.
+/// `cam` shifted by `u` world units along its right axis.
 fn eye(cam: &Camera, u: f32) -> Camera {
     Camera { view: Mat4::from_translation(Vec3::new(-u, 0.0, 0.0)) * cam.view, ..*cam }
 }
@@ -49,7 +49,7 @@ pub fn run(w: u32, h: u32, ipd: f32, out: &Path) -> Result<Report> {
             t,
             &zwarp_raster::FrameOptions { color: true, objects: None },
         )?;
-        Ok((f.depth, f.color.expect("colour was asked for")))
+        Ok((f.depth, f.color.expect("colour is requested")))
     };
     // The one view the renderer draws.
     let (depth, color) = render(&centre)?;

@@ -209,7 +209,7 @@ fn ms_since(t: Instant) -> f64 {
 /// `zwarp_gpu::GridWarpKernel` draws the same mesh with the GPU's rasteriser.
 #[derive(Clone, Debug)]
 pub struct Mesh {
-    /// The method it was built for.
+    /// The method it is built for.
     pub method: Method,
     /// The primitives.
     pub primitives: Primitives,

@@ -293,7 +293,7 @@ impl<'a> Kernel<'a> {
     /// `true` if a layer in front of candidate `c`'s own (its tag) has, at `c`'s source position,
     /// a surface that lands within the coverage radius of `p` ([`crate::WarpParams::cover_radius`])
     /// and that `c` lies [`crate::hidden_behind`]: the front surface still covers `p` at the very
-    /// place the deeper layer was seen from, so `c` is hidden (its own search only missed, e.g. on
+    /// place the deeper layer is seen from, so `c` is hidden (its own search only missed, e.g. on
     /// a crack between two layers' samples). Decided from the source alone (seed 000 Sec. 3.4:
     /// a deeper layer fills what the front layer disoccludes, nothing else).
     #[inline]
