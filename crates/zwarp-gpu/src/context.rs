@@ -171,6 +171,30 @@ impl GpuContext {
         }
     }
 
+    /// Compiles the WGSL `source` (named `name` in labels and errors) inside [`Self::catch`].
+    pub(crate) fn shader(&self, name: &str, source: &str) -> Result<wgpu::ShaderModule> {
+        self.catch(&format!("compiling {name}"), || {
+            self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        })
+    }
+
+    /// A buffer holding `bytes` (padded to at least 16: wgpu rejects empty bindings) with
+    /// `usage`, after [`Self::check_storage_size`].
+    pub(crate) fn buffer_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
+        use wgpu::util::DeviceExt;
+        self.check_storage_size(bytes.len() as u64, label)?;
+        let mut data = bytes.to_vec();
+        data.resize(data.len().max(16), 0);
+        Ok(self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: &data,
+            usage,
+        }))
+    }
+
     /// Errors if a `width x height` 2-D texture exceeds the device limits.
     pub(crate) fn check_texture_size(&self, width: u32, height: u32, what: &str) -> Result<()> {
         let max = self.device.limits().max_texture_dimension_2d;

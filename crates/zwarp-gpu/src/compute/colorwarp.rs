@@ -90,14 +90,7 @@ impl ColorWarpKernel {
     }
 
     fn storage(&self, label: &str, bytes: &[u8]) -> Result<wgpu::Buffer> {
-        self.ctx.check_storage_size(bytes.len() as u64, label)?;
-        let mut data = bytes.to_vec();
-        data.resize(data.len().max(16), 0);
-        Ok(self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: &data,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        }))
+        self.ctx.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC)
     }
 
     fn inputs(&self, field: &Field<'_>, color: &Image<[f32; 3]>, rho: &[f32], params: &Params) -> Result<Inputs> {

@@ -319,14 +319,7 @@ impl CullKernel {
     /// Compiles `maxquery.wgsl` + `cull.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling cull.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("cull.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(
-                    concat!(include_str!("maxquery.wgsl"), include_str!("cull.wgsl")).into(),
-                ),
-            })
-        })?;
+        let module = ctx.shader("cull.wgsl", concat!(include_str!("maxquery.wgsl"), include_str!("cull.wgsl")))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let (layout, pl) = super::buffer_layouts(

@@ -191,14 +191,8 @@ impl MaxDepthKernel {
     /// Compiles `maxquery.wgsl` + `maxdepth.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling maxdepth.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("maxdepth.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(
-                    concat!(include_str!("maxquery.wgsl"), include_str!("maxdepth.wgsl")).into(),
-                ),
-            })
-        })?;
+        let module =
+            ctx.shader("maxdepth.wgsl", concat!(include_str!("maxquery.wgsl"), include_str!("maxdepth.wgsl")))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
         let (layout, pl) =

@@ -63,12 +63,7 @@ impl<'a> AutoPipelines<'a> {
     /// Compiles `source` (named `label` in errors and debuggers); `what` names the kernel in
     /// pipeline-building errors.
     pub(crate) fn new(ctx: &'a GpuContext, label: &'static str, source: &str, what: &'static str) -> Result<Self> {
-        let module = ctx.catch(&format!("compiling {label}"), || {
-            ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            })
-        })?;
+        let module = ctx.shader(label, source)?;
         Ok(AutoPipelines { ctx, module, what })
     }
 

@@ -47,12 +47,7 @@ impl MotionKernel {
     /// Compiles `motion.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling motion.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("motion.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("motion.wgsl").into()),
-            })
-        })?;
+        let module = ctx.shader("motion.wgsl", include_str!("motion.wgsl"))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let (layout, pl) = super::buffer_layouts(
             dev,

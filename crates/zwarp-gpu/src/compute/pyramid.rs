@@ -78,12 +78,7 @@ impl PyramidKernel {
     /// Compiles `pyramid.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling pyramid.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("pyramid.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("pyramid.wgsl").into()),
-            })
-        })?;
+        let module = ctx.shader("pyramid.wgsl", include_str!("pyramid.wgsl"))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let (layout, pl) = super::buffer_layouts(
             dev,

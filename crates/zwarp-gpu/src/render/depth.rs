@@ -227,12 +227,7 @@ impl Renderer {
     /// Compiles the shaders and builds the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling depth.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("depth.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("depth.wgsl").into()),
-            })
-        })?;
+        let module = ctx.shader("depth.wgsl", include_str!("depth.wgsl"))?;
         let storage = |binding, stages| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: stages,
@@ -401,12 +396,7 @@ impl Renderer {
         let [frame_color, peel_color] = colour?;
         let frame_pipeline = [frame_pipeline, frame_color];
         let peel_pipeline = [peel_pipeline, peel_color];
-        let copy_module = ctx.catch("compiling depth_copy.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("depth_copy.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("depth_copy.wgsl").into()),
-            })
-        })?;
+        let copy_module = ctx.shader("depth_copy.wgsl", include_str!("depth_copy.wgsl"))?;
         let cs = wgpu::ShaderStages::COMPUTE;
         let copy_layout = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("zwarp depth copy"),

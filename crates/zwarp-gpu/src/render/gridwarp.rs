@@ -53,12 +53,7 @@ impl GridWarpKernel {
     /// Compiles `gridwarp.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
         let dev = &ctx.device;
-        let module = ctx.catch("compiling gridwarp.wgsl", || {
-            dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("gridwarp.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("gridwarp.wgsl").into()),
-            })
-        })?;
+        let module = ctx.shader("gridwarp.wgsl", include_str!("gridwarp.wgsl"))?;
         let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
             binding,
@@ -128,17 +123,6 @@ impl GridWarpKernel {
         Ok(GridWarpKernel { ctx: ctx.clone(), cells, points, layout })
     }
 
-    fn storage(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
-        self.ctx.check_storage_size(bytes.len() as u64, label)?;
-        let mut data = bytes.to_vec();
-        data.resize(data.len().max(16), 0);
-        Ok(self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: &data,
-            usage,
-        }))
-    }
-
     fn target(&self, label: &str, format: wgpu::TextureFormat, w: u32, h: u32) -> Result<wgpu::Texture> {
         self.ctx.catch(label, || {
             self.ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -190,9 +174,9 @@ impl GridWarpKernel {
             contents: bytemuck::bytes_of(&params),
             usage: wgpu::BufferUsages::UNIFORM,
         });
-        let color = self.storage("zwarp grid warp colour", bytemuck::cast_slice(rgb), usage)?;
-        let depth = self.storage("zwarp grid warp depth", bytemuck::cast_slice(src.depth.data()), usage)?;
-        let links = self.storage("zwarp grid warp links", bytemuck::cast_slice(&links), usage)?;
+        let color = self.ctx.buffer_with("zwarp grid warp colour", bytemuck::cast_slice(rgb), usage)?;
+        let depth = self.ctx.buffer_with("zwarp grid warp depth", bytemuck::cast_slice(src.depth.data()), usage)?;
+        let links = self.ctx.buffer_with("zwarp grid warp links", bytemuck::cast_slice(&links), usage)?;
         let instances: Option<(wgpu::Buffer, u32)> = match &mesh.primitives {
             Primitives::Cells(cells) => {
                 let tree = mesh.tree.as_ref();
@@ -200,8 +184,11 @@ impl GridWarpKernel {
                     .iter()
                     .map(|c| CellInstance { rect: [c.x0, c.y0, c.x1, c.y1], depth: corner_depths(src.depth, tree, c) })
                     .collect();
-                let buf =
-                    self.storage("zwarp grid warp cells", bytemuck::cast_slice(&data), wgpu::BufferUsages::VERTEX)?;
+                let buf = self.ctx.buffer_with(
+                    "zwarp grid warp cells",
+                    bytemuck::cast_slice(&data),
+                    wgpu::BufferUsages::VERTEX,
+                )?;
                 Some((buf, cells.len() as u32))
             }
             Primitives::Points => None,
