@@ -31,20 +31,22 @@ pub enum Seed {
     Offset(Vec2),
 }
 
-impl Seed {
-    /// The fixed offset of Sec. 3.3 ("a simple fixed offset worked well") for the warp
-    /// `field`: minus the field at the texel of the 2nd-percentile depth, i.e. towards where
-    /// near surfaces come from; zero without surfaces or with a non-finite field there.
-    pub fn fixed_offset(field: &Field<'_>) -> Seed {
-        let d = field.depth();
-        let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
-        if idx.is_empty() {
-            return Seed::Offset(Vec2::ZERO);
-        }
-        let k = idx.len() / 50;
-        idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
-        let v = -field.v(idx[k] as usize);
-        Seed::Offset(if v.is_finite() && v.length() < 1.0e4 { v } else { Vec2::ZERO })
+/// The fixed seed offset of Sec. 3.3 ("a simple fixed offset worked well", [`Seed::Offset`]) for
+/// the warp `field`: minus the field at the texel of the 2nd-percentile depth, i.e. towards where
+/// near surfaces come from; zero without surfaces or with a non-finite field there.
+pub fn fixed_offset(field: &Field<'_>) -> Vec2 {
+    let d = field.depth();
+    let mut idx: Vec<u32> = (0..d.len() as u32).filter(|&i| d[i as usize] < 1.0).collect();
+    if idx.is_empty() {
+        return Vec2::ZERO;
+    }
+    let k = idx.len() / 50;
+    idx.select_nth_unstable_by(k, |&a, &b| d[a as usize].total_cmp(&d[b as usize]));
+    let v = -field.v(idx[k] as usize);
+    if v.is_finite() && v.length() < 1.0e4 {
+        v
+    } else {
+        Vec2::ZERO
     }
 }
 

@@ -39,7 +39,7 @@ pub mod sampler;
 pub use baselines::{mesh_warp, push_pull, repeat, reproject, scatter_warp, source_visibility};
 pub use combine::{combine_interpolated, confidence_weights};
 pub use field::{Field, FieldParams, Planes, Term, WarpBasis};
-pub use heuristic::{heuristic_warp, heuristic_warp_into, HeuristicParams, Seed};
+pub use heuristic::{fixed_offset, heuristic_warp, heuristic_warp_into, HeuristicParams, Seed};
 pub use lanes::{set_simd, simd_enabled};
 pub use robust::{
     rho_cells, rho_cells_max, robust_warp, robust_warp_with, spectral_radius, HoleFill, Leaf, RobustParams,

@@ -842,15 +842,15 @@ pub fn didyk_cells(src: &Source<'_>, m: &WarpMatrix, threshold: f32) -> Result<V
 /// The inputs of `fpi`, zwarp's fixed-point colour warp (seed 001 heuristic, 3 iterations,
 /// orbit in-painting): the camera-only warp basis from `src` to `dst` (take its field at
 /// `FieldParams::temporal(1.0)`) and the heuristic's parameters, seeded with the fixed offset of
-/// Sec. 3.3 ([`Seed::fixed_offset`]).
+/// Sec. 3.3 ([`zwarp_color::fixed_offset`]).
 pub fn fpi_setup(src: &Source<'_>, dst: &Camera) -> Result<(WarpBasis, HeuristicParams)> {
     if (dst.width, dst.height) != src.depth.size() {
         return Err(Error::invalid("fpi warp: source and target must have the same size"));
     }
     let motion = zwarp_core::motion_field(src.depth, None, src.cam, dst, &[])?;
     let basis = WarpBasis::temporal(src.depth, &motion)?;
-    let seed = Seed::fixed_offset(&basis.field(zwarp_color::FieldParams::temporal(1.0))?);
-    Ok((basis, HeuristicParams { seed, ..HeuristicParams::default() }))
+    let offset = zwarp_color::fixed_offset(&basis.field(zwarp_color::FieldParams::temporal(1.0))?);
+    Ok((basis, HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() }))
 }
 
 impl WarpOutput {

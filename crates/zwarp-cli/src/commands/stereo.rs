@@ -9,7 +9,6 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use clap::Args;
-use glam::Vec2;
 use serde::Serialize;
 use zwarp_color::{Field, FieldParams, HeuristicParams, RobustParams, Seed, WarpBasis};
 use zwarp_core::{Camera, Image};
@@ -182,9 +181,8 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 } else {
                     (&centre, centre_basis.field(FieldParams::spatial(side * 0.5 * sep, 0.0))?)
                 };
-                let seed = Seed::fixed_offset(&field);
-                let offset = if let Seed::Offset(d) = seed { d } else { Vec2::ZERO };
-                let hp = HeuristicParams { seed, ..HeuristicParams::default() };
+                let offset = zwarp_color::fixed_offset(&field);
+                let hp = HeuristicParams { seed: Seed::Offset(offset), ..HeuristicParams::default() };
                 let rp = RobustParams { fallback: hp, ..RobustParams::default() };
                 let to_src = be.motion(reference, &src.cam, src.t)?;
                 let unseen = colorwarp::unseen(&reference.depth, &to_src, &src.depth, &src.cam)?;
