@@ -26,9 +26,23 @@ use crate::search::{
 };
 use crate::{BoundKind, PixelState, SourcePos, WarpParams, MAX_SEEDS};
 
-/// How many tiles ahead the AVX2 band asks the caches for layer 0's samples.
+/// The states of four pixels from four converged bits: `Converged` where set, `Hole` elsewhere.
 #[cfg(target_arch = "x86_64")]
-const PREFETCH_TILES: usize = 16;
+const STATE4: [[u8; 4]; 16] = {
+    let mut t = [[PixelState::Hole as u8; 4]; 16];
+    let mut b = 0;
+    while b < 16 {
+        let mut i = 0;
+        while i < 4 {
+            if b >> i & 1 != 0 {
+                t[b][i] = PixelState::Converged as u8;
+            }
+            i += 1;
+        }
+        b += 1;
+    }
+    t
+};
 
 /// Side of a tile of the tile stage (target pixels).
 pub const TILE: u32 = 4;
@@ -442,10 +456,9 @@ impl<'a> Kernel<'a> {
         let y0 = ty * TILE;
         let stages: Vec<Vec<Option<StageBound>>> =
             (0..self.layers.len()).map(|k| self.tile_stages(&pvs[k], k, ty, rows)).collect();
-        for (t, x0) in (0..self.tw).step_by(TILE as usize).enumerate() {
-            let x1 = (x0 + TILE).min(self.tw);
-            self.prefetch_tile(ls, &stages[0], t + PREFETCH_TILES, y0, rows);
-            for yy in (y0..y0 + rows).step_by(2) {
+        for yy in (y0..y0 + rows).step_by(2) {
+            for (t, x0) in (0..self.tw).step_by(TILE as usize).enumerate() {
+                let x1 = (x0 + TILE).min(self.tw);
                 let r = (yy - y0) as usize * w;
                 let (d0, d1) = depth[r..].split_at_mut(w);
                 let (s0, s1) = state[r..].split_at_mut(w);
@@ -458,40 +471,11 @@ impl<'a> Kernel<'a> {
                 };
                 let two = yy + 1 < y0 + rows;
                 let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
-                self.lanes8(ls, pvs, &stages, t, x0, x1, yy, out);
-            }
-        }
-    }
-
-    /// Asks the caches for layer 0's samples around tile `t`'s source region (the centre of its
-    /// motion bound): the planes are read tile by tile over many rows at once, a pattern the
-    /// hardware prefetchers do not follow, so without this the search waits on memory.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn prefetch_tile(
-        &self,
-        ls: &crate::simd_warp::LaneSearch<'_>,
-        stages: &[Option<StageBound>],
-        t: usize,
-        y0: u32,
-        rows: u32,
-    ) {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let Some(Some(s)) = stages.get(t) else { return };
-        let frame = self.layers[0].pyramid().frame();
-        let v = frame.from_frame((s.motion.lo + s.motion.hi) * 0.5);
-        let c = self.target_pos(t as u32 * TILE, y0) - v;
-        let (w, h) = (self.w as i64, self.h as i64);
-        let x = (c.x as i64 - 1).clamp(0, w - 1) as usize;
-        let (ya, yb) = ((c.y as i64 - 1).clamp(0, h - 1), (c.y as i64 + rows as i64 + 1).clamp(0, h - 1));
-        for plane in &ls.layers[..1] {
-            for p in [plane.vx, plane.vy, plane.z] {
-                for y in ya..=yb {
-                    // SAFETY: the index is clamped into the plane; prefetching has no effect on
-                    // memory contents.
-                    unsafe {
-                        _mm_prefetch::<_MM_HINT_T0>(p.as_ptr().add(y as usize * self.w as usize + x) as *const i8)
-                    };
+                match self.fast_lanes(ls, &stages, t, x0, x1, yy, two) {
+                    Some((has, z, qx, qy)) => {
+                        self.write_lanes(x0, x1, out, has, z, qx, qy, std::arch::x86_64::_mm256_setzero_si256())
+                    }
+                    None => self.lanes8(ls, pvs, &stages, t, x0, x1, yy, out),
                 }
             }
         }
@@ -579,6 +563,52 @@ impl<'a> Kernel<'a> {
         }
     }
 
+    /// The eight lanes of [`Self::lanes8`] when they take the common case in one pass
+    /// ([`crate::simd_warp::fast8`]: layer 0's tile bound resolved, one seed per lane converging
+    /// at once, every later layer pruned by its tile's min depth): their `(converged, depth, qx,
+    /// qy)`, or `None` for the general path. Kept out of line: inlined into the general path it
+    /// shares that path's register pressure.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments, clippy::type_complexity)]
+    unsafe fn fast_lanes(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        stages: &[Vec<Option<StageBound>>],
+        t: usize,
+        x0: u32,
+        x1: u32,
+        y: u32,
+        two: bool,
+    ) -> Option<(
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+    )> {
+        use std::arch::x86_64::*;
+        let s0 = stages[0][t].filter(StageBound::resolved)?;
+        let mut later = [f32::INFINITY; 8];
+        let nl = self.layers.len() - 1;
+        if nl > later.len() {
+            return None;
+        }
+        for (z, s) in later.iter_mut().zip(&stages[1..]) {
+            *z = s[t].map_or(f32::INFINITY, |s| s.min_depth);
+        }
+        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+        let yi = _mm256_add_epi32(_mm256_set1_epi32(y as i32), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
+        let cols = ((1u8 << (x1 - x0)) - 1) & 0xf;
+        let active = cols | if two { cols << 4 } else { 0 };
+        let (px, py) = crate::simd_warp::positions(self.m, xi, yi);
+        let frame = self.layers[0].pyramid().frame();
+        crate::simd_warp::fast8(ls, frame, &s0.motion, &later[..nl], px, py, active)
+    }
+
     /// The warp of the pixels `x0..x1` of rows `y` and `y + 1` of one tile (eight lanes) in
     /// lock step over the layers with the AVX2 single-seed search: per layer, lanes that already
     /// converged take the tile's min-depth pruning test, the others search with one seed in the
@@ -591,6 +621,7 @@ impl<'a> Kernel<'a> {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
+    #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     unsafe fn lanes8(
         &self,
@@ -623,24 +654,6 @@ impl<'a> Kernel<'a> {
         // within the coverage radius (Kernel::pixel_from).
         let mut cover = _mm256_set1_ps(f32::INFINITY);
         let cover2 = _mm256_set1_ps(self.params.cover_radius * self.params.cover_radius);
-        // The common case in one pass (`simd_warp::fast8`).
-        if let Some(s0) = stages[0][t].filter(StageBound::resolved) {
-            let mut later = [f32::INFINITY; 8];
-            let nl = self.layers.len() - 1;
-            if nl <= later.len() {
-                for (z, s) in later.iter_mut().zip(&stages[1..]) {
-                    *z = s[t].map_or(f32::INFINITY, |s| s.min_depth);
-                }
-                let frame = self.layers[0].pyramid().frame();
-                if let Some((now, z, qx, qy)) = sw::fast8(ls, frame, &s0.motion, &later[..nl], px, py, active) {
-                    has = now;
-                    bz = z;
-                    bqx = qx;
-                    bqy = qy;
-                    return self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag);
-                }
-            }
-        }
         for k in 0..self.layers.len() {
             let Some(sk) = stages[k][t] else { continue };
             let frame = self.layers[k].pyramid().frame();
@@ -752,8 +765,16 @@ impl<'a> Kernel<'a> {
                 break;
             }
             drow[x..x + n].copy_from_slice(&zs[4 * row..4 * row + n]);
-            for (i, st) in srow[x..x + n].iter_mut().enumerate() {
-                *st = if hasb >> (4 * row + i) & 1 != 0 { PixelState::Converged } else { PixelState::Hole };
+            let bits = hasb >> (4 * row);
+            if n == 4 {
+                // SAFETY: `PixelState` is a repr(u8) enum (STATE4's bytes are its values) and the
+                // slice holds four elements from `x`.
+                let dst = srow[x..x + 4].as_mut_ptr() as *mut [u8; 4];
+                unsafe { dst.write_unaligned(STATE4[(bits & 0xf) as usize]) };
+            } else {
+                for (i, st) in srow[x..x + n].iter_mut().enumerate() {
+                    *st = if bits >> i & 1 != 0 { PixelState::Converged } else { PixelState::Hole };
+                }
             }
         }
         if source.iter().any(|s| s.is_some()) {
