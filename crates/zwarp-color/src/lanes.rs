@@ -108,6 +108,116 @@ pub(crate) mod avx2 {
         }
     }
 
+    /// Where the `live` lanes' cells of `l` all lie in one window of eight texels (their first
+    /// texels `i[0]` within `m..m + 8`, each cell `i[0], i[0] + 1, i[0] + w, i[0] + w + 1`, and
+    /// `m + w + 8` inside the `len`-texel planes): `m` and each lane's offset in the window
+    /// (0 for dead lanes). Smooth motion moves neighbouring pixels' cells together, so this is
+    /// the common case; the texels are then read with row loads and permutes instead of gathers.
+    #[inline(always)]
+    unsafe fn window(l: &Loc, live: __m256, w: i32, len: usize) -> Option<(usize, __m256i)> {
+        let live_i = _mm256_castps_si256(live);
+        let i0 = _mm256_blendv_epi8(_mm256_set1_epi32(i32::MAX), l.i[0], live_i);
+        let m1 = _mm256_min_epi32(i0, _mm256_permute2x128_si256::<1>(i0, i0));
+        let m2 = _mm256_min_epi32(m1, _mm256_shuffle_epi32::<0b0100_1110>(m1));
+        let m3 = _mm256_min_epi32(m2, _mm256_shuffle_epi32::<0b1011_0001>(m2));
+        let m = _mm256_cvtsi256_si32(m3);
+        let d = _mm256_and_si256(_mm256_sub_epi32(l.i[0], _mm256_set1_epi32(m)), live_i);
+        let one = _mm256_set1_epi32(1);
+        let cell = _mm256_and_si256(
+            _mm256_and_si256(
+                _mm256_cmpeq_epi32(l.i[1], _mm256_add_epi32(l.i[0], one)),
+                _mm256_cmpeq_epi32(l.i[2], _mm256_add_epi32(l.i[0], _mm256_set1_epi32(w))),
+            ),
+            _mm256_cmpeq_epi32(l.i[3], _mm256_add_epi32(l.i[2], one)),
+        );
+        let bad = _mm256_or_si256(_mm256_cmpgt_epi32(d, _mm256_set1_epi32(7)), _mm256_andnot_si256(cell, live_i));
+        if m < 0 || _mm256_movemask_epi8(bad) != 0 || m as usize + w as usize + 8 > len {
+            return None;
+        }
+        Some((m as usize, d))
+    }
+
+    /// The four texels of each lane's cell from plane `p` through a [`window`].
+    #[inline(always)]
+    unsafe fn window_texels(p: *const f32, (m, d): (usize, __m256i), w: usize) -> [__m256; 4] {
+        [
+            _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(m)), d),
+            _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(m + 1)), d),
+            _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(m + w)), d),
+            _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(m + w + 1)), d),
+        ]
+    }
+
+    /// The motion and depth texels of the cells of `l` for the `live` lanes (others: unspecified).
+    #[inline(always)]
+    unsafe fn cell_texels(p: &Planes, l: &Loc, live: __m256, w: i32, len: usize) -> ([V2; 4], [__m256; 4]) {
+        if let Some(win) = window(l, live, w, len) {
+            let wu = w as usize;
+            let zero = _mm256_setzero_ps();
+            let mut v = [V2 { x: zero, y: zero }; 4];
+            for k in 0..p.n {
+                let (tx, ty) = (window_texels(p.x[k], win, wu), window_texels(p.y[k], win, wu));
+                for j in 0..4 {
+                    v[j].x = _mm256_add_ps(v[j].x, _mm256_mul_ps(p.sx[k], tx[j]));
+                    v[j].y = _mm256_add_ps(v[j].y, _mm256_mul_ps(p.sy[k], ty[j]));
+                }
+            }
+            return (v, window_texels(p.depth, win, wu));
+        }
+        (
+            [v_at(p, l.i[0]), v_at(p, l.i[1]), v_at(p, l.i[2]), v_at(p, l.i[3])],
+            [
+                _mm256_i32gather_ps::<4>(p.depth, l.i[0]),
+                _mm256_i32gather_ps::<4>(p.depth, l.i[1]),
+                _mm256_i32gather_ps::<4>(p.depth, l.i[2]),
+                _mm256_i32gather_ps::<4>(p.depth, l.i[3]),
+            ],
+        )
+    }
+
+    /// Float `idx` (per lane, `0..32`) of the 32 floats at `p`.
+    #[inline(always)]
+    unsafe fn pick32(p: *const f32, idx: __m256i) -> __m256 {
+        let r0 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p), idx);
+        let r1 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(8)), idx);
+        let r2 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(16)), idx);
+        let r3 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(24)), idx);
+        let v = _mm256_blendv_ps(r0, r1, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(7))));
+        let v = _mm256_blendv_ps(v, r2, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(15))));
+        _mm256_blendv_ps(v, r3, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(23))))
+    }
+
+    /// The colour texels of each lane's cell (per channel the four texels) for the `live`
+    /// lanes: through a [`window`] with row loads (the window's 9 texels of a row are 27 floats:
+    /// four loads, a lane's float picked by permutes and blends), else with gathers.
+    #[inline(always)]
+    unsafe fn cell_rgb(color: &[[f32; 3]], l: &Loc, live: __m256, w: i32, len: usize) -> [[__m256; 4]; 3] {
+        let base = color.as_ptr() as *const f32;
+        let three = _mm256_set1_epi32(3);
+        let wu = w as usize;
+        let mut out = [[_mm256_setzero_ps(); 4]; 3];
+        match window(l, live, w, len) {
+            Some((m, d)) if 3 * (m + wu) + 32 <= 3 * len => {
+                let d3 = _mm256_mullo_epi32(d, three);
+                let (top, bot) = (base.add(3 * m), base.add(3 * (m + wu)));
+                for (ch, o) in out.iter_mut().enumerate() {
+                    let i = _mm256_add_epi32(d3, _mm256_set1_epi32(ch as i32));
+                    let i1 = _mm256_add_epi32(i, three);
+                    *o = [pick32(top, i), pick32(top, i1), pick32(bot, i), pick32(bot, i1)];
+                }
+            }
+            _ => {
+                for (ch, o) in out.iter_mut().enumerate() {
+                    let off = _mm256_set1_epi32(ch as i32);
+                    for (t, &i) in o.iter_mut().zip(&l.i) {
+                        *t = _mm256_i32gather_ps::<4>(base, _mm256_add_epi32(_mm256_mullo_epi32(i, three), off));
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Selects texel `k` of the four by the nearest-texel masks.
     #[inline(always)]
     unsafe fn near(l: &Loc, a: [__m256; 4]) -> __m256 {
@@ -169,6 +279,7 @@ pub(crate) mod avx2 {
             pl.sy[k] = _mm256_set1_ps(t.scale.y);
         }
         let wi = w as i32;
+        let len = w as usize * h as usize;
         let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
         let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
         let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
@@ -223,13 +334,7 @@ pub(crate) mod avx2 {
             let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
             let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
             let l = locate(sx, sy, wi, wm, hm);
-            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
-            let z4 = [
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[0]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[1]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[2]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[3]),
-            ];
+            let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
             let sm = smooth(&v4);
             let bx = lerp(lerp(v4[0].x, v4[1].x, l.ax), lerp(v4[2].x, v4[3].x, l.ax), l.ay);
             let by = lerp(lerp(v4[0].y, v4[1].y, l.ax), lerp(v4[2].y, v4[3].y, l.ax), l.ay);
@@ -292,13 +397,9 @@ pub(crate) mod avx2 {
             let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
             smooth(&v4)
         };
-        let cbase = color.as_ptr() as *const f32;
-        let three = _mm256_set1_epi32(3);
-        let ci = l.i.map(|i| _mm256_mullo_epi32(i, three));
+        let cells = cell_rgb(color, &l, all, wi, len);
         let mut rgb = [zero; 3];
-        for (ch, o) in rgb.iter_mut().enumerate() {
-            let off = _mm256_set1_epi32(ch as i32);
-            let c = ci.map(|i| _mm256_i32gather_ps::<4>(cbase, _mm256_add_epi32(i, off)));
+        for (o, c) in rgb.iter_mut().zip(cells) {
             let top = mix(c[0], c[1], l.ax);
             let bot = mix(c[2], c[3], l.ax);
             *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
@@ -376,6 +477,7 @@ pub(crate) mod avx2 {
         }
         let rp = rho.as_ptr();
         let wi = w as i32;
+        let len = w as usize * h as usize;
         let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
         let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
         let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
@@ -422,13 +524,7 @@ pub(crate) mod avx2 {
             let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
             let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
             let l = locate(sx, sy, wi, wm, hm);
-            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
-            let z4 = [
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[0]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[1]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[2]),
-                _mm256_i32gather_ps::<4>(pl.depth, l.i[3]),
-            ];
+            let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
             let sm = smooth_rho(&l, rp);
             let tx = lerp(v4[0].x, v4[1].x, l.ax);
             let ty = lerp(v4[0].y, v4[1].y, l.ax);
@@ -507,13 +603,9 @@ pub(crate) mod avx2 {
         let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
         let l = locate(qx, qy, wi, wm, hm);
         let sm = smooth_rho(&l, rp);
-        let cbase = color.as_ptr() as *const f32;
-        let three = _mm256_set1_epi32(3);
-        let ci = l.i.map(|i| _mm256_mullo_epi32(i, three));
+        let cells = cell_rgb(color, &l, acc, wi, len);
         let mut rgb = [zero; 3];
-        for (ch, o) in rgb.iter_mut().enumerate() {
-            let off = _mm256_set1_epi32(ch as i32);
-            let c = ci.map(|i| _mm256_i32gather_ps::<4>(cbase, _mm256_add_epi32(i, off)));
+        for (o, c) in rgb.iter_mut().zip(cells) {
             let top = mix(c[0], c[1], l.ax);
             let bot = mix(c[2], c[3], l.ax);
             *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);

@@ -3,10 +3,12 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill] [bi=6] [path=FILE.json]`
+//!
+//! `bi` is `WarpParams::bound_iterations`.
 //!
 //! Prints the median and min..max wall ms of `part` (all threads) over `reps` warm runs, the
-//! floor's, their ratio, and an FNV fingerprint of the output (depth bits and states) that
+//! floor's and a depth render's of the target view (zwarp-raster), interleaved, their ratios, and an FNV fingerprint of the output (depth bits and states) that
 //! tells a bit-identical optimisation from one that changes the function.
 
 use std::collections::HashMap;
@@ -40,7 +42,10 @@ fn main() {
     let part = get("part", "all");
 
     let loaded = zwarp_scene::load_scene(&name, &SceneOptions::default()).unwrap();
-    let path = loaded.path_or_default();
+    let path = match args.get("path") {
+        Some(p) => zwarp_scene::CameraPath::from_json_file(p).unwrap(),
+        None => loaded.path_or_default(),
+    };
     let scene = loaded.scene;
     let (ta, tb) = (path.time_of_frame(frame, speed), path.time_of_frame(frame + 1, speed));
     let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
@@ -67,7 +72,8 @@ fn main() {
             .collect()
     };
     let layers: Vec<WarpLayer> = bufs.iter().map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
-    let params = WarpParams { n_seeds: n, ..Default::default() };
+    let bi: u32 = get("bi", "6").parse().unwrap();
+    let params = WarpParams { n_seeds: n, bound_iterations: bi, ..Default::default() };
     let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
     let mut out = WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
     let mut rec = predict_into(&layers, &params, Vec::new(), &mut out).unwrap();
@@ -77,7 +83,7 @@ fn main() {
         out.clone()
     };
     let mut floor_out = vec![0f32; w as usize * h as usize];
-    let (mut tp, mut tf) = (Vec::new(), Vec::new());
+    let (mut tp, mut tf, mut tr) = (Vec::new(), Vec::new(), Vec::new());
     let mut scratch = warped.clone();
     for _ in 0..reps {
         let t0 = Instant::now();
@@ -102,6 +108,9 @@ fn main() {
         let t0 = Instant::now();
         floor::floor_pass(&layers, 1, w, &mut floor_out).unwrap();
         tf.push(t0.elapsed().as_secs_f64() * 1e3);
+        let t0 = Instant::now();
+        std::hint::black_box(zwarp_raster::render_depth(&scene, &cb, tb).unwrap());
+        tr.push(t0.elapsed().as_secs_f64() * 1e3);
     }
     let res = predict_into(&layers, &params, rec, &mut out).unwrap();
     drop(res);
@@ -113,8 +122,10 @@ fn main() {
     }
     let (p, plo, phi) = stats(tp);
     let (f, flo, fhi) = stats(tf);
+    let (r, rlo, rhi) = stats(tr);
     println!(
-        "{name} {w}x{h} L={l} N={n} {part}: {p:.2} ms [{plo:.2}, {phi:.2}]  floor {f:.2} ms [{flo:.2}, {fhi:.2}]  ratio {:.1}  hash {fp:016x}",
-        p / f
+        "{name} {w}x{h} L={l} N={n} {part}: {p:.2} ms [{plo:.2}, {phi:.2}]  floor {f:.2} ms [{flo:.2}, {fhi:.2}]  x floor {:.1}  render {r:.2} ms [{rlo:.2}, {rhi:.2}]  render/{part} {:.2}  hash {fp:016x}",
+        p / f,
+        r / p
     );
 }
