@@ -391,11 +391,10 @@ impl<'a> Kernel<'a> {
 
     /// `true` if resolved tiles of layer 0 can take the AVX2 single-seed search
     /// ([`crate::simd_warp`]): the CPU has AVX2 and the warp uses what that build implements
-    /// (stratified seeds, adaptive sampling, unit motion scale).
+    /// (stratified seeds, adaptive or nearest sampling, unit motion scale).
     fn lanes_apply(&self) -> bool {
         crate::simd::has_avx2()
             && self.params.seeding == SeedStrategy::Stratified
-            && self.params.sampling == crate::Sampling::Adaptive
             && self.params.motion_scale == Vec2::ONE
             && self.params.holes != HolePolicy::Awoc
     }
@@ -560,6 +559,7 @@ impl<'a> Kernel<'a> {
             cross: self.params.cross_layer,
             n_seeds: self.params.n_seeds,
             first_converged: self.params.choice == crate::CandidateChoice::FirstConverged,
+            nearest: self.params.sampling == crate::Sampling::Nearest,
         }
     }
 

@@ -42,6 +42,9 @@ pub(crate) struct LaneSearch<'a> {
     pub n_seeds: u32,
     /// `CandidateChoice::FirstConverged`: a lane stops at its first converged seed.
     pub first_converged: bool,
+    /// `Sampling::Nearest`: every fetch takes the texel under `q` (the adaptive fetch's
+    /// non-smooth branch), never the bilinear one.
+    pub nearest: bool,
 }
 
 /// Results of eight lanes of one layer's search.
@@ -128,11 +131,11 @@ struct Smp8 {
     smooth: __m256,
 }
 
-/// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive sampling) for the `live` lanes,
-/// whose `q` lies inside the image.
+/// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive or, with `nearest`, nearest
+/// sampling) for the `live` lanes, whose `q` lies inside the image.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, qx: __m256, qy: __m256, live: __m256) -> Smp8 {
+unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy: __m256, live: __m256) -> Smp8 {
     let live_i = _mm256_castps_si256(live);
     let (half, one, zero) = (splat(0.5), splat(1.0), _mm256_setzero_ps());
     let wm = _mm256_set1_epi32(w as i32 - 1);
@@ -166,7 +169,7 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, qx: __m256, qy: __m256, live: 
     let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
     // max_element(hi - lo) < CONTINUITY_PX (1 px): `if x > y { x } else { y }` < 1.
     let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
-    let smooth = _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one));
+    let smooth = if nearest { zero } else { _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one)) };
     // bilinear(): glam lerp a * (1 - s) + b * s, depths a + (b - a) * s.
     let lerp =
         |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
@@ -241,7 +244,7 @@ pub(crate) unsafe fn covered_at_source8(
         if _mm256_movemask_ps(front) == 0 {
             break;
         }
-        let s = fetch8(pl, ls.w, ls.h, qx, qy, front);
+        let s = fetch8(pl, ls.w, ls.h, ls.nearest, qx, qy, front);
         // (q + v) - p, then x * x + y * y (glam's length_squared).
         let dx = _mm256_sub_ps(_mm256_add_ps(qx, s.vx), px);
         let dy = _mm256_sub_ps(_mm256_add_ps(qy, s.vy), py);
@@ -535,7 +538,7 @@ unsafe fn first8(
     let hi_x = _mm256_max_ps(_mm256_max_ps(vx00, vx10), _mm256_max_ps(vx01, vx11));
     let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
     let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
-    let smooth = _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one));
+    let smooth = if ls.nearest { zero } else { _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one)) };
     let lerp =
         |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
     let bvx = lerp(lerp(vx00, vx10, ax), lerp(vx01, vx11, ax), ay);
@@ -656,7 +659,7 @@ unsafe fn walk8(
         if _mm256_movemask_ps(live) == 0 {
             break;
         }
-        let mut s = fetch8(&ls.layers[k], ls.w, ls.h, qx, qy, live);
+        let mut s = fetch8(&ls.layers[k], ls.w, ls.h, ls.nearest, qx, qy, live);
         let mut tag = _mm256_set1_epi32(k as i32);
         if ls.cross && k > 0 {
             // Empty landing: the second one fails; the first borrows the nearest non-empty layer
@@ -669,7 +672,7 @@ unsafe fn walk8(
                 if _mm256_movemask_ps(need) == 0 {
                     break;
                 }
-                let b = fetch8(&ls.layers[j], ls.w, ls.h, qx, qy, need);
+                let b = fetch8(&ls.layers[j], ls.w, ls.h, ls.nearest, qx, qy, need);
                 let take = b.has;
                 s.vx = _mm256_blendv_ps(s.vx, b.vx, take);
                 s.vy = _mm256_blendv_ps(s.vy, b.vy, take);

@@ -92,6 +92,34 @@ fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
     }
 }
 
+/// Nearest sampling (WOC's warp, seed 000 Sec. 5: the exact texel depths) through the lanes.
+#[test]
+fn avx2_warp_equals_the_portable_warp_with_nearest_sampling() {
+    let (w, h) = (97, 61);
+    let (depth, motion) = city(w, h, 3, 1);
+    for l in [1usize, 3] {
+        let layers: Vec<WarpLayer> =
+            depth.iter().zip(&motion).take(l).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        for bound in [BoundKind::Tight, BoundKind::Oriented] {
+            for (n, t) in [(1, 3), (8, 3), (16, 1)] {
+                for holes in [HolePolicy::FarDepth, HolePolicy::Background { radius: 8 }] {
+                    let params = WarpParams {
+                        n_seeds: n,
+                        iterations: t,
+                        bound,
+                        holes,
+                        sampling: Sampling::Nearest,
+                        record_source: true,
+                        ..WarpParams::default()
+                    };
+                    let (a, b) = both(&layers, &params);
+                    assert!(bits(&a) == bits(&b), "L={l} {bound:?} N={n} T={t} {holes:?}");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn avx2_warp_equals_the_portable_warp_on_multisampled_sources() {
     let (w, h) = (45, 29);
@@ -137,11 +165,15 @@ proptest! {
     fn avx2_warp_equals_the_portable_warp_on_random_fields(
         w in 9u32..70, h in 5u32..40, a in -1.0f32..1.0, b in -1.5f32..1.5, c in 0.0f32..6.0, d in -1.0f32..1.0,
         n in 1u32..20, t in 1u32..5, oriented in any::<bool>(), accelerate in any::<bool>(),
+        nearest in any::<bool>(),
     ) {
         let (depth, motion) = field(w, h, [a, b, c, d]);
         let layers = [WarpLayer { depth: &depth, motion: &motion }];
         let bound = if oriented { BoundKind::Oriented } else { BoundKind::Tight };
-        let params = WarpParams { n_seeds: n, iterations: t, bound, accelerate, record_source: true, ..WarpParams::default() };
+        let sampling = if nearest { Sampling::Nearest } else { Sampling::Adaptive };
+        let params = WarpParams {
+            n_seeds: n, iterations: t, bound, accelerate, sampling, record_source: true, ..WarpParams::default()
+        };
         let (x, y) = both(&layers, &params);
         prop_assert!(bits(&x) == bits(&y));
     }
