@@ -435,7 +435,10 @@ impl<'a> Kernel<'a> {
     }
 
     /// [`Self::band`] with the AVX2 lanes: the tile stage of every tile of the band and layer,
-    /// eight tiles at a time, then per tile two rows of four pixels at a time ([`Self::lanes8`]).
+    /// eight tiles at a time, then per pair of rows the tiles from left to right, two rows of
+    /// four pixels at a time ([`Self::fast_lanes`], else [`Self::lanes8`]). Sweeping a row pair
+    /// across the band reads each sample plane along three source rows, which the hardware
+    /// prefetchers follow; tile by tile it would be five rows per plane at once.
     ///
     /// # Safety
     /// The CPU must support AVX2.
