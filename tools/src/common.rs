@@ -65,3 +65,34 @@ impl CullArgs {
         self.args.get(i).map(String::as_str)
     }
 }
+
+/// The `key=value` arguments of the warp tools (`scenes`, `predict_loop`, `traffic_floor`); an
+/// argument without `=` is a one-line error naming the keys.
+pub struct KeyArgs(std::collections::HashMap<String, String>);
+
+impl KeyArgs {
+    /// Reads the process arguments; `keys` lists the tool's keys for the error line.
+    pub fn from_env(keys: &str) -> Self {
+        let mut args = std::collections::HashMap::new();
+        for a in std::env::args().skip(1) {
+            match a.split_once('=') {
+                Some((k, v)) => {
+                    args.insert(k.to_string(), v.to_string());
+                }
+                None => {
+                    eprintln!("error: arguments are key=value ({keys}), got '{a}'");
+                    std::process::exit(1);
+                }
+            }
+        }
+        KeyArgs(args)
+    }
+    /// The value of `key`, or `default`.
+    pub fn get(&self, key: &str, default: &str) -> String {
+        self.0.get(key).cloned().unwrap_or_else(|| default.to_string())
+    }
+    /// The value of `key` if given.
+    pub fn opt(&self, key: &str) -> Option<&str> {
+        self.0.get(key).map(String::as_str)
+    }
+}

@@ -566,17 +566,46 @@ impl<'a> Kernel<'a> {
         }
     }
 
-    /// The eight lanes of [`Self::lanes8`] when they take the common case in one pass
-    /// ([`crate::simd_warp::fast8`]: layer 0's tile bound resolved, one seed per lane converging
-    /// at once, every later layer pruned by its tile's min depth): their `(converged, depth, qx,
-    /// qy)`, or `None` for the general path. Kept out of line: inlined into the general path it
-    /// shares that path's register pressure.
+    /// The eight lanes of pixels `x0..x1` of rows `y` and, if `two`, `y + 1`: their columns and
+    /// rows, the active-lane bits and their target positions.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[inline(never)]
+    #[inline]
+    unsafe fn group8(
+        &self,
+        x0: u32,
+        x1: u32,
+        y: u32,
+        two: bool,
+    ) -> (
+        std::arch::x86_64::__m256i,
+        std::arch::x86_64::__m256i,
+        u8,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+    ) {
+        use std::arch::x86_64::*;
+        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
+        let yi = _mm256_add_epi32(_mm256_set1_epi32(y as i32), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
+        let cols = ((1u8 << (x1 - x0)) - 1) & 0xf;
+        let active = cols | if two { cols << 4 } else { 0 };
+        let (px, py) = crate::simd_warp::positions(self.m, xi, yi);
+        (xi, yi, active, px, py)
+    }
+
+    /// The eight lanes of [`Self::lanes8`] when they take the common case in one pass
+    /// ([`crate::simd_warp::fast8`]: layer 0's tile bound resolved, one seed per lane converging
+    /// at once, every later layer pruned by its tile's min depth): their `(converged, depth, qx,
+    /// qy)`, or `None` for the general path. Tried before the general path is set up: inside it,
+    /// the common case shared that path's register pressure.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments, clippy::type_complexity)]
     unsafe fn fast_lanes(
         &self,
@@ -593,7 +622,6 @@ impl<'a> Kernel<'a> {
         std::arch::x86_64::__m256,
         std::arch::x86_64::__m256,
     )> {
-        use std::arch::x86_64::*;
         let s0 = stages[0][t].filter(StageBound::resolved)?;
         let mut later = [f32::INFINITY; 8];
         let nl = self.layers.len() - 1;
@@ -603,11 +631,7 @@ impl<'a> Kernel<'a> {
         for (z, s) in later.iter_mut().zip(&stages[1..]) {
             *z = s[t].map_or(f32::INFINITY, |s| s.min_depth);
         }
-        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
-        let yi = _mm256_add_epi32(_mm256_set1_epi32(y as i32), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
-        let cols = ((1u8 << (x1 - x0)) - 1) & 0xf;
-        let active = cols | if two { cols << 4 } else { 0 };
-        let (px, py) = crate::simd_warp::positions(self.m, xi, yi);
+        let (_, _, active, px, py) = self.group8(x0, x1, y, two);
         let frame = self.layers[0].pyramid().frame();
         crate::simd_warp::fast8(ls, frame, &s0.motion, &later[..nl], px, py, active)
     }
@@ -624,7 +648,6 @@ impl<'a> Kernel<'a> {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[inline(never)]
     #[allow(clippy::too_many_arguments)]
     unsafe fn lanes8(
         &self,
@@ -639,11 +662,7 @@ impl<'a> Kernel<'a> {
     ) {
         use crate::simd_warp as sw;
         use std::arch::x86_64::*;
-        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3));
-        let yi = _mm256_add_epi32(_mm256_set1_epi32(y as i32), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
-        let cols = ((1u8 << (x1 - x0)) - 1) & 0xf;
-        let active = cols | if out.two { cols << 4 } else { 0 };
-        let (px, py) = sw::positions(self.m, xi, yi);
+        let (xi, yi, active, px, py) = self.group8(x0, x1, y, out.two);
         let expand = self.params.sampling.footprint();
         let zero = _mm256_setzero_ps();
         let mut has = zero;

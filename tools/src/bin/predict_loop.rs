@@ -11,7 +11,6 @@
 //! floor's and a depth render's of the target view (zwarp-raster), interleaved, their ratios, and an FNV fingerprint of the output (depth bits and states) that
 //! tells a bit-identical optimisation from one that changes the function.
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use zwarp_core::{motion_field, Image, Motion};
@@ -25,13 +24,8 @@ fn stats(mut t: Vec<f64>) -> (f64, f64, f64) {
 }
 
 fn main() {
-    let mut args: HashMap<String, String> = HashMap::new();
-    for a in std::env::args().skip(1) {
-        if let Some((k, v)) = a.split_once('=') {
-            args.insert(k.to_string(), v.to_string());
-        }
-    }
-    let get = |k: &str, d: &str| args.get(k).cloned().unwrap_or_else(|| d.to_string());
+    let args = zwarp_tools::common::KeyArgs::from_env("scene, w, h, l, n, reps, frame, speed, part, bi, path");
+    let get = |k: &str, d: &str| args.get(k, d);
     let name = get("scene", "cb");
     let (w, h): (u32, u32) = (get("w", "1920").parse().unwrap(), get("h", "1080").parse().unwrap());
     let l: usize = get("l", "1").parse().unwrap();
@@ -42,7 +36,7 @@ fn main() {
     let part = get("part", "all");
 
     let loaded = zwarp_scene::load_scene(&name, &SceneOptions::default()).unwrap();
-    let path = match args.get("path") {
+    let path = match args.opt("path") {
         Some(p) => zwarp_scene::CameraPath::from_json_file(p).unwrap(),
         None => loaded.path_or_default(),
     };

@@ -52,13 +52,8 @@ fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (T, f64, f64) {
 }
 
 fn main() {
-    let mut args: HashMap<String, String> = HashMap::new();
-    for a in std::env::args().skip(1) {
-        if let Some((k, v)) = a.split_once('=') {
-            args.insert(k.to_string(), v.to_string());
-        }
-    }
-    let get = |k: &str, d: &str| args.get(k).cloned().unwrap_or_else(|| d.to_string());
+    let args = zwarp_tools::common::KeyArgs::from_env("scenes, w, h, scale, frames, l, n, threads, reps, ms, speed");
+    let get = |k: &str, d: &str| args.get(k, d);
     let list = |k: &str, d: &str| -> Vec<u32> { get(k, d).split(',').map(|s| s.parse().unwrap()).collect() };
     let scenes: Vec<String> = get("scenes", "mo,bl,cb,yr").split(',').map(String::from).collect();
     let (w, h): (u32, u32) = (get("w", "960").parse().unwrap(), get("h", "540").parse().unwrap());

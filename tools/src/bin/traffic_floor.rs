@@ -16,7 +16,6 @@
 //! renderer at this size; where it is below the paper's ratio, that ratio cannot be reached
 //! here by any implementation.
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use glam::Vec2;
@@ -59,19 +58,8 @@ fn floor_pass(layers: &[(Vec<f32>, Vec<Motion>)], out: &mut [f32], w: usize) {
 }
 
 fn main() {
-    let mut args: HashMap<String, String> = HashMap::new();
-    for a in std::env::args().skip(1) {
-        match a.split_once('=') {
-            Some((k, v)) => {
-                args.insert(k.to_string(), v.to_string());
-            }
-            None => {
-                eprintln!("error: arguments are key=value (scenes, w, h, scale, l, reps), got '{a}'");
-                std::process::exit(1);
-            }
-        }
-    }
-    let get = |k: &str, d: &str| args.get(k).cloned().unwrap_or_else(|| d.to_string());
+    let args = zwarp_tools::common::KeyArgs::from_env("scenes, w, h, scale, l, reps");
+    let get = |k: &str, d: &str| args.get(k, d);
     let num = |k: &str, d: &str| -> f64 {
         get(k, d).parse().unwrap_or_else(|_| {
             eprintln!("error: {k} must be a number");
