@@ -37,7 +37,7 @@ mod simd_warp;
 pub mod stats;
 pub mod synth;
 
-pub use baselines::{afw, afw_layers, vfw, vfw_layers, FORWARD_SUPPORT_EXPANSION};
+pub use baselines::{afw, afw_layers, afw_layers_into, vfw, vfw_layers, vfw_layers_into, FORWARD_SUPPORT_EXPANSION};
 pub use bounds::{Bound, BoundFrame, MotionPyramid, TightBound};
 pub use depth_warp::{
     predict_into, target_size, warp_depth, warp_pixels, warp_prepared, warp_prepared_into, PreparedLayer,

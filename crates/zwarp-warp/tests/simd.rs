@@ -1,5 +1,5 @@
-//! The AVX2 builds of the preparation, the warp and the background fill compute exactly what the
-//! portable code computes: both builds on the same inputs, compared bit for bit. (Its own test
+//! The AVX2 builds of the preparation, the warp, the background fill and the forward baselines
+//! (VFW, AFW) compute exactly what the portable code computes: both builds on the same inputs, compared bit for bit. (Its own test
 //! binary: `simd::set_simd` is process-wide.) Where the CPU has no AVX2 both runs take the
 //! portable code and the test checks nothing new; it says so.
 
@@ -8,6 +8,10 @@ use proptest::prelude::*;
 use zwarp_core::{motion_field, Camera, Image, Motion};
 use zwarp_warp::synth::{SynthBox, SynthScene};
 use zwarp_warp::*;
+
+/// Held while a test runs both builds: the switch is process-wide and the tests of this binary
+/// run on several threads.
+static SWITCH: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// Depth bits, states and source positions (bits) of a warp.
 type Bits = (Vec<u32>, Vec<u8>, Option<Vec<(u32, u32, u32)>>);
@@ -22,6 +26,7 @@ fn bits(out: &WarpOutput) -> Bits {
 
 /// The warp (and, for the background policy, the complete fill) of `layers` with both builds.
 fn both(layers: &[WarpLayer<'_>], params: &WarpParams) -> (WarpOutput, WarpOutput) {
+    let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
     let run = |simd: bool| {
         simd::set_simd(simd);
         let prepared = PreparedLayer::prepare_stack(layers, params.bound).unwrap();
@@ -138,6 +143,30 @@ fn avx2_warp_equals_the_portable_warp_on_multisampled_sources() {
     }
 }
 
+/// VFW and AFW of `layers` with both builds, as depth bits: (AVX2, portable) per method.
+fn forward_both(layers: &[WarpLayer<'_>]) -> [(Vec<u32>, Vec<u32>); 2] {
+    let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
+    let run = |simd: bool, f: fn(&[WarpLayer<'_>]) -> zwarp_core::Result<Image<f32>>| {
+        simd::set_simd(simd);
+        let out = f(layers).unwrap().data().iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+        simd::set_simd(true);
+        out
+    };
+    [(run(true, vfw_layers), run(false, vfw_layers)), (run(true, afw_layers), run(false, afw_layers))]
+}
+
+#[test]
+fn avx2_forward_warps_equal_the_portable_ones_on_a_moving_city() {
+    let (depth, motion) = city(131, 77, 3, 1);
+    for l in [1usize, 3] {
+        let layers: Vec<WarpLayer> =
+            depth.iter().zip(&motion).take(l).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        for (k, (fast, portable)) in forward_both(&layers).into_iter().enumerate() {
+            assert!(fast == portable, "{} at L = {l}", ["VFW", "AFW"][k]);
+        }
+    }
+}
+
 /// A smooth field with a hole and strong rotation-like parts: the PCA frame is used.
 fn field(w: u32, h: u32, c: [f32; 4]) -> (Image<f32>, Image<Motion>) {
     let depth = Image::from_fn(w, h, |x, y| {
@@ -176,5 +205,16 @@ proptest! {
         };
         let (x, y) = both(&layers, &params);
         prop_assert!(bits(&x) == bits(&y));
+    }
+
+    /// Random fields through the forward baselines: bit-identical builds.
+    #[test]
+    fn avx2_forward_warps_equal_the_portable_ones_on_random_fields(
+        w in 9u32..90, h in 3u32..50, a in -1.0f32..1.0, b in -1.5f32..1.5, c in 0.0f32..6.0, d in -1.0f32..1.0,
+    ) {
+        let (depth, motion) = field(w, h, [a, b, c, d]);
+        for (fast, portable) in forward_both(&[WarpLayer { depth: &depth, motion: &motion }]) {
+            prop_assert!(fast == portable);
+        }
     }
 }

@@ -3,7 +3,7 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill] [bi=6] [path=FILE.json]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json]`
 //!
 //! `bi` is `WarpParams::bound_iterations`.
 //!
@@ -94,6 +94,8 @@ fn main() {
                 holes::fill_background_with(&layers, &mut scratch, limits, &far.search()).unwrap();
                 tp.push(t1.elapsed().as_secs_f64() * 1e3);
             }
+            "afw" => baselines::afw_layers_into(&layers, &mut out.depth).unwrap(),
+            "vfw" => baselines::vfw_layers_into(&layers, &mut out.depth).unwrap(),
             _ => rec = predict_into(&layers, &params, std::mem::take(&mut rec), &mut out).unwrap(),
         }
         if part != "fill" {
@@ -106,8 +108,11 @@ fn main() {
         std::hint::black_box(zwarp_raster::render_depth(&scene, &cb, tb).unwrap());
         tr.push(t0.elapsed().as_secs_f64() * 1e3);
     }
-    let res = predict_into(&layers, &params, rec, &mut out).unwrap();
-    drop(res);
+    match part.as_str() {
+        // The forward baselines write depth only: the fingerprint takes it with far-hole states.
+        "afw" | "vfw" => out.state.data_mut().fill(PixelState::Hole),
+        _ => drop(predict_into(&layers, &params, rec, &mut out).unwrap()),
+    }
     let mut fp = 0xcbf29ce484222325u64;
     for (z, s) in out.depth.data().iter().zip(out.state.data()) {
         for b in z.to_bits().to_le_bytes().into_iter().chain([*s as u8]) {

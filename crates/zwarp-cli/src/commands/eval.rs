@@ -201,22 +201,39 @@ impl EvalPlan {
     }
 }
 
-/// The same hole protocol for the forward-warping baselines as for ours, so the comparison is
-/// fair: under [`HolePolicy::Background`] their uncovered pixels (far depth) go through
-/// `fill_background` too (sky seen through them stays far); other policies leave them far.
-fn baseline_holes(layers: &[WarpLayer<'_>], depth: Image<f32>, holes: HolePolicy) -> Result<Image<f32>> {
-    let HolePolicy::Background { radius } = holes else { return Ok(depth) };
-    let state = Image::from_fn(depth.width(), depth.height(), |x, y| {
-        if *depth.get(x, y) >= zwarp_core::EMPTY_DEPTH {
-            zwarp_warp::PixelState::Hole
-        } else {
-            zwarp_warp::PixelState::Converged
-        }
-    });
-    let search = WarpParams::default().search();
-    let mut out = zwarp_warp::WarpOutput { depth, state, source: None };
-    zwarp_warp::holes::fill_background(layers, &mut out, radius, &search)?;
-    Ok(out.depth)
+/// A forward-warping baseline (`warp`: VFW or AFW into a recycled buffer) with the same hole
+/// protocol as ours, so the comparison is fair: under [`HolePolicy::Background`] its uncovered
+/// pixels (far depth) go through `fill_background` too (sky seen through them stays far); other
+/// policies leave them far. The depth buffer in `slot` and the states in `states` carry over from
+/// call to call, as ours do.
+fn baseline(
+    layers: &[WarpLayer<'_>],
+    holes: HolePolicy,
+    warp: fn(&[WarpLayer<'_>], &mut Image<f32>) -> zwarp_core::Result<()>,
+    slot: &mut Option<Predicted>,
+    states: &mut Image<zwarp_warp::PixelState>,
+) -> Result<()> {
+    use zwarp_warp::PixelState;
+    let mut depth = slot.take().map_or_else(|| Image::new(0, 0, zwarp_core::EMPTY_DEPTH), |p| p.0);
+    warp(layers, &mut depth)?;
+    if let HolePolicy::Background { radius } = holes {
+        let (w, h) = depth.size();
+        let mut st = std::mem::replace(states, Image::new(0, 0, PixelState::Hole)).into_vec();
+        st.clear();
+        st.extend(depth.data().iter().map(|&z| {
+            if z >= zwarp_core::EMPTY_DEPTH {
+                PixelState::Hole
+            } else {
+                PixelState::Converged
+            }
+        }));
+        let mut out = zwarp_warp::WarpOutput { depth, state: Image::from_vec(w, h, st)?, source: None };
+        zwarp_warp::holes::fill_background(layers, &mut out, radius, &WarpParams::default().search())?;
+        depth = out.depth;
+        *states = out.state;
+    }
+    *slot = Some((depth, None));
+    Ok(())
 }
 
 /// A predicted depth buffer and, for our warp, its per-pixel states.
@@ -638,16 +655,18 @@ pub fn evaluate(
                                     }
                                 }
                             }
-                            "vfw" => run(("vfw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
-                                let d = baseline_holes(&layers, zwarp_warp::vfw_layers(&layers)?, plan.holes())?;
-                                *slot = Some((d, None));
-                                Ok(())
-                            })?,
-                            _ => run(("afw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
-                                let d = baseline_holes(&layers, zwarp_warp::afw_layers(&layers)?, plan.holes())?;
-                                *slot = Some((d, None));
-                                Ok(())
-                            })?,
+                            "vfw" => {
+                                let mut states = Image::new(0, 0, zwarp_warp::PixelState::Hole);
+                                run(("vfw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
+                                    baseline(&layers, plan.holes(), zwarp_warp::vfw_layers_into, slot, &mut states)
+                                })?
+                            }
+                            _ => {
+                                let mut states = Image::new(0, 0, zwarp_warp::PixelState::Hole);
+                                run(("afw".into(), l, 0, 0, None, 1), &layers, &mut |slot| {
+                                    baseline(&layers, plan.holes(), zwarp_warp::afw_layers_into, slot, &mut states)
+                                })?
+                            }
                         }
                     }
                 }

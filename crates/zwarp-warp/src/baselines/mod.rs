@@ -72,15 +72,15 @@ fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<RowReach>)> {
             .map(|y| {
                 let (d, m) =
                     (&depth[y * w as usize..(y + 1) * w as usize], &motion[y * w as usize..(y + 1) * w as usize]);
-                let mut flags = 0u8;
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for (&d, m) in d.iter().zip(m) {
-                    flags |= (!d.is_finite()) as u8 | ((m.v.x.is_nan() | m.v.y.is_nan() | m.depth.is_nan()) as u8) << 1;
-                    if valid(d, m) {
-                        lo = lo.min(m.v.y);
-                        hi = hi.max(m.v.y);
-                    }
-                }
+                #[cfg(target_arch = "x86_64")]
+                let (flags, lo, hi) = if crate::simd::has_avx2() {
+                    // SAFETY: only taken when the CPU reports AVX2.
+                    unsafe { avx2::row_check(d, m) }
+                } else {
+                    row_check(d, m)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (flags, lo, hi) = row_check(d, m);
                 let c = y as f32 + 0.5;
                 (flags, (lo <= hi).then_some((c + lo, c + hi)))
             })
@@ -97,6 +97,22 @@ fn check_layers(layers: &[WarpLayer<'_>]) -> Result<(u32, u32, Vec<RowReach>)> {
     Ok((w, h, out))
 }
 
+/// One source row's check: flags (bit 0: a non-finite depth, bit 1: a NaN in the motion) and
+/// the range of the valid samples' vertical motion (empty: `lo > hi`).
+#[inline(always)]
+fn row_check(d: &[f32], m: &[Motion]) -> (u8, f32, f32) {
+    let mut flags = 0u8;
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for (&d, m) in d.iter().zip(m) {
+        flags |= (!d.is_finite()) as u8 | ((m.v.x.is_nan() | m.v.y.is_nan() | m.depth.is_nan()) as u8) << 1;
+        if valid(d, m) {
+            lo = lo.min(m.v.y);
+            hi = hi.max(m.v.y);
+        }
+    }
+    (flags, lo, hi)
+}
+
 /// Target rows per band of the forward warps: each band is written by one task, which splats
 /// every source sample whose footprint reaches the band (clipped to it), so no two tasks write
 /// the same pixel and no atomics are needed (the depth test is a min: order does not matter).
@@ -104,16 +120,25 @@ const BAND: usize = 32;
 
 /// Runs `splat(band_rows, y0, layer, source_row)` for every band of `BAND` target rows and every
 /// source row of every layer whose target rows (widened by `margin`) reach it, in parallel over
-/// bands; returns the `w x h` target.
+/// bands, into `target` (recycled: resized to `w x h`, every pixel reset to far depth by the band
+/// that owns it, while it is in cache).
 fn forward(
     w: u32,
     h: u32,
     reach: &[RowReach],
     margin: f32,
+    target: &mut Image<f32>,
     splat: impl Fn(&mut [f32], usize, usize, usize) + Sync,
-) -> Result<Image<f32>> {
-    let mut target = crate::pages::filled(w as usize * h as usize, EMPTY_DEPTH);
-    target.par_chunks_mut(BAND * w as usize).enumerate().for_each(|(b, band)| {
+) -> Result<()> {
+    let n = w as usize * h as usize;
+    let mut buf = std::mem::replace(target, Image::new(0, 0, EMPTY_DEPTH)).into_vec();
+    if buf.capacity() < n {
+        buf = crate::pages::filled(n, EMPTY_DEPTH);
+    } else {
+        buf.resize(n, EMPTY_DEPTH);
+    }
+    buf.par_chunks_mut(BAND * w as usize).enumerate().for_each(|(b, band)| {
+        band.fill(EMPTY_DEPTH);
         let y0 = b * BAND;
         let y1 = y0 + band.len() / w as usize;
         let (lo, hi) = (y0 as f32 - margin, y1 as f32 + margin);
@@ -127,58 +152,105 @@ fn forward(
             }
         }
     });
-    Image::from_vec(w, h, target)
+    *target = Image::from_vec(w, h, buf)?;
+    Ok(())
 }
 
 /// Multi-layer AFW (see [`afw`]).
 pub fn afw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+    let mut out = Image::new(0, 0, EMPTY_DEPTH);
+    afw_layers_into(layers, &mut out)?;
+    Ok(out)
+}
+
+/// [`afw_layers`] into `out` (an earlier output of any size, recycled as an engine keeps its
+/// buffers from frame to frame); the result is the same.
+pub fn afw_layers_into(layers: &[WarpLayer<'_>], out: &mut Image<f32>) -> Result<()> {
     let (w, h, reach) = check_layers(layers)?;
-    let hs = 0.5 + FORWARD_SUPPORT_EXPANSION;
-    forward(w, h, &reach, hs + 1.0, |band, y0, k, y| {
+    forward(w, h, &reach, AFW_HALF_SIZE + 1.0, out, |band, y0, k, y| {
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
-            unsafe { afw_row_avx2(&layers[k], w, h, band, y0, y, hs) };
+            unsafe { avx2::afw_row(&layers[k], w, h, band, y0, y) };
             return;
         }
-        afw_row(&layers[k], w, h, band, y0, y, hs)
+        afw_row(&layers[k], w, h, band, y0, y)
     })
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn afw_row_avx2(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize, hs: f32) {
-    afw_row(l, w, h, band, y0, y, hs)
+/// Half the side of an AFW footprint: the pixel's half side plus the expansion. It is one pixel,
+/// so a footprint holds at most 2 x 2 target centres.
+const AFW_HALF_SIZE: f32 = 0.5 + FORWARD_SUPPORT_EXPANSION;
+
+/// The first and last target index `j` in `[lo, hi]` whose centre `j + 0.5` lies strictly inside
+/// `(c - AFW_HALF_SIZE, c + AFW_HALF_SIZE)`, the range empty when `first > last`. The float
+/// bounds are clamped before the conversion, which keeps every empty range empty.
+#[inline(always)]
+fn afw_span(c: f32, lo: i32, hi: i32) -> (i32, i32) {
+    let (lof, hif) = (lo as f32 - 1.0, hi as f32 + 1.0);
+    let first = ((c - AFW_HALF_SIZE - 0.5).floor().clamp(lof, hif) as i32 + 1).max(lo);
+    let last = ((c + AFW_HALF_SIZE - 0.5).ceil().clamp(lof, hif) as i32 - 1).min(hi);
+    (first, last)
+}
+
+/// A band of target rows being splatted into: `rows` holds target rows `y0..=y1` of width `w`.
+struct Band<'a> {
+    rows: &'a mut [f32],
+    w: usize,
+    /// The target's height.
+    h: u32,
+    y0: i32,
+    y1: i32,
+}
+
+impl Band<'_> {
+    /// The band of target rows starting at `y0` held by `rows` (whole rows of a `w x h` target).
+    fn new(rows: &mut [f32], w: u32, h: u32, y0: usize) -> Band<'_> {
+        let n = rows.len() / w as usize;
+        Band { rows, w: w as usize, h, y0: y0 as i32, y1: (y0 + n).min(h as usize) as i32 - 1 }
+    }
+
+    /// The band's first and last target row, as floats.
+    #[inline(always)]
+    fn clip(&self) -> (f32, f32) {
+        (self.y0 as f32, self.y1 as f32)
+    }
+
+    /// The AFW splat of the valid source sample whose moved centre is `(cx, cy)` with target
+    /// depth `z`. A footprint covers at most 2 x 2 centres: the corners of its span are written,
+    /// a centre twice where the span is one wide (the min makes that harmless), so no loop
+    /// depends on the motion.
+    #[inline(always)]
+    fn afw_splat(&mut self, cx: f32, cy: f32, z: f32) {
+        let (x0, x1) = afw_span(cx, 0, self.w as i32 - 1);
+        let (t0, t1) = afw_span(cy, self.y0, self.y1);
+        if x0 > x1 || t0 > t1 {
+            return;
+        }
+        debug_assert!(x1 - x0 <= 1 && t1 - t0 <= 1);
+        // `+ 0.0` turns -0.0 into +0.0 (the depth order of the bit patterns the atomic
+        // versions compare).
+        let z = z + 0.0;
+        for t in [t0, t1] {
+            let row = (t - self.y0) as usize * self.w;
+            for i in [row + x0 as usize, row + x1 as usize] {
+                let o = &mut self.rows[i];
+                *o = if z < *o { z } else { *o };
+            }
+        }
+    }
 }
 
 /// The AFW splats of source row `y` into the band of target rows starting at `y0`.
 #[inline(always)]
-fn afw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize, hs: f32) {
+fn afw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize) {
+    let mut band = Band::new(band, w, h, y0);
     let wu = w as usize;
-    let rows = band.len() / wu;
-    let (by0, by1) = (y0 as f32, (y0 + rows) as f32 - 1.0);
     let (depth, motion) = (&l.depth.data()[y * wu..(y + 1) * wu], &l.motion.data()[y * wu..(y + 1) * wu]);
+    let cy = y as f32 + 0.5;
     for (x, (&d, m)) in depth.iter().zip(motion).enumerate() {
-        if !valid(d, m) {
-            continue;
-        }
-        let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + m.v;
-        // Target centres j + 0.5 strictly inside (c - hs, c + hs).
-        let x0 = ((c.x - hs - 0.5).floor() + 1.0).max(0.0);
-        let x1 = ((c.x + hs - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
-        let ty0 = ((c.y - hs - 0.5).floor() + 1.0).max(0.0).max(by0);
-        let ty1 = ((c.y + hs - 0.5).ceil() - 1.0).min(h as f32 - 1.0).min(by1);
-        if x0 > x1 || ty0 > ty1 {
-            continue;
-        }
-        // `+ 0.0` turns -0.0 into +0.0 (the depth order of the bit patterns the atomic
-        // versions compare).
-        let z = m.depth + 0.0;
-        for ty in ty0 as usize..=ty1 as usize {
-            let row = &mut band[(ty - y0) * wu..(ty - y0 + 1) * wu];
-            for t in &mut row[x0 as usize..=x1 as usize] {
-                *t = t.min(z);
-            }
+        if valid(d, m) {
+            band.afw_splat(x as f32 + 0.5 + m.v.x, cy + m.v.y, m.depth);
         }
     }
 }
@@ -188,24 +260,26 @@ fn afw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: us
 /// so quads stitch on smooth surfaces but do not stretch across depth edges into disocclusions.
 /// Each quad carries its pixel's target depth (flat), so zero motion reproduces the source.
 pub fn vfw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
+    let mut out = Image::new(0, 0, EMPTY_DEPTH);
+    vfw_layers_into(layers, &mut out)?;
+    Ok(out)
+}
+
+/// [`vfw_layers`] into `out` (an earlier output of any size, recycled as an engine keeps its
+/// buffers from frame to frame); the result is the same.
+pub fn vfw_layers_into(layers: &[WarpLayer<'_>], out: &mut Image<f32>) -> Result<()> {
     let (w, h, reach) = check_layers(layers)?;
     // A corner moves within CONTINUITY_PX of its quad's pixel; corners lie one pixel apart,
     // pushed out by the expansion.
-    forward(w, h, &reach, VFW_ROW_REACH, |band, y0, k, y| {
+    forward(w, h, &reach, VFW_ROW_REACH, out, |band, y0, k, y| {
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
-            unsafe { vfw_row_avx2(&layers[k], w, h, band, y0, y) };
+            unsafe { avx2::vfw_row(&layers[k], w, h, band, y0, y) };
             return;
         }
         vfw_row(&layers[k], w, h, band, y0, y)
     })
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn vfw_row_avx2(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize) {
-    vfw_row(l, w, h, band, y0, y)
 }
 
 /// The corners (TL, TR, BR, BL) of the VFW quad of the valid pixel `(x, y)` with motion `v`:
@@ -238,39 +312,52 @@ fn vfw_quad<'m>(at: &impl Fn(i64, i64) -> Option<&'m Motion>, x: i64, y: i64, v:
     ]
 }
 
+/// The valid sample at `(x, y)` of a layer (`None` outside the image or where invalid): the
+/// neighbour look-up of [`vfw_quad`].
+#[inline(always)]
+fn sample_at<'m>(l: &WarpLayer<'m>, w: u32, h: u32, x: i64, y: i64) -> Option<&'m Motion> {
+    if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
+        return None;
+    }
+    let i = y as usize * w as usize + x as usize;
+    let m = &l.motion.data()[i];
+    valid(l.depth.data()[i], m).then_some(m)
+}
+
+/// The VFW quad of the valid pixel `(x, y)` (motion `m`) of layer `l` rasterized into `band`.
+#[inline(always)]
+fn vfw_pixel(l: &WarpLayer<'_>, band: &mut Band<'_>, x: usize, y: usize, m: &Motion) {
+    // The quad's corners lie within 2 px of the pixel's moved centre (corner motion within
+    // CONTINUITY_PX of its own, half a pixel of expansion), so its rows lie within 2.5 px:
+    // quads that cannot reach the band are skipped before their corners are averaged.
+    let c = y as f32 + 0.5 + m.v.y;
+    let clip = band.clip();
+    if c + VFW_ROW_REACH < clip.0 || c - VFW_ROW_REACH > clip.1 {
+        return;
+    }
+    let (w, h) = (band.w as u32, band.h);
+    let q = vfw_quad(&|x, y| sample_at(l, w, h, x, y), x as i64, y as i64, m.v);
+    raster_triangle(band, [q[0], q[1], q[2]], m.depth);
+    raster_triangle(band, [q[0], q[2], q[3]], m.depth);
+}
+
 /// The VFW quads of source row `y` into the band of target rows starting at `y0`.
 #[inline(always)]
 fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize) {
-    let (depth, motion) = (l.depth.data(), l.motion.data());
-    let at = |x: i64, y: i64| -> Option<&Motion> {
-        if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
-            return None;
-        }
-        let i = y as usize * w as usize + x as usize;
-        let m = &motion[i];
-        valid(depth[i], m).then_some(m)
-    };
-    let rows = band.len() / w as usize;
-    let clip = (y0 as f32, (y0 + rows) as f32 - 1.0);
-    let cy = y as f32 + 0.5;
+    let mut band = Band::new(band, w, h, y0);
     for x in 0..w as usize {
-        let Some(m) = at(x as i64, y as i64) else { continue };
-        // The quad's corners lie within 2 px of the pixel's moved centre (corner motion within
-        // CONTINUITY_PX of its own, half a pixel of expansion), so its rows lie within 2.5 px:
-        // quads that cannot reach the band are skipped before their corners are averaged.
-        let c = cy + m.v.y;
-        if c + VFW_ROW_REACH < clip.0 || c - VFW_ROW_REACH > clip.1 {
-            continue;
+        if let Some(m) = sample_at(l, w, h, x as i64, y as i64) {
+            vfw_pixel(l, &mut band, x, y, m);
         }
-        let q = vfw_quad(&at, x as i64, y as i64, m.v);
-        raster_triangle(band, y0, w, h, clip, [q[0], q[1], q[2]], m.depth);
-        raster_triangle(band, y0, w, h, clip, [q[0], q[2], q[3]], m.depth);
     }
 }
 
 /// A bound of the target rows a VFW quad covers around its pixel's moved centre (2.5 px, with
 /// room for rounding).
 const VFW_ROW_REACH: f32 = 1.0 + CONTINUITY_PX + FORWARD_SUPPORT_EXPANSION + 1.0;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 
 #[inline]
 fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
@@ -280,9 +367,9 @@ fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
 /// Rasterizes triangle `t = [a, b, c]` where edge `c -> a` is the quad diagonal: pixel centres
 /// strictly inside the outer edges `a -> b`, `b -> c` and on or inside the diagonal (so the two
 /// halves of a quad leave no gap; a centre on the diagonal may be written twice, which the
-/// min makes harmless), for target rows within `clip` (the band starting at row `y0`).
+/// min makes harmless), for target rows within the band.
 #[inline(always)]
-fn raster_triangle(band: &mut [f32], y0: usize, w: u32, h: u32, clip: (f32, f32), t: [Vec2; 3], z: f32) {
+fn raster_triangle(band: &mut Band<'_>, t: [Vec2; 3], z: f32) {
     let area = edge(t[0], t[1], t[2]);
     if area == 0.0 || !area.is_finite() {
         return;
@@ -290,10 +377,11 @@ fn raster_triangle(band: &mut [f32], y0: usize, w: u32, h: u32, clip: (f32, f32)
     let s = area.signum();
     let lo = t[0].min(t[1]).min(t[2]);
     let hi = t[0].max(t[1]).max(t[2]);
+    let clip = band.clip();
     let x0 = ((lo.x - 0.5).floor() + 1.0).max(0.0);
-    let x1 = ((hi.x - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
+    let x1 = ((hi.x - 0.5).ceil() - 1.0).min(band.w as f32 - 1.0);
     let ty0 = ((lo.y - 0.5).floor() + 1.0).max(0.0).max(clip.0);
-    let ty1 = ((hi.y - 0.5).ceil() - 1.0).min(h as f32 - 1.0).min(clip.1);
+    let ty1 = ((hi.y - 0.5).ceil() - 1.0).min(band.h as f32 - 1.0).min(clip.1);
     if x0 > x1 || ty0 > ty1 {
         return;
     }
@@ -302,8 +390,8 @@ fn raster_triangle(band: &mut [f32], y0: usize, w: u32, h: u32, clip: (f32, f32)
         for tx in x0 as u32..=x1 as u32 {
             let p = Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5);
             if s * edge(t[0], t[1], p) > 0.0 && s * edge(t[1], t[2], p) > 0.0 && s * edge(t[2], t[0], p) >= 0.0 {
-                let i = (ty as usize - y0) * w as usize + tx as usize;
-                band[i] = band[i].min(z);
+                let i = (ty as usize - band.y0 as usize) * band.w + tx as usize;
+                band.rows[i] = band.rows[i].min(z);
             }
         }
     }
@@ -500,10 +588,13 @@ mod tests {
 
     /// The band-partitioned warps equal the atomics-based reference bit for bit: random smooth
     /// and discontinuous fields, empty and invalid samples, motion larger than a band, several
-    /// layers, odd sizes.
+    /// layers, odd sizes; and gently varying fields (sub-pixel motion gradients), where AFW's
+    /// AVX2 build splats eight consecutive footprints at once.
     #[test]
     fn band_partitioned_warps_equal_the_atomic_reference() {
-        for (w, h, seed) in [(37u32, 23u32, 1u32), (64, 97, 2), (5, 3, 3), (120, 70, 4)] {
+        let cases = [(37u32, 23u32, 1u32, 0.3f32), (64, 97, 2, 0.3), (5, 3, 3, 0.3), (120, 70, 4, 0.3)];
+        let gentle = [(37, 23, 5, 0.01), (131, 75, 6, 0.004), (64, 40, 7, 0.0)];
+        for (w, h, seed, grad) in cases.into_iter().chain(gentle) {
             let hash = |i: u32| crate::search::hash_u32(i ^ seed.wrapping_mul(0x9e37_79b9));
             let layer = |k: u32| {
                 let d = Image::from_fn(w, h, |x, y| {
@@ -515,10 +606,11 @@ mod tests {
                 });
                 let m = Image::from_fn(w, h, |x, y| {
                     let t = hash(x + 1000 * y + 77 * k);
-                    let jump = if (x / 9 + k).is_multiple_of(3) { 7.0 } else { 0.0 };
+                    let jump = if grad > 0.1 && (x / 9 + k).is_multiple_of(3) { 7.0 } else { 0.0 };
+                    let noise = if grad > 0.1 { 0.004 } else { 0.0 };
                     let v = Vec2::new(
-                        0.3 * x as f32 - 4.0 + jump + (t % 100) as f32 * 0.004,
-                        -0.2 * y as f32 + 40.0 * (k as f32 - 0.5) + ((t >> 8) % 100) as f32 * 0.004,
+                        grad * x as f32 - 4.3 + jump + (t % 100) as f32 * noise,
+                        -grad * y as f32 + 40.0 * (k as f32 - 0.5) + 0.37 + ((t >> 8) % 100) as f32 * noise,
                     );
                     let depth = if t % 23 == 0 { 1.5 } else { *d.get(x, y) * 0.9 };
                     Motion { v, depth }
@@ -550,6 +642,14 @@ mod tests {
         let mut m = Image::new(4, 4, Motion::default());
         m.get_mut(0, 0).v.y = f32::NAN;
         assert!(matches!(afw(&d, &m), Err(Error::Invalid(_))));
+        // Past the first eight columns (the AVX2 row check's vectors).
+        let d16 = Image::new(19, 3, 0.5f32);
+        let mut m16 = Image::new(19, 3, Motion::default());
+        m16.get_mut(11, 1).depth = f32::NAN;
+        assert!(matches!(vfw(&d16, &m16), Err(Error::Invalid(_))));
+        let mut d16 = d16;
+        *d16.get_mut(9, 2) = f32::INFINITY;
+        assert!(matches!(afw(&d16, &Image::new(19, 3, Motion::default())), Err(Error::Invalid(_))));
         let z: Image<f32> = Image::new(0, 0, 0.5);
         let mz: Image<Motion> = Image::new(0, 0, Motion::default());
         assert!(matches!(vfw(&z, &mz), Err(Error::Invalid(_))));
