@@ -28,11 +28,11 @@ pub struct Gpu {
     /// The device.
     pub ctx: zwarp_gpu::GpuContext,
     renderer: OnceCell<zwarp_gpu::Renderer>,
-    motion: OnceCell<zwarp_gpu::MotionKernel>,
-    warp: OnceCell<(zwarp_gpu::WarpKernel, zwarp_gpu::HoleFillKernel)>,
-    shadows: OnceCell<zwarp_gpu::GpuShadows>,
-    color: OnceCell<zwarp_gpu::ColorWarpKernel>,
-    grid: OnceCell<zwarp_gpu::GridWarpKernel>,
+    motion: OnceCell<zwarp_warp::gpu::MotionKernel>,
+    warp: OnceCell<(zwarp_warp::gpu::WarpKernel, zwarp_warp::gpu::HoleFillKernel)>,
+    shadows: OnceCell<zwarp_shadows::gpu::GpuShadows>,
+    color: OnceCell<zwarp_color::gpu::ColorWarpKernel>,
+    grid: OnceCell<zwarp_vr::gpu::GridWarpKernel>,
 }
 
 /// `cell`'s value, made by `make` the first time.
@@ -144,7 +144,7 @@ impl Device {
     ) -> Result<Image<zwarp_core::Motion>> {
         match (self, &s.gpu) {
             (Device::Gpu(g), Some(up)) => {
-                let k = once(&g.motion, || zwarp_gpu::MotionKernel::new(&g.ctx))?;
+                let k = once(&g.motion, || zwarp_warp::gpu::MotionKernel::new(&g.ctx))?;
                 Ok(k.motion_field(depth, Some(items), cam_a, cam_b, &up.object_deltas(t_a, t_b))?)
             }
             _ => Ok(zwarp_core::motion_field(depth, Some(items), cam_a, cam_b, &s.scene.object_deltas(t_a, t_b))?),
@@ -190,9 +190,9 @@ impl Device {
             }
             Device::Gpu(g) => {
                 let (warp, fill) = once(&g.warp, || {
-                    Ok((zwarp_gpu::WarpKernel::new(&g.ctx)?, zwarp_gpu::HoleFillKernel::new(&g.ctx)?))
+                    Ok((zwarp_warp::gpu::WarpKernel::new(&g.ctx)?, zwarp_warp::gpu::HoleFillKernel::new(&g.ctx)?))
                 })?;
-                *out = zwarp_gpu::predict(warp, fill, layers, params)?;
+                *out = zwarp_warp::gpu::predict(warp, fill, layers, params)?;
             }
         }
         Ok(())
@@ -200,7 +200,7 @@ impl Device {
 
     /// Whether culling `method` runs on this device (two-phase is CPU-only).
     pub fn supports_cull(&self, method: Method) -> bool {
-        !self.is_gpu() || zwarp_gpu::gpu_supports(method)
+        !self.is_gpu() || zwarp_cull::gpu::gpu_supports(method)
     }
 
     /// `method` along `frames` (the engine's loop timed alone, then the comparisons), each
@@ -219,7 +219,7 @@ impl Device {
                 if repeat != 1 {
                     anyhow::bail!("--repeat is CPU-only (the GPU backend culls each frame once)");
                 }
-                Ok(zwarp_gpu::run_gpu_sequence(&g.ctx, scene, frames, method, params)?)
+                Ok(zwarp_cull::gpu::run_gpu_sequence(&g.ctx, scene, frames, method, params)?)
             }
         }
     }
@@ -238,8 +238,8 @@ impl Device {
     ) -> Result<Vec<EvalRow>> {
         match (self, &s.gpu) {
             (Device::Gpu(g), Some(up)) => {
-                let gs = once(&g.shadows, || zwarp_gpu::GpuShadows::new(&g.ctx))?;
-                Ok(zwarp_gpu::evaluate_gpu(gs, s.scene, up, cam, t, light, cfg, on_result)?)
+                let gs = once(&g.shadows, || zwarp_shadows::gpu::GpuShadows::new(&g.ctx))?;
+                Ok(zwarp_shadows::gpu::evaluate_gpu(gs, s.scene, up, cam, t, light, cfg, on_result)?)
             }
             _ => Ok(zwarp_shadows::evaluate(s.scene, cam, t, light, cfg, on_result)?),
         }
@@ -281,14 +281,14 @@ impl Device {
             out.ms.warp = t.elapsed().as_secs_f64() * 1e3;
             return Ok(out);
         }
-        let k = once(&g.grid, || zwarp_gpu::GridWarpKernel::new(&g.ctx))?;
+        let k = once(&g.grid, || zwarp_vr::gpu::GridWarpKernel::new(&g.ctx))?;
         Ok(k.raster(src, dst, &zwarp_vr::grid::Mesh::build(src, dst, method, p)?)?)
     }
 
-    fn color_kernel(&self) -> Result<Option<&zwarp_gpu::ColorWarpKernel>> {
+    fn color_kernel(&self) -> Result<Option<&zwarp_color::gpu::ColorWarpKernel>> {
         match self {
             Device::Cpu => Ok(None),
-            Device::Gpu(g) => Ok(Some(once(&g.color, || zwarp_gpu::ColorWarpKernel::new(&g.ctx))?)),
+            Device::Gpu(g) => Ok(Some(once(&g.color, || zwarp_color::gpu::ColorWarpKernel::new(&g.ctx))?)),
         }
     }
 

@@ -585,7 +585,7 @@ fn gpu_backend_without_adapter_is_one_clear_line() {
     assert!(!j.exists());
 }
 
-/// `shadows --backend gpu` (zwarp_gpu::GpuShadows): the same JSON fields, and reference and
+/// `shadows --backend gpu` (zwarp_shadows::gpu::GpuShadows): the same JSON fields, and reference and
 /// zwarp images close to the CPU's on a small scene (SSIM >= 0.99 per row, same S and map size).
 #[test]
 fn shadows_gpu_backend_matches_cpu() {
@@ -948,7 +948,7 @@ fn vr_writes_the_documented_fields() {
     }
 }
 
-/// `vr --backend gpu` (zwarp_gpu::GridWarpKernel, fpi on the GPU colour warp): the same rows,
+/// `vr --backend gpu` (zwarp_vr::gpu::GridWarpKernel, fpi on the GPU colour warp): the same rows,
 /// primitives and quality as the CPU up to the rasterisers' edge rules.
 #[test]
 fn vr_on_the_gpu_matches_the_cpu_rows() {

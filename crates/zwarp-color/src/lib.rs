@@ -17,6 +17,8 @@
 //!   reverse reprojection caching (Nehab et al. 2007), an FSR3-like forward scatter with a
 //!   push-pull in-painting pyramid.
 //! - [`floor`]: the streaming floor of a colour warp (ARCHITECTURE.md "The floor is the yardstick").
+//! - `gpu` (feature `gpu`): the WGSL twins of the heuristic and robust warps on a
+//!   `zwarp_gpu::GpuContext`.
 //!
 //! Conventions (ARCHITECTURE.md "Conventions", "Colour", "Motion"): colour is linear RGB `f32`;
 //! depth is post-projection depth in `[0, 1]`, 1 = no surface (sky, a valid sample for colour:
@@ -31,6 +33,8 @@ pub mod baselines;
 pub mod combine;
 pub mod field;
 pub mod floor;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod heuristic;
 pub mod lanes;
 pub mod robust;

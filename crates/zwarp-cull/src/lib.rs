@@ -10,7 +10,9 @@
 //!   objects, max-depth test, hybrid query) and the baselines NOCULL, VFC, last-frame depth,
 //!   two-phase, REF and the ideal screen-space test, plus the culling-accuracy figures;
 //! - [`sequence`]: runs a method along a camera path (cull, draw the visible set, feed it to
-//!   the next frame) with REF rendered side by side, for the evaluation tables.
+//!   the next frame) with REF rendered side by side, for the evaluation tables;
+//! - `gpu` (feature `gpu`): the WGSL twins of the max-depth structures, the cull, the WOC
+//!   pipeline and the sequences on a `zwarp_gpu::GpuContext`.
 //!
 //! Depth follows the zwarp convention: post-projection depth in `[0, 1]`, 0 = near, 1 = far
 //! and "no surface"; holes of a warped buffer are kept at 1 and never occlude.
@@ -20,6 +22,8 @@
 pub mod bounds;
 pub mod diagnose;
 pub mod frustum;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod holebound;
 pub mod maxdepth;
 pub mod objects;

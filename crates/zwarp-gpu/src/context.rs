@@ -156,7 +156,7 @@ impl GpuContext {
     /// Runs `f` (resource or pipeline creation) inside validation and out-of-memory error
     /// scopes, turning a wgpu error into `Error::Unavailable` instead of wgpu's default panic
     /// (e.g. a format or feature the adapter lacks).
-    pub(crate) fn catch<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T> {
+    pub fn catch<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T> {
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let v = f();
@@ -172,7 +172,7 @@ impl GpuContext {
     }
 
     /// Compiles the WGSL `source` (named `name` in labels and errors) inside [`Self::catch`].
-    pub(crate) fn shader(&self, name: &str, source: &str) -> Result<wgpu::ShaderModule> {
+    pub fn shader(&self, name: &str, source: &str) -> Result<wgpu::ShaderModule> {
         self.catch(&format!("compiling {name}"), || {
             self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(name),
@@ -183,7 +183,7 @@ impl GpuContext {
 
     /// A buffer holding `bytes` (padded to at least 16: wgpu rejects empty bindings) with
     /// `usage`, after [`Self::check_storage_size`].
-    pub(crate) fn buffer_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
+    pub fn buffer_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
         use wgpu::util::DeviceExt;
         self.check_storage_size(bytes.len() as u64, label)?;
         let mut data = bytes.to_vec();
@@ -196,7 +196,7 @@ impl GpuContext {
     }
 
     /// Errors if a `width x height` 2-D texture exceeds the device limits.
-    pub(crate) fn check_texture_size(&self, width: u32, height: u32, what: &str) -> Result<()> {
+    pub fn check_texture_size(&self, width: u32, height: u32, what: &str) -> Result<()> {
         let max = self.device.limits().max_texture_dimension_2d;
         if width == 0 || height == 0 {
             return Err(Error::invalid(format!("{what}: zero-size image {width}x{height}")));
@@ -208,7 +208,7 @@ impl GpuContext {
     }
 
     /// Errors if a storage buffer of `bytes` cannot be bound on this device.
-    pub(crate) fn check_storage_size(&self, bytes: u64, what: &str) -> Result<()> {
+    pub fn check_storage_size(&self, bytes: u64, what: &str) -> Result<()> {
         let l = self.device.limits();
         let max = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
         if bytes > max {

@@ -1,4 +1,5 @@
-//! Copies GPU textures and buffers back into [`Image`]s.
+//! Copies GPU textures and buffers back into [`Image`]s and `Vec`s (the renderer's and the
+//! stage crates' kernels' read-back).
 //!
 //! `copy_texture_to_buffer` needs `bytes_per_row` to be a multiple of 256
 //! (`wgpu::COPY_BYTES_PER_ROW_ALIGNMENT`), so rows are padded on the GPU and unpadded here.
@@ -9,14 +10,14 @@ use zwarp_core::{Error, Image, Result};
 use crate::GpuContext;
 
 /// Padded row pitch in bytes for `width` texels of `texel_bytes` each.
-pub(crate) fn padded_bytes_per_row(width: u32, texel_bytes: u32) -> u32 {
+pub fn padded_bytes_per_row(width: u32, texel_bytes: u32) -> u32 {
     let unpadded = width * texel_bytes;
     let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     unpadded.div_ceil(align) * align
 }
 
 /// A staging buffer that receives one texture copy, recorded now and read after submission.
-pub(crate) struct PendingTexture {
+pub struct PendingTexture {
     buffer: wgpu::Buffer,
     width: u32,
     height: u32,
@@ -24,7 +25,7 @@ pub(crate) struct PendingTexture {
 }
 
 /// Records a copy of mip 0 / layer 0 of `texture` (aspect `aspect`) into a fresh staging buffer.
-pub(crate) fn copy_texture(
+pub fn copy_texture(
     ctx: &GpuContext,
     encoder: &mut wgpu::CommandEncoder,
     texture: &wgpu::Texture,
@@ -67,7 +68,7 @@ pub(crate) fn map_blocking(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<()
 impl PendingTexture {
     /// Maps the staging buffer (the copy must have been submitted) and unpads it into an image
     /// of `T` (whose size must equal the texel size).
-    pub(crate) fn read<T: Pod>(self, ctx: &GpuContext) -> Result<Image<T>> {
+    pub fn read<T: Pod>(self, ctx: &GpuContext) -> Result<Image<T>> {
         debug_assert_eq!(std::mem::size_of::<T>() as u32, self.texel_bytes);
         map_blocking(ctx, &self.buffer)?;
         let bpr = padded_bytes_per_row(self.width, self.texel_bytes) as usize;
@@ -90,7 +91,7 @@ impl PendingTexture {
 }
 
 /// Reads a whole storage buffer of `T` back (records the copy, submits, maps).
-pub(crate) fn read_buffer<T: Pod>(ctx: &GpuContext, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+pub fn read_buffer<T: Pod>(ctx: &GpuContext, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
     let bytes = (count * std::mem::size_of::<T>()) as u64;
     let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("zwarp readback"),

@@ -338,41 +338,6 @@ fn bad_inputs_are_errors() {
     let _ = Image::new(1, 1, 0.0f32);
 }
 
-/// The paper's procedural scenes from zwarp-scene (scaled down), on their recorded camera paths:
-/// GPU vs `zwarp_raster` depth and item ids, and GPU vs CPU motion between two path frames.
-#[test]
-fn procedural_scenes_match_zwarp_raster() {
-    let Some(ctx) = test_context() else { return };
-    let r = Renderer::new(&ctx).unwrap();
-    let mk = zwarp_gpu::MotionKernel::new(&ctx).unwrap();
-    for name in ["mo", "bl", "cb"] {
-        let opts = zwarp_scene::SceneOptions { seed: 7, scale: 0.02, ..Default::default() };
-        let loaded = zwarp_scene::load_scene(name, &opts).unwrap();
-        let (scene, path) = (&loaded.scene, loaded.path_or_default());
-        let gs = GpuScene::upload(&ctx, scene).unwrap();
-        let (t0, t1) = (path.start() + 0.3 * path.duration(), path.start() + 0.3 * path.duration() + 1.0 / 30.0);
-        let (a, b) = (path.camera_at(t0, W, H).unwrap(), path.camera_at(t1, W, H).unwrap());
-        let gpu = r.render_frame(&gs, &a, t0, &FrameOptions::default()).unwrap();
-        let cpu = zwarp_raster::render_frame(scene, &a, t0, &Default::default()).unwrap();
-        let agree = agreement(&gpu.depth, &cpu.depth, 1e-6);
-        assert!(agree >= 0.999, "{name}: only {:.4}% of pixels agree", agree * 100.0);
-        let covered = cpu.depth.data().iter().filter(|d| **d < EMPTY_DEPTH).count();
-        let objects: std::collections::HashSet<u32> = cpu.items.data().iter().copied().collect();
-        assert!(covered > 200 && objects.len() > 3, "{name}: {covered} px, {} ids visible", objects.len());
-        let same_ids = (0..gpu.depth.len())
-            .filter(|&i| (gpu.depth.data()[i] - cpu.depth.data()[i]).abs() < 1e-6)
-            .all(|i| gpu.items.data()[i] == cpu.items.data()[i]);
-        assert!(same_ids, "{name}: item ids differ where depths agree");
-        let deltas = gs.object_deltas(t0, t1);
-        assert_eq!(deltas, scene.object_deltas(t0, t1));
-        let gm = mk.motion_field(&gpu.depth, Some(&gpu.items), &a, &b, &deltas).unwrap();
-        let cm = zwarp_core::motion_field(&gpu.depth, Some(&gpu.items), &a, &b, &deltas).unwrap();
-        for (g, c) in gm.data().iter().zip(cm.data()) {
-            assert!((g.v - c.v).abs().max_element() < 1e-3 || c.v.x >= 1e8, "{name}: gpu {g:?} cpu {c:?}");
-        }
-    }
-}
-
 /// Orthographic views (directional-light shadow maps, seed 000 Sec. 6): depth, items, colour
 /// and umbra peeling for a range of directions vs zwarp-raster.
 #[test]

@@ -1,7 +1,7 @@
 //! Small procedural test scenes (sphere field, box city) and the meshes they are built from,
-//! used by this crate's tests and by other crates' tests (zwarp-gpu, zwarp-shadows): tiny, fast
-//! to build and with a fixed camera. The benchmark and the timing tools (`tools/`) render the
-//! real scenes through `zwarp-scene` (the file loaders and the paper's generators).
+//! used by this crate's tests and by other crates' tests (zwarp-gpu, zwarp-cull, zwarp-shadows):
+//! tiny, fast to build and with a fixed camera. The benchmark and the timing tools (`tools/`)
+//! render the real scenes through `zwarp-scene` (the file loaders and the paper's generators).
 
 use glam::{Mat4, Vec3};
 use zwarp_core::{Animation, Camera, Mesh, Result, Scene};

@@ -21,13 +21,16 @@
 //!
 //! All sample cameras share the centre camera's orientation, so centre -> sample is a pure
 //! parallax ([`light`]); the motion comes from `zwarp_core::motion_field` with the two light
-//! cameras. Shading is one function for all methods ([`Receivers::shade`]).
+//! cameras. Shading is one function for all methods ([`Receivers::shade`]). The reference and
+//! zwarp methods also run on a wgpu device: module `gpu` (feature `gpu`).
 //!
 //! Conventions (ARCHITECTURE.md "Conventions"): depth in `[0, 1]`, 1 = empty; pixel centres at
 //! `+0.5`; row 0 on top.
 
 #![deny(missing_docs)]
 pub mod eval;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod light;
 pub mod lookups;
 pub mod pcss;

@@ -206,7 +206,7 @@ fn ms_since(t: Instant) -> f64 {
 /// What a warp method draws for one view, built on the CPU: seed 003's grid cells with the
 /// quadtree whose connectivity gives the corner depths and the colour filter, one quad per pixel,
 /// Didyk et al.'s cells, or one splat per pixel. [`raster`] draws it on the CPU;
-/// `zwarp_gpu::GridWarpKernel` draws the same mesh with the GPU's rasteriser.
+/// `gpu::GridWarpKernel` draws the same mesh with the GPU's rasteriser.
 #[derive(Clone, Debug)]
 pub struct Mesh {
     /// The method it is built for.

@@ -14,6 +14,8 @@
 //!   (Sec. 5.2); baselines rubber sheets, stretch in-painting (Table 2) and push-pull.
 //! - [`abuffer`]: the A-buffer of transparent fragments with its min-max quadtree (Sec. 4.2) and
 //!   stackless ray casting with front-to-back compositing (Sec. 5.3).
+//! - `gpu` (feature `gpu`): the grid warp's meshes drawn by the GPU's rasteriser on a
+//!   `zwarp_gpu::GpuContext`.
 //!
 //! Conventions (zwarp-core): depth is post-projection depth in `[0, 1]` (1 = no surface, the
 //! sky, warped as the far plane); pixel `(x, y)` is centred at `(x + 0.5, y + 0.5)`, row 0 on
@@ -23,6 +25,8 @@
 #![deny(missing_docs)]
 
 pub mod abuffer;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod grid;
 pub mod holes;
 pub mod quadtree;

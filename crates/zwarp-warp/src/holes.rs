@@ -366,7 +366,7 @@ pub fn background_seeds(p: Vec2, back: Vec2, w: u32, h: u32) -> [Vec2; 2] {
 ///    Converged background pixels count, so sky at the border stays sky.
 ///
 /// Not conservative (a fill may be nearer than the truth): for quality, never for culling.
-/// Errors as [`BackgroundLimits::of`]. The WGSL twin is `zwarp_gpu::HoleFillKernel::fill_background`.
+/// Errors as [`BackgroundLimits::of`]. The WGSL twin is `gpu::HoleFillKernel::fill_background`.
 pub fn fill_background(
     layers: &[WarpLayer<'_>],
     out: &mut WarpOutput,

@@ -21,12 +21,16 @@
 //! - [`baselines`]: VFW and AFW forward warps (Sec. 4.1).
 //! - [`synth`]: an analytic ray-cast scene (ground + boxes) producing peeled layers, used by
 //!   tests and benchmarks.
+//! - `gpu` (feature `gpu`): the WGSL twins of the motion field, the motion mipmap, the warp and
+//!   the hole policies on a `zwarp_gpu::GpuContext`.
 
 #![deny(missing_docs)]
 pub mod baselines;
 pub mod bounds;
 pub mod depth_warp;
 pub mod floor;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod holes;
 mod kernel;
 mod pages;
@@ -164,7 +168,7 @@ pub struct WarpParams {
     /// vanishes the warp returns exactly what a render samples); even m do not, and pick a sample
     /// up to `1 / (2m)` px off even there. The threshold and the bounds stay in source samples. Default 1
     /// (one sample per pixel: the source and target grids coincide). The WGSL twin
-    /// (`zwarp_gpu::WarpKernel`) supports every m.
+    /// (`gpu::WarpKernel`) supports every m.
     pub multisample: u32,
     /// Coverage radius of the multi-layer choice, in source samples (0 disables it). Sec. 3.4
     /// takes the nearest converged candidate over the layers, which assumes a layer that failed

@@ -69,8 +69,15 @@ pub use zwarp_warp::{HolePolicy, PixelState, WarpParams};
 pub use zwarp_core as core;
 /// Occlusion culling by warping and the baselines it is measured against (seed 000 Sec. 5).
 pub use zwarp_cull as cull;
-/// The GPU twins (wgpu compute kernels) and the wgpu version they are built against.
-pub use zwarp_gpu as gpu;
+/// The GPU backend in one place: zwarp-gpu's context, renderer, read-back and timing, the
+/// warp's kernels (`zwarp_warp::gpu`: motion field, motion mipmap, warp, hole filling) and
+/// culling's (`zwarp_cull::gpu`: max-depth structures, cull, WOC), and the wgpu version they
+/// are built against.
+pub mod gpu {
+    pub use zwarp_cull::gpu::*;
+    pub use zwarp_gpu::*;
+    pub use zwarp_warp::gpu::*;
+}
 /// The warp itself, stage by stage: preparation, search, baselines, hole protocol.
 pub use zwarp_warp as warp;
 
@@ -112,8 +119,8 @@ struct Source {
 
 /// The GPU kernels of a [`Backend::Gpu`] warper.
 struct GpuKernels {
-    warp: zwarp_gpu::WarpKernel,
-    fill: zwarp_gpu::HoleFillKernel,
+    warp: zwarp_warp::gpu::WarpKernel,
+    fill: zwarp_warp::gpu::HoleFillKernel,
 }
 
 /// Predicts target views from one prepared source view. Keeps its buffers between calls (an
@@ -140,10 +147,10 @@ impl Warper {
         let gpu = match backend {
             Backend::Cpu => None,
             Backend::Gpu(ctx) => {
-                zwarp_gpu::WarpKernel::check_params(&params)?;
+                zwarp_warp::gpu::WarpKernel::check_params(&params)?;
                 Some(GpuKernels {
-                    warp: zwarp_gpu::WarpKernel::new(&ctx)?,
-                    fill: zwarp_gpu::HoleFillKernel::new(&ctx)?,
+                    warp: zwarp_warp::gpu::WarpKernel::new(&ctx)?,
+                    fill: zwarp_warp::gpu::HoleFillKernel::new(&ctx)?,
                 })
             }
         };
@@ -217,7 +224,7 @@ impl Warper {
         let layers: Vec<WarpLayer<'_>> =
             src.depth.iter().zip(&motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let out = match &self.gpu {
-            Some(k) => zwarp_gpu::predict(&k.warp, &k.fill, &layers, &self.params)?,
+            Some(k) => zwarp_warp::gpu::predict(&k.warp, &k.fill, &layers, &self.params)?,
             None => {
                 let mut o = match self.prediction.take() {
                     Some(p) => WarpOutput { depth: p.depth, state: p.state, source: None },

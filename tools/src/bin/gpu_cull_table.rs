@@ -12,11 +12,13 @@
 use std::time::{Duration, Instant};
 
 use zwarp_core::Result;
+use zwarp_cull::gpu::{
+    rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, GpuPrevFrame, GpuWoc, GpuWocParams, MaxDepthKernel,
+    MaxDepthLayout, WocStage,
+};
 use zwarp_cull::{MaxDepthKind, MaxDepthMap, WocParams};
 use zwarp_gpu::{
-    rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, DepthTarget, GpuContext, GpuPrevFrame, GpuScene,
-    GpuTimer, GpuWoc, GpuWocParams, IndirectMode, LayerTargets, MaxDepthKernel, MaxDepthLayout, PeelOptions, Renderer,
-    TimingStats, WocStage,
+    DepthTarget, GpuContext, GpuScene, GpuTimer, IndirectMode, LayerTargets, PeelOptions, Renderer, TimingStats,
 };
 
 fn ms(d: Duration) -> f64 {

@@ -12,11 +12,9 @@
 use std::time::{Duration, Instant};
 
 use zwarp_core::Result;
-use zwarp_gpu::{
-    DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, MotionInput, MotionKernel, PeelOptions, PyramidKernel,
-    Renderer, TimingStats,
-};
+use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, LayerTargets, PeelOptions, Renderer, TimingStats};
 use zwarp_tools::common;
+use zwarp_warp::gpu::{MotionInput, MotionKernel, PyramidKernel};
 
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3

@@ -24,10 +24,9 @@
 use std::time::{Duration, Instant};
 
 use zwarp_core::{motion_field, Image, Motion, Result};
-use zwarp_gpu::{
-    DepthTarget, GpuContext, GpuScene, GpuTimer, GpuWarpLayer, PeelOptions, Renderer, TimingStats, WarpKernel,
-};
+use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, PeelOptions, Renderer, TimingStats};
 use zwarp_tools::common;
+use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel};
 use zwarp_warp::{warp_depth, PixelState, WarpLayer, WarpParams};
 
 fn ms(d: Duration) -> f64 {

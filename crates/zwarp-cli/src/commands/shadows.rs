@@ -73,7 +73,7 @@ pub struct ShadowsArgs {
     #[arg(long, default_value = "auto")]
     pub grouping: String,
     /// Where the shadow maps are made: `gpu` renders, warps and accumulates them with wgpu
-    /// (`zwarp_gpu::GpuShadows`; reference and zwarp only, PCSS is skipped), same JSON fields.
+    /// (`zwarp_shadows::gpu::GpuShadows`; reference and zwarp only, PCSS is skipped), same JSON fields.
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
 }

@@ -187,6 +187,17 @@ pub enum IndirectMode {
     Slots,
 }
 
+/// Indirect draw arguments of a scene's objects, as a culling pass leaves them on the GPU
+/// (`zwarp_cull::gpu::CullOutput`): what [`Renderer::encode_depth_indirect`] draws.
+pub trait IndirectDraws {
+    /// Number of draw slots (the objects of the scene the arguments were built for).
+    fn slot_count(&self) -> usize;
+    /// The argument buffer of `DrawIndexedIndirectArgs` that `mode` draws from, and its u32 draw
+    /// count buffer: for [`IndirectMode::Count`] the compacted arguments of the kept objects
+    /// and their count, for [`IndirectMode::Slots`] one argument per draw slot and no count.
+    fn args(&self, mode: IndirectMode) -> (&wgpu::Buffer, Option<&wgpu::Buffer>);
+}
+
 /// The GPU rasterizer: pipelines for depth-only, frame (depth + item + colour) and peel passes.
 pub struct Renderer {
     ctx: GpuContext,
@@ -560,9 +571,10 @@ impl Renderer {
     }
 
     /// Records a depth-only pass (as [`Renderer::encode_depth`]) that draws only the objects a
-    /// [`crate::CullKernel`] kept, straight from its indirect arguments in `culled` (thesis seed
-    /// 002 Sec. IV.3: the visible list becomes indirect draw commands, no CPU round trip).
-    /// `culled` must come from [`crate::CullObjects::for_scene`] of this scene. Needs the
+    /// culling kernel (`zwarp_cull::gpu::CullKernel`) kept, straight from its indirect arguments
+    /// in `culled` (thesis seed 002 Sec. IV.3: the visible list becomes indirect draw commands,
+    /// no CPU round trip). `culled` must be built for this scene's draws
+    /// ([`GpuScene::draws`], `zwarp_cull::gpu::CullObjects::for_scene`). Needs the
     /// `INDIRECT_FIRST_INSTANCE` feature (each draw names its object through its first
     /// instance); `mode` [`IndirectMode::Count`] also needs `MULTI_DRAW_INDIRECT_COUNT`.
     #[allow(clippy::too_many_arguments)]
@@ -573,20 +585,17 @@ impl Renderer {
         camera: &Camera,
         t: f32,
         target: &DepthTarget,
-        culled: &crate::CullOutput,
+        culled: &impl IndirectDraws,
         mode: IndirectMode,
     ) -> Result<()> {
-        if culled.len() != scene.object_count() {
+        if culled.slot_count() != scene.object_count() {
             return Err(Error::invalid(format!(
                 "cull output holds {} objects but the scene has {}",
-                culled.len(),
+                culled.slot_count(),
                 scene.object_count()
             )));
         }
-        let (args, count) = match mode {
-            IndirectMode::Count => (&culled.draw_args, Some(&culled.counter)),
-            IndirectMode::Slots => (&culled.slot_args, None),
-        };
+        let (args, count) = culled.args(mode);
         self.encode_depth_from_args(encoder, scene, camera, t, target, args, count)
     }
 
@@ -760,7 +769,7 @@ impl Renderer {
         scene: &GpuScene,
         camera: &Camera,
         t: f32,
-        culled: &crate::CullOutput,
+        culled: &impl IndirectDraws,
         mode: IndirectMode,
     ) -> Result<Image<f32>> {
         let target = DepthTarget::new(&self.ctx, camera.width, camera.height)?;

@@ -104,10 +104,8 @@ pub struct GpuScene {
     pub(crate) draw_ids: wgpu::Buffer,
     pub(crate) objects: wgpu::Buffer,
     pub(crate) batches: Vec<Batch>,
-    /// Per object id: `(first_index, index_count, base_vertex as u32, draw slot)`, the draw
-    /// the batches issue for it (slot = its position in `draw_ids`); the cull kernel's
-    /// indirect arguments are built from these.
-    pub(crate) draws: Vec<[u32; 4]>,
+    /// See [`GpuScene::draws`].
+    draws: Vec<[u32; 4]>,
     instances: Vec<Instance>,
     triangles: usize,
 }
@@ -322,6 +320,13 @@ impl GpuScene {
             instances: scene.instances.clone(),
             triangles: scene.triangle_count(),
         })
+    }
+
+    /// Per object id: `(first_index, index_count, base_vertex as u32, draw slot)`, the draw
+    /// the batches issue for it (slot = its position in the draw-id buffer); culling kernels
+    /// build their indirect arguments from these.
+    pub fn draws(&self) -> &[[u32; 4]] {
+        &self.draws
     }
 
     /// Number of objects (instances).

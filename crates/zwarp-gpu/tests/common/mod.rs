@@ -2,7 +2,9 @@
 //! exact fixed-point coverage with 8 sub-pixel bits and the top-left rule, depth from the plane
 //! through the *unsnapped* screen-space vertices in f64, as GPUs and zwarp-raster do: snapping
 //! the plane too would shift steep depth planes by up to 1/512 px times their slope), used to
-//! check the GPU renderer and its depth peeling independently of zwarp-raster.
+//! check the GPU renderer and its depth peeling independently of zwarp-raster. The stage crates'
+//! GPU tests (`zwarp-warp`, `zwarp-cull`) include this file too (`#[path]`) for the scene, the
+//! cameras, [`rng`] and [`agreement`].
 #![allow(dead_code)]
 
 use glam::{Mat4, Quat, Vec3, Vec4};

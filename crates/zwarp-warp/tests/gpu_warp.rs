@@ -1,12 +1,14 @@
 //! GPU backward depth warp vs `zwarp_warp::warp_depth` (the same function; seed 000 Sec. 3,
 //! Fig. 3, 5, 6) on rendered frame pairs, plus exact cases and error paths.
 
+#[path = "../../zwarp-gpu/tests/common/mod.rs"]
 mod common;
 
 use common::*;
 use glam::{Vec2, Vec3};
 use zwarp_core::{motion_field, Camera, Error, Image, Motion};
-use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer, WarpKernel};
+use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer};
+use zwarp_warp::gpu::WarpKernel;
 use zwarp_warp::synth::SynthScene;
 use zwarp_warp::{
     warp_depth, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput,
@@ -247,7 +249,7 @@ fn all_gpu_chain_matches_cpu() {
     let scene = test_scene();
     let gs = GpuScene::upload(&ctx, &scene).unwrap();
     let r = Renderer::new(&ctx).unwrap();
-    let mk = zwarp_gpu::MotionKernel::new(&ctx).unwrap();
+    let mk = zwarp_warp::gpu::MotionKernel::new(&ctx).unwrap();
     let k = WarpKernel::new(&ctx).unwrap();
     let (a, b) = (camera_a(), camera_b());
     let (w, h) = (a.width, a.height);
@@ -265,11 +267,11 @@ fn all_gpu_chain_matches_cpu() {
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     r.encode_depth(&mut enc, &gs, &a, 0.0, &target).unwrap();
     r.encode_depth_copy(&mut enc, &target, &dbuf, w).unwrap();
-    let input = zwarp_gpu::MotionInput { depth: &dbuf, items: None, row_stride: w };
+    let input = zwarp_warp::gpu::MotionInput { depth: &dbuf, items: None, row_stride: w };
     mk.encode(&mut enc, &input, &a, &b, &[], &mbuf).unwrap();
     // Axis-aligned bounds: the oriented frame would need the motion on the CPU.
     let p = WarpParams { bound: BoundKind::Tight, ..p };
-    let layer = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
+    let layer = zwarp_warp::gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
     let out = k.encode(&mut enc, &[layer], w, h, &p).unwrap();
     ctx.queue.submit([enc.finish()]);
     let gpu = out.read(&ctx).unwrap();
@@ -286,10 +288,10 @@ fn all_gpu_chain_matches_cpu() {
     assert!(cpu.counts().0 > cpu.depth.len() / 3);
     // Bad GPU inputs: a motion buffer too small for the size, zero size, too many layers.
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &dbuf, axis: Vec2::X };
+    let l = zwarp_warp::gpu::GpuWarpLayer { depth: &dbuf, motion: &dbuf, axis: Vec2::X };
     assert!(matches!(k.encode(&mut enc, &[l], w, h, &p), Err(Error::Invalid(_))));
-    let l = zwarp_gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
-    let bad_axis = zwarp_gpu::GpuWarpLayer { axis: Vec2::new(2.0, 0.0), ..l };
+    let l = zwarp_warp::gpu::GpuWarpLayer { depth: &dbuf, motion: &mbuf, axis: Vec2::X };
+    let bad_axis = zwarp_warp::gpu::GpuWarpLayer { axis: Vec2::new(2.0, 0.0), ..l };
     assert!(matches!(k.encode(&mut enc, &[bad_axis], w, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l], 0, h, &p), Err(Error::Invalid(_))));
     assert!(matches!(k.encode(&mut enc, &[l; 9], w, h, &p), Err(Error::Invalid(_))));
@@ -483,13 +485,13 @@ fn multisample_prepared_warps_match_cpu() {
     let layers = layers_of(&d, &mo);
     let p = WarpParams { multisample: m, bound: BoundKind::Tight, holes: HolePolicy::Dilate { radius: 2 }, ..base() };
     let gpu_layers = k.upload(&layers, &p).unwrap();
-    let views: Vec<zwarp_gpu::GpuWarpLayer> =
-        gpu_layers.iter().map(|(d, m)| zwarp_gpu::GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
+    let views: Vec<zwarp_warp::gpu::GpuWarpLayer> =
+        gpu_layers.iter().map(|(d, m)| zwarp_warp::gpu::GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     let prepared = k.encode_prepare(&mut enc, &views, tw * m, th * m, &p).unwrap();
     assert_eq!((prepared.size(), prepared.target_size()), ((tw * m, th * m), (tw, th)));
     let scales = [Vec2::ONE, Vec2::new(0.5, -0.75)];
-    let outs: Vec<zwarp_gpu::GpuWarpOutput> =
+    let outs: Vec<zwarp_warp::gpu::GpuWarpOutput> =
         scales.iter().map(|&s| k.encode_prepared(&mut enc, &prepared, s).unwrap()).collect();
     ctx.queue.submit([enc.finish()]);
     for (out, &s) in outs.iter().zip(&scales) {

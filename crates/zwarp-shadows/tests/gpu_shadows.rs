@@ -4,14 +4,15 @@
 
 use glam::{Mat4, Vec2, Vec3};
 use zwarp_core::{Animation, Camera, Error, Image, Mesh, Scene};
-use zwarp_gpu::shadows::{gpu_peel_options, reference_shift, sample_warp_params};
-use zwarp_gpu::{run_shadows_gpu, test_context, GpuScene, GpuShadows, GpuWarpLayer, WarpKernel};
+use zwarp_gpu::{test_context, GpuScene};
 use zwarp_raster::scenes::box_mesh;
 use zwarp_raster::{render_frame, FrameOptions};
+use zwarp_shadows::gpu::{gpu_peel_options, reference_shift, run_shadows_gpu, sample_warp_params, GpuShadows};
 use zwarp_shadows::{
     default_light, peel_options, render_sample_map, run_shadows, LightRig, Method, Receiver, Receivers, ShadowParams,
     ZwarpMaps,
 };
+use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel};
 use zwarp_warp::WarpLayer;
 
 const W: u32 = 128;

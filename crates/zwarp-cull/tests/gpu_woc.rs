@@ -3,15 +3,14 @@
 //! started from the same GPU-rendered previous frame; its per-pixel stages (opening rims,
 //! erosion) vs their CPU twins on random inputs; error paths.
 
+#[path = "../../zwarp-gpu/tests/common/mod.rs"]
 mod common;
 
 use glam::Vec2;
 use zwarp_core::{Camera, Image, Motion, Scene, EMPTY_DEPTH, NO_ITEM};
+use zwarp_cull::gpu::{rapid_flags, CullObjects, CullOutput, GpuPrevFrame, GpuWoc, GpuWocParams};
 use zwarp_cull::{erode_max, opening_rims, woc, PrevFrame, WocParams};
-use zwarp_gpu::{
-    rapid_flags, test_context, CullObjects, CullOutput, GpuContext, GpuPrevFrame, GpuScene, GpuWoc, GpuWocParams,
-    LayerTargets, PeelOptions, Renderer,
-};
+use zwarp_gpu::{test_context, GpuContext, GpuScene, LayerTargets, PeelOptions, Renderer};
 
 const W: u32 = 157;
 const H: u32 = 93;
@@ -216,7 +215,7 @@ fn engine_owned_buffers_and_textures() {
     assert!(e.to_string().contains("R32Float"), "{e}");
 
     // Cull into engine buffers vs into ours.
-    use zwarp_gpu::{CullKernel, MaxDepthKernel};
+    use zwarp_cull::gpu::{CullKernel, MaxDepthKernel};
     let cam = Camera::perspective(
         glam::Vec3::new(0.0, -5.0, 1.0),
         glam::Vec3::new(0.0, 0.0, 1.0),

@@ -2,13 +2,15 @@
 //! and prime sizes, invalid samples and oriented frames; and the whole GPU chain render ->
 //! motion -> pyramid vs the CPU chain.
 
+#[path = "../../zwarp-gpu/tests/common/mod.rs"]
 mod common;
 
 use common::*;
 use glam::Vec2;
 use proptest::prelude::*;
 use zwarp_core::{motion_field, Image, Motion};
-use zwarp_gpu::{test_context, FrameOptions, GpuContext, GpuScene, MotionKernel, PyramidKernel, Renderer};
+use zwarp_gpu::{test_context, FrameOptions, GpuContext, GpuScene, Renderer};
+use zwarp_warp::gpu::{MotionKernel, PyramidKernel};
 use zwarp_warp::{BoundFrame, MotionPyramid};
 
 /// Every level and texel equal (bit-exact for the axis-aligned frame: min/max of the same

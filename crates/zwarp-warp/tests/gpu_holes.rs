@@ -2,12 +2,14 @@
 //! `zwarp_warp::fill_holes` on random depth/state images of odd sizes, for both rules and
 //! several radii; the post-pass over a far-hole GPU warp equals the warp's own dilation; errors.
 
+#[path = "../../zwarp-gpu/tests/common/mod.rs"]
 mod common;
 
 use glam::Vec2;
 use proptest::prelude::*;
 use zwarp_core::{Image, Motion, EMPTY_DEPTH};
-use zwarp_gpu::{test_context, HoleFillKernel, WarpKernel};
+use zwarp_gpu::test_context;
+use zwarp_warp::gpu::{HoleFillKernel, WarpKernel};
 use zwarp_warp::{fill_holes, FillRule, HolePolicy, PixelState, WarpLayer, WarpParams};
 
 /// Random states in blobs (so holes have converged neighbours at various distances).

@@ -1,5 +1,5 @@
 //! Culling methods run along a camera path on the GPU (seed 000 Sec. 5.3, thesis Sec. V): the
-//! GPU twin of [`zwarp_cull::run_sequence`], reporting the same [`FrameReport`]s so that
+//! GPU twin of [`crate::run_sequence`], reporting the same [`FrameReport`]s so that
 //! `zwarp cull --backend gpu` prints the same JSON fields. As on the CPU, the engine's loop runs
 //! first and alone, on one device: per frame the method's cull (timed: CPU-side AABB/flag
 //! uploads + GPU work, fenced wall clock) and the indirect draw of the kept objects (depth +
@@ -14,15 +14,15 @@
 use std::time::Instant;
 
 use zwarp_core::{Camera, Error, Image, Result, Scene};
-use zwarp_cull::{
+use zwarp_gpu::{GpuContext, GpuScene, LayerTargets, PeelOptions, Renderer};
+
+use super::{
+    rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, GpuCullClass, GpuMaxDepth, GpuWoc, GpuWocParams,
+    MaxDepthKernel,
+};
+use crate::{
     accuracy, culled_visible, visible_from_items, CullStats, CullTimings, FrameReport, MapAccuracy, MaxDepthKind,
     Method, PrevFrame, WocParams,
-};
-
-use crate::compute::{rapid_flags, CullParams, GpuWoc, GpuWocParams};
-use crate::{
-    CullKernel, CullObjects, CullOutput, GpuContext, GpuCullClass, GpuMaxDepth, GpuScene, LayerTargets, MaxDepthKernel,
-    PeelOptions, Renderer,
 };
 
 /// `true` for the methods [`run_gpu_sequence`] implements.
@@ -71,7 +71,7 @@ impl Run<'_> {
             keep[id as usize] = true;
         }
         let mut args = vec![wgpu::util::DrawIndexedIndirectArgs::default(); keep.len()];
-        for (id, d) in self.gs.draws.iter().enumerate() {
+        for (id, d) in self.gs.draws().iter().enumerate() {
             args[d[3] as usize] = wgpu::util::DrawIndexedIndirectArgs {
                 index_count: d[1],
                 instance_count: keep[id] as u32,
@@ -164,7 +164,7 @@ pub fn run_gpu_sequence(
         ctx,
         scene,
         r: Renderer::new(ctx)?,
-        // IDEAL is the exact N-buffer test (as `zwarp_cull::ideal_screen_space`).
+        // IDEAL is the exact N-buffer test (as `crate::ideal_screen_space`).
         map: max_k.create(if method == Method::Ideal { MaxDepthKind::NBuffer } else { params.max_depth }, w, h)?,
         max_k,
         cull_k: CullKernel::new(ctx)?,
@@ -189,7 +189,7 @@ pub fn run_gpu_sequence(
     };
     let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame);
 
-    // Pass 1, the engine's loop and the only timed one (as `zwarp_cull::run_sequence`): cull,
+    // Pass 1, the engine's loop and the only timed one (as `crate::run_sequence`): cull,
     // then draw the kept objects (depth + items), which is the next frame's previous frame. The
     // oracles (IDEAL, REF) render the frame in full first because that render is their input.
     struct Timed {
@@ -244,7 +244,7 @@ pub fn run_gpu_sequence(
                         let flags = rapid_flags(scene, cam_prev, *t_prev, cam, t, params);
                         run.objects.write_forced(ctx, Some(&flags))?;
                         let items_view = drawn[prev].items[0].create_view(&Default::default());
-                        let pf = crate::GpuPrevFrame {
+                        let pf = super::GpuPrevFrame {
                             depth: &drawn[prev].depth[0].view,
                             items: &items_view,
                             cam: cam_prev,
@@ -264,7 +264,7 @@ pub fn run_gpu_sequence(
                         run.finish(enc)?;
                         let c = ms(t0);
                         let r = run.out.read(ctx)?;
-                        let occ = crate::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
+                        let occ = zwarp_gpu::readback::read_buffer::<f32>(ctx, woc.predicted(), (w * h) as usize)?;
                         (r.visible, c, stats_of(&r.classes), Some(Image::from_vec(w, h, occ)?), true)
                     }
                     Method::Vfc | Method::TwoPhase => unreachable!("handled above / rejected"),

@@ -5,14 +5,12 @@
 
 use glam::{Mat4, Vec3};
 use zwarp_core::{Aabb, Camera, Image, Scene, EMPTY_DEPTH};
+use zwarp_cull::gpu::{CullKernel, CullObjects, CullOutput, CullParams, GpuCullClass, MaxDepthKernel};
 use zwarp_cull::{
     cull_against_depth, screen_rect_with, Frustum, MaxDepthKind, MaxDepthMap, MaxDepthQuery, ScreenRect,
     DEPTH_TOLERANCE,
 };
-use zwarp_gpu::{
-    test_context, CullKernel, CullObjects, CullOutput, CullParams, GpuCullClass, GpuScene, IndirectMode,
-    MaxDepthKernel, Renderer,
-};
+use zwarp_gpu::{test_context, GpuScene, IndirectMode, Renderer};
 
 const W: u32 = 97;
 const H: u32 = 61;

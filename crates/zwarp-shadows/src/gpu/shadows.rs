@@ -2,10 +2,10 @@
 //! shadow map per light sample) and zwarp (L layers peeled once from the emitter centre, warped
 //! to every sample view) with the visibility accumulated on the GPU. Shader: `shadows.wgsl`.
 //!
-//! The CPU method is `zwarp_shadows` (`run_shadows`); this module reuses its receivers
+//! The CPU method is this crate's `run_shadows`; this module reuses its receivers
 //! ([`Receivers`], built on the CPU once per camera frame and uploaded once), its light rig
 //! ([`LightRig`]: sample cameras and pixel shifts `K_i`), its peeling options
-//! (`zwarp_shadows::peel_options`) and its warp parameters (`ShadowParams::warp_params`), and
+//! (`crate::peel_options`) and its warp parameters (`ShadowParams::warp_params`), and
 //! reproduces on the GPU:
 //!
 //! - **accumulate** (`Receivers::accumulate`): one thread per receiver (it owns its lit
@@ -29,22 +29,21 @@
 //! one ulp of it. The tests bound the resulting lit-count differences (>= 99.5 % identical; on
 //! the test scene all are).
 
-use crate::compute::AutoPipelines;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec2;
 use wgpu::util::DeviceExt;
 use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Projection, Result, Scene};
+use zwarp_gpu::kernel::AutoPipelines;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::render::{DepthTarget, FrameOptions, GpuScene, LayerTargets, PeelOptions, Renderer, Umbra};
+use zwarp_gpu::GpuContext;
 use zwarp_raster::{Frame, ViewRegion};
-use zwarp_shadows::{
-    peel_options, EvalConfig, EvalRow, LightRig, Method, Receivers, ShadowParams, ShadowResult, StageTimings,
-};
+use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel, MAX_GPU_LAYERS};
 use zwarp_warp::{BoundKind, WarpParams};
 
-use crate::readback::read_buffer;
-use crate::render::{DepthTarget, FrameOptions, GpuScene, LayerTargets, PeelOptions, Renderer, Umbra};
-use crate::{GpuContext, GpuWarpLayer, WarpKernel, MAX_GPU_LAYERS};
+use crate::{peel_options, EvalConfig, EvalRow, LightRig, Method, Receivers, ShadowParams, ShadowResult, StageTimings};
 
 /// Receivers per workgroup of the accumulate kernel.
 const ACC_GROUP: u32 = 256;
@@ -390,7 +389,7 @@ impl GpuShadows {
     }
 
     /// Peels the centre map of `rig` with `peel` (use [`gpu_peel_options`] of
-    /// `zwarp_shadows::peel_options`), computes each layer's motion to the reference offset
+    /// `crate::peel_options`), computes each layer's motion to the reference offset
     /// ([`reference_shift`]) and drops the empty layers (reading back only their coverage). A
     /// scene with nothing in front of the light keeps one empty layer, as on the CPU.
     pub fn peel(&self, scene: &GpuScene, rig: &LightRig, t: f32, peel: &PeelOptions) -> Result<GpuShadowLayers> {
@@ -476,7 +475,7 @@ impl GpuShadows {
     }
 }
 
-/// `zwarp_shadows::run_shadows` on the GPU (seed 000, Sec. 6): the camera frame is rendered on
+/// `crate::run_shadows` on the GPU (seed 000, Sec. 6): the camera frame is rendered on
 /// the GPU (depth + items), the receivers are built on the CPU exactly as the CPU path does
 /// (`Receivers::build`) and uploaded once; the visibility comes from
 /// [`GpuShadows::reference_lit`] ([`Method::Reference`]) or [`GpuShadows::peel`] +
@@ -584,7 +583,7 @@ fn summarize(mut v: Vec<(f64, StageTimings)>) -> (f64, f64, f64, Vec<f64>, Stage
     (m.0, v[0].0, v[v.len() - 1].0, times, m.1)
 }
 
-/// `zwarp_shadows::evaluate` on the GPU (seed 000, Table 8 / Fig. 15 protocol): for every map
+/// `crate::evaluate` on the GPU (seed 000, Table 8 / Fig. 15 protocol): for every map
 /// size and S, the GPU reference and the GPU zwarp ([`run_shadows_gpu`], warm, repeated,
 /// median), quality against the GPU reference of the same S, speed-up side by side on the same
 /// device. [`Method::Pcss`] has no GPU path and is skipped (the caller says so);

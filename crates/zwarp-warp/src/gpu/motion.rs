@@ -5,10 +5,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Camera, Error, Image, Motion, Result};
-
-use crate::readback::{padded_bytes_per_row, read_buffer};
-use crate::render::{GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer};
-use crate::GpuContext;
+use zwarp_gpu::readback::{padded_bytes_per_row, read_buffer};
+use zwarp_gpu::render::{GpuFrame, GpuScene, LayerTargets, PeelOptions, Renderer};
+use zwarp_gpu::GpuContext;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -49,7 +48,7 @@ impl MotionKernel {
         let dev = &ctx.device;
         let module = ctx.shader("motion.wgsl", include_str!("motion.wgsl"))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let (layout, pl) = super::buffer_layouts(
+        let (layout, pl) = zwarp_gpu::kernel::buffer_layouts(
             dev,
             "zwarp motion",
             &[wgpu::BufferBindingType::Uniform, ro, ro, ro, wgpu::BufferBindingType::Storage { read_only: false }],

@@ -4,18 +4,18 @@
 //! visible list and indirect draw arguments runs on the GPU in one command encoder, with no
 //! read-back in between. Shaders: `woc.wgsl` (+ the motion, warp, max-depth and cull kernels).
 //!
-//! Stage order mirrors [`zwarp_cull::woc`] (as committed at 2d9b183 + later, with opening rims):
+//! Stage order mirrors [`crate::woc`] (as committed at 2d9b183 + later, with opening rims):
 //! 1. the previous depth + item textures are gathered into buffers;
-//! 2. motion buffer ([`crate::MotionKernel`], camera + per-object motion through the items);
-//! 3. opening rims in the source ([`zwarp_cull::opening_rims`], `RimMode::Source`): near-side
+//! 2. motion buffer ([`zwarp_warp::gpu::MotionKernel`], camera + per-object motion through the items);
+//! 3. opening rims in the source ([`crate::opening_rims`], `RimMode::Source`): near-side
 //!    rim texels of separating boundaries become far holes before the warp;
-//! 4. single-layer warp ([`crate::WarpKernel`], N = 8, far-depth holes or AWOC's fill,
+//! 4. single-layer warp ([`zwarp_warp::gpu::WarpKernel`], N = 8, far-depth holes or AWOC's fill,
 //!    nearest sampling);
-//! 5. `erosion_radius` steps of the 3x3 max erosion ([`zwarp_cull::erode_max`]);
+//! 5. `erosion_radius` steps of the 3x3 max erosion ([`crate::erode_max`]);
 //! 6. forced (rapid-motion) objects, flagged in [`CullObjects::forced`], are rasterized and
 //!    merged into the predicted depth by the depth test ([`zwarp_raster::draw_into`]);
-//! 7. max-depth structure ([`crate::MaxDepthKernel`]) and 8. the cull kernel
-//!    ([`crate::CullKernel`], with the silhouette test of `WocParams::hull_test`) into the
+//! 7. max-depth structure ([`super::MaxDepthKernel`]) and 8. the cull kernel
+//!    ([`super::CullKernel`], with the silhouette test of `WocParams::hull_test`) into the
 //!    caller's [`CullOutput`].
 //!
 //! Differences from the CPU `woc` (as of zwarp-cull b12f000): opening rims are always dropped in the source
@@ -28,20 +28,19 @@
 //! ported, and the rapid-motion flags are computed by
 //! the caller ([`rapid_flags`] is the CPU rule).
 
-use super::AutoPipelines;
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2};
 use zwarp_core::{Camera, Error, Image, Motion, Result, Scene};
-use zwarp_cull::woc::RimMode;
-use zwarp_cull::{screen_speed, Frustum, MaxDepthKind, WocParams, DEPTH_TOLERANCE};
+use zwarp_gpu::kernel::AutoPipelines;
+use zwarp_gpu::render::{DepthTarget, ITEM_FORMAT};
+use zwarp_gpu::{GpuContext, GpuScene, Renderer};
+use zwarp_warp::gpu::{GpuWarpLayer, MotionInput, MotionKernel, WarpKernel};
 use zwarp_warp::{BoundKind, HolePolicy, WarpParams};
 
 use super::cull::{CullKernel, CullObjects, CullOutput, CullParams};
 use super::maxdepth::{GpuMaxDepth, MaxDepthKernel};
-use super::motion::{MotionInput, MotionKernel};
-use super::warp::{GpuWarpLayer, WarpKernel};
-use crate::render::{DepthTarget, ITEM_FORMAT};
-use crate::{GpuContext, GpuScene, Renderer};
+use crate::woc::RimMode;
+use crate::{screen_speed, Frustum, MaxDepthKind, WocParams, DEPTH_TOLERANCE};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -82,7 +81,7 @@ impl Default for GpuWocParams {
 }
 
 impl GpuWocParams {
-    /// The GPU configuration computing what `zwarp_cull::woc` computes with
+    /// The GPU configuration computing what `crate::woc` computes with
     /// [`GpuWocParams::cpu_twin`]`(p)`: an oriented warp bound becomes axis-aligned
     /// (`BoundKind::Tight`), target-side opening rims become source-side, `hole_bound` and
     /// `hybrid_objects` are ignored.
@@ -122,7 +121,7 @@ impl GpuWocParams {
     }
 }
 
-/// The rapid-motion rule of `zwarp_cull::woc` (thesis Sec. IV.1): objects in the current
+/// The rapid-motion rule of `crate::woc` (thesis Sec. IV.1): objects in the current
 /// frustum whose AABB corners move more than `params.rapid_motion_px` pixels on screen between
 /// the frames (own motion only unless `rapid_includes_camera`). All `false` when the rule is
 /// off. Feed the result to [`CullObjects::write_forced`].
@@ -310,7 +309,7 @@ impl GpuWoc {
     }
 
     /// Records a copy of a `width x height` f32 depth buffer of this pipeline's size (e.g.
-    /// [`GpuWoc::predicted`] or a [`crate::GpuWarpOutput`]'s depth) into `target`, an
+    /// [`GpuWoc::predicted`] or a [`zwarp_warp::gpu::GpuWarpOutput`]'s depth) into `target`, an
     /// `R32Float` texture of the same size with `STORAGE_BINDING` usage that the caller owns
     /// (issue #6: "warp into a texture it owns"). Bit-exact.
     pub fn encode_depth_to_texture(
@@ -387,18 +386,19 @@ impl GpuWoc {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         self.dispatch(&mut enc, pipe, &bindings, (self.width.div_ceil(8), self.height.div_ceil(8)));
         self.ctx.queue.submit([enc.finish()]);
-        let data = crate::readback::read_buffer::<f32>(&self.ctx, &self.rimmed, (self.width * self.height) as usize)?;
+        let data =
+            zwarp_gpu::readback::read_buffer::<f32>(&self.ctx, &self.rimmed, (self.width * self.height) as usize)?;
         Image::from_vec(self.width, self.height, data)
     }
 
-    /// The erosion stage on a CPU image (the twin of [`zwarp_cull::erode_max`], for tests).
+    /// The erosion stage on a CPU image (the twin of [`crate::erode_max`], for tests).
     pub fn erode_image(&self, depth: &Image<f32>) -> Result<Image<f32>> {
         self.check_image_size(depth.width(), depth.height())?;
         let buf = self.upload(depth.data());
         self.run_stage(&self.erode, &[(5, &buf)], 0.0)
     }
 
-    /// The opening-rims stage on CPU images (the twin of [`zwarp_cull::opening_rims`], for
+    /// The opening-rims stage on CPU images (the twin of [`crate::opening_rims`], for
     /// tests). Errors on sizes that differ from the pipeline's or a bad threshold.
     pub fn opening_rims_image(
         &self,
@@ -469,9 +469,10 @@ impl GpuWoc {
         if !(prev.t.is_finite() && t.is_finite()) {
             return Err(Error::invalid(format!("scene times must be finite, got {} and {t}", prev.t)));
         }
-        for (view, what, format) in
-            [(prev.depth, "previous depth", crate::render::DEPTH_FORMAT), (prev.items, "previous items", ITEM_FORMAT)]
-        {
+        for (view, what, format) in [
+            (prev.depth, "previous depth", zwarp_gpu::render::DEPTH_FORMAT),
+            (prev.items, "previous items", ITEM_FORMAT),
+        ] {
             let tex = view.texture();
             if (tex.width(), tex.height()) != (w, h) || tex.format() != format {
                 return Err(Error::invalid(format!(

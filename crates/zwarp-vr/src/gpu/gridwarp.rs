@@ -1,7 +1,7 @@
 //! The adaptive grid warp of seed 003 (Sec. 4.1.4, 5.1) drawn by the GPU's rasteriser: the
-//! vertex/fragment twin of `zwarp_vr::grid::raster`. Shader: `gridwarp.wgsl`.
+//! vertex/fragment twin of `crate::grid::raster`. Shader: `gridwarp.wgsl`.
 //!
-//! The mesh ([`zwarp_vr::grid::Mesh`]: quadtree, cells, corner depths) is built on the CPU as
+//! The mesh ([`crate::grid::Mesh`]: quadtree, cells, corner depths) is built on the CPU as
 //! in seed 003, where the grid comes from the quadtree each frame; the GPU draws one instance
 //! per cell (two triangles through the combined warp matrix, a depth test) or one point per
 //! source pixel, and the fragment fetches colour with the mesh's filter (nearest, bilinear, or
@@ -14,10 +14,10 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 use zwarp_core::{Camera, Error, Image, Result};
-use zwarp_vr::grid::{corner_depths, Mesh, Primitives, Source, StageMs, WarpOutput};
+use zwarp_gpu::readback::copy_texture;
+use zwarp_gpu::GpuContext;
 
-use crate::readback::copy_texture;
-use crate::GpuContext;
+use crate::grid::{corner_depths, Mesh, Primitives, Source, StageMs, WarpOutput};
 
 /// Mirror of `Params` in gridwarp.wgsl.
 #[repr(C)]
@@ -138,7 +138,7 @@ impl GridWarpKernel {
         })
     }
 
-    /// Draws `mesh` (built for `src` and `dst`) on the GPU: the twin of `zwarp_vr::grid::raster`
+    /// Draws `mesh` (built for `src` and `dst`) on the GPU: the twin of `crate::grid::raster`
     /// (stage `warp`: instance upload, draw and readback; the mesh's own stage times are kept).
     pub fn raster(&self, src: &Source<'_>, dst: &Camera, mesh: &Mesh) -> Result<WarpOutput> {
         let t = std::time::Instant::now();
@@ -267,9 +267,9 @@ impl GridWarpKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::{raster, WarpParams};
+    use crate::{Method, Reduction};
     use glam::{Mat4, Vec3};
-    use zwarp_vr::grid::{raster, WarpParams};
-    use zwarp_vr::{Method, Reduction};
 
     /// A small real frame (procedural MO with textured colour) and the view of an eye 0.3
     /// units to its right.
@@ -292,7 +292,7 @@ mod tests {
 
     #[test]
     fn gpu_grid_warp_matches_the_cpu_rasteriser() {
-        let Some(ctx) = crate::test_context() else { return };
+        let Some(ctx) = zwarp_gpu::test_context() else { return };
         let k = GridWarpKernel::new(&ctx).unwrap();
         let (cam, depth, color, eye) = frame();
         let src = Source { cam: &cam, depth: &depth, color: &color };

@@ -1,13 +1,12 @@
 //! GPU min-max motion mipmap (seed 000, Sec. 3.3, Fig. 5), the WGSL twin of
-//! `zwarp_warp::bounds::MotionPyramid::build_in_frame`. Shader: `pyramid.wgsl`.
+//! `crate::bounds::MotionPyramid::build_in_frame`. Shader: `pyramid.wgsl`.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec2;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Error, Image, Motion, Result};
-
-use crate::readback::read_buffer;
-use crate::GpuContext;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::GpuContext;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -80,7 +79,7 @@ impl PyramidKernel {
         let dev = &ctx.device;
         let module = ctx.shader("pyramid.wgsl", include_str!("pyramid.wgsl"))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let (layout, pl) = super::buffer_layouts(
+        let (layout, pl) = zwarp_gpu::kernel::buffer_layouts(
             dev,
             "zwarp pyramid",
             &[wgpu::BufferBindingType::Uniform, ro, ro, wgpu::BufferBindingType::Storage { read_only: false }],
@@ -110,7 +109,7 @@ impl PyramidKernel {
     }
 
     /// Records the build of all levels from a GPU motion buffer of `width x height`
-    /// [`Motion`] samples (as written by [`crate::MotionKernel::encode`]), with motion rotated
+    /// [`Motion`] samples (as written by [`super::MotionKernel::encode`]), with motion rotated
     /// into the frame of unit `axis` (`Vec2::X` = axis-aligned bounds).
     pub fn encode(
         &self,

@@ -2,12 +2,14 @@
 //! the max mipmap, N-buffer and Y-map bit-identical, and every query answer equal, on random
 //! depth buffers of power-of-two, odd and prime sizes; error paths.
 
+#[path = "../../zwarp-gpu/tests/common/mod.rs"]
 mod common;
 
 use proptest::prelude::*;
 use zwarp_core::{Image, EMPTY_DEPTH};
+use zwarp_cull::gpu::MaxDepthKernel;
 use zwarp_cull::{MaxDepthKind, MaxDepthMap, MaxDepthQuery, MaxMipmap, NBuffer, PixelRect, YMap};
-use zwarp_gpu::{test_context, GpuContext, MaxDepthKernel};
+use zwarp_gpu::{test_context, GpuContext};
 
 /// A deterministic pseudo-random depth buffer: surfaces in `[0.05, 0.95)`, ~15% far holes.
 pub fn random_depth(w: u32, h: u32, seed: u64) -> Image<f32> {

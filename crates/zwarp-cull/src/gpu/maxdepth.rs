@@ -1,6 +1,6 @@
 //! Max-depth structures on the GPU (seed 000 Sec. 5.2; thesis seed 002 Sec. III.2): the max
 //! mipmap (HOM), Décoret's N-buffer and the Y-map, the WGSL twins of
-//! [`zwarp_cull::MaxMipmap`], [`zwarp_cull::NBuffer`] and [`zwarp_cull::YMap`]. Shaders:
+//! [`crate::MaxMipmap`], [`crate::NBuffer`] and [`crate::YMap`]. Shaders:
 //! `maxdepth.wgsl` (build) and `maxquery.wgsl` (queries, shared with the cull kernel).
 //!
 //! A structure lives in one storage buffer holding every level (row-major, each at its own
@@ -11,11 +11,11 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 use zwarp_core::{Error, Image, Result};
-use zwarp_cull::maxdepth::MAX_YMAP_SWITCH;
-use zwarp_cull::{MaxDepthKind, PixelRect};
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::GpuContext;
 
-use crate::readback::read_buffer;
-use crate::GpuContext;
+use crate::maxdepth::MAX_YMAP_SWITCH;
+use crate::{MaxDepthKind, PixelRect};
 
 /// Uniform of one build step (layout of `Step` in `maxdepth.wgsl`).
 #[repr(C)]
@@ -37,7 +37,7 @@ fn floor_log2(v: u32) -> u32 {
 }
 
 /// Level sizes of a max mipmap of `w x h`: the image itself, then `ceil` halvings down to 1x1
-/// (as `zwarp_cull::MaxMipmap`), at most `max_level + 1` levels.
+/// (as `crate::MaxMipmap`), at most `max_level + 1` levels.
 fn mip_sizes(w: u32, h: u32, max_level: u32) -> Vec<(u32, u32)> {
     let mut sizes = vec![(w, h)];
     while (sizes.len() as u32) <= max_level {
@@ -162,7 +162,7 @@ pub struct GpuMaxDepth {
 
 impl GpuMaxDepth {
     /// Reads every level back: `(mip levels, N-buffer levels)`, in the order of
-    /// `zwarp_cull::{MaxMipmap, NBuffer, YMap}`'s level accessors.
+    /// `crate::{MaxMipmap, NBuffer, YMap}`'s level accessors.
     pub fn read_levels(&self, ctx: &GpuContext) -> Result<MaxDepthLevels> {
         let (offs, total) = self.layout.offsets();
         let all = read_buffer::<f32>(ctx, &self.data, total as usize)?;
@@ -195,8 +195,11 @@ impl MaxDepthKernel {
             ctx.shader("maxdepth.wgsl", concat!(include_str!("maxquery.wgsl"), include_str!("maxdepth.wgsl")))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let (layout, pl) =
-            super::buffer_layouts(dev, "zwarp maxdepth", &[wgpu::BufferBindingType::Uniform, ro, rw, ro, rw]);
+        let (layout, pl) = zwarp_gpu::kernel::buffer_layouts(
+            dev,
+            "zwarp maxdepth",
+            &[wgpu::BufferBindingType::Uniform, ro, rw, ro, rw],
+        );
         let pipe = |entry| {
             ctx.catch("building the max-depth pipelines", || {
                 dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -290,7 +293,7 @@ impl MaxDepthKernel {
 
     /// Records the build of `map` from `depth`, a storage buffer of `width * height` f32 depths
     /// (row-major, `[0, 1]`, 1 = empty; needs `COPY_SRC`), e.g. a warp's output or
-    /// [`crate::Renderer::encode_depth_copy`]'s. Level 0 is a plain copy; every further level
+    /// [`zwarp_gpu::Renderer::encode_depth_copy`]'s. Level 0 is a plain copy; every further level
     /// one dispatch (own compute pass, so each level sees the previous one complete).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, depth: &wgpu::Buffer, map: &GpuMaxDepth) -> Result<()> {
         let (w, h) = map.layout.size;

@@ -1,18 +1,19 @@
 //! Hole filling as a GPU post-pass over any warped depth + state buffers (seed 000 Sec. 3.5,
-//! Fig. 8 dilation; Sec. 4's background fill): the WGSL twin of [`zwarp_warp::fill_holes`]
-//! (`HolePolicy::Dilate` = [`zwarp_warp::dilate_holes`], `HolePolicy::Background`) and of
-//! [`zwarp_warp::holes::fill_background`] (sky seen through holes, bracketed holes, image-border
-//! strips). With the far-depth holes of [`crate::WarpKernel`] it gives every CPU hole policy but
+//! Fig. 8 dilation; Sec. 4's background fill): the WGSL twin of [`crate::fill_holes`]
+//! (`HolePolicy::Dilate` = [`crate::dilate_holes`], `HolePolicy::Background`) and of
+//! [`crate::holes::fill_background`] (sky seen through holes, bracketed holes, image-border
+//! strips). With the far-depth holes of [`super::WarpKernel`] it gives every CPU hole policy but
 //! AWOC on the GPU. Shader: `holes.wgsl`.
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 use zwarp_core::{Error, Image, Result, EMPTY_DEPTH};
-use zwarp_warp::holes::BackgroundLimits;
-use zwarp_warp::{HolePolicy, PixelState, SearchParams, WarpLayer};
+use zwarp_gpu::kernel::AutoPipelines;
+use zwarp_gpu::GpuContext;
 
-use super::AutoPipelines;
-use crate::{GpuContext, GpuWarpOutput};
+use super::GpuWarpOutput;
+use crate::holes::BackgroundLimits;
+use crate::{HolePolicy, PixelState, SearchParams, WarpLayer};
 
 /// Mirror of `Params` in holes.wgsl.
 #[repr(C)]
@@ -29,13 +30,13 @@ struct Params {
     /// `sky`: the source layers' size, `multisample` times `width x height`.
     src_width: u32,
     src_height: u32,
-    /// `sky`: source samples per pixel and axis (`zwarp_warp::WarpParams::multisample`), as a
+    /// `sky`: source samples per pixel and axis (`crate::WarpParams::multisample`), as a
     /// float.
     multisample: f32,
     _pad: u32,
 }
 
-/// Largest accepted fill radius (as `zwarp_warp::WarpParams::validate`).
+/// Largest accepted fill radius (as `crate::WarpParams::validate`).
 const MAX_RADIUS: u32 = 64;
 
 /// The hole-fill post-passes.
@@ -142,7 +143,7 @@ impl HoleFillKernel {
         Ok(())
     }
 
-    /// Records [`zwarp_warp::holes::fill_background`] of `warped` (a far-hole warp) into new
+    /// Records [`crate::holes::fill_background`] of `warped` (a far-hole warp) into new
     /// buffers: the sky pass (in place on a copy), the bracketed fill within `limits.bracket`,
     /// the border pass within `limits.reach`. `empty` holds one `u32` per pixel, 1 where no
     /// source layer has a surface; `motion` layer 0's motion as `vec2<f32>` per pixel; `limits`
@@ -160,7 +161,7 @@ impl HoleFillKernel {
     }
 
     /// [`Self::encode_background`] for a warp from a multisampled source
-    /// (`zwarp_warp::WarpParams::multisample` = `multisample`): `empty` and `motion` hold one
+    /// (`crate::WarpParams::multisample` = `multisample`): `empty` and `motion` hold one
     /// entry per source sample, `multisample` times `warped`'s size on both axes, and `limits`
     /// come from [`BackgroundLimits::of_multisampled`]. The sky pass searches target pixel
     /// `(x, y)` at the source position `multisample * (x + 0.5, y + 0.5)`, as the CPU does.
@@ -215,10 +216,10 @@ impl HoleFillKernel {
         Ok(GpuWarpOutput { depth, state, width: w, height: h })
     }
 
-    /// [`zwarp_warp::holes::fill_background`] on the GPU for CPU buffers: `depth` / `state` of
+    /// [`crate::holes::fill_background`] on the GPU for CPU buffers: `depth` / `state` of
     /// a far-hole warp of `layers`, filled and read back. Like the CPU, source layers that are
     /// `m` times `depth`'s size on both axes are a multisampled source
-    /// (`zwarp_warp::WarpParams::multisample` = m, inferred from the size ratio). Same errors
+    /// (`crate::WarpParams::multisample` = m, inferred from the size ratio). Same errors
     /// as the CPU function, plus size mismatches between `depth` and `state`.
     pub fn fill_background(
         &self,
@@ -232,7 +233,7 @@ impl HoleFillKernel {
         depth.check_same_size(state, "warped depth vs state")?;
         let (w, h) = depth.size();
         let (sw, sh) = layers.first().map_or((w, h), |l| l.depth.size());
-        let m = zwarp_warp::holes::source_multisample(layers, w);
+        let m = crate::holes::source_multisample(layers, w);
         let limits = BackgroundLimits::of_multisampled(layers, w, h, m, radius)?;
         let n = sw as usize * sh as usize;
         let empty: Vec<u32> = (0..n).map(|i| layers.iter().all(|l| l.depth.data()[i] >= EMPTY_DEPTH) as u32).collect();
@@ -274,7 +275,7 @@ impl HoleFillKernel {
     }
 
     /// Fills CPU buffers on the GPU and reads them back (the twin of
-    /// [`zwarp_warp::fill_holes`] for tests and CPU callers). Errors on size mismatch, empty
+    /// [`crate::fill_holes`] for tests and CPU callers). Errors on size mismatch, empty
     /// images, NaN depths, AWOC or a bad radius.
     pub fn fill(
         &self,
@@ -297,18 +298,18 @@ impl HoleFillKernel {
     }
 }
 
-/// The WGSL twin of `zwarp_warp::predict_into`: the warp of `layers` (`warp`) and, under
+/// The WGSL twin of `crate::predict_into`: the warp of `layers` (`warp`) and, under
 /// `HolePolicy::Background`, the background protocol over its far holes (`fill`); any other
 /// hole policy runs inside the warp.
 pub fn predict(
     warp: &super::WarpKernel,
     fill: &HoleFillKernel,
     layers: &[WarpLayer<'_>],
-    params: &zwarp_warp::WarpParams,
-) -> Result<zwarp_warp::WarpOutput> {
+    params: &crate::WarpParams,
+) -> Result<crate::WarpOutput> {
     match params.holes {
         HolePolicy::Background { radius } => {
-            let far = zwarp_warp::WarpParams { holes: HolePolicy::FarDepth, ..*params };
+            let far = crate::WarpParams { holes: HolePolicy::FarDepth, ..*params };
             let mut o = warp.warp(layers, &far)?;
             (o.depth, o.state) = fill.fill_background(layers, &o.depth, &o.state, radius, &params.search())?;
             Ok(o)

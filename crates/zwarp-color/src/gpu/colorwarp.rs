@@ -1,11 +1,11 @@
-//! GPU colour warps (seed 001 Sec. 3.3, 3.4), the WGSL twins of `zwarp_color::heuristic_warp`
-//! and of the raster stage of `zwarp_color::robust_warp_with`. Shader: `colorwarp.wgsl`.
+//! GPU colour warps (seed 001 Sec. 3.3, 3.4), the WGSL twins of `crate::heuristic_warp`
+//! and of the raster stage of `crate::robust_warp_with`. Shader: `colorwarp.wgsl`.
 //!
 //! - `heuristic`: one invocation per target pixel runs the seed, the fixed-point walk (the
 //!   shared search's arithmetic, `zwarp_warp::search::fixed_point_search`) and the orbit
-//!   in-painting, sampling the field and the colour like `zwarp_color::ColorSampler`.
+//!   in-painting, sampling the field and the colour like `crate::ColorSampler`.
 //! - robust: the subdivision (`rho`, max-reductions, quad tree) comes from
-//!   `zwarp_color::Subdivision` on the CPU (built once per source, or once for many
+//!   `crate::Subdivision` on the CPU (built once per source, or once for many
 //!   reprojections as in seed 001 Sec. 4); the GPU rasterises the leaf quads with a depth test
 //!   in three passes — the nearest converged depth per pixel (atomic min), the first quad
 //!   reaching it (atomic min on the quad index: the CPU's "earlier quad wins" tie rule), a
@@ -18,12 +18,12 @@
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
-use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Seed, Subdivision};
 use zwarp_core::{Error, Image, Result};
+use zwarp_gpu::kernel::AutoPipelines;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::GpuContext;
 
-use super::AutoPipelines;
-use crate::readback::read_buffer;
-use crate::GpuContext;
+use crate::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Seed, Subdivision};
 
 /// Mirror of `Params` in colorwarp.wgsl.
 #[repr(C)]
@@ -173,7 +173,7 @@ impl ColorWarpKernel {
         })
     }
 
-    /// The heuristic warp (twin of `zwarp_color::heuristic_warp`): same validation, same
+    /// The heuristic warp (twin of `crate::heuristic_warp`): same validation, same
     /// output up to float rounding.
     pub fn heuristic(
         &self,
@@ -206,7 +206,7 @@ impl ColorWarpKernel {
         self.read(&inp, w, h, hp.threshold)
     }
 
-    /// The robust warp with a given subdivision (twin of `zwarp_color::robust_warp_with`).
+    /// The robust warp with a given subdivision (twin of `crate::robust_warp_with`).
     pub fn robust_with(
         &self,
         sub: &Subdivision,
@@ -266,15 +266,15 @@ impl ColorWarpKernel {
         );
         self.ctx.queue.submit([enc.finish()]);
         let mut out = self.read(&inp, w, h, rp.threshold)?;
-        if rp.fill == zwarp_color::HoleFill::PushPull && out.converged_fraction() < 1.0 {
+        if rp.fill == crate::HoleFill::PushPull && out.converged_fraction() < 1.0 {
             // The push-pull fill of what no search solved runs on the host after the readback.
             let valid = out.converged_mask();
-            zwarp_color::push_pull(&mut out.color, &valid)?;
+            crate::push_pull(&mut out.color, &valid)?;
         }
         Ok(out)
     }
 
-    /// The robust warp (twin of `zwarp_color::robust_warp`): the subdivision on the CPU, the
+    /// The robust warp (twin of `crate::robust_warp`): the subdivision on the CPU, the
     /// quads on the GPU.
     pub fn robust(&self, field: &Field<'_>, color: &Image<[f32; 3]>, rp: &RobustParams) -> Result<ColorWarpOutput> {
         rp.validate()?;
@@ -286,8 +286,8 @@ impl ColorWarpKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{FieldParams, WarpBasis};
     use glam::{Vec2, Vec3};
-    use zwarp_color::{FieldParams, WarpBasis};
     use zwarp_core::Camera;
 
     /// A small real frame (procedural MO) and its motion towards the next frame.
@@ -322,7 +322,7 @@ mod tests {
 
     #[test]
     fn gpu_colour_warps_match_the_cpu() {
-        let Some(ctx) = crate::test_context() else { return };
+        let Some(ctx) = zwarp_gpu::test_context() else { return };
         let k = ColorWarpKernel::new(&ctx).unwrap();
         let (depth, m, color, cam) = frame();
         let basis = WarpBasis::temporal(&depth, &m).unwrap().with_spatial(&cam, None).unwrap();
@@ -331,7 +331,7 @@ mod tests {
             let f = basis.field(params).unwrap();
             for seed in [Seed::Upstream(1.0), Seed::Pixel, Seed::Offset(Vec2::new(3.0, 0.0))] {
                 let hp = HeuristicParams { seed, ..HeuristicParams::default() };
-                let cpu = zwarp_color::heuristic_warp(&f, &color, &hp).unwrap();
+                let cpu = crate::heuristic_warp(&f, &color, &hp).unwrap();
                 let gpu = k.heuristic(&f, &color, &hp).unwrap();
                 let a = agreement(&cpu, &gpu);
                 eprintln!("heuristic {params:?} {seed:?}: {a:.5} of the pixels agree to 1e-4");
@@ -339,7 +339,7 @@ mod tests {
                 assert!((cpu.converged_fraction() - gpu.converged_fraction()).abs() < 0.005);
             }
             let rp = RobustParams::default();
-            let (cpu, _) = zwarp_color::robust_warp(&f, &color, &rp).unwrap();
+            let (cpu, _) = crate::robust_warp(&f, &color, &rp).unwrap();
             let gpu = k.robust(&f, &color, &rp).unwrap();
             let a = agreement(&cpu, &gpu);
             eprintln!("robust {params:?}: {a:.5} of the pixels agree to 1e-4");

@@ -1,7 +1,7 @@
 //! GPU backward depth warp (seed 000 Sec. 3.2-3.4, Fig. 3, 5, 6), the WGSL twin of
-//! [`zwarp_warp::warp_depth`]. Shader: `warp.wgsl`.
+//! [`crate::warp_depth`]. Shader: `warp.wgsl`.
 //!
-//! **Which CPU function.** The GPU computes `zwarp_warp::warp_depth(layers, params)` for every
+//! **Which CPU function.** The GPU computes `crate::warp_depth(layers, params)` for every
 //! [`WarpParams`] with `record_source: false` (every hole policy, AWOC included), every
 //! [`BoundKind`] (Oriented: the per-layer PCA frame is chosen on the CPU by
 //! [`WarpKernel::frames`], exactly as `PreparedLayer::prepare_stack` does, and passed in
@@ -26,24 +26,24 @@
 //!
 //! Pipeline (all on the GPU, no CPU round trip in [`WarpKernel::encode`]): per layer `prepare`
 //! (validated samples), `mip_base` + `mip_up` (min-max motion mipmap with a min-depth channel,
-//! same level layout as [`crate::PyramidKernel`] and the CPU `MotionPyramid`), then one `warp`
+//! same level layout as [`super::PyramidKernel`] and the CPU `MotionPyramid`), then one `warp`
 //! dispatch over the target pixels, then `dilate` for `HolePolicy::Dilate`.
 
-use super::AutoPipelines;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec2;
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Error, Image, Motion, Result};
-use zwarp_warp::bounds::{is_valid_sample, pca_frame};
-use zwarp_warp::{
+use zwarp_gpu::kernel::AutoPipelines;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::GpuContext;
+
+use super::pyramid_level_sizes;
+use crate::bounds::{is_valid_sample, pca_frame};
+use crate::{
     Bound, BoundFrame, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer,
     WarpOutput, WarpParams,
 };
-
-use crate::compute::pyramid_level_sizes;
-use crate::readback::read_buffer;
-use crate::GpuContext;
 
 /// Largest number of layers L the GPU warp takes in one call.
 pub const MAX_GPU_LAYERS: usize = 8;
@@ -93,7 +93,7 @@ const FLAG_AWOC: u32 = 128;
 
 /// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
 /// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
-/// [`crate::MotionKernel::encode`]. Both buffers need `STORAGE` usage.
+/// [`super::MotionKernel::encode`]. Both buffers need `STORAGE` usage.
 #[derive(Clone, Copy, Debug)]
 pub struct GpuWarpLayer<'a> {
     /// Source depth buffer.
@@ -207,10 +207,10 @@ impl WarpKernel {
     }
 
     /// The target image of a warp from `width x height` source layers with
-    /// `WarpParams::multisample` = `m`: [`zwarp_warp::target_size`], the CPU warp's rule and
+    /// `WarpParams::multisample` = `m`: [`crate::target_size`], the CPU warp's rule and
     /// error (the source must hold exactly `m x m` samples per target pixel).
     pub fn target_size(width: u32, height: u32, m: u32) -> Result<(u32, u32)> {
-        zwarp_warp::target_size(width, height, m)
+        crate::target_size(width, height, m)
     }
 
     fn uniform(&self, p: &Params) -> wgpu::Buffer {
@@ -316,7 +316,7 @@ impl WarpKernel {
                 axes[k] = [l.axis.x, l.axis.y, 0.0, 0.0];
             }
         }
-        // The CPU's check (zwarp_warp::warp_prepared): per-axis motion scaling does not commute
+        // The CPU's check (crate::warp_prepared): per-axis motion scaling does not commute
         // with a rotated bound frame.
         let sc = params.motion_scale;
         if sc.x != sc.y {
@@ -475,7 +475,7 @@ impl WarpKernel {
         Ok(GpuWarpOutput { depth: out_depth, state: out_state, width, height })
     }
 
-    /// Uploads CPU `layers` (validated exactly like `zwarp_warp::warp_depth`: at least one
+    /// Uploads CPU `layers` (validated exactly like `crate::warp_depth`: at least one
     /// layer, equal non-zero sizes, no NaN/infinite depth, no NaN motion), records the warp,
     /// waits and reads the result back. `WarpOutput::source` is `None`.
     pub fn warp(&self, layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpOutput> {
@@ -490,7 +490,7 @@ impl WarpKernel {
         out.read(&self.ctx)
     }
 
-    /// The bound frame axis per layer that `zwarp_warp::warp_depth` uses (Sec. 3.3): `Vec2::X`
+    /// The bound frame axis per layer that `crate::warp_depth` uses (Sec. 3.3): `Vec2::X`
     /// unless `bound` is `Oriented`; then, like `PreparedLayer::prepare_stack`, the PCA frame of
     /// the layer's valid samples (for layers `k > 0` only the samples that do not repeat an
     /// earlier layer) when its global bound has a smaller `(ex + 1)(ey + 1)` than the

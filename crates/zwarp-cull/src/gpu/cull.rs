@@ -2,19 +2,19 @@
 //! VFC + screen-space max-depth test of every object in one dispatch, writing a compacted
 //! visible-id list (atomic counter) and indirect draw arguments, so that the visible set is
 //! drawn with `multi_draw_indexed_indirect(_count)` without a CPU round trip
-//! ([`crate::Renderer::encode_depth_indirect`]). The WGSL twin of the classification in
-//! [`zwarp_cull::cull_against_depth`]. Shader: `cull.wgsl` (+ `maxquery.wgsl`).
+//! ([`zwarp_gpu::Renderer::encode_depth_indirect`]). The WGSL twin of the classification in
+//! [`crate::cull_against_depth`]. Shader: `cull.wgsl` (+ `maxquery.wgsl`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 use zwarp_core::{Aabb, Camera, Error, Result, Scene};
-use zwarp_cull::Frustum;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::{GpuContext, GpuScene, IndirectDraws, IndirectMode};
 
 use super::maxdepth::GpuMaxDepth;
-use crate::readback::read_buffer;
-use crate::{GpuContext, GpuScene};
+use crate::Frustum;
 
 /// Uniform of the cull kernel (layout of `Params` in `cull.wgsl`).
 #[repr(C)]
@@ -30,10 +30,10 @@ struct Params {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CullParams {
     /// An object is occluded when the max depth over its rectangle is below its nearest corner
-    /// depth minus this ([`zwarp_cull::DEPTH_TOLERANCE`] in the CPU pipeline).
+    /// depth minus this ([`crate::DEPTH_TOLERANCE`] in the CPU pipeline).
     pub tolerance: f32,
-    /// WOC's silhouette test (`zwarp_cull::WocParams::hull_test`, full resolution): an object
-    /// the rectangle test keeps (rectangle up to `zwarp_cull::woc::HULL_TEST_MAX_AREA` pixels)
+    /// WOC's silhouette test (`crate::WocParams::hull_test`, full resolution): an object
+    /// the rectangle test keeps (rectangle up to `crate::woc::HULL_TEST_MAX_AREA` pixels)
     /// is culled when no pixel centre of its rectangle whose depth (level 0 of the max
     /// structure) is not nearer than its nearest corner lies in the convex hull of its 8
     /// projected corners.
@@ -43,7 +43,7 @@ pub struct CullParams {
 impl Default for CullParams {
     /// The tolerance of the CPU pipeline, no silhouette test (as `cull_against_depth`).
     fn default() -> Self {
-        CullParams { tolerance: zwarp_cull::DEPTH_TOLERANCE, hull_test: false }
+        CullParams { tolerance: crate::DEPTH_TOLERANCE, hull_test: false }
     }
 }
 
@@ -51,7 +51,7 @@ impl Default for CullParams {
 /// to 0.02 px around the centre, the renderer's coverage rule (as `refine_by_hull`).
 const HULL_CENTRE_SLACK: f32 = -0.49;
 
-/// How the cull kernel classified an object (as `zwarp_cull::woc`'s stages count them).
+/// How the cull kernel classified an object (as `crate::woc`'s stages count them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GpuCullClass {
     /// Outside the view frustum, or its box projects outside the image / beyond the far plane.
@@ -115,9 +115,9 @@ impl CullObjects {
     }
 
     /// The objects of a [`GpuScene`] with the draw records its renderer uses (so the
-    /// indirect arguments draw exactly what [`crate::Renderer::encode_depth`] draws per object).
+    /// indirect arguments draw exactly what [`zwarp_gpu::Renderer::encode_depth`] draws per object).
     pub fn for_scene(ctx: &GpuContext, scene: &GpuScene) -> Result<Self> {
-        Self::with_draws(ctx, &scene.draws)
+        Self::with_draws(ctx, scene.draws())
     }
 
     fn with_draws(ctx: &GpuContext, draws: &[[u32; 4]]) -> Result<Self> {
@@ -308,6 +308,21 @@ impl CullOutput {
     }
 }
 
+/// What [`zwarp_gpu::Renderer::encode_depth_indirect`] draws: `draw_args` with `counter` in
+/// [`IndirectMode::Count`], `slot_args` in [`IndirectMode::Slots`].
+impl IndirectDraws for CullOutput {
+    fn slot_count(&self) -> usize {
+        self.len()
+    }
+
+    fn args(&self, mode: IndirectMode) -> (&wgpu::Buffer, Option<&wgpu::Buffer>) {
+        match mode {
+            IndirectMode::Count => (&self.draw_args, Some(&self.counter)),
+            IndirectMode::Slots => (&self.slot_args, None),
+        }
+    }
+}
+
 /// The cull kernel (see the module docs).
 pub struct CullKernel {
     ctx: GpuContext,
@@ -322,7 +337,7 @@ impl CullKernel {
         let module = ctx.shader("cull.wgsl", concat!(include_str!("maxquery.wgsl"), include_str!("cull.wgsl")))?;
         let ro = wgpu::BufferBindingType::Storage { read_only: true };
         let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let (layout, pl) = super::buffer_layouts(
+        let (layout, pl) = zwarp_gpu::kernel::buffer_layouts(
             dev,
             "zwarp cull",
             &[wgpu::BufferBindingType::Uniform, ro, ro, ro, ro, ro, rw, rw, rw, rw, rw],
@@ -420,7 +435,7 @@ impl CullKernel {
     }
 
     /// Culls `objects` for `camera` against `map` with [`CullParams::default`] (the test of
-    /// `zwarp_cull::cull_against_depth`), submits and reads the result back.
+    /// `crate::cull_against_depth`), submits and reads the result back.
     pub fn cull(
         &self,
         objects: &CullObjects,

@@ -1,31 +1,15 @@
-//! GPU compute kernels, each the WGSL twin of a CPU function (ARCHITECTURE.md design rule 2,
-//! "One implementation of each idea": tests compare them on the same inputs).
+//! The set-up the stage crates' compute kernels share (`zwarp_warp::gpu`, `zwarp_color::gpu`,
+//! `zwarp_cull::gpu`, `zwarp_shadows::gpu`): bind-group and pipeline layouts for buffer-only
+//! kernels ([`buffer_layouts`]) and automatic pipeline layouts per entry point of a multi-entry
+//! WGSL module ([`AutoPipelines`]).
 
 use zwarp_core::Result;
 
 use crate::GpuContext;
 
-mod colorwarp;
-mod cull;
-mod holes;
-mod maxdepth;
-mod motion;
-mod pyramid;
-mod warp;
-mod woc;
-
-pub use colorwarp::ColorWarpKernel;
-pub use cull::{CullKernel, CullObjects, CullOutput, CullParams, CullReadback, GpuCullClass};
-pub use holes::{predict, HoleFillKernel};
-pub use maxdepth::{GpuMaxDepth, MaxDepthKernel, MaxDepthLayout};
-pub use motion::{MotionInput, MotionKernel};
-pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
-pub use warp::{GpuPreparedWarp, GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};
-pub use woc::{rapid_flags, GpuPrevFrame, GpuWoc, GpuWocParams, WocStage};
-
 /// Bind-group layout with one compute-visible buffer per entry of `kinds` (bindings 0..n) and
-/// its pipeline layout: the set-up every buffer-only kernel here shares.
-pub(crate) fn buffer_layouts(
+/// its pipeline layout: the set-up every buffer-only kernel shares.
+pub fn buffer_layouts(
     dev: &wgpu::Device,
     label: &str,
     kinds: &[wgpu::BufferBindingType],
@@ -52,8 +36,8 @@ pub(crate) fn buffer_layouts(
 
 /// A compiled WGSL module whose entry points get automatic pipeline layouts (each entry binds only
 /// the buffers it uses, which keeps every pipeline within the default limit of 8 storage buffers
-/// per stage): the set-up of every multi-entry kernel here.
-pub(crate) struct AutoPipelines<'a> {
+/// per stage): the set-up of every multi-entry kernel.
+pub struct AutoPipelines<'a> {
     ctx: &'a GpuContext,
     module: wgpu::ShaderModule,
     what: &'static str,
@@ -62,13 +46,13 @@ pub(crate) struct AutoPipelines<'a> {
 impl<'a> AutoPipelines<'a> {
     /// Compiles `source` (named `label` in errors and debuggers); `what` names the kernel in
     /// pipeline-building errors.
-    pub(crate) fn new(ctx: &'a GpuContext, label: &'static str, source: &str, what: &'static str) -> Result<Self> {
+    pub fn new(ctx: &'a GpuContext, label: &'static str, source: &str, what: &'static str) -> Result<Self> {
         let module = ctx.shader(label, source)?;
         Ok(AutoPipelines { ctx, module, what })
     }
 
     /// The compute pipeline of entry point `entry`.
-    pub(crate) fn pipeline(&self, entry: &str) -> Result<wgpu::ComputePipeline> {
+    pub fn pipeline(&self, entry: &str) -> Result<wgpu::ComputePipeline> {
         self.ctx.catch(&format!("building the {} pipelines", self.what), || {
             self.ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
