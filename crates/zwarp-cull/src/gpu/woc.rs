@@ -18,7 +18,7 @@
 //!    ([`super::CullKernel`], with the silhouette test of `WocParams::hull_test`) into the
 //!    caller's [`CullOutput`].
 //!
-//! Differences from the CPU `woc` (as of zwarp-cull b12f000): opening rims are always dropped in the source
+//! Differences from the CPU `woc`: opening rims are always dropped in the source
 //! (`RimMode::Source`): the CPU default `RimMode::Target` needs each target pixel's source
 //! position, which the GPU warp does not record; Source opens a superset of Target's pixels
 //! (safe, culls less). The warp's bound frame axis is given (default
