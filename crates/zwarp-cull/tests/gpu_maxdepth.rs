@@ -2,8 +2,7 @@
 //! the max mipmap, N-buffer and Y-map bit-identical, and every query answer equal, on random
 //! depth buffers of power-of-two, odd and prime sizes; error paths.
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use proptest::prelude::*;
 use zwarp_core::{Image, EMPTY_DEPTH};

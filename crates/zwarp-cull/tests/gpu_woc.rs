@@ -3,8 +3,7 @@
 //! started from the same GPU-rendered previous frame; its per-pixel stages (opening rims,
 //! erosion) vs their CPU twins on random inputs; error paths.
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use glam::Vec2;
 use zwarp_core::{Camera, Image, Motion, Scene, EMPTY_DEPTH, NO_ITEM};

@@ -1,6 +1,6 @@
 //! Context, adapter listing and timer.
 
-mod common;
+use zwarp_testkit as common;
 
 use common::*;
 use zwarp_gpu::{list_adapters, test_context, DepthTarget, GpuContext, GpuScene, GpuTimer, Renderer, TimingMethod};

@@ -2,7 +2,7 @@
 //! depth, item ids, colour, depth peeling (standard, ground layer, umbra culling); analytic
 //! orientation checks; error paths.
 
-mod common;
+use zwarp_testkit as common;
 
 use common::*;
 use glam::{Mat4, Vec3};

@@ -2,8 +2,7 @@
 //! `zwarp_warp::fill_holes` on random depth/state images of odd sizes, for both rules and
 //! several radii; the post-pass over a far-hole GPU warp equals the warp's own dilation; errors.
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use glam::Vec2;
 use proptest::prelude::*;

@@ -1,7 +1,6 @@
 //! GPU motion field vs `zwarp_core::motion_field` (the same function; seed 000 Sec. 3.1).
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use common::*;
 use glam::{DVec2, DVec4, Mat4, Vec3};

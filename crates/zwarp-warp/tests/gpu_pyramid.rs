@@ -2,8 +2,7 @@
 //! and prime sizes, invalid samples and oriented frames; and the whole GPU chain render ->
 //! motion -> pyramid vs the CPU chain.
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use common::*;
 use glam::Vec2;

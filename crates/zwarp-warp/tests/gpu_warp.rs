@@ -1,8 +1,7 @@
 //! GPU backward depth warp vs `zwarp_warp::warp_depth` (the same function; seed 000 Sec. 3,
 //! Fig. 3, 5, 6) on rendered frame pairs, plus exact cases and error paths.
 
-#[path = "../../zwarp-gpu/tests/common/mod.rs"]
-mod common;
+use zwarp_testkit as common;
 
 use common::*;
 use glam::{Vec2, Vec3};

@@ -2,14 +2,15 @@
 //! exact fixed-point coverage with 8 sub-pixel bits and the top-left rule, depth from the plane
 //! through the *unsnapped* screen-space vertices in f64, as GPUs and zwarp-raster do: snapping
 //! the plane too would shift steep depth planes by up to 1/512 px times their slope), used to
-//! check the GPU renderer and its depth peeling independently of zwarp-raster. The stage crates'
-//! GPU tests (`zwarp-warp`, `zwarp-cull`) include this file too (`#[path]`) for the scene, the
-//! cameras, [`rng`] and [`agreement`].
-#![allow(dead_code)]
+//! check the GPU renderer and its depth peeling independently of zwarp-raster; the GPU tests of
+//! the stage crates (`zwarp-warp`, `zwarp-cull`) use its scene, cameras, [`rng`] and
+//! [`agreement`]. A dev-dependency of the workspace's tests, not published.
+#![deny(missing_docs)]
 
 use glam::{Mat4, Quat, Vec3, Vec4};
 use zwarp_core::{Animation, Camera, Image, Mesh, Scene, EMPTY_DEPTH, NO_ITEM};
 
+/// Width of the test views.
 pub const W: u32 = 128;
 
 /// Deterministic uniform numbers in `[0, 1)` (xorshift64, 24-bit mantissa) for the tests'
@@ -23,8 +24,10 @@ pub fn rng(seed: u64) -> impl FnMut() -> f32 {
         (s >> 40) as f32 / (1u64 << 24) as f32
     }
 }
+/// Height of the test views.
 pub const H: u32 = 96;
 
+/// A unit cube centred at the origin (12 triangles).
 pub fn box_mesh() -> Mesh {
     let c = Vec3::splat(-0.5);
     let positions: Vec<Vec3> =
@@ -34,6 +37,7 @@ pub fn box_mesh() -> Mesh {
     Mesh::new(positions, indices).unwrap()
 }
 
+/// A UV sphere of radius 1 centred at the origin, `rings` x `segments` quads.
 pub fn sphere_mesh(rings: u32, segments: u32) -> Mesh {
     let mut positions = Vec::new();
     for r in 0..=rings {
@@ -56,6 +60,7 @@ pub fn sphere_mesh(rings: u32, segments: u32) -> Mesh {
     Mesh::new(positions, indices).unwrap()
 }
 
+/// The square `[-1, 1]^2` in the plane z = 0 (two triangles).
 pub fn quad_mesh() -> Mesh {
     Mesh::new(
         vec![
@@ -126,6 +131,7 @@ pub fn test_scene() -> Scene {
     s
 }
 
+/// The source view of the test scene.
 pub fn camera_a() -> Camera {
     Camera::perspective(
         Vec3::new(0.3, -4.2, 2.1),
@@ -140,6 +146,7 @@ pub fn camera_a() -> Camera {
     .unwrap()
 }
 
+/// The target view: [`camera_a`] moved by about half a metre.
 pub fn camera_b() -> Camera {
     Camera::perspective(
         Vec3::new(0.8, -3.9, 2.3),
