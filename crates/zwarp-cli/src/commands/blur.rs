@@ -17,7 +17,7 @@ use zwarp_core::Image;
 
 use super::colorwarp::{self, Backends, Method, Quality, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, fmt, Table, Timing};
+use crate::output::{self, Table, Timing};
 
 /// Arguments of `zwarp blur`.
 #[derive(Args, Clone, Debug)]
@@ -351,36 +351,12 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
 
 /// The rows as a table.
 pub fn table(rows: &[BlurRow]) -> String {
-    let mut t = Table::new(&[
-        "method",
-        "samples",
-        "PSNR",
-        "PSNR Y",
-        "SSIM",
-        "FLIP",
-        "CIE94",
-        "ms",
-        "floor ms",
-        "x floor",
-        "render ms",
-        "speedup",
-    ]);
+    let mut t = Table::new(&colorwarp::columns(&["method", "samples"], false, "ms"));
     for r in rows {
-        let q = &r.quality;
-        t.row(vec![
-            r.method.clone(),
-            r.samples.to_string(),
-            fmt(q.psnr, 2),
-            fmt(q.psnr_y, 2),
-            fmt(q.ssim, 4),
-            fmt(q.flip, 4),
-            fmt(q.cie94, 2),
-            fmt(r.ms, 1),
-            fmt(r.floor_ms, 1),
-            fmt(r.floor_ratio, 1),
-            fmt(r.render_ms, 1),
-            fmt(r.speedup, 2),
-        ]);
+        let mut cells = vec![r.method.clone(), r.samples.to_string()];
+        cells.extend(colorwarp::quality_cells(&r.quality, false));
+        cells.extend(colorwarp::speed_cells(r.ms, r.floor_ms, r.floor_ratio, r.render_ms, r.speedup, 1));
+        t.row(cells);
     }
     t.render()
 }

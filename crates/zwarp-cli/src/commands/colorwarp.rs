@@ -11,7 +11,7 @@ use zwarp_core::{Camera, Image, Motion, Scene};
 
 use crate::args::Backend;
 use crate::device::{Device, DeviceScene};
-use crate::output::ser_f64;
+use crate::output::{fmt, ser_f64};
 
 /// A prediction method (JSON `method`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -188,6 +188,42 @@ pub fn check_has_surface(view: &View, what: &str) -> Result<()> {
         bail!("{what} shows no surface of the scene (only sky): nothing to warp; check --path");
     }
     Ok(())
+}
+
+/// The header of a colour command's table: its own `keys`, then the quality columns (with the
+/// warp's convergence and the unseen pixels' share and PSNR where `convergence`), then the
+/// timing columns of [`speed_cells`] (`time`: the header of the method's own time), so every
+/// colour command's table reads alike.
+pub fn columns<'a>(keys: &[&'a str], convergence: bool, time: &'a str) -> Vec<&'a str> {
+    let mut c = keys.to_vec();
+    c.extend(["PSNR", "PSNR Y", "SSIM", "FLIP", "CIE94"]);
+    if convergence {
+        c.extend(["conv", "unseen", "unseen PSNR"]);
+    }
+    c.extend([time, "floor ms", "x floor", "render ms", "speedup"]);
+    c
+}
+
+/// The quality cells of [`columns`].
+pub fn quality_cells(q: &Quality, convergence: bool) -> Vec<String> {
+    let mut c = vec![fmt(q.psnr, 2), fmt(q.psnr_y, 2), fmt(q.ssim, 4), fmt(q.flip, 4), fmt(q.cie94, 2)];
+    if convergence {
+        c.extend([fmt(q.converged, 3), fmt(q.disocc_fraction, 4), fmt(q.disocc_psnr, 2)]);
+    }
+    c
+}
+
+/// The timing cells of [`columns`]: the method's time and its floor (`time_decimals`), the ratio
+/// of the two, the same-run render and the speedup over it.
+pub fn speed_cells(
+    ms: f64,
+    floor_ms: f64,
+    floor_ratio: f64,
+    render_ms: f64,
+    speedup: f64,
+    time_decimals: usize,
+) -> Vec<String> {
+    vec![fmt(ms, time_decimals), fmt(floor_ms, time_decimals), fmt(floor_ratio, 1), fmt(render_ms, 1), fmt(speedup, 2)]
 }
 
 /// Quality of one prediction (JSON fields of every colour-warp row, means over the frames).

@@ -15,7 +15,7 @@ use zwarp_core::{Camera, Image};
 
 use super::colorwarp::{self, Backends, Method, Quality, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, fmt, Table, Timing};
+use crate::output::{self, Table, Timing};
 
 /// Arguments of `zwarp stereo`.
 #[derive(Args, Clone, Debug)]
@@ -313,44 +313,12 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
 
 /// The rows as a table.
 pub fn table(rows: &[StereoRow]) -> String {
-    let mut t = Table::new(&[
-        "method",
-        "strategy",
-        "eye",
-        "PSNR",
-        "PSNR Y",
-        "SSIM",
-        "FLIP",
-        "CIE94",
-        "conv",
-        "unseen",
-        "unseen PSNR",
-        "warp ms",
-        "floor ms",
-        "x floor",
-        "render ms",
-        "speedup",
-    ]);
+    let mut t = Table::new(&colorwarp::columns(&["method", "strategy", "eye"], true, "warp ms"));
     for r in rows {
-        let q = &r.quality;
-        t.row(vec![
-            r.method.clone(),
-            r.strategy.clone(),
-            r.eye.clone(),
-            fmt(q.psnr, 2),
-            fmt(q.psnr_y, 2),
-            fmt(q.ssim, 4),
-            fmt(q.flip, 4),
-            fmt(q.cie94, 2),
-            fmt(q.converged, 3),
-            fmt(q.disocc_fraction, 4),
-            fmt(q.disocc_psnr, 2),
-            fmt(r.warp_ms, 2),
-            fmt(r.floor_ms, 2),
-            fmt(r.floor_ratio, 1),
-            fmt(r.render_ms, 1),
-            fmt(r.speedup, 2),
-        ]);
+        let mut cells = vec![r.method.clone(), r.strategy.clone(), r.eye.clone()];
+        cells.extend(colorwarp::quality_cells(&r.quality, true));
+        cells.extend(colorwarp::speed_cells(r.warp_ms, r.floor_ms, r.floor_ratio, r.render_ms, r.speedup, 2));
+        t.row(cells);
     }
     t.render()
 }
