@@ -90,26 +90,22 @@ fn summarize(mut v: Vec<(f64, StageTimings)>) -> Timed {
     Timed { ms: m.0, lo: v[0].0, hi: v[v.len() - 1].0, times, stages: m.1 }
 }
 
-/// Runs `method` `warmup` untimed then `reps` (>= 1) timed times, returns the last result and
-/// the timings.
-#[allow(clippy::too_many_arguments)]
+/// Runs `method` through `run` `warmup` untimed then `reps` (>= 1) timed times, returns the
+/// last result and the timings.
 fn timed(
-    scene: &Scene,
-    cam: &Camera,
-    t: f32,
-    light: &AreaLight,
+    run: &mut impl FnMut(Method, &ShadowParams) -> Result<ShadowResult>,
     method: Method,
     p: &ShadowParams,
     warmup: usize,
     reps: usize,
 ) -> Result<(ShadowResult, Timed)> {
     for _ in 0..warmup {
-        run_shadows(scene, cam, t, light, method, p)?;
+        run(method, p)?;
     }
     let mut times = Vec::with_capacity(reps);
     let mut out = None;
     for _ in 0..reps.max(1) {
-        let r = run_shadows(scene, cam, t, light, method, p)?;
+        let r = run(method, p)?;
         times.push((r.ms, r.timings));
         out = Some(r);
     }
@@ -117,14 +113,30 @@ fn timed(
     Ok((out, summarize(times)))
 }
 
-/// Measures every (map size, S, method) of `cfg` on one frame. `on_result` sees each row with
-/// its result and the reference result of the same S and map size (to write images).
+/// Measures every (map size, S, method) of `cfg` on one frame on the CPU ([`run_shadows`]).
+/// `on_result` sees each row with its result and the reference result of the same S and map
+/// size (to write images).
 pub fn evaluate(
     scene: &Scene,
     cam: &Camera,
     t: f32,
     light: &AreaLight,
     cfg: &EvalConfig,
+    on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> Result<()>,
+) -> Result<Vec<EvalRow>> {
+    evaluate_with(cfg, |m, p| run_shadows(scene, cam, t, light, m, p), |_| true, on_result)
+}
+
+/// The evaluation of seed 000's Table 8 / Fig. 15 protocol on any backend: `run(method,
+/// params)` is one run of a method (its time and stage timings inside the result), `supports`
+/// says which methods the backend has (the others are skipped). For every map size and S: the
+/// reference, then each method of `cfg` (warm, repeated, median), quality against the
+/// reference of the same S and map size, speed-up over it in the same run. PCSS does not
+/// depend on S: it is measured once per map size.
+pub fn evaluate_with(
+    cfg: &EvalConfig,
+    mut run: impl FnMut(Method, &ShadowParams) -> Result<ShadowResult>,
+    supports: impl Fn(Method) -> bool,
     mut on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> Result<()>,
 ) -> Result<Vec<EvalRow>> {
     if cfg.samples.is_empty() || cfg.sm_sizes.is_empty() {
@@ -135,11 +147,10 @@ pub fn evaluate(
     }
     let mut rows = Vec::new();
     for &sm in &cfg.sm_sizes {
-        // PCSS does not depend on S: measure it once per map size.
         let mut pcss: Option<(ShadowResult, Timed)> = None;
         for &s in &cfg.samples {
             let p = ShadowParams { samples: s, sm_size: sm, ..cfg.base };
-            let (reference, rt) = timed(scene, cam, t, light, Method::Reference, &p, cfg.warmup, cfg.reps)?;
+            let (reference, rt) = timed(&mut run, Method::Reference, &p, cfg.warmup, cfg.reps)?;
             let rms = rt.ms;
             let ref_row = EvalRow {
                 method: Method::Reference,
@@ -159,16 +170,19 @@ pub fn evaluate(
             on_result(&ref_row, &reference, &reference)?;
             rows.push(ref_row);
             for &m in &cfg.methods {
+                if !supports(m) {
+                    continue;
+                }
                 let (res, tm) = match m {
                     Method::Reference => continue,
                     Method::Pcss => {
                         if pcss.is_none() {
-                            pcss = Some(timed(scene, cam, t, light, m, &p, cfg.warmup, cfg.reps)?);
+                            pcss = Some(timed(&mut run, m, &p, cfg.warmup, cfg.reps)?);
                         }
                         pcss.clone().ok_or_else(|| Error::invalid("PCSS result missing"))?
                     }
                     Method::ZwarpFull if s > cfg.full_max_samples => continue,
-                    Method::Zwarp | Method::ZwarpFull => timed(scene, cam, t, light, m, &p, cfg.warmup, cfg.reps)?,
+                    Method::Zwarp | Method::ZwarpFull => timed(&mut run, m, &p, cfg.warmup, cfg.reps)?,
                 };
                 let ms = tm.ms;
                 let row = EvalRow {

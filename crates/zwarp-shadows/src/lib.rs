@@ -44,7 +44,7 @@ use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Result, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
 use zwarp_warp::{warp_pixels, warp_prepared, BoundKind, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
 
-pub use eval::{evaluate, EvalConfig, EvalRow};
+pub use eval::{evaluate, evaluate_with, EvalConfig, EvalRow};
 pub use light::{
     default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
 };

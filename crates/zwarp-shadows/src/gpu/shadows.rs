@@ -546,47 +546,9 @@ pub fn run_shadows_gpu(
     Ok(ShadowResult { image, visibility, ms: ms_since(start), timings: tm, warp_holes: 0, warped_texels })
 }
 
-/// Runs `method` `warmup` untimed then `reps` (>= 1) timed times on the GPU; the last result
-/// and the (ms, stages) of every timed run.
-#[allow(clippy::too_many_arguments)]
-fn timed_gpu(
-    gpu: &GpuShadows,
-    scene: &Scene,
-    gpu_scene: &GpuScene,
-    cam: &Camera,
-    t: f32,
-    light: &AreaLight,
-    method: Method,
-    p: &ShadowParams,
-    warmup: usize,
-    reps: usize,
-) -> Result<(ShadowResult, Vec<(f64, StageTimings)>)> {
-    for _ in 0..warmup {
-        run_shadows_gpu(gpu, scene, gpu_scene, cam, t, light, method, p)?;
-    }
-    let mut times = Vec::with_capacity(reps);
-    let mut out = None;
-    for _ in 0..reps.max(1) {
-        let r = run_shadows_gpu(gpu, scene, gpu_scene, cam, t, light, method, p)?;
-        times.push((r.ms, r.timings));
-        out = Some(r);
-    }
-    let out = out.ok_or_else(|| Error::invalid("no timed repetition"))?;
-    Ok((out, times))
-}
-
-/// (median ms, min, max, all times, stages of the median run).
-fn summarize(mut v: Vec<(f64, StageTimings)>) -> (f64, f64, f64, Vec<f64>, StageTimings) {
-    let times = v.iter().map(|x| x.0).collect();
-    v.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let m = v[v.len() / 2];
-    (m.0, v[0].0, v[v.len() - 1].0, times, m.1)
-}
-
-/// `crate::evaluate` on the GPU (seed 000, Table 8 / Fig. 15 protocol): for every map
-/// size and S, the GPU reference and the GPU zwarp ([`run_shadows_gpu`], warm, repeated,
-/// median), quality against the GPU reference of the same S, speed-up side by side on the same
-/// device. [`Method::Pcss`] has no GPU path and is skipped (the caller says so);
+/// [`crate::evaluate`] on the GPU (seed 000, Table 8 / Fig. 15 protocol,
+/// [`crate::evaluate_with`]): the GPU reference and the GPU zwarp ([`run_shadows_gpu`]) on the
+/// same device. [`Method::Pcss`] has no GPU path and is skipped (the caller says so);
 /// [`Method::ZwarpFull`] runs the same full-map GPU warps as [`Method::Zwarp`].
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_gpu(
@@ -597,65 +559,12 @@ pub fn evaluate_gpu(
     t: f32,
     light: &AreaLight,
     cfg: &EvalConfig,
-    mut on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> Result<()>,
+    on_result: impl FnMut(&EvalRow, &ShadowResult, &ShadowResult) -> Result<()>,
 ) -> Result<Vec<EvalRow>> {
-    if cfg.samples.is_empty() || cfg.sm_sizes.is_empty() {
-        return Err(Error::invalid("evaluation needs at least one S and one shadow-map size"));
-    }
-    if cfg.reps == 0 {
-        return Err(Error::invalid("evaluation needs at least one timed repetition"));
-    }
-    let mut rows = Vec::new();
-    for &sm in &cfg.sm_sizes {
-        for &s in &cfg.samples {
-            let p = ShadowParams { samples: s, sm_size: sm, ..cfg.base };
-            let (reference, rt) =
-                timed_gpu(gpu, scene, gpu_scene, cam, t, light, Method::Reference, &p, cfg.warmup, cfg.reps)?;
-            let (rms, lo, hi, times, stages) = summarize(rt);
-            let ref_row = EvalRow {
-                method: Method::Reference,
-                samples: s,
-                sm,
-                ms: rms,
-                ms_min: lo,
-                ms_max: hi,
-                times,
-                psnr: f64::INFINITY,
-                ssim: 1.0,
-                speedup: 1.0,
-                timings: stages,
-                warp_holes: 0,
-                warped_texels: 0,
-            };
-            on_result(&ref_row, &reference, &reference)?;
-            rows.push(ref_row);
-            for &m in &cfg.methods {
-                match m {
-                    Method::Reference | Method::Pcss => continue,
-                    Method::ZwarpFull if s > cfg.full_max_samples => continue,
-                    Method::Zwarp | Method::ZwarpFull => {}
-                }
-                let (res, tm) = timed_gpu(gpu, scene, gpu_scene, cam, t, light, m, &p, cfg.warmup, cfg.reps)?;
-                let (ms, lo, hi, times, stages) = summarize(tm);
-                let row = EvalRow {
-                    method: m,
-                    samples: s,
-                    sm,
-                    ms,
-                    ms_min: lo,
-                    ms_max: hi,
-                    times,
-                    psnr: zwarp_metrics::psnr_rgb(&res.image, &reference.image, 1.0)?,
-                    ssim: zwarp_metrics::ssim_rgb(&res.image, &reference.image, 1.0)?,
-                    speedup: rms / ms.max(1e-9),
-                    timings: stages,
-                    warp_holes: res.warp_holes,
-                    warped_texels: res.warped_texels,
-                };
-                on_result(&row, &res, &reference)?;
-                rows.push(row);
-            }
-        }
-    }
-    Ok(rows)
+    crate::evaluate_with(
+        cfg,
+        |m, p| run_shadows_gpu(gpu, scene, gpu_scene, cam, t, light, m, p),
+        |m| m != Method::Pcss,
+        on_result,
+    )
 }
