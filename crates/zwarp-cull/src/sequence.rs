@@ -201,20 +201,7 @@ pub fn run_sequence_repeated(
 ) -> Result<Vec<FrameReport>> {
     scene.check_nonempty()?;
     params.validate()?;
-    let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
-    if let Some((k, (_, c))) =
-        frames.iter().enumerate().find(|(_, (_, c))| (c.width, c.height) != (first.width, first.height))
-    {
-        return Err(Error::invalid(format!(
-            "frame {k} renders {}x{} but frame 0 renders {}x{}",
-            c.width, c.height, first.width, first.height
-        )));
-    }
-    let n = scene.instances.len();
-    let tri_of = |ids: &[u32]| -> usize {
-        ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
-    };
-    let full_triangles = scene.triangle_count();
+    check_frames(frames)?;
     // Warm-up: the same loop over frame 0 twice, untimed and discarded, so that the first
     // timed frame is not charged for first-touch page faults and cold caches (CB 960x540:
     // WOC's first frame took 1.4-1.6x the median of the others without it).
@@ -226,57 +213,102 @@ pub fn run_sequence_repeated(
     // items as pass 1 drew) and everything compared.
     let mut out = Vec::with_capacity(frames.len());
     let mut prev: Option<Frame> = None;
-    for (k, ((t, cam), f)) in frames.iter().zip(timed).enumerate() {
-        let t = *t;
+    for (k, ((t, cam), mut f)) in frames.iter().zip(timed).enumerate() {
         let t0 = Instant::now();
-        let full = render_frame(scene, cam, t, &FrameOptions::default())?;
+        let full = render_frame(scene, cam, *t, &FrameOptions::default())?;
         let full_draw_ms = ms(t0);
-        let reference = visible_from_items(&full.items, n);
-        let drawn = if f.visible.len() == n {
+        let drawn = if f.visible.len() == scene.instances.len() {
             Frame { depth: full.depth.clone(), items: full.items.clone(), color: None }
         } else {
-            render_frame(scene, cam, t, &FrameOptions { color: false, objects: Some(&f.visible) })?
+            render_frame(scene, cam, *t, &FrameOptions { color: false, objects: Some(&f.visible) })?
         };
-        let pixel_error = drawn.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
-        let pf = prev.as_ref().map(|pf| PrevFrame {
-            depth: &pf.depth,
-            items: &pf.items,
-            cam: &frames[k - 1].1,
-            t: frames[k - 1].0,
-        });
-        let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, f.occ.as_ref(), cam, t, pf.as_ref());
-        let map_accuracy = f.occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth)).transpose()?;
-        out.push(FrameReport {
-            frame: k,
-            t,
-            visible: f.visible.len(),
-            accuracy: accuracy(&f.visible, &reference, n),
-            triangles: tri_of(&f.visible),
-            visible_ids: f.visible,
-            pixel_error,
-            cull: f.cull,
-            stats: f.stats,
-            draw_ms: f.draw_ms,
+        let occ = f.occ.take();
+        let prev_frame = prev.as_ref().map(|p| (&p.depth, &p.items));
+        out.push(frame_report(
+            scene,
+            frames,
+            k,
+            f,
+            (&full.depth, &full.items),
             full_draw_ms,
-            full_triangles,
-            culled_visible: culled,
-            bootstrap: f.bootstrap,
-            map_accuracy,
-        });
+            &drawn.depth,
+            occ.as_ref(),
+            prev_frame,
+        )?);
         prev = Some(drawn);
     }
     Ok(out)
 }
 
-/// What the timed pass of [`run_sequence`] keeps of a frame.
-struct TimedFrame {
-    visible: Vec<u32>,
-    cull: CullTimings,
-    stats: CullStats,
-    draw_ms: f64,
+/// The first frame's camera, after checking that the path has frames and that every frame
+/// renders at its size.
+pub(crate) fn check_frames(frames: &[(f32, Camera)]) -> Result<&Camera> {
+    let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
+    if let Some((k, (_, c))) =
+        frames.iter().enumerate().find(|(_, (_, c))| (c.width, c.height) != (first.width, first.height))
+    {
+        return Err(Error::invalid(format!(
+            "frame {k} renders {}x{} but frame 0 renders {}x{}",
+            c.width, c.height, first.width, first.height
+        )));
+    }
+    Ok(first)
+}
+
+/// Pass 2 of a culling sequence on either backend, for frame `k` of `frames`: the timed pass's
+/// kept set `f` against the full render `full` (depth, items; timed `full_draw_ms`), the pixels
+/// where the frame drawn from the kept set (`shown`) differs from it, the visible objects
+/// culled and why (against the method's occlusion map `occ` and the previous drawn frame
+/// `prev`), the occlusion map's accuracy.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn frame_report(
+    scene: &Scene,
+    frames: &[(f32, Camera)],
+    k: usize,
+    f: TimedFrame,
+    full: (&Image<f32>, &Image<u32>),
+    full_draw_ms: f64,
+    shown: &Image<f32>,
+    occ: Option<&Image<f32>>,
+    prev: Option<(&Image<f32>, &Image<u32>)>,
+) -> Result<FrameReport> {
+    let (t, cam) = &frames[k];
+    let n = scene.instances.len();
+    let reference = visible_from_items(full.1, n);
+    let pixel_error = shown.data().iter().zip(full.0.data()).filter(|(a, b)| a != b).count();
+    let pf = prev.map(|(depth, items)| PrevFrame { depth, items, cam: &frames[k - 1].1, t: frames[k - 1].0 });
+    let culled = culled_visible(scene, &f.visible, full.1, full.0, occ, cam, *t, pf.as_ref());
+    let map_accuracy = occ.map(|m| MapAccuracy::of(m, full.0)).transpose()?;
+    let triangles =
+        f.visible.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum();
+    Ok(FrameReport {
+        frame: k,
+        t: *t,
+        visible: f.visible.len(),
+        accuracy: accuracy(&f.visible, &reference, n),
+        triangles,
+        visible_ids: f.visible,
+        pixel_error,
+        cull: f.cull,
+        stats: f.stats,
+        draw_ms: f.draw_ms,
+        full_draw_ms,
+        full_triangles: scene.triangle_count(),
+        culled_visible: culled,
+        bootstrap: f.bootstrap,
+        map_accuracy,
+    })
+}
+
+/// What the timed pass of a culling sequence (either backend) keeps of a frame.
+pub(crate) struct TimedFrame {
+    pub(crate) visible: Vec<u32>,
+    pub(crate) cull: CullTimings,
+    pub(crate) stats: CullStats,
+    pub(crate) draw_ms: f64,
     /// The method's occlusion map (at the culling resolution).
-    occ: Option<Image<f32>>,
-    bootstrap: bool,
+    pub(crate) occ: Option<Image<f32>>,
+    pub(crate) bootstrap: bool,
 }
 
 /// One culling decision of [`run_timed`] (before the kept set is drawn).

@@ -20,10 +20,8 @@ use super::{
     rapid_flags, CullKernel, CullObjects, CullOutput, CullParams, GpuCullClass, GpuMaxDepth, GpuWoc, GpuWocParams,
     MaxDepthKernel,
 };
-use crate::{
-    accuracy, culled_visible, visible_from_items, CullStats, CullTimings, FrameReport, MapAccuracy, MaxDepthKind,
-    Method, PrevFrame, WocParams,
-};
+use crate::sequence::{frame_report, TimedFrame};
+use crate::{visible_from_items, CullStats, CullTimings, FrameReport, MaxDepthKind, Method, WocParams};
 
 /// `true` for the methods [`run_gpu_sequence`] implements.
 pub fn gpu_supports(method: Method) -> bool {
@@ -137,11 +135,8 @@ pub fn run_gpu_sequence(
     if !gpu_supports(method) {
         return Err(Error::invalid(format!("culling method '{}' is CPU-only", method.name())));
     }
-    let (_, first) = frames.first().ok_or_else(|| Error::invalid("camera path has no frames"))?;
+    let first = crate::sequence::check_frames(frames)?;
     let (w, h) = (first.width, first.height);
-    if let Some((k, (_, c))) = frames.iter().enumerate().find(|(_, (_, c))| (c.width, c.height) != (w, h)) {
-        return Err(Error::invalid(format!("frame {k} renders {}x{} but frame 0 renders {w}x{h}", c.width, c.height)));
-    }
     let gs = GpuScene::upload(ctx, scene)?;
     let n = scene.instances.len();
     let max_k = MaxDepthKernel::new(ctx)?;
@@ -184,25 +179,14 @@ pub fn run_gpu_sequence(
     let full_targets = LayerTargets::new(&run.r, w, h, 1, false)?;
     // The drawn frame of the previous and the current frame (swapped every frame).
     let drawn = [LayerTargets::new(&run.r, w, h, 1, false)?, LayerTargets::new(&run.r, w, h, 1, false)?];
-    let tri_of = |ids: &[u32]| -> usize {
-        ids.iter().map(|&id| scene.meshes[scene.instances[id as usize].mesh as usize].triangle_count()).sum()
-    };
     let history = matches!(method, Method::Woc | Method::Awoc | Method::LastFrame);
 
     // Pass 1, the engine's loop and the only timed one (as `crate::run_sequence`): cull,
     // then draw the kept objects (depth + items), which is the next frame's previous frame. The
     // oracles (IDEAL, REF) render the frame in full first because that render is their input.
-    struct Timed {
-        visible: Vec<u32>,
-        cull_ms: f64,
-        stats: CullStats,
-        draw_ms: f64,
-        /// WOC's predicted depth (read back, untimed) for the diagnostics.
-        occ: Option<Image<f32>>,
-        bootstrap: bool,
-    }
-    let pass1 = |frames: &[(f32, Camera)]| -> Result<Vec<Timed>> {
-        let mut timed: Vec<Timed> = Vec::with_capacity(frames.len());
+    // The occlusion map kept is WOC's predicted depth (read back, untimed) for the diagnostics.
+    let pass1 = |frames: &[(f32, Camera)]| -> Result<Vec<TimedFrame>> {
+        let mut timed: Vec<TimedFrame> = Vec::with_capacity(frames.len());
         for (k, (t, cam)) in frames.iter().enumerate() {
             let t = *t;
             let bootstrap = history && k == 0;
@@ -278,7 +262,8 @@ pub fn run_gpu_sequence(
             run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[cur], args, None)?;
             run.finish(enc)?;
             let draw_ms = ms(t0);
-            timed.push(Timed { visible, cull_ms, stats, draw_ms, occ, bootstrap });
+            let cull = CullTimings { total_ms: cull_ms, ..CullTimings::default() };
+            timed.push(TimedFrame { visible, cull, stats, draw_ms, occ, bootstrap });
         }
         Ok(timed)
     };
@@ -291,7 +276,7 @@ pub fn run_gpu_sequence(
     // and everything compared.
     let mut prev_cpu: Option<(Image<f32>, Image<u32>)> = None;
     let mut reports = Vec::with_capacity(frames.len());
-    for (k, ((t, cam), f)) in frames.iter().zip(timed).enumerate() {
+    for (k, ((t, cam), mut f)) in frames.iter().zip(timed).enumerate() {
         let t = *t;
         let t0 = Instant::now();
         let mut enc = run.encoder();
@@ -306,39 +291,28 @@ pub fn run_gpu_sequence(
         run.finish(enc)?;
         let full_draw_ms = ms(t0);
         let full = run.r.read_layer(&full_targets, 0)?;
-        let reference = visible_from_items(&full.items, n);
         run.write_set(&f.visible);
         let mut enc = run.encoder();
         run.r.encode_frame_from_args(&mut enc, &run.gs, cam, t, &drawn[0], &run.set_args, None)?;
         run.finish(enc)?;
         let shown = run.r.read_layer(&drawn[0], 0)?;
-        let pixel_error = shown.depth.data().iter().zip(full.depth.data()).filter(|(a, b)| a != b).count();
         let occ = match method {
             Method::Ideal => Some(full.depth.clone()),
             Method::LastFrame if !f.bootstrap => prev_cpu.as_ref().map(|(d, _)| d.clone()),
-            _ => f.occ,
+            _ => f.occ.take(),
         };
-        let pf =
-            prev_cpu.as_ref().map(|(d, i)| PrevFrame { depth: d, items: i, cam: &frames[k - 1].1, t: frames[k - 1].0 });
-        let culled = culled_visible(scene, &f.visible, &full.items, &full.depth, occ.as_ref(), cam, t, pf.as_ref());
-        let map_accuracy = occ.as_ref().map(|m| MapAccuracy::of(m, &full.depth)).transpose()?;
-        reports.push(FrameReport {
-            frame: k,
-            t,
-            visible: f.visible.len(),
-            accuracy: accuracy(&f.visible, &reference, n),
-            triangles: tri_of(&f.visible),
-            visible_ids: f.visible,
-            pixel_error,
-            cull: CullTimings { total_ms: f.cull_ms, ..CullTimings::default() },
-            stats: f.stats,
-            draw_ms: f.draw_ms,
+        let prev = prev_cpu.as_ref().map(|(d, i)| (d, i));
+        reports.push(frame_report(
+            scene,
+            frames,
+            k,
+            f,
+            (&full.depth, &full.items),
             full_draw_ms,
-            full_triangles: scene.triangle_count(),
-            culled_visible: culled,
-            bootstrap: f.bootstrap,
-            map_accuracy,
-        });
+            &shown.depth,
+            occ.as_ref(),
+            prev,
+        )?);
         prev_cpu = Some((shown.depth, shown.items));
     }
     Ok(reports)
