@@ -454,17 +454,9 @@ pub struct SequenceSummary {
     pub pixel_error: f64,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
+/// The median of `v` (0 if empty).
+fn median(v: Vec<f64>) -> f64 {
+    zwarp_metrics::Timing::of(&v).median
 }
 
 /// Summarizes the frames that are not bootstrap frames (all frames if every one is).

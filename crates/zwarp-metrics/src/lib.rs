@@ -27,6 +27,7 @@ mod depth;
 mod diff;
 mod psnr;
 mod ssim;
+mod timing;
 
 pub use color::{
     cie94, cie94_map, cie94_mean, color_quality, linear_rgb_to_lab, luminance, masked_mean, psnr_channels,
@@ -41,6 +42,7 @@ pub use diff::{
 };
 pub use psnr::{mse, mse_rgb, psnr, psnr_from_mse, psnr_rgb};
 pub use ssim::{ssim, ssim_map, ssim_rgb, SSIM_K1, SSIM_K2, SSIM_RADIUS, SSIM_SIGMA, SSIM_TRUNCATE, SSIM_WIN_SIZE};
+pub use timing::Timing;
 
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Result};
