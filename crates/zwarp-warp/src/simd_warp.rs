@@ -1114,9 +1114,27 @@ pub(crate) unsafe fn background8(
     let three = _mm256_set1_epi32(3);
     // back = motion[p.y as usize * w + p.x as usize].v.
     let pi = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(py), wv), _mm256_cvttps_epi32(px));
-    let pi3 = _mm256_mullo_epi32(pi, three);
-    let bx = _mm256_i32gather_ps::<4>(mp, pi3);
-    let by = _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(pi3, _mm256_set1_epi32(1)));
+    let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    // Eight consecutive samples (a run of holes along a row, smooth background motion) are read
+    // with row loads instead of gathers: the same values.
+    let run_start = |i: __m256i| -> Option<usize> {
+        let i0 = _mm256_permutevar8x32_epi32(i, _mm256_setzero_si256());
+        let run = _mm256_movemask_epi8(_mm256_cmpeq_epi32(i, _mm256_add_epi32(i0, iota))) == -1;
+        run.then(|| _mm256_cvtsi256_si32(i0) as usize)
+    };
+    let (bx, by) = match run_start(pi) {
+        Some(i0) => {
+            let (vx, vy, _) = crate::simd::avx2::load_motion8(motion.as_ptr().add(i0));
+            (vx, vy)
+        }
+        None => {
+            let pi3 = _mm256_mullo_epi32(pi, three);
+            (
+                _mm256_i32gather_ps::<4>(mp, pi3),
+                _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(pi3, _mm256_set1_epi32(1))),
+            )
+        }
+    };
     // background_seeds: clamp into [0, (w, h) - 1e-3].
     let zero = _mm256_setzero_ps();
     let (mx, my) = (splat(w as f32 - 1e-3), splat(h as f32 - 1e-3));
@@ -1146,17 +1164,32 @@ pub(crate) unsafe fn background8(
             let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
             let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
             let i = _mm256_add_epi32(_mm256_mullo_epi32(yn, wv), xn);
+            // All lanes live on a run of samples: row loads (dead lanes' values are never used).
+            let run = if _mm256_movemask_ps(live) == 0xff { run_start(i) } else { None };
             // A sample only where no layer has a surface.
             for d in depths {
-                let z = _mm256_i32gather_ps::<4>(d.as_ptr(), i);
+                let z = match run {
+                    Some(i0) => _mm256_loadu_ps(d.as_ptr().add(i0)),
+                    None => _mm256_i32gather_ps::<4>(d.as_ptr(), i),
+                };
                 live = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_GE_OQ>(z, one));
             }
             if _mm256_movemask_ps(live) == 0 {
                 break;
             }
-            let i3 = _mm256_and_si256(_mm256_mullo_epi32(i, three), _mm256_castps_si256(live));
-            let vx = _mm256_i32gather_ps::<4>(mp, i3);
-            let vy = _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(i3, _mm256_set1_epi32(1)));
+            let (vx, vy) = match run {
+                Some(i0) => {
+                    let (vx, vy, _) = crate::simd::avx2::load_motion8(motion.as_ptr().add(i0));
+                    (vx, vy)
+                }
+                None => {
+                    let i3 = _mm256_and_si256(_mm256_mullo_epi32(i, three), _mm256_castps_si256(live));
+                    (
+                        _mm256_i32gather_ps::<4>(mp, i3),
+                        _mm256_i32gather_ps::<4>(mp, _mm256_add_epi32(i3, _mm256_set1_epi32(1))),
+                    )
+                }
+            };
             let wx = _mm256_sub_ps(px, vx);
             let wy = _mm256_sub_ps(py, vy);
             let stx = _mm256_sub_ps(wx, qx);

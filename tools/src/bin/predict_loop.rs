@@ -67,7 +67,7 @@ fn main() {
     };
     let layers: Vec<WarpLayer> = bufs.iter().map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
     let bi: u32 = get("bi", "6").parse().unwrap();
-    let params = WarpParams { n_seeds: n, bound_iterations: bi, ..Default::default() };
+    let params = WarpParams { n_seeds: n, bound_iterations: bi, holes: HolePolicy::PAPER, ..Default::default() };
     let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
     let mut out = WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
     let mut rec = predict_into(&layers, &params, Vec::new(), &mut out).unwrap();
