@@ -9,8 +9,8 @@
 use std::arch::x86_64::*;
 
 use super::{
-    row_check as row_check_portable, valid, vfw_pixel, Band, Motion, WarpLayer, AFW_HALF_SIZE, CONTINUITY_PX,
-    EMPTY_DEPTH, FORWARD_SUPPORT_EXPANSION, VFW_ROW_REACH,
+    row_check as row_check_portable, sample_at, valid, vfw_pixel, Band, Motion, WarpLayer, AFW_HALF_SIZE,
+    CONTINUITY_PX, EMPTY_DEPTH, FORWARD_SUPPORT_EXPANSION, VFW_ROW_REACH,
 };
 use crate::simd::avx2::load_motion8;
 
@@ -229,12 +229,10 @@ pub(super) unsafe fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32]
     let wu = w as usize;
     let mut band = Band::new(band, w, h, y0);
     let clip = band.clip();
-    let depth = l.depth.data();
-    let motion = l.motion.data();
+    // The portable path of one pixel (image border, lanes whose quad needs a bigger window).
     let scalar = |band: &mut Band<'_>, x: usize| {
-        let i = y * wu + x;
-        if super::valid(depth[i], &motion[i]) {
-            vfw_pixel(l, band, x, y, &motion[i]);
+        if let Some(m) = sample_at(l, w, h, x as i64, y as i64) {
+            vfw_pixel(l, band, x, y, m);
         }
     };
     // Groups of eight whose 3 x 10 neighbourhood lies inside the image.
