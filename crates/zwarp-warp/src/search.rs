@@ -62,8 +62,8 @@ pub trait MotionSource {
 pub enum Sampling {
     /// The texel containing `q` (`floor(q)`).
     Nearest,
-    /// Bilinear where the 2x2 neighbourhood is valid and continuous (motion range < 1 px),
-    /// nearest elsewhere (Bowles Fig. 4).
+    /// Bilinear where the 2x2 neighbourhood is valid and continuous ([`continuous_cell`]:
+    /// motion range < 1 px, no large depth step), nearest elsewhere (Bowles Fig. 4).
     #[default]
     Adaptive,
 }
@@ -83,6 +83,26 @@ impl Sampling {
 /// Motion difference (pixels, per component) between neighbouring texels above which they
 /// are treated as a discontinuity and not interpolated (Bowles' `rho < 1`).
 pub const CONTINUITY_PX: f32 = 1.0;
+
+/// Relative depth step across a 2x2 cell above which it is a discontinuity although its
+/// motions agree: two surfaces far apart in depth, both so far away that they move alike (a
+/// facade 15 m away in front of one at 50 m). The step is measured in target depth `z` as
+/// `(z_max - z_min) / (1 - z_max)`, which is the relative step of the linear depth `Δd / d_near`
+/// for surfaces well before the far plane: 2 separates surfaces whose distances differ by
+/// more than a factor 3, and keeps interpolating every surface seen at up to ~89° from
+/// its normal (a few percent per texel).
+pub const DEPTH_CONTINUITY: f32 = 2.0;
+
+/// Whether a 2x2 cell of valid texels is one surface, so that the adaptive fetch interpolates
+/// it (Bowles Fig. 4): its motions differ by less than [`CONTINUITY_PX`] (the convergence
+/// condition `rho < 1`) and its depths by less than [`DEPTH_CONTINUITY`] (relative; the
+/// geometric test of Mark et al. that Bowles Sec. 3.4 cites, for what motion alone cannot
+/// see). `motion_range` is the larger per-axis range of the four motions, `z_lo` / `z_hi` the
+/// smallest / largest target depth. Scalar twin of the AVX2 and WGSL fetches.
+#[inline(always)]
+pub fn continuous_cell(motion_range: f32, z_lo: f32, z_hi: f32) -> bool {
+    (motion_range < CONTINUITY_PX) & ((z_hi - z_lo) < DEPTH_CONTINUITY * (1.0 - z_hi))
+}
 
 /// Validated samples of one layer as three planes (structure of arrays, so that a row of
 /// texels is one contiguous load per component): motion x, motion y and target depth, the
@@ -243,7 +263,9 @@ impl<'a> LayerSampler<'a> {
             if valid(&s00) & valid(&s10) & valid(&s01) & valid(&s11) {
                 let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
                 let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
-                if (hi - lo).max_element() < CONTINUITY_PX {
+                let z_lo = s00.depth.min(s10.depth).min(s01.depth.min(s11.depth));
+                let z_hi = s00.depth.max(s10.depth).max(s01.depth.max(s11.depth));
+                if continuous_cell((hi - lo).max_element(), z_lo, z_hi) {
                     return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
                 }
             }
@@ -285,7 +307,9 @@ impl<'a> LayerSampler<'a> {
             if valid(&s00) && valid(&s10) && valid(&s01) && valid(&s11) {
                 let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
                 let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
-                if (hi - lo).max_element() < CONTINUITY_PX {
+                let z_lo = s00.depth.min(s10.depth).min(s01.depth.min(s11.depth));
+                let z_hi = s00.depth.max(s10.depth).max(s01.depth.max(s11.depth));
+                if continuous_cell((hi - lo).max_element(), z_lo, z_hi) {
                     return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
                 }
             }
@@ -669,6 +693,34 @@ mod tests {
         let s = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0);
         assert_eq!(s.fetch(Vec2::new(7.9, 2.5)).unwrap().v.x, 5.0);
         assert_eq!(s.fetch(Vec2::new(8.1, 2.5)).unwrap().v.x, 0.0);
+    }
+
+    /// Depth of a point `d` metres away under a near 0.1 / far 1000 projection.
+    fn ndc(d: f32) -> f32 {
+        let (n, f) = (0.1, 1000.0);
+        f / (f - n) * (1.0 - n / d)
+    }
+
+    #[test]
+    fn adaptive_sampling_does_not_interpolate_across_a_depth_step_that_moves_alike() {
+        // Left half a facade 15 m away, right half one 50 m away; both move by 0.3 px.
+        let step = |i: usize| Motion { v: Vec2::new(0.3, 0.0), depth: ndc(if i % 16 < 8 { 15.0 } else { 50.0 }) };
+        let m: Vec<Motion> = (0..256).map(step).collect();
+        let planes = SamplePlanes::from_motion(&m);
+        let s = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0);
+        let a = s.fetch(Vec2::new(7.9, 2.5)).unwrap();
+        assert!(!a.smooth && a.depth == ndc(15.0), "{a:?}");
+        assert_eq!(s.fetch(Vec2::new(8.1, 2.5)).unwrap().depth, ndc(50.0));
+        // One plane seen almost edge-on: 5 % farther per texel, interpolated.
+        let ramp = |i: usize| Motion { v: Vec2::new(0.3, 0.0), depth: ndc(2.0 * 1.05f32.powi((i % 16) as i32)) };
+        let m: Vec<Motion> = (0..256).map(ramp).collect();
+        let planes = SamplePlanes::from_motion(&m);
+        let s = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0);
+        let a = s.fetch(Vec2::new(8.0, 2.5)).unwrap();
+        assert!(a.smooth && a.depth > ndc(2.0 * 1.05f32.powi(7)) && a.depth < ndc(2.0 * 1.05f32.powi(8)), "{a:?}");
+        // The rule itself: a factor 3 in distance is the edge.
+        assert!(continuous_cell(0.0, ndc(15.0), ndc(43.0)));
+        assert!(!continuous_cell(0.0, ndc(15.0), ndc(47.0)));
     }
 
     /// A source that never converges and counts its samples.

@@ -167,9 +167,9 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
     let lo_y = _mm256_min_ps(_mm256_min_ps(vy00, vy10), _mm256_min_ps(vy01, vy11));
     let hi_x = _mm256_max_ps(_mm256_max_ps(vx00, vx10), _mm256_max_ps(vx01, vx11));
     let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
-    // max_element(hi - lo) < CONTINUITY_PX (1 px): `if x > y { x } else { y }` < 1.
+    // max_element(hi - lo): `if x > y { x } else { y }`.
     let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
-    let smooth = if nearest { zero } else { _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one)) };
+    let smooth = if nearest { zero } else { _mm256_and_ps(all_valid, continuous8(rmax, [z00, z10, z01, z11])) };
     // bilinear(): glam lerp a * (1 - s) + b * s, depths a + (b - a) * s.
     let lerp =
         |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
@@ -209,6 +209,20 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
         dyy: _mm256_and_ps(smooth, dyy),
         smooth: _mm256_and_ps(live, smooth),
     }
+}
+
+/// [`crate::search::continuous_cell`] per lane, from the cell's motion range and its four
+/// target depths (the same min / max chains and IEEE operations).
+#[inline(always)]
+unsafe fn continuous8(rmax: __m256, [z00, z10, z01, z11]: [__m256; 4]) -> __m256 {
+    let z_lo = _mm256_min_ps(_mm256_min_ps(z00, z10), _mm256_min_ps(z01, z11));
+    let z_hi = _mm256_max_ps(_mm256_max_ps(z00, z10), _mm256_max_ps(z01, z11));
+    let step = _mm256_sub_ps(z_hi, z_lo);
+    let limit = _mm256_mul_ps(splat(crate::search::DEPTH_CONTINUITY), _mm256_sub_ps(splat(1.0), z_hi));
+    _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, splat(crate::search::CONTINUITY_PX)),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(step, limit),
+    )
 }
 
 /// `Kernel::covered_at_source` per lane: of the `live` lanes, those whose candidate (source
@@ -538,7 +552,7 @@ unsafe fn first8(
     let hi_x = _mm256_max_ps(_mm256_max_ps(vx00, vx10), _mm256_max_ps(vx01, vx11));
     let hi_y = _mm256_max_ps(_mm256_max_ps(vy00, vy10), _mm256_max_ps(vy01, vy11));
     let rmax = _mm256_max_ps(_mm256_sub_ps(hi_x, lo_x), _mm256_sub_ps(hi_y, lo_y));
-    let smooth = if ls.nearest { zero } else { _mm256_and_ps(all_valid, _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, one)) };
+    let smooth = if ls.nearest { zero } else { _mm256_and_ps(all_valid, continuous8(rmax, [z00, z10, z01, z11])) };
     let lerp =
         |a: __m256, b: __m256, s: __m256| _mm256_add_ps(_mm256_mul_ps(a, _mm256_sub_ps(one, s)), _mm256_mul_ps(b, s));
     let bvx = lerp(lerp(vx00, vx10, ax), lerp(vx01, vx11, ax), ay);

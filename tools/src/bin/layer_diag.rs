@@ -4,7 +4,8 @@
 //! sample of them. Frames as `zwarp eval --frames 4` picks them (`which` in 0..=3), the paper's
 //! hole protocol, umbra peeling, ground layer last when the scene has ground.
 //!
-//! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y).
+//! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y;
+//! `SPEED=s` takes the frames at `zwarp eval --speed s`).
 use zwarp_core::{motion_field, Image};
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
@@ -29,10 +30,11 @@ fn main() {
     let loaded = load_scene(spec, &SceneOptions::default()).unwrap();
     let scene = &loaded.scene;
     let path = CameraPath::from_json_file(pathf).unwrap();
-    let total = path.frame_count_at(1.0);
+    let speed: f32 = std::env::var("SPEED").map_or(1.0, |s| s.parse().unwrap());
+    let total = path.frame_count_at(speed);
     let last = total - 2;
     let k = which * last / 3;
-    let (ta, tb) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
+    let (ta, tb) = (path.time_of_frame(k, speed), path.time_of_frame(k + 1, speed));
     let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
     let deltas = scene.object_deltas(ta, tb);
     let frame = render_frame(scene, &ca, ta, &FrameOptions::default()).unwrap();

@@ -61,8 +61,9 @@ const EMPTY_Z: f32 = 2.0;
 const COVER_DEPTH_RATIO: f32 = 1.1;
 // zwarp_warp::holes::BRACKET_SPAN_RATIO.
 const BRACKET_SPAN_RATIO: f32 = 4.0;
-// zwarp_warp::search::CONTINUITY_PX.
+// zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
+const DEPTH_CONTINUITY: f32 = 2.0;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
 // f32::EPSILON.
 const EPS: f32 = 1.1920929e-7;
@@ -415,7 +416,10 @@ fn fetch(k: u32, q: vec2<f32>) -> Smp {
             let lo = min(min(s00.xy, s10.xy), min(s01.xy, s11.xy));
             let hi = max(max(s00.xy, s10.xy), max(s01.xy, s11.xy));
             let d = hi - lo;
-            if (max(d.x, d.y) < CONTINUITY) {
+            // search::continuous_cell: motions within a pixel, no large relative depth step.
+            let z_lo = min(min(s00.z, s10.z), min(s01.z, s11.z));
+            let z_hi = max(max(s00.z, s10.z), max(s01.z, s11.z));
+            if (max(d.x, d.y) < CONTINUITY && z_hi - z_lo < DEPTH_CONTINUITY * (1.0 - z_hi)) {
                 let top_v = lerp2(s00.xy, s10.xy, ax);
                 let bot_v = lerp2(s01.xy, s11.xy, ax);
                 let top_d = s00.z + (s10.z - s00.z) * ax;
