@@ -400,56 +400,62 @@ pub fn fill_background_with(
             "fill_background: the source layers are not {m} x the {w}x{h} warped buffer on both axes"
         )));
     }
-    let holes = hole_list(&out.state);
+    if w as u64 * h as u64 > SKY_MARK as u64 {
+        return Err(Error::invalid(format!("fill_background: {w}x{h} is more than 2^31 pixels")));
+    }
+    let mut holes = hole_list(&out.state);
     if holes.is_empty() {
         return Ok(());
     }
-    // 1. Holes that see the source's empty background.
+    // 1. Holes that see the source's empty background, marked in the list itself (its entries
+    // are pixel indices below 2^31) so that steps 2 and 3 narrow it in place.
     let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w: sw, h: sh };
     let mf = m as f32;
-    let sky: Vec<bool> = holes
-        .par_chunks(256)
-        .flat_map_iter(|chunk| {
-            let mut seen = vec![false; chunk.len()];
-            let mut done = 0;
-            #[cfg(target_arch = "x86_64")]
-            if crate::simd::has_avx2() && layers.len() <= 8 {
-                let depths: Vec<&[f32]> = layers.iter().map(|l| l.depth.data()).collect();
-                while done + 8 <= chunk.len() {
-                    let idx: [u32; 8] = chunk[done..done + 8].try_into().expect("eight");
-                    // SAFETY: AVX2 checked; the buffers are sw * sh long.
-                    let bits =
-                        unsafe { crate::simd_warp::background8(&depths, bg.motion, sw, sh, w, mf, &idx, search) };
-                    for (k, s) in seen[done..done + 8].iter_mut().enumerate() {
-                        *s = bits >> k & 1 != 0;
-                    }
-                    done += 8;
+    holes.par_chunks_mut(256).for_each(|chunk| {
+        let mut done = 0;
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::has_avx2() && layers.len() <= 8 {
+            let mut depths = [&[][..]; 8];
+            for (d, l) in depths.iter_mut().zip(layers) {
+                *d = l.depth.data();
+            }
+            let depths = &depths[..layers.len()];
+            while done + 8 <= chunk.len() {
+                let idx: [u32; 8] = chunk[done..done + 8].try_into().expect("eight");
+                // SAFETY: AVX2 checked; the buffers are sw * sh long.
+                let bits = unsafe { crate::simd_warp::background8(depths, bg.motion, sw, sh, w, mf, &idx, search) };
+                for (k, i) in chunk[done..done + 8].iter_mut().enumerate() {
+                    *i |= SKY_MARK * (bits >> k & 1) as u32;
                 }
-            }
-            for (k, &i) in chunk.iter().enumerate().skip(done) {
-                let (x, y) = (i % w, i / w);
-                seen[k] = background_converges(&bg, x, y, mf, search);
-            }
-            seen
-        })
-        .collect();
-    {
-        let (dd, sd) = (out.depth.data_mut(), out.state.data_mut());
-        for (&i, &s) in holes.iter().zip(&sky) {
-            if s {
-                dd[i as usize] = EMPTY_DEPTH;
-                sd[i as usize] = PixelState::Converged;
+                done += 8;
             }
         }
+        for i in chunk.iter_mut().skip(done) {
+            let (x, y) = (*i % w, *i / w);
+            *i |= SKY_MARK * background_converges(&bg, x, y, mf, search) as u32;
+        }
+    });
+    {
+        let (dd, sd) = (out.depth.data_mut(), out.state.data_mut());
+        for &i in holes.iter().filter(|&&i| i & SKY_MARK != 0) {
+            let i = (i & !SKY_MARK) as usize;
+            dd[i] = EMPTY_DEPTH;
+            sd[i] = PixelState::Converged;
+        }
     }
-    let holes: Vec<u32> = holes.into_iter().zip(sky).filter(|(_, s)| !s).map(|(i, _)| i).collect();
+    holes.retain(|&i| i & SKY_MARK == 0);
     // 2. Bracketed holes.
     fill_holes_listed(&mut out.depth, &mut out.state, &holes, limits.bracket, FillRule::Background);
     // 3. Holes open to the image border.
-    let holes: Vec<u32> = holes.into_iter().filter(|&i| out.state.data()[i as usize] == PixelState::Hole).collect();
+    let state = out.state.data();
+    holes.retain(|&i| state[i as usize] == PixelState::Hole);
     fill_border_listed(&mut out.depth, &mut out.state, &holes, limits.reach);
     Ok(())
 }
+
+/// The mark of a hole list entry whose pixel sees the source's empty background (step 1 of
+/// [`fill_background`]); pixel indices stay below it.
+const SKY_MARK: u32 = 1 << 31;
 
 /// Step 1 of [`fill_background`] for target pixel `(x, y)`: does the search on the empty
 /// background converge? (Its candidate is always the far depth.)
