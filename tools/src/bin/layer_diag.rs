@@ -4,7 +4,8 @@
 //! sample of them. Frames as `zwarp eval --frames 4` picks them (`which` in 0..=3), the paper's
 //! hole protocol, umbra peeling, ground layer last when the scene has ground.
 //!
-//! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y;
+//! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y,
+//! `COLS=a..b` others;
 //! `SPEED=s` takes the frames at `zwarp eval --speed s`).
 use zwarp_core::{motion_field, Image};
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
@@ -129,7 +130,9 @@ fn main() {
     }
     if let Ok(row) = std::env::var("ROW") {
         let y: u32 = row.parse().unwrap();
-        for x in 178..216 {
+        let cols = std::env::var("COLS").unwrap_or_else(|_| "178..216".into());
+        let (c0, c1) = cols.split_once("..").expect("COLS=a..b");
+        for x in c0.parse::<u32>().unwrap()..c1.parse::<u32>().unwrap() {
             let st = |o: &WarpOutput| format!("{:?}", o.state.get(x, y)).chars().next().unwrap();
             println!(
                 "  x{x}: ref {:.2} | a {:.2} {} l{:>2} | b {:.2} {} l{:>2}",
