@@ -7,8 +7,11 @@ use zwarp_testkit as common;
 use glam::Vec2;
 use proptest::prelude::*;
 use zwarp_core::{Image, Motion, EMPTY_DEPTH};
+use zwarp_gpu::readback::read_buffer;
 use zwarp_gpu::test_context;
-use zwarp_warp::gpu::{HoleFillKernel, WarpKernel};
+use zwarp_gpu::GpuContext;
+use zwarp_warp::gpu::{GpuWarpLayer, HoleFillKernel, WarpKernel};
+use zwarp_warp::holes::BackgroundLimits;
 use zwarp_warp::{fill_holes, FillRule, HolePolicy, PixelState, WarpLayer, WarpParams};
 
 /// Random states in blobs (so holes have converged neighbours at various distances).
@@ -239,4 +242,148 @@ fn background_fill_of_a_multisampled_source_equals_the_cpu() {
     let mut cpu_out = out.clone();
     let cpu = zwarp_warp::holes::fill_background(&src, &mut cpu_out, 4, &search).unwrap_err().to_string();
     assert_eq!(gpu, cpu);
+}
+
+/// Source layers uploaded as they are (no checks: NaN motion included).
+fn upload(ctx: &GpuContext, ds: &[Image<f32>], ms: &[Image<Motion>]) -> Vec<(wgpu::Buffer, wgpu::Buffer)> {
+    let usage = wgpu::BufferUsages::STORAGE;
+    ds.iter()
+        .zip(ms)
+        .map(|(d, m)| {
+            (
+                ctx.buffer_with("test depth", bytemuck::cast_slice(d.data()), usage).unwrap(),
+                ctx.buffer_with("test motion", bytemuck::cast_slice(m.data()), usage).unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// `HoleFillKernel::encode_limits` of `ds` / `ms` (for a `w x h` warp at `m x m` samples),
+/// read back: the limits and the empty-background mask.
+fn gpu_limits(
+    ctx: &GpuContext,
+    k: &HoleFillKernel,
+    (ds, ms): (&[Image<f32>], &[Image<Motion>]),
+    (w, h, m): (u32, u32, u32),
+    radius: u32,
+) -> (BackgroundLimits, Vec<u32>) {
+    let bufs = upload(ctx, ds, ms);
+    let views: Vec<GpuWarpLayer> =
+        bufs.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let lim = k.encode_limits(&mut enc, &views, w, h, m, radius).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    assert_eq!(lim.source_size, (w * m, h * m));
+    (lim.read(ctx).unwrap(), read_buffer::<u32>(ctx, &lim.empty, ds[0].len()).unwrap())
+}
+
+/// The CPU's measurements: `BackgroundLimits::of_multisampled` and the empty-background rule
+/// (every layer's depth >= 1).
+fn cpu_limits(
+    ds: &[Image<f32>],
+    ms: &[Image<Motion>],
+    w: u32,
+    h: u32,
+    m: u32,
+    radius: u32,
+) -> (BackgroundLimits, Vec<u32>) {
+    let layers: Vec<WarpLayer> = ds.iter().zip(ms).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+    let limits = BackgroundLimits::of_multisampled(&layers, w, h, m, radius).unwrap();
+    let empty = (0..ds[0].len()).map(|i| ds.iter().all(|d| d.data()[i] >= EMPTY_DEPTH) as u32).collect();
+    (limits, empty)
+}
+
+/// The background protocol's measurements on the GPU (`HoleFillKernel::encode_limits`: the
+/// surfaces' motion range reduced with atomics on order keys, then `BackgroundLimits`'
+/// arithmetic in WGSL) equal `BackgroundLimits::of_multisampled` and the CPU's empty-background
+/// mask: on the pan scenes (one layer and a separate ground, one and 2x2 samples per pixel,
+/// radii 1, 5 and 64), on an all-empty source (no surface: bracket and reach 1), on motion
+/// wider than both caps, on negative-only and sub-pixel motion.
+#[test]
+fn limits_equal_the_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    // (depth layers, motion layers, warped width, height, multisample)
+    type Case = (Vec<Image<f32>>, Vec<Image<Motion>>, u32, u32, u32);
+    let mut cases: Vec<Case> = Vec::new();
+    for (w, h, seed, pan) in [(37u32, 23u32, 3u64, Vec2::new(3.5, -1.25)), (20, 31, 77, Vec2::new(-6.0, 9.5))] {
+        for m in [1u32, 2] {
+            let (ds, ms) = background_scene(w * m, h * m, seed, pan * m as f32);
+            for layers in [1usize, 2] {
+                cases.push((ds[..layers].to_vec(), ms[..layers].to_vec(), w, h, m));
+            }
+        }
+    }
+    let constant = |w: u32, h: u32, z: f32, v: Vec2| {
+        let d = Image::new(w, h, z);
+        let m = Image::new(w, h, Motion { v, depth: z });
+        (vec![d], vec![m])
+    };
+    // All empty (sky only): moving, but no surface.
+    let (d, m) = constant(19, 11, EMPTY_DEPTH, Vec2::new(40.0, -3.0));
+    cases.push((d, m, 19, 11, 1));
+    // Wider than the bracket cap (64) and the image; behind-eye samples (1e9) among them.
+    let (mut d, mut m) = constant(40, 30, 0.5, Vec2::new(-300.0, 120.0));
+    m[0].data_mut()[17] = Motion { v: Vec2::splat(1e9), depth: 1.0 };
+    d[0].data_mut()[5] = EMPTY_DEPTH;
+    cases.push((d, m, 40, 30, 1));
+    // Negative only, sub-pixel range.
+    let (d, _) = constant(16, 12, 0.3, Vec2::ZERO);
+    let v = |x: u32, y: u32| Vec2::new(-2.25 - 0.05 * x as f32, -0.5 - 0.01 * y as f32);
+    let m = vec![Image::from_fn(16, 12, |x, y| Motion { v: v(x, y), depth: 0.3 })];
+    cases.push((d, m, 16, 12, 1));
+    for (ds, ms, w, h, m) in &cases {
+        for radius in [1, 5, 64] {
+            let gpu = gpu_limits(&ctx, &k, (ds, ms), (*w, *h, *m), radius);
+            let cpu = cpu_limits(ds, ms, *w, *h, *m, radius);
+            assert_eq!(gpu.0, cpu.0, "{w}x{h} m {m} L={} radius {radius}", ds.len());
+            assert_eq!(gpu.1, cpu.1, "empty mask {w}x{h} m {m} L={}", ds.len());
+        }
+    }
+    // The all-empty source measures no surface; the wide one hits both caps.
+    assert_eq!(cpu_limits(&cases[8].0, &cases[8].1, 19, 11, 1, 64).0, BackgroundLimits { bracket: 1, reach: 1 });
+    assert_eq!(cpu_limits(&cases[9].0, &cases[9].1, 40, 30, 1, 64).0, BackgroundLimits { bracket: 64, reach: 40 });
+}
+
+/// Motion the CPU rejects (NaN, infinite) is not checked on the GPU-resident path, but the
+/// measured limits stay bounded (the widest ones: bracket = radius, reach = max(w, h)), and the
+/// background protocol over them finishes.
+#[test]
+fn limits_of_non_finite_motion_stay_bounded() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let (w, h) = (24u32, 18u32);
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -f32::NAN] {
+        let d = Image::from_fn(w, h, |x, _| if x < 12 { 0.4 } else { EMPTY_DEPTH });
+        let mut m = d.map(|&z| Motion { v: Vec2::new(1.5, 0.0), depth: z });
+        m.data_mut()[30].v.y = bad;
+        let (limits, _) = gpu_limits(&ctx, &k, (std::slice::from_ref(&d), std::slice::from_ref(&m)), (w, h, 1), 7);
+        assert_eq!(limits, BackgroundLimits { bracket: 7, reach: w.max(h) }, "motion {bad}");
+        let bufs = upload(&ctx, std::slice::from_ref(&d), std::slice::from_ref(&m));
+        let views = [GpuWarpLayer { depth: &bufs[0].0, motion: &bufs[0].1, axis: Vec2::X }];
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let warped = WarpKernel::new(&ctx).unwrap().encode(&mut enc, &views, w, h, &WarpParams::default()).unwrap();
+        let search =
+            zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+        let out = k.encode_background(&mut enc, &warped, &views, 7, &search).unwrap();
+        ctx.queue.submit([enc.finish()]);
+        assert_eq!(out.read(&ctx).unwrap().depth.size(), (w, h));
+    }
+}
+
+/// `encode_limits`' errors: the CPU's for no layer and a bad radius, and buffers too small for
+/// the multisampled source.
+#[test]
+fn limits_bad_input_is_an_error() {
+    let Some(ctx) = test_context() else { return };
+    let k = HoleFillKernel::new(&ctx).unwrap();
+    let (ds, ms) = background_scene(10, 8, 1, Vec2::ONE);
+    let bufs = upload(&ctx, &ds[..1], &ms[..1]);
+    let views = [GpuWarpLayer { depth: &bufs[0].0, motion: &bufs[0].1, axis: Vec2::X }];
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let err = |r: zwarp_core::Result<_>| r.map(|_: zwarp_warp::gpu::GpuBackgroundLimits| ()).unwrap_err().to_string();
+    assert!(err(k.encode_limits(&mut enc, &[], 10, 8, 1, 4)).contains("at least one source layer"));
+    assert!(err(k.encode_limits(&mut enc, &views, 10, 8, 1, 0)).contains("radius must be in 1..=64"));
+    assert!(err(k.encode_limits(&mut enc, &views, 10, 8, 2, 4)).contains("too small for 20x16"));
+    assert!(err(k.encode_limits(&mut enc, &views, 10, 8, 0, 4)).contains("10x8"));
 }

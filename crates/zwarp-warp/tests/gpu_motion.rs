@@ -6,8 +6,9 @@ use common::*;
 use glam::{DVec2, DVec4, Mat4, Vec3};
 use proptest::prelude::*;
 use zwarp_core::{motion_field, Camera, Image, Motion, EMPTY_DEPTH, NO_ITEM};
-use zwarp_gpu::{test_context, FrameOptions, GpuScene, Renderer};
-use zwarp_warp::gpu::MotionKernel;
+use zwarp_gpu::readback::read_buffer;
+use zwarp_gpu::{test_context, FrameOptions, GpuScene, LayerTargets, PeelOptions, Renderer};
+use zwarp_warp::gpu::{GpuImage, MotionKernel, SourceKernel};
 
 /// The bar: 1e-3 px in motion and 1e-5 in target depth; behind-eye samples identical.
 fn assert_close(gpu: &Image<Motion>, cpu: &Image<Motion>) {
@@ -190,4 +191,85 @@ fn procedural_scenes_match_zwarp_raster() {
             assert!((g.v - c.v).abs().max_element() < 1e-3 || c.v.x >= 1e8, "{name}: gpu {g:?} cpu {c:?}");
         }
     }
+}
+
+/// `SourceKernel` copies an engine's images bit for bit: the renderer's own targets (two peeled
+/// layers: `Depth32Float` depth, `R32Uint` items, as an engine leaves them) and strided
+/// buffers of them (a 256-byte padded row pitch), against the renderer's read-back; wrong
+/// formats and short buffers are one-line errors.
+#[test]
+fn source_copies_are_bit_exact() {
+    let Some(ctx) = test_context() else { return };
+    let scene = test_scene();
+    let gs = GpuScene::upload(&ctx, &scene).unwrap();
+    let r = Renderer::new(&ctx).unwrap();
+    let k = SourceKernel::new(&ctx).unwrap();
+    let a = camera_a();
+    let (w, h) = (a.width, a.height);
+    let targets = LayerTargets::new(&r, w, h, 2, false).unwrap();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    r.encode_layers(&mut enc, &gs, &a, 0.1, &PeelOptions { layers: 2, ..Default::default() }, &targets).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    let storage = |bytes: u64| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let n = w as usize * h as usize;
+    let stride = zwarp_gpu::readback::padded_bytes_per_row(w, 4) / 4;
+    for layer in 0..2 {
+        let want = r.read_layer(&targets, layer).unwrap();
+        assert!(want.depth.data().iter().any(|&z| z < EMPTY_DEPTH) && want.items.data().iter().any(|&i| i != NO_ITEM));
+        let (depth, items) = (storage(n as u64 * 4), storage(n as u64 * 4));
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        k.encode_depth(&mut enc, &GpuImage::Texture(&targets.depth[layer].texture), w, h, &depth, "depth").unwrap();
+        k.encode_items(&mut enc, &GpuImage::Texture(&targets.items[layer]), w, h, &items, "items").unwrap();
+        // The same through strided buffers: a texture-to-buffer copy of the items, then the copy.
+        let padded = storage(stride as u64 * h as u64 * 4);
+        enc.copy_texture_to_buffer(
+            targets.items[layer].as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &padded,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(stride * 4),
+                    rows_per_image: Some(h),
+                },
+            },
+            targets.items[layer].size(),
+        );
+        let from_buffer = storage(n as u64 * 4);
+        let src = GpuImage::Buffer { buffer: &padded, row_stride: stride };
+        k.encode_items(&mut enc, &src, w, h, &from_buffer, "padded items").unwrap();
+        ctx.queue.submit([enc.finish()]);
+        let bits: Vec<u32> = want.depth.data().iter().map(|z| z.to_bits()).collect();
+        assert_eq!(read_buffer::<u32>(&ctx, &depth, n).unwrap(), bits, "layer {layer} depth");
+        assert_eq!(read_buffer::<u32>(&ctx, &items, n).unwrap(), want.items.data(), "layer {layer} items");
+        assert_eq!(read_buffer::<u32>(&ctx, &from_buffer, n).unwrap(), want.items.data(), "layer {layer} padded");
+    }
+    let dst = storage(n as u64 * 4);
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let mut err = |src: GpuImage, depth: bool| {
+        let r = if depth {
+            k.encode_depth(&mut enc, &src, w, h, &dst, "the image")
+        } else {
+            k.encode_items(&mut enc, &src, w, h, &dst, "the image")
+        };
+        let e = r.unwrap_err().to_string();
+        assert!(e.starts_with("invalid input: the image") && !e.contains('\n'), "{e}");
+        e
+    };
+    assert!(err(GpuImage::Texture(&targets.items[0]), true).contains("R32Uint is not Depth32Float or R32Float"));
+    assert!(err(GpuImage::Texture(&targets.depth[0].texture), false).contains("Depth32Float is not R32Uint"));
+    assert!(err(GpuImage::Buffer { buffer: &dst, row_stride: w + 1 }, true).contains("too small"));
+    let mapped = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: n as u64 * 4,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    assert!(err(GpuImage::Buffer { buffer: &mapped, row_stride: w }, true).contains("STORAGE"));
 }

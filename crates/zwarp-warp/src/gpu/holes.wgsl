@@ -1,10 +1,12 @@
 // Hole filling of a warped depth buffer as a post-pass (seed 000 Sec. 3.5, Fig. 8; Sec. 4's
 // background fill): the WGSL twin of zwarp_warp::fill_holes with FillRule::Nearest
 // (HolePolicy::Dilate, zwarp_warp::dilate_holes) and FillRule::Background (`fill`), and of
-// zwarp_warp::holes::fill_background's other two steps: holes that see the source's empty
-// background (`sky`) and strips open to the image border (`fill` with rule 2). Only converged
-// pixels are read by `fill`, so one pass over a copy gives the CPU's order-independent result;
-// `sky` reads only its own pixel and runs in place. Host code: holes.rs.
+// zwarp_warp::holes::fill_background: the measurements of the source layers (`surfaces`,
+// `limits`: the empty-background mask and BackgroundLimits), holes that see the source's empty
+// background (`sky`), bracketed holes and strips open to the image border (`fill_measured` with
+// rule 1 and 2, radius and reach from `limits`). Only converged pixels are read by the fills,
+// so one pass over a copy gives the CPU's order-independent result; `sky` reads only its own
+// pixel and runs in place. Host code: holes.rs.
 
 struct Params {
     width: u32,
@@ -23,7 +25,8 @@ struct Params {
     src_width: u32,
     src_height: u32,
     multisample: f32,
-    pad: u32,
+    // `surfaces`: the index of the source layer measured (0 starts the empty mask).
+    layer: u32,
 };
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -31,9 +34,21 @@ struct Params {
 @group(0) @binding(2) var<storage, read> in_state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out_state: array<u32>;
-// `sky`: per source sample, 1 where no source layer has a surface; layer 0's motion (samples).
+// Per source sample, 1 where no source layer has a surface: written by `surfaces`, read by `sky`
+// (writer and reader declared apart, so `sky` binds it read-only).
 @group(0) @binding(5) var<storage, read> empty: array<u32>;
-@group(0) @binding(6) var<storage, read> motion: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read_write> empty_out: array<u32>;
+// A source layer's motion in the byte layout of zwarp_core::Motion (v.x, v.y, target depth per
+// sample): layer 0's for `sky`, the measured layer's for `surfaces`.
+@group(0) @binding(6) var<storage, read> motion: array<f32>;
+// `surfaces`: the measured layer's source depth.
+@group(0) @binding(7) var<storage, read> layer_depth: array<f32>;
+// The measurements (zwarp_warp::holes::BackgroundLimits): 0, 1: the smallest surface motion
+// (x, y) as complemented order keys; 2, 3: the largest as order keys (0 = no surface yet, the
+// host clears the buffer); 4: bracket; 5: reach. `surfaces` and `limits` write it, the fills
+// read it.
+@group(0) @binding(8) var<storage, read_write> range: array<atomic<u32>, 8>;
+@group(0) @binding(8) var<storage, read> measured: array<u32, 8>;
 
 const CONVERGED: u32 = 0u;
 const FILLED: u32 = 1u;
@@ -47,10 +62,10 @@ const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 
 // zwarp_warp::holes::BRACKET_SPAN_RATIO.
 const BRACKET_SPAN_RATIO: f32 = 4.0;
 
-fn probe(x: i32, y: i32, dx: i32, dy: i32) -> vec2<f32> {
+fn probe(x: i32, y: i32, dx: i32, dy: i32, radius: u32) -> vec2<f32> {
     let w = i32(params.width);
     let h = i32(params.height);
-    for (var k = 1; k <= i32(params.radius); k++) {
+    for (var k = 1; k <= i32(radius); k++) {
         let xx = x + dx * k;
         let yy = y + dy * k;
         if (xx < 0 || yy < 0 || xx >= w || yy >= h) {
@@ -66,14 +81,14 @@ fn probe(x: i32, y: i32, dx: i32, dy: i32) -> vec2<f32> {
 
 // Fig. 8 dilation (FillRule::Nearest) at hole (x, y): (depth, 1) when surrounded along all
 // four directions, the nearest neighbour winning (ties: the farther depth); (0, 0) otherwise.
-fn nearest_fill(x: i32, y: i32) -> vec2<f32> {
+fn nearest_fill(x: i32, y: i32, radius: u32) -> vec2<f32> {
     var best_d = -1.0;
     var best_z = 0.0;
     for (var j = 0; j < 4; j++) {
         let dir = DIRS[j];
         let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
-        let a = probe(x, y, dir.x, dir.y);
-        let b = probe(x, y, -dir.x, -dir.y);
+        let a = probe(x, y, dir.x, dir.y, radius);
+        let b = probe(x, y, -dir.x, -dir.y, radius);
         if (a.x == 0.0 || b.x == 0.0) {
             return vec2<f32>(0.0, 0.0);
         }
@@ -93,15 +108,15 @@ fn nearest_fill(x: i32, y: i32) -> vec2<f32> {
 // Sec. 4 background fill (FillRule::Background) at hole (x, y): (depth, 1) when bracketed along
 // at least one direction, the farthest side of the directions bracketed within
 // BRACKET_SPAN_RATIO times the narrowest bracket winning; (0, 0) otherwise.
-fn background_fill(x: i32, y: i32) -> vec2<f32> {
+fn background_fill(x: i32, y: i32, radius: u32) -> vec2<f32> {
     var span = array<f32, 4>(-1.0, -1.0, -1.0, -1.0);
     var far = array<f32, 4>(0.0, 0.0, 0.0, 0.0);
     var narrowest = -1.0;
     for (var j = 0; j < 4; j++) {
         let dir = DIRS[j];
         let step = select(1.0, 1.4142135, dir.x != 0 && dir.y != 0);
-        let a = probe(x, y, dir.x, dir.y);
-        let b = probe(x, y, -dir.x, -dir.y);
+        let a = probe(x, y, dir.x, dir.y, radius);
+        let b = probe(x, y, -dir.x, -dir.y, radius);
         if (a.x == 0.0 || b.x == 0.0) {
             continue;
         }
@@ -123,10 +138,10 @@ fn background_fill(x: i32, y: i32) -> vec2<f32> {
 // Step 3 of fill_background (zwarp_warp::holes::fill_border_holes) at hole (x, y): a hole whose
 // row or column runs to the image border within `reach` takes the nearest converged depth
 // inwards (ties: the farther): (depth, 1); (0, 0) otherwise.
-fn border_fill(x: i32, y: i32) -> vec2<f32> {
+fn border_fill(x: i32, y: i32, reach_px: u32) -> vec2<f32> {
     let w = i32(params.width);
     let h = i32(params.height);
-    let reach = i32(params.reach);
+    let reach = i32(reach_px);
     let dirs = array<vec3<i32>, 4>(
         vec3<i32>(-1, 0, x), vec3<i32>(1, 0, w - 1 - x), vec3<i32>(0, -1, y), vec3<i32>(0, 1, h - 1 - y));
     var best_k = 0;
@@ -169,9 +184,8 @@ fn border_fill(x: i32, y: i32) -> vec2<f32> {
 }
 
 // One pass over a copy: every hole gets the fill of `params.rule` (0 Fig. 8 dilation,
-// 1 background fill, 2 border strips) when that rule finds one.
-@compute @workgroup_size(8, 8, 1)
-fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
+// 1 background fill within `radius`, 2 border strips within `reach`) when that rule finds one.
+fn fill_at(gid: vec3<u32>, radius: u32, reach: u32) {
     if (gid.x >= params.width || gid.y >= params.height) {
         return;
     }
@@ -183,11 +197,11 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
         let y = i32(gid.y);
         var f = vec2<f32>(0.0, 0.0);
         if (params.rule == 0u) {
-            f = nearest_fill(x, y);
+            f = nearest_fill(x, y, radius);
         } else if (params.rule == 1u) {
-            f = background_fill(x, y);
+            f = background_fill(x, y, radius);
         } else {
-            f = border_fill(x, y);
+            f = border_fill(x, y, reach);
         }
         if (f.y != 0.0) {
             d = f.x;
@@ -196,6 +210,24 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     out_depth[i] = d;
     out_state[i] = s;
+}
+
+// The fill with the caller's radius and reach (HolePolicy::Dilate / Background post-passes).
+@compute @workgroup_size(8, 8, 1)
+fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
+    fill_at(gid, params.radius, params.reach);
+}
+
+// Steps 2 and 3 of fill_background: the fill with the bracket and reach that `limits` measured
+// on the source layers (no read-back to set them as uniforms).
+@compute @workgroup_size(8, 8, 1)
+fn fill_measured(@builtin(global_invocation_id) gid: vec3<u32>) {
+    fill_at(gid, measured[4], measured[5]);
+}
+
+// Motion of source sample i (the Motion layout: 3 floats per sample).
+fn motion_at(i: u32) -> vec2<f32> {
+    return vec2<f32>(motion[3u * i], motion[3u * i + 1u]);
 }
 
 // The empty-background sample at q (the CPU's EmptyBackground): (v, 1) on an empty texel, nearest
@@ -210,7 +242,7 @@ fn background_sample(q: vec2<f32>) -> vec3<f32> {
     if (empty[i] == 0u) {
         return vec3<f32>(0.0);
     }
-    return vec3<f32>(motion[i], 1.0);
+    return vec3<f32>(motion_at(i), 1.0);
 }
 
 // Step 1 of fill_background, in place: a hole whose fixed-point search (zwarp_warp's
@@ -228,7 +260,7 @@ fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let p = vec2<f32>(f32(gid.x) + 0.5, f32(gid.y) + 0.5) * params.multisample;
-    let back = motion[u32(p.y) * params.src_width + u32(p.x)];
+    let back = motion_at(u32(p.y) * params.src_width + u32(p.x));
     let max_q = vec2<f32>(f32(params.src_width), f32(params.src_height)) - vec2<f32>(1e-3);
     let thr2 = params.threshold * params.threshold;
     var converged = false;
@@ -253,4 +285,84 @@ fn sky(@builtin(global_invocation_id) gid: vec3<u32>) {
         out_depth[i] = 1.0;
         out_state[i] = CONVERGED;
     }
+}
+
+// Order key of a float: a < b <=> order_key(a) < order_key(b) (NaN aside). WGSL has no float
+// atomics, so the motion range is reduced with atomicMax on keys (on complemented keys for the
+// minimum, so that 0, a cleared buffer, is the identity of both).
+fn order_key(f: f32) -> u32 {
+    let b = bitcast<u32>(f);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+fn from_key(k: u32) -> f32 {
+    return bitcast<f32>(select(~k, k & 0x7fffffffu, (k & 0x80000000u) != 0u));
+}
+
+fn finite_key(k: u32) -> bool {
+    return (bitcast<u32>(from_key(k)) & 0x7f800000u) != 0x7f800000u;
+}
+
+var<workgroup> wg_range: array<atomic<u32>, 4>;
+
+// BackgroundLimits::of_multisampled's pass over source layer `params.layer` (src_width x
+// src_height samples): the empty-background mask (a sample is empty when every layer's depth is
+// >= 1) and the motion range of the layer's surfaces (depth < 1), reduced per workgroup, then
+// into `range`.
+@compute @workgroup_size(8, 8, 1)
+fn surfaces(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    if (gid.x < params.src_width && gid.y < params.src_height) {
+        let i = gid.y * params.src_width + gid.x;
+        let d = layer_depth[i];
+        if (params.layer == 0u) {
+            empty_out[i] = select(0u, 1u, d >= 1.0);
+        } else if (!(d >= 1.0)) {
+            empty_out[i] = 0u;
+        }
+        if (d < 1.0) {
+            let v = motion_at(i);
+            atomicMax(&wg_range[0], ~order_key(v.x));
+            atomicMax(&wg_range[1], ~order_key(v.y));
+            atomicMax(&wg_range[2], order_key(v.x));
+            atomicMax(&wg_range[3], order_key(v.y));
+        }
+    }
+    workgroupBarrier();
+    if (li < 4u) {
+        let k = atomicLoad(&wg_range[li]);
+        if (k != 0u) {
+            atomicMax(&range[li], k);
+        }
+    }
+}
+
+// BackgroundLimits::from_range on the reduced range (one invocation): motion range and largest
+// motion in target pixels (source samples / multisample), bracket = min(min(ceil(range), 64) + 1,
+// radius), reach = min(ceil(largest) + 1, max(width, height)); no surface: range = largest = 0.
+// NaN or infinite motion (which the CPU rejects; the GPU-resident inputs are not checked) counts
+// as the widest limits, and the integer clamps keep both bounded whatever the float arithmetic
+// gives, so a bad input cannot make the fills loop long.
+@compute @workgroup_size(1, 1, 1)
+fn limits() {
+    let max_wh = max(params.width, params.height);
+    var bracket = min(1u, params.radius);
+    var reach = min(1u, max_wh);
+    let hi_x = atomicLoad(&range[2]);
+    if (hi_x != 0u) {
+        let lo_k = vec2<u32>(~atomicLoad(&range[0]), ~atomicLoad(&range[1]));
+        let hi_k = vec2<u32>(hi_x, atomicLoad(&range[3]));
+        var c_range = 64.0;
+        var c_largest = f32(max_wh);
+        if (finite_key(lo_k.x) && finite_key(lo_k.y) && finite_key(hi_k.x) && finite_key(hi_k.y)) {
+            let lo = vec2<f32>(from_key(lo_k.x), from_key(lo_k.y));
+            let hi = vec2<f32>(from_key(hi_k.x), from_key(hi_k.y));
+            let m = params.multisample;
+            c_range = ceil(max(hi.x - lo.x, hi.y - lo.y) / m);
+            c_largest = ceil(max(max(abs(lo.x), abs(hi.x)), max(abs(lo.y), abs(hi.y))) / m);
+        }
+        bracket = min(min(u32(clamp(c_range, 0.0, 64.0)), 64u) + 1u, params.radius);
+        reach = min(u32(clamp(c_largest, 0.0, f32(max_wh))), max_wh - 1u) + 1u;
+    }
+    atomicStore(&range[4], bracket);
+    atomicStore(&range[5], reach);
 }

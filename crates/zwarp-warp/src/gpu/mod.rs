@@ -10,7 +10,10 @@
 //! - [`HoleFillKernel`]: hole filling as a post-pass (Fig. 8 dilation, background fill, Sec. 4's
 //!   background protocol), twin of [`fill_holes`](crate::fill_holes) and
 //!   [`holes::fill_background`](crate::holes::fill_background).
-//! - [`predict`]: the warp and its hole policy, twin of [`predict_into`](crate::predict_into).
+//! - [`encode_predict`]: the warp and its hole policy from GPU-resident layers, nothing read
+//!   back, twin of [`predict_into`](crate::predict_into); [`predict`] runs it on CPU buffers.
+//! - [`SourceKernel`]: an engine's depth and item images (textures or strided buffers,
+//!   [`GpuImage`]) copied into the buffers the motion kernel and the warp read.
 //!
 //! They run on a [`zwarp_gpu::GpuContext`] and build on its renderer, read-back and shared
 //! kernel set-up ([`zwarp_gpu::kernel`]).
@@ -18,9 +21,11 @@
 mod holes;
 mod motion;
 mod pyramid;
+mod source;
 mod warp;
 
-pub use holes::{predict, HoleFillKernel};
+pub use holes::{encode_predict, predict, GpuBackgroundLimits, HoleFillKernel};
 pub use motion::{MotionInput, MotionKernel};
 pub use pyramid::{pyramid_level_sizes, GpuMotionPyramid, PyramidKernel};
+pub use source::{GpuImage, SourceKernel};
 pub use warp::{GpuPreparedWarp, GpuWarpLayer, GpuWarpOutput, WarpKernel, MAX_GPU_LAYERS};

@@ -565,24 +565,29 @@ impl WarpKernel {
                 layers.len()
             )));
         }
-        let dev = &self.ctx.device;
-        let up = |bytes: &[u8], what: &str| -> Result<wgpu::Buffer> {
-            self.ctx.check_storage_size(bytes.len() as u64, what)?;
-            Ok(dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(what),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            }))
-        };
-        layers
-            .iter()
-            .map(|l| {
-                let m: &[Motion] = l.motion.data();
-                Ok((
-                    up(bytemuck::cast_slice(l.depth.data()), "zwarp warp source depth")?,
-                    up(bytemuck::cast_slice(m), "zwarp warp motion")?,
-                ))
-            })
-            .collect()
+        upload_layers(&self.ctx, layers)
     }
+}
+
+/// Uploads the depth and motion buffers of `layers` as they are (no checks): the
+/// [`GpuWarpLayer`] buffers of the CPU-input paths (the warp, the background fill).
+pub(super) fn upload_layers(ctx: &GpuContext, layers: &[WarpLayer<'_>]) -> Result<Vec<(wgpu::Buffer, wgpu::Buffer)>> {
+    let up = |bytes: &[u8], what: &str| -> Result<wgpu::Buffer> {
+        ctx.check_storage_size(bytes.len() as u64, what)?;
+        Ok(ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(what),
+            contents: bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+        }))
+    };
+    layers
+        .iter()
+        .map(|l| {
+            let m: &[Motion] = l.motion.data();
+            Ok((
+                up(bytemuck::cast_slice(l.depth.data()), "zwarp warp source depth")?,
+                up(bytemuck::cast_slice(m), "zwarp warp motion")?,
+            ))
+        })
+        .collect()
 }
