@@ -310,12 +310,27 @@ impl<'a> Kernel<'a> {
     /// place the deeper layer is seen from, so `c` is hidden (its own search only missed, e.g. on
     /// a crack between two layers' samples). Decided from the source alone (seed 000 Sec. 3.4:
     /// a deeper layer fills what the front layer disoccludes, nothing else).
+    ///
+    /// Each front surface at `c.q` is also followed one fixed-point step (`q' = p - v(c.q)`):
+    /// if a front layer's sample at `q'` converges at `p` (within the search threshold) and `c`
+    /// lies behind it, the front layers have a surface at `p` that their own seeds missed —
+    /// typically a sliver a texel wide in one layer at the seam between two layers' views of
+    /// one wall — and `c`, seen through the seam, is hidden.
     #[inline]
     pub fn covered_at_source(&self, c: &Candidate, p: Vec2) -> bool {
         let cover2 = self.params.cover_radius * self.params.cover_radius;
-        self.samplers[..(c.tag as usize).min(self.samplers.len())].iter().any(|s| {
-            s.fetch(c.q)
-                .is_some_and(|f| ((c.q + f.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, f.depth))
+        let front = &self.samplers[..(c.tag as usize).min(self.samplers.len())];
+        front.iter().any(|s| {
+            let Some(f) = s.fetch(c.q) else { return false };
+            if ((c.q + f.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, f.depth) {
+                return true;
+            }
+            let q = p - f.v;
+            front.iter().any(|t| {
+                t.fetch(q).is_some_and(|g| {
+                    ((q + g.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, g.depth)
+                })
+            })
         })
     }
 

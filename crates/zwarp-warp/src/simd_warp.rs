@@ -251,7 +251,8 @@ pub(crate) unsafe fn covered_at_source8(
     if _mm256_movemask_ps(deep) == 0 {
         return covered;
     }
-    let one = splat(1.0);
+    let (one, zero) = (splat(1.0), _mm256_setzero_ps());
+    let (w, h) = (splat(ls.w as f32), splat(ls.h as f32));
     let hidden_z = _mm256_mul_ps(_mm256_sub_ps(one, z), splat(crate::COVER_DEPTH_RATIO));
     for (j, pl) in ls.layers.iter().enumerate() {
         let front = _mm256_and_ps(deep, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(j as i32))));
@@ -265,7 +266,32 @@ pub(crate) unsafe fn covered_at_source8(
         let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
         let near = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
         let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(one, s.z));
-        covered = _mm256_or_ps(covered, _mm256_and_ps(_mm256_and_ps(s.has, front), _mm256_and_ps(near, behind)));
+        let with = _mm256_and_ps(s.has, front);
+        covered = _mm256_or_ps(covered, _mm256_and_ps(with, _mm256_and_ps(near, behind)));
+        // One fixed-point step of the front layer, q' = p - v(q), converging at p.
+        let (q2x, q2y) = (_mm256_sub_ps(px, s.vx), _mm256_sub_ps(py, s.vy));
+        let inside = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(q2x, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(q2y, zero)),
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(q2x, w), _mm256_cmp_ps::<_CMP_LT_OQ>(q2y, h)),
+        );
+        let step = _mm256_andnot_ps(covered, _mm256_and_ps(with, inside));
+        if _mm256_movemask_ps(step) == 0 {
+            continue;
+        }
+        // Every front layer's sample at q' (the scalar `any` over the front layers).
+        for (i, pi) in ls.layers.iter().enumerate() {
+            let fi = _mm256_and_ps(step, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(i as i32))));
+            if _mm256_movemask_ps(fi) == 0 {
+                break;
+            }
+            let g = fetch8(pi, ls.w, ls.h, ls.nearest, q2x, q2y, fi);
+            let dx = _mm256_sub_ps(_mm256_add_ps(q2x, g.vx), px);
+            let dy = _mm256_sub_ps(_mm256_add_ps(q2y, g.vy), py);
+            let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
+            let lands = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
+            let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(one, g.z));
+            covered = _mm256_or_ps(covered, _mm256_and_ps(_mm256_and_ps(g.has, fi), _mm256_and_ps(lands, behind)));
+        }
     }
     covered
 }

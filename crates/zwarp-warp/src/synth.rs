@@ -6,7 +6,7 @@
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
-use zwarp_core::{Aabb, Camera, Image, EMPTY_DEPTH, NO_ITEM};
+use zwarp_core::{Aabb, Camera, Image, Motion, EMPTY_DEPTH, NO_ITEM};
 
 /// A box of the synthetic scene moving with constant velocity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -179,6 +179,33 @@ impl SynthScene {
         }
         SynthLayers { depth, items }
     }
+}
+
+/// One row pattern (32 x 4 texels, motion along x) of a wall seen by three layers around a
+/// near column's silhouette, and a far surface behind everything (seed 000 Sec. 3.4's layers,
+/// as depth and motion): layer 0 sees the wall (depth 0.8, moving -9.5 px) from texel 21 on,
+/// layer 1 only at texel 20 — a sliver between the column's edges, absent when `sliver` is
+/// false — layer 2 up to texel 19 (moving -9.6 px), layer 3 a far surface at 0.97 moving
+/// -5.8 px. Target pixel 10 lies on the seam between the wall's views: only the sliver lands
+/// on it, and the far layer converges there through the seam.
+pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
+    let (w, h) = (32, 4);
+    let (column, wall, far) = (0.3, 0.8, 0.95);
+    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
+    let layer = |f: &dyn Fn(u32) -> Motion| {
+        let motion = Image::from_fn(w, h, |x, _| f(x));
+        (motion.map(|s| s.depth), motion)
+    };
+    vec![
+        layer(&|x| if x >= 21 { m(-9.5, wall) } else { m(-25.0, column) }),
+        layer(&|x| match x {
+            20 if sliver => m(-9.5, wall),
+            0..20 => m(-25.0, column + 0.05),
+            _ => m(-5.7, far),
+        }),
+        layer(&|x| if x <= 19 { m(-9.6, wall) } else { m(-5.7, far) }),
+        layer(&|_| m(-5.8, far + 0.02)),
+    ]
 }
 
 #[cfg(test)]

@@ -128,6 +128,23 @@ fn near_wall_coverage_matches_cpu() {
     }
 }
 
+/// The coverage test's fixed-point step (`synth::seam_layers`): the GPU hides the far layer
+/// seen through the seam between three layers' views of a wall, as the CPU does.
+#[test]
+fn seam_coverage_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    for sliver in [true, false] {
+        let seam = zwarp_warp::synth::seam_layers(sliver);
+        let layers: Vec<WarpLayer<'_>> = seam.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
+        let p = WarpParams { n_seeds: 4, cover_radius: 1.0, ..base() };
+        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
+        assert_eq!(gpu.state, cpu.state, "sliver {sliver}");
+        assert_eq!(gpu.depth, cpu.depth, "sliver {sliver}");
+        assert_eq!(*cpu.state.get(10, 1), if sliver { PixelState::Hole } else { PixelState::Converged });
+    }
+}
+
 #[test]
 fn rendered_frame_pair_matches_cpu() {
     let Some(ctx) = test_context() else { return };

@@ -284,8 +284,9 @@ fn multi_layer_warp_of_a_city_with_a_moving_object_beats_single_layer() {
     // `prepare_stack`, gives 0.991 here at about 1.6x the L = 3 cost.)
     assert!(acc1 > 0.96 && acc3 > 0.975 && acc3 > acc1, "accuracy {acc1} {acc3}");
     assert!(nc3 < nc1, "non-converged L=3 {nc3} vs L=1 {nc1}");
-    // Surfaces the L = 3 warp misses are rare (the new strip at the image border).
-    assert!(nc3 < 0.02, "{nc3}");
+    // Surfaces the L = 3 warp misses are rare (the new strip at the image border, and deeper
+    // candidates the coverage test hides, which go to the hole policy).
+    assert!(nc3 < 0.025, "{nc3}");
     // Conservative policy: non-converged pixels never report a depth nearer than the reference.
     for i in 0..reference.len() {
         if single.state.data()[i] != PixelState::Converged {
@@ -767,4 +768,34 @@ fn deeper_layers_do_not_show_through_a_near_wall() {
     // them hidden: L = 4 gives L = 1's answer on all but a handful of the ~10K wall pixels.
     let (differ, behind) = wall_disagreement(0.4, WarpParams::default().cover_radius);
     assert!(differ <= 5 && behind <= 5, "{differ} {behind}");
+}
+
+/// [`synth::seam_layers`]: a far layer converging through the seam between three layers'
+/// views of a wall. The coverage test follows the wall one fixed-point step from the far
+/// candidate's source position to layer 1's sliver and hides the candidate: the pixel goes to
+/// the hole policy, as with the three front layers alone.
+#[test]
+fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hidden() {
+    let warp = |ls: &[(Image<f32>, Image<Motion>)]| {
+        let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
+        // A coverage radius of one pixel: the wall's edges (landing 1 px to either side) do not
+        // cover the seam by themselves.
+        let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, cover_radius: 1.0, ..Default::default() };
+        warp_depth(&layers, &params).unwrap()
+    };
+    let seam = synth::seam_layers(true);
+    let (three, four) = (warp(&seam[..3]), warp(&seam));
+    // Without the sliver nothing of the wall lands on pixel 10 and the far layer is right there.
+    let open = warp(&synth::seam_layers(false));
+    for y in 0..4 {
+        assert_eq!(*three.state.get(10, y), PixelState::Hole, "three layers, row {y}");
+        assert_eq!(*four.state.get(10, y), PixelState::Hole, "four layers, row {y}");
+        assert_eq!(*open.state.get(10, y), PixelState::Converged, "no sliver, row {y}");
+        assert_eq!(*open.depth.get(10, y), 0.95f32 + 0.02);
+        // The wall on both sides of the seam.
+        for x in [9, 11] {
+            assert_eq!(*four.state.get(x, y), PixelState::Converged, "({x},{y})");
+            assert_eq!(*four.depth.get(x, y), 0.8, "({x},{y})");
+        }
+    }
 }

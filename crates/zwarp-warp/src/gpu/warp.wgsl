@@ -734,15 +734,32 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         best.ok = false;
     }
     // depth_warp::Kernel::covered_at_source: a front layer's surface at the candidate's own
-    // source position lands within the coverage radius of p and hides the candidate.
+    // source position lands within the coverage radius of p, or converges at p one fixed-point
+    // step from there, and hides the candidate.
     if (best.ok) {
+        let hidden_z = (1.0 - best.depth) * COVER_DEPTH_RATIO;
         for (var j = 0u; j < min(best.tag, params.layers); j++) {
             let s = fetch(j, best.q);
+            if (!s.ok) {
+                continue;
+            }
             let d = (best.q + s.v) - p;
-            if (s.ok && d.x * d.x + d.y * d.y < params.cover2
-                && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - s.depth) {
+            if (d.x * d.x + d.y * d.y < params.cover2 && hidden_z < 1.0 - s.depth) {
                 best.ok = false;
                 break;
+            }
+            let q2 = p - s.v;
+            if (inside(q2)) {
+                for (var i = 0u; i < min(best.tag, params.layers); i++) {
+                    let g = fetch(i, q2);
+                    let d2 = (q2 + g.v) - p;
+                    if (g.ok && d2.x * d2.x + d2.y * d2.y < params.cover2 && hidden_z < 1.0 - g.depth) {
+                        best.ok = false;
+                    }
+                }
+                if (!best.ok) {
+                    break;
+                }
             }
         }
     }
