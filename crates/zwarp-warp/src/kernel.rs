@@ -319,18 +319,14 @@ impl<'a> Kernel<'a> {
     #[inline]
     pub fn covered_at_source(&self, c: &Candidate, p: Vec2) -> bool {
         let cover2 = self.params.cover_radius * self.params.cover_radius;
+        // A front sample `f` at `q` that lands near p and that `c` lies behind.
+        let hides =
+            |q: Vec2, f: &Sample| ((q + f.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, f.depth);
         let front = &self.samplers[..(c.tag as usize).min(self.samplers.len())];
         front.iter().any(|s| {
             let Some(f) = s.fetch(c.q) else { return false };
-            if ((c.q + f.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, f.depth) {
-                return true;
-            }
             let q = p - f.v;
-            front.iter().any(|t| {
-                t.fetch(q).is_some_and(|g| {
-                    ((q + g.v) - p).length_squared() < cover2 && crate::hidden_behind(c.depth, g.depth)
-                })
-            })
+            hides(c.q, &f) || front.iter().any(|t| t.fetch(q).is_some_and(|g| hides(q, &g)))
         })
     }
 

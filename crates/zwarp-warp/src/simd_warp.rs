@@ -251,24 +251,19 @@ pub(crate) unsafe fn covered_at_source8(
     if _mm256_movemask_ps(deep) == 0 {
         return covered;
     }
-    let (one, zero) = (splat(1.0), _mm256_setzero_ps());
+    let zero = _mm256_setzero_ps();
     let (w, h) = (splat(ls.w as f32), splat(ls.h as f32));
-    let hidden_z = _mm256_mul_ps(_mm256_sub_ps(one, z), splat(crate::COVER_DEPTH_RATIO));
+    let hidden_z = _mm256_mul_ps(_mm256_sub_ps(splat(1.0), z), splat(crate::COVER_DEPTH_RATIO));
+    let in_front_of = |j: usize| _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(j as i32)));
     for (j, pl) in ls.layers.iter().enumerate() {
-        let front = _mm256_and_ps(deep, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(j as i32))));
+        let front = _mm256_and_ps(deep, in_front_of(j));
         if _mm256_movemask_ps(front) == 0 {
             break;
         }
         let s = fetch8(pl, ls.w, ls.h, ls.nearest, qx, qy, front);
-        // (q + v) - p, then x * x + y * y (glam's length_squared).
-        let dx = _mm256_sub_ps(_mm256_add_ps(qx, s.vx), px);
-        let dy = _mm256_sub_ps(_mm256_add_ps(qy, s.vy), py);
-        let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
-        let near = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
-        let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(one, s.z));
         let with = _mm256_and_ps(s.has, front);
-        covered = _mm256_or_ps(covered, _mm256_and_ps(with, _mm256_and_ps(near, behind)));
-        // One fixed-point step of the front layer, q' = p - v(q), converging at p.
+        covered = _mm256_or_ps(covered, _mm256_and_ps(with, hides8(qx, qy, &s, px, py, cover2, hidden_z)));
+        // One fixed-point step of the front surface, q' = p - v(q).
         let (q2x, q2y) = (_mm256_sub_ps(px, s.vx), _mm256_sub_ps(py, s.vy));
         let inside = _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(q2x, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(q2y, zero)),
@@ -280,20 +275,29 @@ pub(crate) unsafe fn covered_at_source8(
         }
         // Every front layer's sample at q' (the scalar `any` over the front layers).
         for (i, pi) in ls.layers.iter().enumerate() {
-            let fi = _mm256_and_ps(step, _mm256_castsi256_ps(_mm256_cmpgt_epi32(tag, _mm256_set1_epi32(i as i32))));
+            let fi = _mm256_and_ps(step, in_front_of(i));
             if _mm256_movemask_ps(fi) == 0 {
                 break;
             }
             let g = fetch8(pi, ls.w, ls.h, ls.nearest, q2x, q2y, fi);
-            let dx = _mm256_sub_ps(_mm256_add_ps(q2x, g.vx), px);
-            let dy = _mm256_sub_ps(_mm256_add_ps(q2y, g.vy), py);
-            let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
-            let lands = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
-            let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(one, g.z));
-            covered = _mm256_or_ps(covered, _mm256_and_ps(_mm256_and_ps(g.has, fi), _mm256_and_ps(lands, behind)));
+            let hides = hides8(q2x, q2y, &g, px, py, cover2, hidden_z);
+            covered = _mm256_or_ps(covered, _mm256_and_ps(_mm256_and_ps(g.has, fi), hides));
         }
     }
     covered
+}
+
+/// The lanes whose front sample `s` at `(qx, qy)` lands within `sqrt(cover2)` of `(px, py)`
+/// and that a candidate with `(1 - z) * COVER_DEPTH_RATIO` = `hidden_z` lies behind
+/// (`crate::hidden_behind`): `(q + v) - p`, then `x * x + y * y` (glam's `length_squared`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn hides8(qx: __m256, qy: __m256, s: &Smp8, px: __m256, py: __m256, cover2: __m256, hidden_z: __m256) -> __m256 {
+    let dx = _mm256_sub_ps(_mm256_add_ps(qx, s.vx), px);
+    let dy = _mm256_sub_ps(_mm256_add_ps(qy, s.vy), py);
+    let r2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
+    let near = _mm256_cmp_ps::<_CMP_LT_OQ>(r2, cover2);
+    _mm256_and_ps(near, _mm256_cmp_ps::<_CMP_LT_OQ>(hidden_z, _mm256_sub_ps(splat(1.0), s.z)))
 }
 
 /// `search::hash_u32` per lane (wrapping products, as the portable one).
