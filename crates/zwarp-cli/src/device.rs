@@ -118,7 +118,7 @@ impl Device {
             (Device::Gpu(g), Some(up)) => {
                 let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
                 let target = zwarp_gpu::DepthTarget::new(&g.ctx, cam.width, cam.height)?;
-                crate::output::time_repeated(reps, || {
+                crate::harness::time_repeated(reps, || {
                     let mut enc = g.ctx.device.create_command_encoder(&Default::default());
                     r.encode_depth(&mut enc, up, cam, t, &target)?;
                     g.ctx.queue.submit([enc.finish()]);
@@ -126,7 +126,7 @@ impl Device {
                 })?
                 .1
             }
-            _ => crate::output::time_repeated(reps, || Ok(zwarp_raster::render_depth(s.scene, cam, t)?))?.1,
+            _ => crate::harness::time_repeated(reps, || Ok(zwarp_raster::render_depth(s.scene, cam, t)?))?.1,
         };
         Ok(samples)
     }

@@ -1,9 +1,11 @@
 //! `zwarp`: the command-line front end of zwarp (image-based depth warping for real-time
-//! rendering). One file per command under `commands/`.
+//! rendering). One file per command under `commands/`; the commands that measure go through the
+//! evaluation harness in `harness/` (frames, timing, comparisons).
 
 mod args;
 mod commands;
 mod device;
+mod harness;
 mod output;
 
 use clap::{Parser, Subcommand};

@@ -1,5 +1,4 @@
-//! Result reporting shared by the commands: JSON files with a `rows` array, markdown tables,
-//! and timing statistics (median and spread of warm repetitions).
+//! Result reporting shared by the commands: JSON files with a `rows` array and markdown tables.
 
 use std::path::Path;
 
@@ -20,20 +19,6 @@ pub fn write_json<T: Serialize>(path: &Path, command: &str, rows: &[T], extra: s
     let text = serde_json::to_string_pretty(&obj)?;
     std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))?;
     Ok(())
-}
-
-pub use zwarp_metrics::Timing;
-
-/// Times `f` `reps` times after one warm-up run; returns the last result and the samples (ms).
-pub fn time_repeated<T>(reps: usize, mut f: impl FnMut() -> Result<T>) -> Result<(T, Vec<f64>)> {
-    let mut out = f()?;
-    let mut samples = Vec::with_capacity(reps);
-    for _ in 0..reps.max(1) {
-        let t0 = std::time::Instant::now();
-        out = f()?;
-        samples.push(t0.elapsed().as_secs_f64() * 1e3);
-    }
-    Ok((out, samples))
 }
 
 /// A markdown table printer.

@@ -15,9 +15,10 @@ use serde::Serialize;
 use zwarp_color::{ColorWarpOutput, Field, FieldParams, HeuristicParams, RobustParams, Seed, Subdivision, WarpBasis};
 use zwarp_core::Image;
 
-use super::colorwarp::{self, Backends, Method, Quality, View};
+use super::colorwarp::{self, Backends, Method, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, Table, Timing};
+use crate::harness::{self, Figures, Lone, PathFrames, Quality, Timing};
+use crate::output::{self, Table};
 
 /// Arguments of `zwarp blur`.
 #[derive(Args, Clone, Debug)]
@@ -177,25 +178,23 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
     let (k, reps) = (args.samples, args.reps.max(1));
     let path = &loaded.path;
     let be = Backends::new(&loaded.scene, args.backend)?;
-    let total = path.frame_count_at(1.0);
-    if total < 3 {
-        bail!("the camera path is too short for motion blur ({total} frames; need 3)");
-    }
-    let count = args.frames.min(total - 2);
-    let ks: Vec<usize> =
-        (0..count).map(|i| if count == 1 { 1 + (total - 3) / 2 } else { 1 + i * (total - 3) / (count - 1) }).collect();
+    let frames = PathFrames::new(path, 1.0, w, h);
+    let total =
+        frames.require(3, |total| format!("the camera path is too short for motion blur ({total} frames; need 3)"))?;
+    // Frames with a frame before and after (the second-order motion of the shutter interval).
+    let picked = frames.pick(args.frames, 1..=total - 2, Lone::Middle)?;
     let samples = poisson_samples(k, args.motion, args.defocus, args.shutter, args.aperture);
-    let bar = colorwarp::progress((ks.len() * (methods.len() + 1)) as u64, format!("blur {}", args.scene.scene), true);
+    let bar =
+        harness::progress((picked.len() * (methods.len() + 1)) as u64, format!("blur {}", args.scene.scene), true);
     let mut accs: Vec<(Method, Acc)> = Vec::new();
     let mut render_ms = Vec::new();
     let mut strips = colorwarp::Strips::new();
     let mut focus_used = 0.0;
     let mut slot = ColorWarpOutput::empty();
-    for (ki, &fk) in ks.iter().enumerate() {
-        let t = path.time_of_frame(fk, 1.0);
-        let c = path.camera_at(t, w, h)?;
+    for (ki, frame) in picked.iter().enumerate() {
+        let (t, c) = (frame.t, frame.cam);
         let centre = be.view(&c, t)?;
-        colorwarp::check_has_surface(&centre, &format!("frame {fk} of the camera path"))?;
+        colorwarp::check_has_surface(&centre, &format!("frame {} of the camera path", frame.k))?;
         let focus = match args.focus {
             Some(f) => f,
             None => {
@@ -213,11 +212,11 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         focus_used = focus;
         let dt = 1.0 / path.fps;
         let sample_cam = |p: &FieldParams| -> Result<zwarp_core::Camera> {
-            let cam = path.camera_at(t + p.t * dt, w, h)?;
+            let cam = frames.camera(t + p.t * dt)?;
             Ok(if args.defocus { colorwarp::offset_camera(&cam, p.u, p.v, Some(focus)) } else { cam })
         };
         // The reference: K rendered views.
-        let (reference, samples_ms) = output::time_repeated(reps, || {
+        let (reference, samples_ms) = harness::time_repeated(reps, || {
             let mut acc = vec![[0.0f32; 3]; (w * h) as usize];
             for p in &samples {
                 accumulate(&mut acc, &be.view(&sample_cam(p)?, t + p.t * dt)?.color);
@@ -228,8 +227,8 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         bar.inc(1);
         // The warp basis of the centre view.
         let mut basis = if args.motion {
-            let m_next = be.motion(&centre, &path.camera_at(t + dt, w, h)?, t + dt)?;
-            let m_prev = be.motion(&centre, &path.camera_at(t - dt, w, h)?, t - dt)?;
+            let m_next = be.motion(&centre, &frames.camera(t + dt)?, t + dt)?;
+            let m_prev = be.motion(&centre, &frames.camera(t - dt)?, t - dt)?;
             WarpBasis::second_order(&centre.depth, (1.0, &m_next), (-1.0, &m_prev))?
         } else {
             WarpBasis::new(&centre.depth)?
@@ -252,7 +251,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         let rp = RobustParams { fallback: hp, ..RobustParams::default() };
         let floor = k as f64 * zwarp_color::floor::floor_ms(&fields[fields.len() / 2], &centre.color, 3)?.0;
         for &m in &methods {
-            let (out, ms) = output::time_repeated(reps, || -> Result<ColorWarpOutput> {
+            let (out, ms) = harness::time_repeated(reps, || -> Result<ColorWarpOutput> {
                 if m == Method::Repeat {
                     return Ok(zwarp_color::repeat(&centre.color, &centre.depth)?);
                 }
@@ -292,7 +291,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
                 }
                 Ok(average(w, h, acc, k))
             })?;
-            let q = colorwarp::quality(&reference.color, &out, None)?;
+            let q = harness::compare_color(&reference.color, &out.color, out.converged_fraction(), None, Figures::All)?;
             if ki == 0 {
                 if let Some(dir) = &args.images {
                     let base = colorwarp::safe_name(&args.scene.scene);
@@ -301,16 +300,10 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
                     colorwarp::add_panel(&mut strips, (false, 0), &reference.color, &out.color, m.name())?;
                 }
             }
-            let idx = match accs.iter().position(|(m2, _)| *m2 == m) {
-                Some(i) => i,
-                None => {
-                    accs.push((m, Acc::default()));
-                    accs.len() - 1
-                }
-            };
-            accs[idx].1.q.push(q);
-            accs[idx].1.ms.extend(ms);
-            accs[idx].1.floor.push(floor);
+            let a = harness::entry(&mut accs, m);
+            a.q.push(q);
+            a.ms.extend(ms);
+            a.floor.push(floor);
             bar.inc(1);
         }
     }
@@ -325,7 +318,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
         .into_iter()
         .map(|(m, a)| {
             let t = Timing::of(&a.ms);
-            let floor = colorwarp::median(&a.floor);
+            let floor = Timing::of(&a.floor).median;
             BlurRow {
                 method: m.name().into(),
                 samples: if m == Method::Repeat { 1 } else { k },
@@ -335,7 +328,7 @@ fn evaluate(args: &BlurArgs, loaded: &crate::args::Loaded) -> Result<(Vec<BlurRo
                 frames: a.q.len(),
                 width: w,
                 height: h,
-                quality: colorwarp::mean_quality(&a.q),
+                quality: harness::mean_quality(&a.q),
                 ms: t.median,
                 ms_min: t.min,
                 ms_max: t.max,

@@ -1,17 +1,18 @@
 //! What `zwarp upsample`, `stereo` and `blur` share: the methods (seed 001's two variants and
-//! the baselines), colour rendering on either backend, the quality figures of a predicted frame
-//! (including the pixels the source did not see), the warps on either backend, images.
+//! the baselines), colour rendering on either backend, the pixels a source did not see, the
+//! warps on either backend, the table columns of a row's quality and speed, images. Frames,
+//! timing and the quality comparison itself are the harness's (`crate::harness`).
 
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use serde::Serialize;
 use zwarp_color::{ColorWarpOutput, Field, HeuristicParams, RobustParams, Subdivision};
 use zwarp_core::{Camera, Image, Motion, Scene};
 
 use crate::args::Backend;
 use crate::device::{Device, DeviceScene};
-use crate::output::{fmt, ser_f64};
+use crate::harness::Quality;
+use crate::output::fmt;
 
 /// A prediction method (JSON `method`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -226,100 +227,6 @@ pub fn speed_cells(
     vec![fmt(ms, time_decimals), fmt(floor_ms, time_decimals), fmt(floor_ratio, 1), fmt(render_ms, 1), fmt(speedup, 2)]
 }
 
-/// Quality of one prediction (JSON fields of every colour-warp row, means over the frames).
-#[derive(Clone, Copy, Debug, Default, Serialize)]
-pub struct Quality {
-    /// PSNR (dB) on linear RGB, all channels.
-    #[serde(serialize_with = "ser_f64")]
-    pub psnr: f64,
-    /// PSNR (dB) of the luminance.
-    #[serde(serialize_with = "ser_f64")]
-    pub psnr_y: f64,
-    /// PSNR (dB) of R, G, B.
-    pub psnr_rgb: [f64; 3],
-    /// Mean per-channel SSIM on linear RGB.
-    pub ssim: f64,
-    /// SSIM of the luminance.
-    pub ssim_y: f64,
-    /// Mean FLIP error (LDR, sRGB encoding of the linear colour).
-    pub flip: f64,
-    /// Mean CIE94 difference under D65 (seed 001 Fig. 8).
-    pub cie94: f64,
-    /// Fraction of pixels the method reports converged (its confidence output).
-    pub converged: f64,
-    /// Fraction of target pixels the source did not see (disocclusions, border strips).
-    pub disocc_fraction: f64,
-    /// PSNR (dB) over those pixels.
-    #[serde(serialize_with = "ser_f64")]
-    pub disocc_psnr: f64,
-    /// Mean CIE94 over those pixels.
-    #[serde(serialize_with = "ser_f64")]
-    pub disocc_cie94: f64,
-    /// Mean FLIP over those pixels.
-    #[serde(serialize_with = "ser_f64")]
-    pub disocc_flip: f64,
-}
-
-/// The quality of `pred` against `reference`; `unseen` marks the pixels the source did not see.
-pub fn quality(reference: &Image<[f32; 3]>, pred: &ColorWarpOutput, unseen: Option<&Image<bool>>) -> Result<Quality> {
-    let q = zwarp_metrics::color_quality(reference, &pred.color)?;
-    let flip_map = zwarp_metrics::flip(reference, &pred.color, zwarp_metrics::FLIP_DEFAULT_PPD)?.map;
-    let (df, dp, dc, dfl) = match unseen {
-        Some(m) => {
-            let n = m.data().iter().filter(|&&v| v).count();
-            (
-                n as f64 / m.len() as f64,
-                zwarp_metrics::psnr_rgb_masked(reference, &pred.color, m, 1.0)?,
-                zwarp_metrics::cie94_mean(reference, &pred.color, Some(m))?,
-                zwarp_metrics::masked_mean(&flip_map, Some(m))?,
-            )
-        }
-        None => (0.0, f64::NAN, f64::NAN, f64::NAN),
-    };
-    Ok(Quality {
-        psnr: q.psnr,
-        psnr_y: q.psnr_y,
-        psnr_rgb: q.psnr_channels,
-        ssim: q.ssim,
-        ssim_y: q.ssim_y,
-        flip: q.flip,
-        cie94: q.cie94,
-        converged: pred.converged_fraction(),
-        disocc_fraction: df,
-        disocc_psnr: dp,
-        disocc_cie94: dc,
-        disocc_flip: dfl,
-    })
-}
-
-/// Mean of finite values (NaN if none); infinities count as such when all are infinite.
-pub fn mean(v: &[f64]) -> f64 {
-    let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if finite.is_empty() {
-        return v.first().copied().unwrap_or(f64::NAN);
-    }
-    finite.iter().sum::<f64>() / finite.len() as f64
-}
-
-/// Mean of several [`Quality`] values, field by field.
-pub fn mean_quality(qs: &[Quality]) -> Quality {
-    let m = |f: fn(&Quality) -> f64| mean(&qs.iter().map(f).collect::<Vec<_>>());
-    Quality {
-        psnr: m(|q| q.psnr),
-        psnr_y: m(|q| q.psnr_y),
-        psnr_rgb: [m(|q| q.psnr_rgb[0]), m(|q| q.psnr_rgb[1]), m(|q| q.psnr_rgb[2])],
-        ssim: m(|q| q.ssim),
-        ssim_y: m(|q| q.ssim_y),
-        flip: m(|q| q.flip),
-        cie94: m(|q| q.cie94),
-        converged: m(|q| q.converged),
-        disocc_fraction: m(|q| q.disocc_fraction),
-        disocc_psnr: m(|q| q.disocc_psnr),
-        disocc_cie94: m(|q| q.disocc_cie94),
-        disocc_flip: m(|q| q.disocc_flip),
-    }
-}
-
 /// The pixels of the target view `target` the source view did not see: its depth reprojected
 /// into the source (`to_source`) lands off-screen or behind another surface.
 pub fn unseen(
@@ -351,21 +258,6 @@ pub fn safe_name(s: &str) -> String {
     base.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect()
 }
 
-/// A progress bar like `zwarp eval`'s (hidden when `show` is false).
-pub fn progress(len: u64, msg: String, show: bool) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let b = indicatif::ProgressBar::new(len);
-    b.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    b.set_message(msg);
-    b
-}
-
 /// The camera `cam` moved by `(u, v)` world units along its right and up axes, with the
 /// projection sheared so that the plane at view distance `focus` maps to itself (a thin-lens
 /// sample for defocus; `None`: parallel cameras, the stereo eyes of ARCHITECTURE.md "Stereo/VR").
@@ -380,11 +272,6 @@ pub fn offset_camera(cam: &Camera, u: f32, v: f32, focus: Option<f32>) -> Camera
         }
     };
     Camera { view, proj, ..*cam }
-}
-
-/// Median of samples (ms).
-pub fn median(v: &[f64]) -> f64 {
-    crate::output::Timing::of(v).median
 }
 
 /// Panels of overview images, keyed by (mode, strategy) flags: two rows per key (predictions,

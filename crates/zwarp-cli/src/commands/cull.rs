@@ -11,7 +11,8 @@ use zwarp_raster::{render_frame, FrameOptions};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::device::Device;
-use crate::output::{self, fmt, ser_f64, Table, Timing};
+use crate::harness::{self, timing_of, Lone, PathFrames};
+use crate::output::{self, fmt, ser_f64, Table};
 
 /// `--downsample` when not given, on the CPU backend (see [`CullArgs::downsample`]).
 pub const CPU_DOWNSAMPLE: u32 = 4;
@@ -194,11 +195,16 @@ pub fn run(args: CullArgs) -> Result<()> {
     );
     let mut rows: Vec<CullRow> = Vec::new();
     for &speed in &speeds {
-        let mut frames = path.frames(args.size.width, args.size.height, speed)?;
-        frames.truncate(args.frames);
-        if frames.len() < 2 {
-            bail!("the camera path gives {} frame(s) at speed {speed}x; culling needs at least 2", frames.len());
-        }
+        // The first `--frames` consecutive frames (all of them on a shorter path).
+        let path_frames = PathFrames::new(path, speed, args.size.width, args.size.height).held_at_end();
+        let total = path_frames.require(2, |total| {
+            format!("the camera path gives {total} frame(s) at speed {speed}x; culling needs at least 2")
+        })?;
+        let frames: Vec<(f32, zwarp_core::Camera)> = path_frames
+            .pick(args.frames, 0..=args.frames.min(total) - 1, Lone::First)?
+            .into_iter()
+            .map(|f| (f.t, f.cam))
+            .collect();
         // Full colour renders, the reference of the image-quality metrics (untimed).
         let full_color: Vec<Option<zwarp_core::Image<[f32; 3]>>> = if args.no_psnr {
             vec![None; frames.len()]
@@ -208,11 +214,7 @@ pub fn run(args: CullArgs) -> Result<()> {
                 .map(|(t, cam)| Ok(render_frame(scene, cam, *t, &FrameOptions { color: true, objects: None })?.color))
                 .collect::<Result<_>>()?
         };
-        let bar = indicatif::ProgressBar::new(methods.len() as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")?.progress_chars("=> "),
-        );
-        bar.set_message(format!("cull {} {speed}x", args.scene.scene));
+        let bar = harness::progress(methods.len() as u64, format!("cull {} {speed}x", args.scene.scene), true);
         let mut speed_rows = Vec::new();
         for &method in &methods {
             let reports = device.cull_sequence(scene, &frames, method, &params, args.repeat)?;
@@ -245,8 +247,8 @@ pub fn run(args: CullArgs) -> Result<()> {
             let map_fold = |f: fn(&zwarp_cull::MapAccuracy) -> f64, g: fn(f64, f64) -> f64| -> f64 {
                 maps.iter().map(f).reduce(g).unwrap_or(f64::NAN)
             };
-            let cull_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms).collect::<Vec<_>>());
-            let frame_t = Timing::of(&rs.iter().map(|r| r.cull.total_ms + r.draw_ms).collect::<Vec<_>>());
+            let cull_t = timing_of(&rs, |r| r.cull.total_ms);
+            let frame_t = timing_of(&rs, |r| r.cull.total_ms + r.draw_ms);
             speed_rows.push(CullRow {
                 method: method.name().to_string(),
                 scene: args.scene.scene.clone(),
@@ -283,7 +285,7 @@ pub fn run(args: CullArgs) -> Result<()> {
                 cull_ms: cull_t.median,
                 cull_ms_p99: cull_t.p99,
                 frame_ms: frame_t.median,
-                full_ms: Timing::of(&rs.iter().map(|r| r.full_draw_ms).collect::<Vec<_>>()).median,
+                full_ms: timing_of(&rs, |r| r.full_draw_ms).median,
                 triangle_fraction: rs.iter().map(|r| r.triangles as f64 / r.full_triangles.max(1) as f64).sum::<f64>()
                     / nf,
                 speedup_vs_vfc: f64::NAN,

@@ -18,7 +18,8 @@ use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::device::Device;
-use crate::output::{self, fmt, ser_f64, Table, Timing};
+use crate::harness::{self, DepthComparison, Lone, PathFrames, Timing};
+use crate::output::{self, fmt, ser_f64, Table};
 
 /// Arguments of `zwarp eval`.
 #[derive(Args, Clone, Debug)]
@@ -361,29 +362,6 @@ impl PairBuffers {
     }
 }
 
-/// Frame pairs `(t_a, cam_a, t_b, cam_b)` spread evenly along the path at `speed`.
-pub fn frame_pairs(
-    path: &CameraPath,
-    count: usize,
-    speed: f32,
-    w: u32,
-    h: u32,
-) -> Result<Vec<(f32, Camera, f32, Camera)>> {
-    let total = path.frame_count_at(speed);
-    if total < 2 {
-        bail!("the camera path is too short for a frame pair at speed {speed}x ({total} frame)");
-    }
-    let last_source = total - 2;
-    let count = count.min(last_source + 1);
-    let mut out = Vec::with_capacity(count);
-    for i in 0..count {
-        let k = if count == 1 { 0 } else { i * last_source / (count - 1) };
-        let (ta, tb) = (path.time_of_frame(k, speed), path.time_of_frame(k + 1, speed));
-        out.push((ta, path.camera_at(ta, w, h)?, tb, path.camera_at(tb, w, h)?));
-    }
-    Ok(out)
-}
-
 /// Renders the source view's layers and their motion buffers towards the target view.
 fn source_buffers(
     scene: &Scene,
@@ -437,50 +415,10 @@ fn seen_by_source(
 /// Per-configuration accumulator over frame pairs.
 #[derive(Default)]
 struct Acc {
-    psnr: Vec<f64>,
-    ssim: Vec<f64>,
-    psnr_buffer: Vec<f64>,
-    ssim_buffer: Vec<f64>,
-    converged: Vec<f64>,
-    converged_seen: Vec<f64>,
+    quality: Vec<DepthComparison>,
     warp_ms: Vec<f64>,
     floor_ms: Vec<f64>,
     detail: Vec<FrameDetail>,
-}
-
-fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
-
-/// Fraction of the reference's surface pixels where `predicted` holds a surface (and, for our
-/// warp, the search converged); with `seen`, only over the pixels it marks.
-fn coverage(
-    predicted: &Image<f32>,
-    reference: &Image<f32>,
-    converged: Option<&Image<zwarp_warp::PixelState>>,
-    seen: Option<&Image<bool>>,
-) -> f64 {
-    let mut surf = 0usize;
-    let mut hit = 0usize;
-    for (i, (&p, &r)) in predicted.data().iter().zip(reference.data()).enumerate() {
-        if r < 1.0 && seen.is_none_or(|s| s.data()[i]) {
-            surf += 1;
-            let ok = match converged {
-                Some(s) => s.data()[i] == zwarp_warp::PixelState::Converged,
-                None => p < 1.0,
-            };
-            hit += ok as usize;
-        }
-    }
-    if surf == 0 {
-        1.0
-    } else {
-        hit as f64 / surf as f64
-    }
 }
 
 /// Runs the evaluation plan on a loaded scene; returns one row per configuration.
@@ -509,51 +447,53 @@ pub fn evaluate(
         })
         .sum::<usize>();
     for &speed in &plan.speeds {
-        let pairs = frame_pairs(path, plan.frames, speed, plan.width, plan.height)?;
-        let bar = if progress {
-            let b = indicatif::ProgressBar::new((pairs.len() * (configs_per_pair + plan.multisamples.len())) as u64);
-            b.set_style(
-                indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed}")
-                    .unwrap()
-                    .progress_chars("=> "),
-            );
-            b.set_message(format!("eval {scene_name} {speed}x"));
-            b
-        } else {
-            indicatif::ProgressBar::hidden()
-        };
-        let mut keys: Vec<Key> = Vec::new();
-        let mut accs: Vec<Acc> = Vec::new();
+        // Frame pairs (k, k + 1) spread evenly along the path (a single one starts it).
+        let frames = PathFrames::new(path, speed, plan.width, plan.height);
+        let total = frames.require(2, |total| {
+            format!("the camera path is too short for a frame pair at speed {speed}x ({total} frame)")
+        })?;
+        let pairs = frames
+            .pick(plan.frames, 0..=total - 2, Lone::First)?
+            .into_iter()
+            .map(|a| Ok((a, frames.next(&a)?)))
+            .collect::<Result<Vec<_>>>()?;
+        let bar = harness::progress(
+            (pairs.len() * (configs_per_pair + plan.multisamples.len())) as u64,
+            format!("eval {scene_name} {speed}x"),
+            progress,
+        );
+        let mut accs: Vec<(Key, Acc)> = Vec::new();
         let mut firsts = FirstPair::default();
         let mut ref_samples = Vec::new();
         // Motion-field time per multisampling factor m.
         let mut motion_samples: Vec<(u32, f64)> = Vec::new();
-        for (pi, (ta, ca, tb, cb)) in pairs.iter().enumerate() {
-            let (reference, samples) = output::time_repeated(plan.reps, || device.render_depth(&on_device, cb, *tb))?;
+        for (pi, (fa, fb)) in pairs.iter().enumerate() {
+            let (ta, tb, cb) = (fa.t, fb.t, &fb.cam);
+            let (reference, samples) = harness::time_repeated(plan.reps, || device.render_depth(&on_device, cb, tb))?;
             ref_samples.extend(samples);
-            let (plain_a, plain_b) = (*ca, *cb);
+            let (plain_a, plain_b) = (fa.cam, fb.cam);
             // Computed once per pair, from the single-sample source when the plan renders it.
             let mut seen: Option<Image<bool>> = None;
             for &ms in &plan.multisamples {
                 // The source (and the motion's target space) on the m x m sample grid: the same
                 // views at m times the resolution, so target pixel centres sit at m (x + 0.5).
                 let (ca, cb_grid) = if ms == 1 {
-                    (*ca, *cb)
+                    (plain_a, plain_b)
                 } else {
                     let (mw, mh) = (plan.width * ms, plan.height * ms);
-                    (path.camera_at(*ta, mw, mh)?, path.camera_at(*tb, mw, mh)?)
+                    (path.camera_at(ta, mw, mh)?, path.camera_at(tb, mw, mh)?)
                 };
-                let (bufs, motion_ms) = source_buffers(scene, &ca, *ta, &cb_grid, *tb, max_l, plan.umbra)?;
+                let (bufs, motion_ms) = source_buffers(scene, &ca, ta, &cb_grid, tb, max_l, plan.umbra)?;
                 motion_samples.push((ms, motion_ms));
                 if seen.is_none() {
                     let plain;
                     let source = if ms == 1 {
                         &bufs.single.0
                     } else {
-                        plain = render_frame(scene, &plain_a, *ta, &FrameOptions::default())?.depth;
+                        plain = render_frame(scene, &plain_a, ta, &FrameOptions::default())?.depth;
                         &plain
                     };
-                    seen = Some(seen_by_source(scene, source, &plain_a, *ta, &plain_b, *tb)?);
+                    seen = Some(seen_by_source(scene, source, &plain_a, ta, &plain_b, tb)?);
                 }
                 let seen = seen.as_ref().expect("set above");
                 if pi == 0 && plan.images.is_some() {
@@ -567,43 +507,21 @@ pub fn evaluate(
                                layers: &[WarpLayer<'_>],
                                f: &mut dyn FnMut(&mut Option<Predicted>) -> Result<()>|
                  -> Result<()> {
-                    let mut slot = None;
-                    f(&mut slot)?;
-                    let mut samples = Vec::with_capacity(plan.reps.max(1));
-                    for _ in 0..plan.reps.max(1) {
-                        let t0 = std::time::Instant::now();
-                        f(&mut slot)?;
-                        samples.push(t0.elapsed().as_secs_f64() * 1e3);
-                    }
-                    let out = slot.take().expect("the prediction ran");
+                    let (out, samples) = harness::time_into(plan.reps, &mut None, |s| f(s))?;
+                    let out = out.expect("the prediction ran");
                     // The streaming floor of the same inputs, right after (same run, warm).
                     let (floor, _, _) = zwarp_warp::floor::floor_ms(layers, key.5, plan.reps.max(1))?;
-                    let q = zwarp_metrics::depth_quality(&out.0, &reference, cb)?;
-                    let idx = match keys.iter().position(|k| *k == key) {
-                        Some(i) => i,
-                        None => {
-                            keys.push(key.clone());
-                            accs.push(Acc::default());
-                            keys.len() - 1
-                        }
-                    };
-                    let a = &mut accs[idx];
-                    a.psnr.push(q.psnr);
-                    a.ssim.push(q.ssim);
-                    a.psnr_buffer.push(q.psnr_buffer);
-                    a.ssim_buffer.push(q.ssim_buffer);
-                    let conv = coverage(&out.0, &reference, out.1.as_ref(), None);
-                    let conv_seen = coverage(&out.0, &reference, out.1.as_ref(), Some(seen));
-                    a.converged.push(conv);
-                    a.converged_seen.push(conv_seen);
+                    let q = harness::compare_depth(&out.0, out.1.as_ref(), &reference, cb, seen)?;
+                    let a = harness::entry(&mut accs, key.clone());
+                    a.quality.push(q);
                     a.warp_ms.extend(samples);
                     a.floor_ms.push(floor);
                     a.detail.push(FrameDetail {
                         pair: pi,
                         psnr: q.psnr,
                         ssim: q.ssim,
-                        converged: conv,
-                        converged_seen: conv_seen,
+                        converged: q.converged,
+                        converged_seen: q.converged_seen,
                     });
                     if pi == 0 && plan.images.is_some() {
                         firsts.predictions.push((key.clone(), out.0.clone()));
@@ -677,8 +595,9 @@ pub fn evaluate(
             write_strips(dir, scene_name, speed, &firsts)?;
         }
         let ref_t = Timing::of(&ref_samples);
-        for (key, a) in keys.into_iter().zip(accs) {
+        for (key, a) in accs {
             let wt = Timing::of(&a.warp_ms);
+            let q = harness::mean_depth(&a.quality);
             let motion: Vec<f64> = motion_samples.iter().filter(|(m, _)| *m == key.5).map(|s| s.1).collect();
             let motion_t = Timing::of(&motion);
             rows.push(EvalRow {
@@ -699,13 +618,13 @@ pub fn evaluate(
                 frames: pairs.len(),
                 width: plan.width,
                 height: plan.height,
-                psnr: mean(&a.psnr),
-                ssim: mean(&a.ssim),
-                psnr_min: a.psnr.iter().copied().fold(f64::INFINITY, f64::min),
-                psnr_buffer: mean(&a.psnr_buffer),
-                ssim_buffer: mean(&a.ssim_buffer),
-                converged: mean(&a.converged),
-                converged_seen: mean(&a.converged_seen),
+                psnr: q.psnr,
+                ssim: q.ssim,
+                psnr_min: a.quality.iter().map(|q| q.psnr).fold(f64::INFINITY, f64::min),
+                psnr_buffer: q.psnr_buffer,
+                ssim_buffer: q.ssim_buffer,
+                converged: q.converged,
+                converged_seen: q.converged_seen,
                 warp_ms: wt.median,
                 warp_ms_min: wt.min,
                 warp_ms_max: wt.max,

@@ -9,7 +9,8 @@ use clap::Args;
 use serde::Serialize;
 
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, Timing};
+use crate::harness::Timing;
+use crate::output;
 
 /// Arguments of `zwarp render`.
 #[derive(Args, Clone, Debug)]

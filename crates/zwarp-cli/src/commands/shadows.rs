@@ -19,7 +19,8 @@ use zwarp_shadows::{
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
 use crate::device::Device;
-use crate::output::{self, fmt, ser_f64, Table, Timing};
+use crate::harness::{Frame, PathFrames, Timing};
+use crate::output::{self, fmt, ser_f64, Table};
 
 /// Arguments of `zwarp shadows`.
 #[derive(Args, Clone, Debug)]
@@ -142,12 +143,11 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
     let device = Device::open(a.backend)?;
     let loaded = a.scene.load()?;
     let scene = &loaded.scene;
-    let n_frames = loaded.path.frame_count();
-    if a.frame >= n_frames.max(1) {
-        bail!("--frame {} is beyond the camera path ({} frames)", a.frame, n_frames);
-    }
-    let t = loaded.path.time_of_frame(a.frame, 1.0).min(loaded.path.end());
-    let cam = loaded.path.camera_at(t, a.size.width, a.size.height)?;
+    let frames = PathFrames::new(&loaded.path, 1.0, a.size.width, a.size.height).held_at_end();
+    frames.require(a.frame.saturating_add(1), |total| {
+        format!("--frame {} is beyond the camera path ({total} frames)", a.frame)
+    })?;
+    let Frame { t, cam, .. } = frames.frame(a.frame)?;
     let light = match &a.light {
         Some(p) => load_light(p)?,
         None => default_light(scene)?,

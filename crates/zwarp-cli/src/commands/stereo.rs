@@ -13,9 +13,10 @@ use serde::Serialize;
 use zwarp_color::{Field, FieldParams, HeuristicParams, RobustParams, Seed, WarpBasis};
 use zwarp_core::{Camera, Image};
 
-use super::colorwarp::{self, Backends, Method, Quality, View};
+use super::colorwarp::{self, Backends, Method, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, Table, Timing};
+use crate::harness::{self, Figures, Lone, PathFrames, Quality, Timing};
+use crate::output::{self, Table};
 
 /// Arguments of `zwarp stereo`.
 #[derive(Args, Clone, Debug)]
@@ -133,15 +134,13 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     let (w, h) = (args.size.width, args.size.height);
     let path = &loaded.path;
     let be = Backends::new(&loaded.scene, args.backend)?;
-    let total = path.frame_count_at(1.0);
-    if total < 2 {
-        bail!("the camera path is too short for stereo ({total} frame; need 2)");
-    }
-    let count = args.frames.min(total - 1);
-    let ks: Vec<usize> =
-        (0..count).map(|i| if count == 1 { 1 + (total - 2) / 2 } else { 1 + i * (total - 2) / (count - 1) }).collect();
-    let bar = colorwarp::progress(
-        (ks.len() * strategies.len() * 2 * methods.len()) as u64,
+    let frames = PathFrames::new(path, 1.0, w, h);
+    let total =
+        frames.require(2, |total| format!("the camera path is too short for stereo ({total} frame; need 2)"))?;
+    // Frames with a previous one (the alternate strategy's source).
+    let picked = frames.pick(args.frames, 1..=total - 1, Lone::Middle)?;
+    let bar = harness::progress(
+        (picked.len() * strategies.len() * 2 * methods.len()) as u64,
         format!("stereo {}", args.scene.scene),
         true,
     );
@@ -151,17 +150,17 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     type Pair = (String, Image<[f32; 3]>, Image<[f32; 3]>);
     let mut pairs: Vec<Pair> = Vec::new();
     let mut slot = zwarp_color::ColorWarpOutput::empty();
-    for (ki, &k) in ks.iter().enumerate() {
-        let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
-        let (c, cp) = (path.camera_at(t, w, h)?, path.camera_at(tp, w, h)?);
+    for (ki, frame) in picked.iter().enumerate() {
+        let before = frames.previous(frame)?;
+        let (t, tp, c, cp) = (frame.t, before.t, frame.cam, before.cam);
         let centre = be.view(&c, t)?;
-        colorwarp::check_has_surface(&centre, &format!("frame {k} of the camera path"))?;
+        colorwarp::check_has_surface(&centre, &format!("frame {} of the camera path", frame.k))?;
         let centre_basis = WarpBasis::new(&centre.depth)?.with_spatial(&c, None)?;
         // Reference eyes, rendered and timed.
         let mut refs = Vec::new();
         for side in [-1.0f32, 1.0] {
             let ce = eye_camera(&c, side, sep);
-            let (v, samples) = output::time_repeated(reps, || be.view(&ce, t))?;
+            let (v, samples) = harness::time_repeated(reps, || be.view(&ce, t))?;
             refs.push((v, samples));
         }
         for &alternate in &strategies {
@@ -188,40 +187,38 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 let unseen = colorwarp::unseen(&reference.depth, &to_src, &src.depth, &src.cam)?;
                 let floor = zwarp_color::floor::floor_ms(&field, &src.color, reps)?.0;
                 for &m in &methods {
-                    let (out, samples) = output::time_repeated(reps, || -> Result<_> {
-                        Ok(match m {
-                            Method::Heuristic => {
-                                be.heuristic_into(&field, &src.color, &hp, &mut slot)?;
-                                return Ok(None);
-                            }
-                            Method::Robust => {
-                                be.robust_into(&field, &src.color, &rp, &mut slot)?;
-                                return Ok(None);
-                            }
-                            Method::Repeat => zwarp_color::repeat(&src.color, &src.depth)?,
-                            Method::Mesh => zwarp_color::mesh_warp(&field, &src.color, &src.cam)?,
-                            Method::Scatter => zwarp_color::scatter_warp(&field, &src.color)?,
-                            Method::Reproject => {
-                                let (d, it) = be.depth_items(&reference.cam, t)?;
-                                let tv = View {
-                                    cam: reference.cam,
-                                    t,
-                                    color: Image::new(0, 0, [0.0; 3]),
-                                    depth: d,
-                                    items: it,
-                                };
-                                let ms = be.motion(&tv, &src.cam, src.t)?;
-                                zwarp_color::reproject(&tv.depth, &ms, &src.depth, &src.color, &src.cam)?
-                            }
-                        }
-                        .into())
-                    })?;
                     // The two warps write into the reused slot.
-                    let out = match out {
-                        Some(o) => o,
-                        None => slot.clone(),
+                    let (out, samples) = match m {
+                        Method::Heuristic => {
+                            harness::time_into(reps, &mut slot, |o| be.heuristic_into(&field, &src.color, &hp, o))?
+                        }
+                        Method::Robust => {
+                            harness::time_into(reps, &mut slot, |o| be.robust_into(&field, &src.color, &rp, o))?
+                        }
+                        Method::Repeat => {
+                            harness::time_repeated(reps, || Ok(zwarp_color::repeat(&src.color, &src.depth)?))?
+                        }
+                        Method::Mesh => {
+                            harness::time_repeated(reps, || Ok(zwarp_color::mesh_warp(&field, &src.color, &src.cam)?))?
+                        }
+                        Method::Scatter => {
+                            harness::time_repeated(reps, || Ok(zwarp_color::scatter_warp(&field, &src.color)?))?
+                        }
+                        Method::Reproject => harness::time_repeated(reps, || {
+                            let (d, it) = be.depth_items(&reference.cam, t)?;
+                            let tv =
+                                View { cam: reference.cam, t, color: Image::new(0, 0, [0.0; 3]), depth: d, items: it };
+                            let ms = be.motion(&tv, &src.cam, src.t)?;
+                            Ok(zwarp_color::reproject(&tv.depth, &ms, &src.depth, &src.color, &src.cam)?)
+                        })?,
                     };
-                    let q = colorwarp::quality(&reference.color, &out, Some(&unseen))?;
+                    let q = harness::compare_color(
+                        &reference.color,
+                        &out.color,
+                        out.converged_fraction(),
+                        Some(&unseen),
+                        Figures::All,
+                    )?;
                     if ki == 0 && args.images.is_some() {
                         colorwarp::add_panel(
                             &mut strips,
@@ -232,15 +229,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                         )?;
                         preds[ei].push((m, out.color.clone()));
                     }
-                    let key = (alternate, ei == 1, m);
-                    let idx = match accs.iter().position(|(k2, _)| *k2 == key) {
-                        Some(i) => i,
-                        None => {
-                            accs.push((key, Acc::default()));
-                            accs.len() - 1
-                        }
-                    };
-                    let a = &mut accs[idx].1;
+                    let a = harness::entry(&mut accs, (alternate, ei == 1, m));
                     a.q.push(q);
                     a.ms.extend(samples);
                     a.floor.push(floor);
@@ -265,11 +254,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     bar.finish_and_clear();
     if let Some(dir) = &args.images {
         let base = colorwarp::safe_name(&args.scene.scene);
-        colorwarp::write_color(
-            dir,
-            &format!("{base}_centre"),
-            &be.view(&path.camera_at(path.time_of_frame(ks[0], 1.0), w, h)?, path.time_of_frame(ks[0], 1.0))?.color,
-        )?;
+        colorwarp::write_color(dir, &format!("{base}_centre"), &be.view(&picked[0].cam, picked[0].t)?.color)?;
         for (name, l, r) in &pairs {
             zwarp_viz::write_png(dir.join(format!("{base}_{name}_anaglyph.png")), &anaglyph(l, r))?;
             let sbs = zwarp_viz::side_by_side(&[&zwarp_viz::color_to_rgb8(l), &zwarp_viz::color_to_rgb8(r)])?;
@@ -286,7 +271,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
         .map(|((alternate, right, m), a)| {
             let t = Timing::of(&a.ms);
             let render = Timing::of(&a.render).median;
-            let floor = colorwarp::median(&a.floor);
+            let floor = Timing::of(&a.floor).median;
             StereoRow {
                 method: m.name().into(),
                 strategy: if alternate { "alternate" } else { "cyclops" }.into(),
@@ -296,7 +281,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 frames: a.q.len(),
                 width: w,
                 height: h,
-                quality: colorwarp::mean_quality(&a.q),
+                quality: harness::mean_quality(&a.q),
                 warp_ms: t.median,
                 warp_ms_min: t.min,
                 warp_ms_max: t.max,

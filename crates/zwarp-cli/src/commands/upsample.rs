@@ -13,9 +13,10 @@ use serde::Serialize;
 use zwarp_color::{ColorWarpOutput, FieldParams, HeuristicParams, RobustParams, Seed, WarpBasis};
 use zwarp_core::Image;
 
-use super::colorwarp::{self, Backends, Method, Quality, View};
+use super::colorwarp::{self, Backends, Method, View};
 use crate::args::{Backend, SceneArgs, SizeArgs};
-use crate::output::{self, Table, Timing};
+use crate::harness::{self, Figures, Lone, PathFrames, Quality, Timing};
+use crate::output::{self, Table};
 
 /// Arguments of `zwarp upsample`.
 #[derive(Args, Clone, Debug)]
@@ -160,66 +161,47 @@ struct Acc {
     floor: Vec<f64>,
 }
 
-/// Times `f` (`reps` runs after a warm-up) and returns its last output and the samples.
-fn timed(reps: usize, mut f: impl FnMut() -> Result<ColorWarpOutput>) -> Result<(ColorWarpOutput, Vec<f64>)> {
-    output::time_repeated(reps, &mut f)
-}
-
-/// Times `f` writing into `slot` (its buffers reused between runs, as an engine keeps them);
-/// returns a copy of the last output and the samples.
-fn timed_into(
-    reps: usize,
-    slot: &mut ColorWarpOutput,
-    mut f: impl FnMut(&mut ColorWarpOutput) -> Result<()>,
-) -> Result<(ColorWarpOutput, Vec<f64>)> {
-    let (_, samples) = output::time_repeated(reps, || f(slot))?;
-    Ok((slot.clone(), samples))
-}
-
 /// Runs the plan; one row per (mode, method).
 fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> Result<(Vec<UpsampleRow>, String)> {
     let scene = &loaded.scene;
     let path = &loaded.path;
     let (w, h) = (args.size.width, args.size.height);
     let be = Backends::new(scene, args.backend)?;
-    let total = path.frame_count_at(1.0);
-    if total < 4 {
-        bail!("the camera path is too short for upsampling ({total} frames; need 4)");
-    }
+    let frames = PathFrames::new(path, 1.0, w, h);
+    let total =
+        frames.require(4, |total| format!("the camera path is too short for upsampling ({total} frames; need 4)"))?;
     // Source frames k in [2, total - 2]: two earlier frames for the quadratic motion, one later
     // for interpolation and as the end of the in-between interval.
-    let (lo, hi) = (2usize, total - 2);
-    let count = plan.frames.min(hi - lo + 1);
-    let ks: Vec<usize> =
-        (0..count).map(|i| if count == 1 { lo + (hi - lo) / 2 } else { lo + i * (hi - lo) / (count - 1) }).collect();
+    let sources = frames.pick(plan.frames, 2..=total - 2, Lone::Middle)?;
     let modes: Vec<bool> = if plan.interpolate { vec![false, true] } else { vec![false] };
     let motion_name = plan.model.name();
-    let steps = (ks.len() * (plan.factor as usize - 1) * plan.methods.len() * modes.len()) as u64;
-    let bar = colorwarp::progress(steps, format!("upsample {}", args.scene.scene), true);
+    let steps = (sources.len() * (plan.factor as usize - 1) * plan.methods.len() * modes.len()) as u64;
+    let bar = harness::progress(steps, format!("upsample {}", args.scene.scene), true);
     let mut accs: Vec<((bool, Method), Acc)> = Vec::new();
     let mut strips = colorwarp::Strips::new();
     let mut slot = ColorWarpOutput::empty();
     let mut render_ms = Vec::new();
     let mut motion_ms = Vec::new();
-    let cam = |t: f32| path.camera_at(t, w, h);
-    let tk = |k: usize| path.time_of_frame(k, 1.0);
     let hp = HeuristicParams { seed: Seed::Upstream(1.0), ..HeuristicParams::default() };
     let rp = RobustParams { fallback: hp, ..RobustParams::default() };
-    for (ki, &k) in ks.iter().enumerate() {
-        let src = be.view(&cam(tk(k))?, tk(k))?;
-        colorwarp::check_has_surface(&src, &format!("frame {k} of the camera path"))?;
-        let next = be.view(&cam(tk(k + 1))?, tk(k + 1))?;
+    for (ki, frame) in sources.iter().enumerate() {
+        let src = be.view(&frame.cam, frame.t)?;
+        colorwarp::check_has_surface(&src, &format!("frame {} of the camera path", frame.k))?;
+        let after = frames.next(frame)?;
+        let next = be.view(&after.cam, after.t)?;
         let t0 = std::time::Instant::now();
         let history = match plan.model {
             Model::Exact => None,
             Model::Linear => {
                 // V(t) = t M with M towards frame k - 1: the target at +j/f is t = -j/f.
-                let m_prev = be.motion(&src, &cam(tk(k - 1))?, tk(k - 1))?;
+                let p = frames.previous(frame)?;
+                let m_prev = be.motion(&src, &p.cam, p.t)?;
                 Some(WarpBasis::temporal(&src.depth, &m_prev)?)
             }
             Model::Quadratic => {
-                let m_prev = be.motion(&src, &cam(tk(k - 1))?, tk(k - 1))?;
-                let m_prev2 = be.motion(&src, &cam(tk(k - 2))?, tk(k - 2))?;
+                let (p, p2) = (frames.previous(frame)?, frames.frame(frame.k - 2)?);
+                let m_prev = be.motion(&src, &p.cam, p.t)?;
+                let m_prev2 = be.motion(&src, &p2.cam, p2.t)?;
                 Some(WarpBasis::second_order(&src.depth, (-1.0, &m_prev), (-2.0, &m_prev2))?)
             }
         };
@@ -233,9 +215,9 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
         };
         for j in 1..plan.factor {
             let frac = j as f32 / plan.factor as f32;
-            let tt = tk(k) + frac / path.fps;
-            let ct = cam(tt)?;
-            let (reference, samples) = output::time_repeated(plan.reps, || be.view(&ct, tt))?;
+            let tt = frame.t + frac / path.fps;
+            let ct = frames.camera(tt)?;
+            let (reference, samples) = harness::time_repeated(plan.reps, || be.view(&ct, tt))?;
             render_ms.extend(samples);
             // The target's geometry (RRC's re-render) and what the sources saw of it.
             let (tdepth, titems) = be.depth_items(&ct, tt)?;
@@ -276,42 +258,42 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 for &m in &plan.methods {
                     let (out, samples) = match (m, interp) {
                         (Method::Heuristic, false) => {
-                            timed_into(plan.reps, &mut slot, |o| be.heuristic_into(&fe, &src.color, &hp, o))?
+                            harness::time_into(plan.reps, &mut slot, |o| be.heuristic_into(&fe, &src.color, &hp, o))?
                         }
-                        (Method::Heuristic, true) => timed(plan.reps, || {
+                        (Method::Heuristic, true) => harness::time_repeated(plan.reps, || {
                             let a = be.heuristic(fa.as_ref().expect("fwd"), &src.color, &hp)?;
                             let b = be.heuristic(fb.as_ref().expect("bwd"), &next.color, &hp)?;
                             combine(a, b)
                         })?,
                         (Method::Robust, false) => {
-                            timed_into(plan.reps, &mut slot, |o| be.robust_into(&fe, &src.color, &rp, o))?
+                            harness::time_into(plan.reps, &mut slot, |o| be.robust_into(&fe, &src.color, &rp, o))?
                         }
-                        (Method::Robust, true) => timed(plan.reps, || {
+                        (Method::Robust, true) => harness::time_repeated(plan.reps, || {
                             let a = be.robust(fa.as_ref().expect("fwd"), &src.color, &rp)?;
                             let b = be.robust(fb.as_ref().expect("bwd"), &next.color, &rp)?;
                             combine(a, b)
                         })?,
-                        (Method::Repeat, _) => timed(plan.reps, || {
+                        (Method::Repeat, _) => harness::time_repeated(plan.reps, || {
                             let v = if interp && frac > 0.5 { &next } else { &src };
                             Ok(zwarp_color::repeat(&v.color, &v.depth)?)
                         })?,
-                        (Method::Mesh, false) => {
-                            timed(plan.reps, || Ok(zwarp_color::mesh_warp(&fe, &src.color, &src.cam)?))?
-                        }
-                        (Method::Mesh, true) => timed(plan.reps, || {
+                        (Method::Mesh, false) => harness::time_repeated(plan.reps, || {
+                            Ok(zwarp_color::mesh_warp(&fe, &src.color, &src.cam)?)
+                        })?,
+                        (Method::Mesh, true) => harness::time_repeated(plan.reps, || {
                             let a = zwarp_color::mesh_warp(fa.as_ref().expect("fwd"), &src.color, &src.cam)?;
                             let b = zwarp_color::mesh_warp(fb.as_ref().expect("bwd"), &next.color, &next.cam)?;
                             combine(a, b)
                         })?,
                         (Method::Scatter, false) => {
-                            timed(plan.reps, || Ok(zwarp_color::scatter_warp(&fe, &src.color)?))?
+                            harness::time_repeated(plan.reps, || Ok(zwarp_color::scatter_warp(&fe, &src.color)?))?
                         }
-                        (Method::Scatter, true) => timed(plan.reps, || {
+                        (Method::Scatter, true) => harness::time_repeated(plan.reps, || {
                             let a = zwarp_color::scatter_warp(fa.as_ref().expect("fwd"), &src.color)?;
                             let b = zwarp_color::scatter_warp(fb.as_ref().expect("bwd"), &next.color)?;
                             combine(a, b)
                         })?,
-                        (Method::Reproject, _) => timed(plan.reps, || {
+                        (Method::Reproject, _) => harness::time_repeated(plan.reps, || {
                             // The re-render of the target's depth is part of the method's cost.
                             let (d, it) = be.depth_items(&ct, tt)?;
                             let tv = View { cam: ct, t: tt, color: Image::new(0, 0, [0.0; 3]), depth: d, items: it };
@@ -326,7 +308,13 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                         })?,
                     };
                     let unseen = if interp { &unseen_both } else { &unseen_src };
-                    let q = colorwarp::quality(&reference.color, &out, Some(unseen))?;
+                    let q = harness::compare_color(
+                        &reference.color,
+                        &out.color,
+                        out.converged_fraction(),
+                        Some(unseen),
+                        Figures::All,
+                    )?;
                     if ki == 0 && j == 1 {
                         if let Some(dir) = &args.images {
                             let base = format!("{}_f{}", colorwarp::safe_name(&args.scene.scene), plan.factor);
@@ -347,14 +335,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                             colorwarp::add_panel(&mut strips, (interp, 0), &reference.color, &out.color, m.name())?;
                         }
                     }
-                    let idx = match accs.iter().position(|(key, _)| *key == (interp, m)) {
-                        Some(i) => i,
-                        None => {
-                            accs.push(((interp, m), Acc::default()));
-                            accs.len() - 1
-                        }
-                    };
-                    let a = &mut accs[idx].1;
+                    let a = harness::entry(&mut accs, (interp, m));
                     a.q.push(q);
                     a.ms.extend(samples);
                     a.floor.push(floor);
@@ -376,7 +357,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
         .into_iter()
         .map(|((interp, m), a)| {
             let t = Timing::of(&a.ms);
-            let floor = colorwarp::median(&a.floor);
+            let floor = Timing::of(&a.floor).median;
             UpsampleRow {
                 method: m.name().into(),
                 mode: if interp { "interpolate" } else { "extrapolate" }.into(),
@@ -386,7 +367,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 frames: a.q.len(),
                 width: w,
                 height: h,
-                quality: colorwarp::mean_quality(&a.q),
+                quality: harness::mean_quality(&a.q),
                 warp_ms: t.median,
                 warp_ms_min: t.min,
                 warp_ms_max: t.max,
@@ -394,7 +375,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 speedup: render / t.median.max(1e-9),
                 floor_ms: floor,
                 floor_ratio: t.median / floor.max(1e-9),
-                motion_ms: colorwarp::median(&motion_ms),
+                motion_ms: Timing::of(&motion_ms).median,
             }
         })
         .collect();

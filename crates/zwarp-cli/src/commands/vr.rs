@@ -23,7 +23,8 @@ use zwarp_vr::{fill_holes, ray_cast, ABuffer, HoleMethod, Method, MinMaxTree, Ra
 use super::colorwarp;
 use crate::args::{Backend, SceneArgs, SizeArgs};
 use crate::device::Device;
-use crate::output::{self, fmt, ser_f64, Table, Timing};
+use crate::harness::{self, Figures, Lone, PathFrames, Quality, Timing};
+use crate::output::{self, fmt, ser_f64, Table};
 
 /// Arguments of `zwarp vr`.
 #[derive(Args, Clone, Debug)]
@@ -301,11 +302,7 @@ fn plan(args: &VrArgs) -> Result<Plan> {
 
 #[derive(Default)]
 struct Acc {
-    psnr: Vec<f64>,
-    psnr_holes: Vec<f64>,
-    holes_fraction: Vec<f64>,
-    ssim: Vec<f64>,
-    flip: Vec<f64>,
+    quality: Vec<Quality>,
     primitives: Vec<f64>,
     quadtree: Vec<f64>,
     grid: Vec<f64>,
@@ -317,17 +314,6 @@ struct Acc {
 
 /// Row key: (alternate, right eye, method, holes name, abuffer).
 type Key = (bool, bool, String, String, bool);
-
-fn acc(accs: &mut Vec<(Key, Acc)>, key: Key) -> &mut Acc {
-    let i = match accs.iter().position(|(k, _)| *k == key) {
-        Some(i) => i,
-        None => {
-            accs.push((key, Acc::default()));
-            accs.len() - 1
-        }
-    };
-    &mut accs[i].1
-}
 
 /// The pixels of the eye `reference` that `source` did not see.
 fn unseen(scene: &Scene, reference: &EyeView, source: &EyeView) -> Result<Image<bool>> {
@@ -356,15 +342,13 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
     let path = &loaded.path;
     let r = Renderer::new(&loaded.scene, args.transparent, args.scene.seed);
     let on_device = device.load(&loaded.scene)?;
-    let total = path.frame_count_at(1.0);
-    if total < 2 {
-        bail!("the camera path is too short for zwarp vr ({total} frame; need 2)");
-    }
-    let count = args.frames.min(total - 1);
-    let ks: Vec<usize> =
-        (0..count).map(|i| if count == 1 { 1 + (total - 2) / 2 } else { 1 + i * (total - 2) / (count - 1) }).collect();
-    let bar = colorwarp::progress(
-        (ks.len() * p.strategies.len() * 2 * p.methods.len()) as u64,
+    let frames = PathFrames::new(path, 1.0, w, h);
+    let total =
+        frames.require(2, |total| format!("the camera path is too short for zwarp vr ({total} frame; need 2)"))?;
+    // Frames with a previous one (the alternate strategy's source).
+    let picked = frames.pick(args.frames, 1..=total - 1, Lone::Middle)?;
+    let bar = harness::progress(
+        (picked.len() * p.strategies.len() * 2 * p.methods.len()) as u64,
         format!("vr {}", args.scene.scene),
         true,
     );
@@ -373,24 +357,25 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
     let mut shots: Vec<Shot> = Vec::new();
     let mut grids: Vec<(String, Image<[f32; 3]>)> = Vec::new();
     let abuffers: Vec<bool> = if r.transparent_count() > 0 { p.abuffer.clone() } else { vec![false] };
-    for (ki, &k) in ks.iter().enumerate() {
-        let (t, tp) = (path.time_of_frame(k, 1.0), path.time_of_frame(k - 1, 1.0));
-        let (c, cp) = (path.camera_at(t, w, h)?, path.camera_at(tp, w, h)?);
+    for (ki, frame) in picked.iter().enumerate() {
+        let before = frames.previous(frame)?;
+        let (t, tp, c, cp) = (frame.t, before.t, frame.cam, before.cam);
         let centre = r.view(&c, t)?;
         if centre.depth.data().iter().all(|&d| d >= 1.0) {
             bail!(
-                "frame {k} of the camera path shows no surface of the scene (only sky): nothing to warp; check --path"
+                "frame {} of the camera path shows no surface of the scene (only sky): nothing to warp; check --path",
+                frame.k
             );
         }
         // The eyes, rendered and timed.
         let mut refs = Vec::new();
         for side in [-1.0f32, 1.0] {
             let ce = super::stereo::eye_camera(&c, side, ipd);
-            let (view, cpu_samples) = output::time_repeated(reps, || r.view(&ce, t))?;
+            let (view, cpu_samples) = harness::time_repeated(reps, || r.view(&ce, t))?;
             // The render a warp replaces, timed on the warp's device (the GPU renders the
             // opaque scene).
             let samples = if device.is_gpu() {
-                output::time_repeated(reps, || device.render_view(&on_device, &ce, t))?.1
+                harness::time_repeated(reps, || device.render_view(&on_device, &ce, t))?.1
             } else {
                 cpu_samples
             };
@@ -409,22 +394,15 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                     &centre
                 };
                 let mask = unseen(&loaded.scene, reference, src)?;
-                let n_unseen = mask.data().iter().filter(|&&v| v).count();
                 let render_ms = Timing::of(render_samples).median;
                 for &m in &p.methods {
                     for &ab in &abuffers {
                         // Without the A-buffer the composited image is warped as if opaque.
                         let colour = if ab { &src.opaque } else { &src.seen };
                         let source = Source { cam: &src.cam, depth: &src.depth, color: colour };
-                        let mut out = device.vr_warp(&source, &reference.cam, m, &wp)?;
-                        let mut stage = Vec::with_capacity(reps);
-                        for _ in 0..reps {
-                            out = device.vr_warp(&source, &reference.cam, m, &wp)?;
-                            stage.push(out.ms);
-                        }
-                        let med = |f: fn(&zwarp_vr::grid::StageMs) -> f64| {
-                            Timing::of(&stage.iter().map(f).collect::<Vec<_>>()).median
-                        };
+                        let (out, stage) =
+                            harness::time_stages(reps, || device.vr_warp(&source, &reference.cam, m, &wp), |o| o.ms)?;
+                        let med = |f: fn(&zwarp_vr::grid::StageMs) -> f64| harness::timing_of(&stage, f).median;
                         let (mq, mg, mw) = (med(|s| s.quadtree), med(|s| s.grid), med(|s| s.warp));
                         if ki == 0 && args.images.is_some() && !out.cells.is_empty() && !right {
                             grids.push((
@@ -437,7 +415,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                         for hm in hole_list {
                             let (filled, hs) = match hm {
                                 Some(hm) => {
-                                    output::time_repeated(reps, || Ok(fill_holes(&out, &source, &reference.cam, hm)?))?
+                                    harness::time_repeated(reps, || Ok(fill_holes(&out, &source, &reference.cam, hm)?))?
                                 }
                                 None => (out.color.clone(), vec![0.0]),
                             };
@@ -446,7 +424,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                             // warped opaque image.
                             let (pred, ms_abuffer) = match (&src.abuf, ab) {
                                 (Some(abuf), true) => {
-                                    let (rc, s) = output::time_repeated(reps, || {
+                                    let (rc, s) = harness::time_repeated(reps, || {
                                         let tree = MinMaxTree::build(abuf);
                                         let ends = hole_depth(&out, &src.cam, &reference.cam)?;
                                         Ok(ray_cast(
@@ -464,21 +442,16 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                                 _ => (filled, 0.0),
                             };
                             let hname = hm.map_or("builtin", |h| h.name()).to_string();
-                            let psnr = zwarp_metrics::psnr_rgb(&reference.seen, &pred, 1.0)?;
-                            let psnr_holes = if n_unseen > 0 {
-                                zwarp_metrics::psnr_rgb_masked(&reference.seen, &pred, &mask, 1.0)?
-                            } else {
-                                f64::NAN
-                            };
-                            let ssim = zwarp_metrics::ssim_rgb(&reference.seen, &pred, 1.0)?;
-                            let flip =
-                                zwarp_metrics::flip(&reference.seen, &pred, zwarp_metrics::FLIP_DEFAULT_PPD)?.mean;
-                            let a = acc(&mut accs, (alternate, right, m.name(), hname.clone(), ab));
-                            a.psnr.push(psnr);
-                            a.psnr_holes.push(psnr_holes);
-                            a.holes_fraction.push(n_unseen as f64 / mask.len() as f64);
-                            a.ssim.push(ssim);
-                            a.flip.push(flip);
+                            // The rows report the headline figures only, and no convergence.
+                            let q = harness::compare_color(
+                                &reference.seen,
+                                &pred,
+                                f64::NAN,
+                                Some(&mask),
+                                Figures::Headline,
+                            )?;
+                            let a = harness::entry(&mut accs, (alternate, right, m.name(), hname.clone(), ab));
+                            a.quality.push(q);
                             a.primitives.push(out.primitives as f64);
                             a.quadtree.push(mq);
                             a.grid.push(mg);
@@ -538,7 +511,6 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
             colorwarp::write_color(dir, &format!("{base}_{name}_grid"), img)?;
         }
     }
-    let mean = |v: &[f64]| colorwarp::mean(v);
     let med = |v: &[f64]| Timing::of(v).median;
     Ok(accs
         .into_iter()
@@ -546,6 +518,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
             let (q, g, wv, hl, abm) = (med(&a.quadtree), med(&a.grid), med(&a.warp), med(&a.holes), med(&a.abuffer));
             let warp_ms = q + g + wv + hl + abm;
             let render_ms = med(&a.render);
+            let quality = harness::mean_quality(&a.quality);
             VrRow {
                 method,
                 strategy: if alternate { "alternate" } else { "cyclops" }.into(),
@@ -555,15 +528,15 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                 scene: args.scene.scene.clone(),
                 width: w,
                 height: h,
-                frames: a.psnr.len(),
+                frames: a.quality.len(),
                 ipd,
                 transparent: args.transparent,
-                psnr: mean(&a.psnr),
-                psnr_holes: mean(&a.psnr_holes),
-                holes_fraction: mean(&a.holes_fraction),
-                ssim: mean(&a.ssim),
-                flip: mean(&a.flip),
-                primitives: mean(&a.primitives),
+                psnr: quality.psnr,
+                psnr_holes: quality.disocc_psnr,
+                holes_fraction: quality.disocc_fraction,
+                ssim: quality.ssim,
+                flip: quality.flip,
+                primitives: harness::mean_finite(&a.primitives),
                 ms_quadtree: q,
                 ms_grid: g,
                 ms_warp: wv,
