@@ -1,7 +1,7 @@
 // Depth / item / colour rendering and depth peeling (seed 000, Sec. 3.4: the deep depth buffer
 // is built by depth peeling [Everitt 2001]). Host code: depth.rs.
 //
-// Conventions (DESIGN.md): the projection maps view depth to [0, 1]; wgpu's viewport maps NDC
+// Conventions (zwarp_core::Camera): the projection maps view depth to [0, 1]; wgpu's viewport maps NDC
 // y = +1 to framebuffer row 0, which is zwarp's "row 0 = top", so no flip is needed anywhere.
 
 struct Object {
