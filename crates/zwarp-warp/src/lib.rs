@@ -184,7 +184,9 @@ pub struct WarpParams {
     /// the candidate's own source position: a front layer whose sample *there* lands within
     /// the radius of `p` and is nearer by [`COVER_DEPTH_RATIO`] still covers `p` (its search
     /// only missed, e.g. on a crack between the samples of two layers), so the candidate is
-    /// hidden too. Default 3.5.
+    /// hidden too; so is one where a front layer's sample one fixed-point step further
+    /// (`q' = p - v(q)` with that front sample's motion) lands within the radius and is nearer
+    /// (a texel-wide sliver at the seam between two layers' views of one wall). Default 3.5.
     pub cover_radius: f32,
 }
 
