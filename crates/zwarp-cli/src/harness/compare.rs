@@ -101,17 +101,6 @@ pub fn compare_color(
     Ok(q)
 }
 
-/// The `$ty` whose listed fields are each the `$mean` of that field over the values `$qs`,
-/// with the `$other` fields given as they are.
-macro_rules! field_means {
-    ($ty:ident, $qs:expr, $mean:expr; $($field:ident),+; $($other:ident: $value:expr),*) => {
-        $ty {
-            $($field: $mean(&$qs.iter().map(|q| q.$field).collect::<Vec<_>>()),)+
-            $($other: $value,)*
-        }
-    };
-}
-
 /// Mean of finite values (NaN if none); infinities count as such when all are infinite.
 pub fn mean_finite(v: &[f64]) -> f64 {
     let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
@@ -123,12 +112,21 @@ pub fn mean_finite(v: &[f64]) -> f64 {
 
 /// Mean of several [`Quality`] values, field by field ([`mean_finite`]).
 pub fn mean_quality(qs: &[Quality]) -> Quality {
-    let channel = |c: usize| mean_finite(&qs.iter().map(|q| q.psnr_rgb[c]).collect::<Vec<_>>());
-    field_means!(
-        Quality, qs, mean_finite;
-        psnr, psnr_y, ssim, ssim_y, flip, cie94, converged, disocc_fraction, disocc_psnr, disocc_cie94, disocc_flip;
-        psnr_rgb: [channel(0), channel(1), channel(2)]
-    )
+    let m = |f: &dyn Fn(&Quality) -> f64| mean_finite(&qs.iter().map(f).collect::<Vec<_>>());
+    Quality {
+        psnr: m(&|q| q.psnr),
+        psnr_y: m(&|q| q.psnr_y),
+        psnr_rgb: [m(&|q| q.psnr_rgb[0]), m(&|q| q.psnr_rgb[1]), m(&|q| q.psnr_rgb[2])],
+        ssim: m(&|q| q.ssim),
+        ssim_y: m(&|q| q.ssim_y),
+        flip: m(&|q| q.flip),
+        cie94: m(&|q| q.cie94),
+        converged: m(&|q| q.converged),
+        disocc_fraction: m(&|q| q.disocc_fraction),
+        disocc_psnr: m(&|q| q.disocc_psnr),
+        disocc_cie94: m(&|q| q.disocc_cie94),
+        disocc_flip: m(&|q| q.disocc_flip),
+    }
 }
 
 /// Quality of one predicted depth buffer (`zwarp eval`'s figures).
@@ -173,8 +171,21 @@ pub fn compare_depth(
 /// Mean of several [`DepthComparison`] values, field by field: a plain mean, so one identical
 /// frame (infinite PSNR) makes the mean infinite, and no frames make it NaN.
 pub fn mean_depth(qs: &[DepthComparison]) -> DepthComparison {
-    let mean = |v: &[f64]| if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 };
-    field_means!(DepthComparison, qs, mean; psnr, ssim, psnr_buffer, ssim_buffer, converged, converged_seen;)
+    let m = |f: &dyn Fn(&DepthComparison) -> f64| {
+        if qs.is_empty() {
+            f64::NAN
+        } else {
+            qs.iter().map(f).sum::<f64>() / qs.len() as f64
+        }
+    };
+    DepthComparison {
+        psnr: m(&|q| q.psnr),
+        ssim: m(&|q| q.ssim),
+        psnr_buffer: m(&|q| q.psnr_buffer),
+        ssim_buffer: m(&|q| q.ssim_buffer),
+        converged: m(&|q| q.converged),
+        converged_seen: m(&|q| q.converged_seen),
+    }
 }
 
 /// Fraction of the reference's surface pixels where `predicted` holds a surface (and, with
