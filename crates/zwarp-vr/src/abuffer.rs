@@ -315,6 +315,12 @@ pub fn ray_cast(
 }
 
 /// One ray from `a` to `b` (source pixel x, y, depth): premultiplied colour and steps.
+///
+/// Where the ray runs outside the source image (the border strip the source did not see) it
+/// continues the transparent surfaces at the image border, as the hole filling does for opaque
+/// ones: those pieces of the ray are clamped onto the border (x and y clamped, depth kept) and
+/// traversed in ray order with the inside piece, so a pane that reaches the border still covers
+/// the strip at its own depth.
 #[allow(clippy::too_many_arguments)]
 fn cast_one(
     a: [f32; 3],
@@ -325,23 +331,63 @@ fn cast_one(
     sh: f32,
     p: &RayCastParams,
 ) -> ([f32; 4], u32) {
-    // A ray entirely outside the source image (the border strip it did not see) continues the
-    // transparent surfaces at the image border, as the hole filling does for opaque ones: it is
-    // clamped onto the border.
-    let inside = |q: [f32; 3]| q[0] >= 0.0 && q[1] >= 0.0 && q[0] < sw && q[1] < sh;
-    let (a, b) = if !inside(a) && !inside(b) && !segment_meets_image(a, b, sw, sh) {
-        let c = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
-        (c(a), c(b))
-    } else {
-        (a, b)
-    };
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    // Where the ray crosses the image's border lines: the ends of the pieces.
+    let mut cuts = [0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0];
+    let mut n = 1;
+    for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
+        if v.abs() > 1e-12 {
+            for edge in [0.0, hi] {
+                let t = (edge - o) / v;
+                if t > 0.0 && t < 1.0 {
+                    cuts[n] = t;
+                    n += 1;
+                }
+            }
+        }
+    }
+    cuts[n] = 1.0;
+    cuts[..=n].sort_by(f32::total_cmp);
+    let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
+    let clamp = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
+    let mut ray = RayState { acc: [0.0; 4], last: None, steps: 0 };
+    for w in cuts[..=n].windows(2) {
+        if w[1] > w[0] && ray.acc[3] < p.opacity {
+            cast_piece(clamp(at(w[0])), clamp(at(w[1])), ab, tree, sw, sh, p, &mut ray);
+        }
+    }
+    (ray.acc, ray.steps)
+}
+
+/// What a ray carries from one piece to the next: premultiplied colour, the last fragment hit
+/// (with its pixel) and the quadtree nodes visited.
+struct RayState {
+    acc: [f32; 4],
+    /// The last fragment composited, its pixel and its index in that pixel's list.
+    last: Option<(Fragment, (u32, u32), usize)>,
+    steps: u32,
+}
+
+/// The traversal of one straight piece of a ray from `a` to `b` (source pixel x, y, depth, inside
+/// the image), compositing into `ray`.
+#[allow(clippy::too_many_arguments)]
+fn cast_piece(
+    a: [f32; 3],
+    b: [f32; 3],
+    ab: &ABuffer,
+    tree: &MinMaxTree,
+    sw: f32,
+    sh: f32,
+    p: &RayCastParams,
+    ray: &mut RayState,
+) {
     let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     // Clip to the source image (slabs in x and y).
     let (mut t0, mut t1) = (0.0f32, 1.0f32);
     for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
         if v.abs() < 1e-12 {
             if o < 0.0 || o >= hi {
-                return ([0.0; 4], 0);
+                return;
             }
         } else {
             let (mut ta, mut tb) = ((0.0 - o) / v, (hi - o) / v);
@@ -359,14 +405,16 @@ fn cast_one(
         t0 = t0.max(ta.min(tb));
         t1 = t1.min(ta.max(tb) + 1e-6);
     } else if a[2] < zmin || a[2] > zmax {
-        return ([0.0; 4], 0);
+        return;
     }
     if t0 >= t1 {
-        return ([0.0; 4], 0);
+        return;
     }
     let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
-    // Cell index of the ray just after `t` (so a boundary point belongs to the next cell).
-    let nudge = 1e-5 / (d[0].abs() + d[1].abs()).max(1e-3);
+    // Cell index of the ray just after `t` (so a boundary point belongs to the next cell): a
+    // thousandth of a pixel, several float steps even at 8K coordinates (a smaller step can
+    // round back into the cell just left, which would then be visited twice).
+    let nudge = 1e-3 / (d[0].abs() + d[1].abs()).max(1e-3);
     let cell = |t: f32, level: usize| {
         let q = at((t + nudge).min(t1));
         let (x, y) = ((q[0].clamp(0.0, sw - 1e-3)) as u32, (q[1].clamp(0.0, sh - 1e-3)) as u32);
@@ -384,13 +432,11 @@ fn cast_one(
         }
         te.max(t)
     };
-    let mut acc = [0.0f32; 4];
-    let mut last: Option<(Fragment, (u32, u32))> = None;
+    let RayState { acc, last, steps } = ray;
     let mut level = LEVELS;
     let mut t = t0;
-    let mut steps = 0u32;
-    while t < t1 && acc[3] < p.opacity && steps < p.max_steps {
-        steps += 1;
+    while t < t1 && acc[3] < p.opacity && *steps < p.max_steps {
+        *steps += 1;
         let (cx, cy) = cell(t, level);
         let te = exit(t, level, cx, cy);
         let (za, zb) = (at(t)[2], at(te)[2]);
@@ -404,24 +450,31 @@ fn cast_one(
         if hit {
             // A leaf: the fragments whose boxes the ray's depth span meets, in ray order.
             let fr = ab.fragments(cx, cy);
-            let mut visit = |f: &Fragment| {
+            let forward = zb >= za;
+            let mut visit = |i: usize, f: &Fragment| {
                 if acc[3] >= p.opacity || !(lo <= f.depth + f.half && hi >= f.depth - f.half) {
                     return;
                 }
-                if let Some((l, px)) = last {
-                    // The same surface again in a neighbouring pixel within its thickness
-                    // (overlapping boxes). Fragments of one pixel are distinct surfaces.
-                    if px != (cx, cy) && l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
+                if let Some((l, px, li)) = *last {
+                    if px == (cx, cy) {
+                        // The pixel again (the border piece of a ray continues in the pixel
+                        // where the inside piece ended): only the fragments after the last hit.
+                        if (forward && i <= li) || (!forward && i >= li) {
+                            return;
+                        }
+                    } else if l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
+                        // The same surface again in a neighbouring pixel within its thickness
+                        // (overlapping boxes). Fragments of one pixel are distinct surfaces.
                         return;
                     }
                 }
-                over(&mut acc, &f.rgba);
-                last = Some((*f, (cx, cy)));
+                over(acc, &f.rgba);
+                *last = Some((*f, (cx, cy), i));
             };
-            if zb >= za {
-                fr.iter().for_each(&mut visit);
+            if forward {
+                fr.iter().enumerate().for_each(|(i, f)| visit(i, f));
             } else {
-                fr.iter().rev().for_each(&mut visit);
+                fr.iter().enumerate().rev().for_each(|(i, f)| visit(i, f));
             }
         }
         // Advance past the node; ascend when the next node is no sibling (other parent).
@@ -437,22 +490,4 @@ fn cast_one(
         }
         t = next;
     }
-    (acc, steps)
-}
-
-/// `true` if the 2-D segment `a`-`b` crosses the `sw x sh` image.
-fn segment_meets_image(a: [f32; 3], b: [f32; 3], sw: f32, sh: f32) -> bool {
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for (o, v, hi) in [(a[0], b[0] - a[0], sw), (a[1], b[1] - a[1], sh)] {
-        if v.abs() < 1e-12 {
-            if o < 0.0 || o >= hi {
-                return false;
-            }
-        } else {
-            let (ta, tb) = ((0.0 - o) / v, (hi - o) / v);
-            t0 = t0.max(ta.min(tb));
-            t1 = t1.min(ta.max(tb));
-        }
-    }
-    t0 < t1
 }

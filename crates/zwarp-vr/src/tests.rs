@@ -618,3 +618,73 @@ fn the_interior_fast_path_matches_the_general_tests() {
         }
     }
 }
+
+/// Ray casts one glass pane in front of a wall, the pane covering the whole view, from `cam` to
+/// the eye 0.6 to its right: every ray crosses the pane exactly once, so each pixel must be the
+/// pane's premultiplied colour over the warped opaque image, `g + (1 - a) base`, exactly —
+/// also where the pane's piece of the ray lies beyond the source's border, and on every cell
+/// boundary of the min-max tree.
+fn assert_pane_composited_once(w: u32, h: u32, near: f32) {
+    let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), near, 100.0, w, h).unwrap();
+    let dst = shifted(&cam, 0.6);
+    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
+    let pane = [Plane { n: Vec3::Y, k: 6.0, half_x: None, color: red }];
+    let (sd, sc) = trace(&cam, &wall);
+    let (gd, _) = trace(&cam, &pane);
+    let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
+    let ab = ABuffer::from_layers(&[(gd, items)], &sd, glass).unwrap();
+    let src = Source { cam: &cam, depth: &sd, color: &sc };
+    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
+    let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
+    let g = glass(1);
+    let mut wrong = Vec::new();
+    for (i, (c, b)) in rc.color.data().iter().zip(base.data()).enumerate() {
+        if (0..3).any(|k| (c[k] - (g[k] + (1.0 - g[3]) * b[k])).abs() > 1e-5) {
+            wrong.push((i as u32 % w, i as u32 / w));
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{w}x{h}: {} pixels not composited once, e.g. {:?}",
+        wrong.len(),
+        &wrong[..wrong.len().min(8)]
+    );
+}
+
+#[test]
+fn a_pane_reaching_the_border_covers_the_strip_the_source_did_not_see() {
+    // The pane's piece of the rays in the right-hand columns lies beyond the source's border
+    // (8 px of disparity at the pane, 1 px at the wall): it continues the border fragments.
+    assert_pane_composited_once(96, 48, 0.1);
+}
+
+#[test]
+fn a_ray_far_from_the_origin_visits_each_cell_once() {
+    // Source coordinates beyond 1024 px, where a float step is 1.2e-4 px: the step into the
+    // next cell must not round back into the cell just left (which composited it twice).
+    assert_pane_composited_once(2048, 16, 0.1);
+}
+
+#[test]
+fn long_rays_advance_through_every_cell() {
+    // A slanted pane and a near plane at 1 mm: rays span thousands of source pixels, so the
+    // step past a cell boundary is far below a float step of the ray parameter unless it is
+    // sized in pixels (a stuck ray spends the whole step budget on one cell).
+    let (w, h) = (640, 360);
+    let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), 0.001, 100.0, w, h).unwrap();
+    let dst = shifted(&cam, 1.0);
+    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
+    let pane = [Plane { n: Vec3::new(0.5, 1.0, 0.2), k: 6.0, half_x: None, color: red }];
+    let (sd, sc) = trace(&cam, &wall);
+    let (gd, _) = trace(&cam, &pane);
+    let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
+    let ab = ABuffer::from_layers(&[(gd, items)], &sd, glass).unwrap();
+    let src = Source { cam: &cam, depth: &sd, color: &sc };
+    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let rc = ray_cast(&ab, &tree, &cam, &dst, &warped.color, &warped.depth, &RayCastParams::default()).unwrap();
+    let most = *rc.steps.data().iter().max().unwrap();
+    assert!(most < 200, "a ray took {most} steps");
+}
