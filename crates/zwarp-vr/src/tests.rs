@@ -619,16 +619,14 @@ fn the_interior_fast_path_matches_the_general_tests() {
     }
 }
 
-/// Ray casts one glass pane in front of a wall, the pane covering the whole view, from `cam` to
-/// the eye 0.6 to its right: every ray crosses the pane exactly once, so each pixel must be the
-/// pane's premultiplied colour over the warped opaque image, `g + (1 - a) base`, exactly —
-/// also where the pane's piece of the ray lies beyond the source's border, and on every cell
-/// boundary of the min-max tree.
-fn assert_pane_composited_once(w: u32, h: u32, near: f32) {
+/// A glass pane (normal `pane_n`, `dot(pane_n, x) = 6`, covering the whole view) in front of a
+/// wall, seen by a `w x h` camera with near plane `near`, ray cast to the eye `u` to its right
+/// over the warped, hole-filled wall: the ray cast and that opaque base.
+fn ray_cast_pane(w: u32, h: u32, near: f32, u: f32, pane_n: Vec3) -> (crate::abuffer::RayCast, Image<[f32; 3]>) {
     let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), near, 100.0, w, h).unwrap();
-    let dst = shifted(&cam, 0.6);
+    let dst = shifted(&cam, u);
     let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
-    let pane = [Plane { n: Vec3::Y, k: 6.0, half_x: None, color: red }];
+    let pane = [Plane { n: pane_n, k: 6.0, half_x: None, color: red }];
     let (sd, sc) = trace(&cam, &wall);
     let (gd, _) = trace(&cam, &pane);
     let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
@@ -638,6 +636,15 @@ fn assert_pane_composited_once(w: u32, h: u32, near: f32) {
     let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
     let tree = MinMaxTree::build(&ab);
     let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
+    (rc, base)
+}
+
+/// [`ray_cast_pane`] with a fronto-parallel pane and the eye 0.6 to the right: every ray
+/// crosses the pane exactly once, so each pixel must be the pane's premultiplied colour over
+/// the warped opaque image, `g + (1 - a) base`, exactly — also where the pane's piece of the ray
+/// lies beyond the source's border, and on every cell boundary of the min-max tree.
+fn assert_pane_composited_once(w: u32, h: u32, near: f32) {
+    let (rc, base) = ray_cast_pane(w, h, near, 0.6, Vec3::Y);
     let g = glass(1);
     let mut wrong = Vec::new();
     for (i, (c, b)) in rc.color.data().iter().zip(base.data()).enumerate() {
@@ -672,19 +679,7 @@ fn long_rays_advance_through_every_cell() {
     // A slanted pane and a near plane at 1 mm: rays span thousands of source pixels, so the
     // step past a cell boundary is far below a float step of the ray parameter unless it is
     // sized in pixels (a stuck ray spends the whole step budget on one cell).
-    let (w, h) = (640, 360);
-    let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), 0.001, 100.0, w, h).unwrap();
-    let dst = shifted(&cam, 1.0);
-    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
-    let pane = [Plane { n: Vec3::new(0.5, 1.0, 0.2), k: 6.0, half_x: None, color: red }];
-    let (sd, sc) = trace(&cam, &wall);
-    let (gd, _) = trace(&cam, &pane);
-    let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
-    let ab = ABuffer::from_layers(&[(gd, items)], &sd, glass).unwrap();
-    let src = Source { cam: &cam, depth: &sd, color: &sc };
-    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
-    let tree = MinMaxTree::build(&ab);
-    let rc = ray_cast(&ab, &tree, &cam, &dst, &warped.color, &warped.depth, &RayCastParams::default()).unwrap();
+    let (rc, _) = ray_cast_pane(640, 360, 0.001, 1.0, Vec3::new(0.5, 1.0, 0.2));
     let most = *rc.steps.data().iter().max().unwrap();
     assert!(most < 200, "a ray took {most} steps");
 }
