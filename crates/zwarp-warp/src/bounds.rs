@@ -28,6 +28,8 @@ use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
+use crate::search::Sampling;
+
 /// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
 /// motion (see the module docs on which samples contribute).
 #[inline]
@@ -196,6 +198,163 @@ pub struct MotionPyramid {
     /// Minimal target depth of the valid samples per texel (`+inf` if none), same layout. Kept
     /// apart: only the pruning of later layers reads it.
     zmin: Vec<f32>,
+    /// Per texel the component-wise largest [`cell_gradient`] of the bilinear cells whose
+    /// top-left texel it covers, same layout: the unique-solution test of the tile stage
+    /// ([`Self::unique_solution`]).
+    grad: Vec<[f32; 2]>,
+}
+
+/// Compare-select `min` / `max` (no NaN reaches them: empty texels are `+inf`), so the cell
+/// loops vectorize.
+#[inline(always)]
+fn smin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+#[inline(always)]
+fn smax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// Squared norms of the rows of the Jacobian of the adaptive fetch's bilinear interpolant over
+/// the cell of texels `a b / c d` (each `[vx, vy, z]`, `z = +inf` for an empty texel), bounded
+/// per entry by the larger of the cell's two differences along its axis (the bilinear
+/// derivative lies between them): `[|dvx/dq|^2, |dvy/dq|^2]`. `+inf` where the depths alone
+/// stop the fetch from interpolating (an empty texel or a depth step,
+/// [`crate::search::continuous_cell`]). The motion part of that test depends on the motion
+/// scale, and a small gradient implies it ([`MotionPyramid::unique_solution`]).
+#[inline(always)]
+pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32; 2] {
+    let mut g = [0f32; 2];
+    for (i, g) in g.iter_mut().enumerate() {
+        let dx = smax((b[i] - a[i]).abs(), (d[i] - c[i]).abs());
+        let dy = smax((c[i] - a[i]).abs(), (d[i] - b[i]).abs());
+        *g = dx * dx + dy * dy;
+    }
+    let z_lo = smin(smin(a[2], b[2]), smin(c[2], d[2]));
+    let z_hi = smax(smax(a[2], b[2]), smax(c[2], d[2]));
+    if (z_hi - z_lo) < crate::search::DEPTH_CONTINUITY * (1.0 - z_hi) {
+        g
+    } else {
+        [f32::INFINITY; 2]
+    }
+}
+
+/// Bound on the squared Frobenius norm of the motion's Jacobian below which a search region
+/// holds one solution at most ([`MotionPyramid::unique_solution`]).
+pub const UNIQUE_GRADIENT: f32 = 0.5;
+
+/// One image row of sample planes: motion x, motion y, target depth (`+inf` where empty).
+pub(crate) type PlaneRow<'a> = [&'a [f32]; 3];
+
+/// One row of level 1 of the gradient mipmap: per texel the component-wise largest
+/// [`cell_gradient`] of the cells whose top-left texel lies in its 2x2 block. `rows` are the
+/// image rows `2 ty`, `2 ty + 1` and `2 ty + 2`, clamped to the image (the fetch clamps, so a
+/// cell at the bottom border repeats the border row); `two` is `false` where row `2 ty + 1`
+/// lies outside the image (its cells do not exist). Cells at the right border repeat the border
+/// texel. `scratch` holds two rows of cells.
+pub(crate) fn gradient_row(rows: [PlaneRow<'_>; 3], two: bool, scratch: &mut Vec<[f32; 2]>, out: &mut [[f32; 2]]) {
+    let wu = rows[0][0].len();
+    scratch.clear();
+    scratch.resize(2 * (wu + 1), [f32::NEG_INFINITY; 2]);
+    let (g0, g1) = scratch.split_at_mut(wu + 1);
+    for (dy, g) in [g0, g1].into_iter().enumerate() {
+        if dy == 1 && !two {
+            break;
+        }
+        let ([ax, ay, az], [cx, cy, cz]) = (rows[dy], rows[dy + 1]);
+        let n = wu - 1;
+        let (bx, by, bz) = (&ax[1..], &ay[1..], &az[1..]);
+        let (dx, dy_, dz) = (&cx[1..], &cy[1..], &cz[1..]);
+        let gn = &mut g[..n];
+        let mut i0 = 0;
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::has_avx2() {
+            // SAFETY: AVX2 checked; every slice holds at least `n` elements.
+            i0 = unsafe { cells8([ax, bx, cx, dx], [ay, by, cy, dy_], [az, bz, cz, dz], gn) };
+        }
+        for i in i0..n {
+            gn[i] = cell_gradient(
+                [ax[i], ay[i], az[i]],
+                [bx[i], by[i], bz[i]],
+                [cx[i], cy[i], cz[i]],
+                [dx[i], dy_[i], dz[i]],
+            );
+        }
+        // The last column: its right neighbour is itself.
+        let (a, c) = ([ax[n], ay[n], az[n]], [cx[n], cy[n], cz[n]]);
+        g[n] = cell_gradient(a, a, c, c);
+    }
+    let (r0, r1) = scratch.split_at(wu + 1);
+    for (tx, o) in out.iter_mut().enumerate() {
+        let i = 2 * tx;
+        *o = [0, 1].map(|c| smax(smax(r0[i][c], r0[i + 1][c]), smax(r1[i][c], r1[i + 1][c])));
+    }
+}
+
+/// Level 1 of the gradient mipmap ([`gradient_row`] per row) from `w x h` sample planes into
+/// `out` (`ceil(w/2) x ceil(h/2)`).
+pub(crate) fn gradient_level1(w: u32, h: u32, (vx, vy, z): (&[f32], &[f32], &[f32]), out: &mut [[f32; 2]]) {
+    let (wu, hu) = (w as usize, h as usize);
+    let row = |y: usize| -> PlaneRow<'_> {
+        let r = y.min(hu - 1) * wu..(y.min(hu - 1) + 1) * wu;
+        [&vx[r.clone()], &vy[r.clone()], &z[r]]
+    };
+    out.par_chunks_mut(wu.div_ceil(2)).enumerate().for_each_init(Vec::new, |scratch, (ty, o)| {
+        gradient_row([row(2 * ty), row(2 * ty + 1), row(2 * ty + 2)], 2 * ty + 1 < hu, scratch, o)
+    });
+}
+
+/// [`cell_gradient`] eight cells at a time (bit-identical: compare-select min / max, no FMA,
+/// the same order of sums) for the cells `0..8 * floor(n / 8)` of one row, given per plane the
+/// cells' four texels `a b / c d` as slices of `n`; returns how many it wrote.
+///
+/// # Safety
+/// The CPU must support AVX2; every slice holds at least `out.len()` elements.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f32; 2]]) -> usize {
+    use std::arch::x86_64::*;
+    let n8 = out.len() / 8 * 8;
+    let sign = _mm256_set1_ps(-0.0);
+    let (one, inf) = (_mm256_set1_ps(1.0), _mm256_set1_ps(f32::INFINITY));
+    for i in (0..n8).step_by(8) {
+        let load = |s: &[&[f32]; 4]| {
+            [
+                _mm256_loadu_ps(s[0].as_ptr().add(i)),
+                _mm256_loadu_ps(s[1].as_ptr().add(i)),
+                _mm256_loadu_ps(s[2].as_ptr().add(i)),
+                _mm256_loadu_ps(s[3].as_ptr().add(i)),
+            ]
+        };
+        let [a, b, c, d] = load(&z);
+        let z_lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
+        let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
+        let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_sub_ps(z_hi, z_lo),
+            _mm256_mul_ps(_mm256_set1_ps(crate::search::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
+        );
+        let row = |[a, b, c, d]: [__m256; 4]| {
+            let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+            let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
+            let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
+            _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
+        };
+        let (gx, gy) = (row(load(&vx)), row(load(&vy)));
+        // Interleave into [gx, gy] pairs: lanes 0-3 and 4-7 of each.
+        let (lo, hi) = (_mm256_unpacklo_ps(gx, gy), _mm256_unpackhi_ps(gx, gy));
+        let p = out.as_mut_ptr().add(i) as *mut f32;
+        _mm256_storeu_ps(p, _mm256_permute2f128_ps::<0x20>(lo, hi));
+        _mm256_storeu_ps(p.add(8), _mm256_permute2f128_ps::<0x31>(lo, hi));
+    }
+    n8
 }
 
 /// `ceil(log2(n))` for `n >= 1`, 0 for `n <= 1`.
@@ -261,19 +420,29 @@ impl MotionPyramid {
                 }
             },
         );
-        Self::from_level1(w, h, frame, data, zmin)
+        let mut grad = vec![[0f32; 2]; lw as usize * lh as usize];
+        let planes = crate::search::SamplePlanes::from_motion(samples);
+        gradient_level1(w, h, (&planes.vx, &planes.vy, &planes.z), &mut grad);
+        Self::from_level1(w, h, frame, data, zmin, grad)
     }
 
     /// The texel buffers (every level), for reuse by the next preparation.
-    pub(crate) fn into_buffers(self) -> (Vec<[f32; 4]>, Vec<f32>) {
-        (self.data, self.zmin)
+    pub(crate) fn into_buffers(self) -> (Vec<[f32; 4]>, Vec<f32>, Vec<[f32; 2]>) {
+        (self.data, self.zmin, self.grad)
     }
 
     /// Builds levels `2..=top` over a given level 1 (the first `ceil(w / 2) x ceil(h / 2)`
-    /// min-max texels of `data` in `frame`, and their min depths; anything after them is
-    /// overwritten), e.g. from the fused pass of `PreparedLayer::prepare_stack` that validates
-    /// the samples and reduces them at once.
-    pub(crate) fn from_level1(w: u32, h: u32, frame: BoundFrame, mut data: Vec<[f32; 4]>, mut zmin: Vec<f32>) -> Self {
+    /// min-max texels of `data` in `frame`, their min depths and their gradients; anything
+    /// after them is overwritten), e.g. from the fused pass of `PreparedLayer::prepare_stack`
+    /// that validates the samples and reduces them at once.
+    pub(crate) fn from_level1(
+        w: u32,
+        h: u32,
+        frame: BoundFrame,
+        mut data: Vec<[f32; 4]>,
+        mut zmin: Vec<f32>,
+        mut grad: Vec<[f32; 2]>,
+    ) -> Self {
         let top = ceil_log2(w.max(h)).max(1);
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
         let n1 = lw as usize * lh as usize;
@@ -289,6 +458,26 @@ impl MotionPyramid {
         }
         data.resize(total, Bound::EMPTY.to_texel());
         zmin.resize(total, f32::INFINITY);
+        grad.resize(total, [f32::INFINITY; 2]);
+        for k in 1..levels.len() {
+            let (prev, cur) = (levels[k - 1], levels[k]);
+            let (below, above) = grad.split_at_mut(cur.off);
+            let pg = &below[prev.off..];
+            above[..cur.w as usize * cur.h as usize].par_chunks_mut(cur.w as usize).enumerate().for_each(
+                |(ty, row)| {
+                    for (tx, out) in row.iter_mut().enumerate() {
+                        let mut g = [f32::NEG_INFINITY; 2];
+                        for y in 2 * ty..(2 * ty + 2).min(prev.h as usize) {
+                            for x in 2 * tx..(2 * tx + 2).min(prev.w as usize) {
+                                let t = pg[y * prev.w as usize + x];
+                                g = [smax(g[0], t[0]), smax(g[1], t[1])];
+                            }
+                        }
+                        *out = g;
+                    }
+                },
+            );
+        }
         for k in 1..levels.len() {
             let (prev, cur) = (levels[k - 1], levels[k]);
             let (below, above) = data.split_at_mut(cur.off);
@@ -320,7 +509,7 @@ impl MotionPyramid {
                 });
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
-        MotionPyramid { width: w, height: h, frame, levels, data, zmin }
+        MotionPyramid { width: w, height: h, frame, levels, data, zmin, grad }
     }
 
     /// The raw layout for the AVX2 tightening: min-max texels, min-depth texels, and per level
@@ -428,6 +617,67 @@ impl MotionPyramid {
             }
         }
         z
+    }
+
+    /// Component-wise largest [`cell_gradient`] over the cells a fetch at any point of the
+    /// inclusive pixel range can interpolate (same look-ups as [`Self::lookup_min_depth`]).
+    #[inline]
+    pub fn lookup_gradient(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> [f32; 2] {
+        let level = self.level_for_range(ix0, iy0, ix1, iy1);
+        let l = &self.levels[(level - 1) as usize];
+        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
+        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
+        let mut g = [f32::NEG_INFINITY; 2];
+        for ty in ty0..=ty1 {
+            let row = &self.grad[l.off + ty as usize * l.w as usize..];
+            for t in &row[tx0 as usize..=tx1 as usize] {
+                g = [smax(g[0], t[0]), smax(g[1], t[1])];
+            }
+        }
+        g
+    }
+
+    /// `true` if every target position of the box `p_lo..=p_hi` has at most one solution in its
+    /// search region under motion bound `b` (frame coordinates), and a walk from a seed in that
+    /// region that converges finds it, for the warp of `scale * v` (`WarpParams::motion_scale`):
+    /// every cell the region's fetches read is continuous in depth and
+    /// `sx^2 max|dvx/dq|^2 + sy^2 max|dvy/dq|^2 < 1/2` ([`cell_gradient`]). That bounds the
+    /// Frobenius, hence the spectral, norm of the Jacobian of `scale * v` below `1/sqrt(2)`, so
+    /// `q -> p - scale v(q)` is a contraction on the region, which it maps into itself (every
+    /// motion there lies in `b`): Banach's theorem leaves exactly one fixed point, and N seeds
+    /// would all find the surface that one seed finds (seed 000 Sec. 3.2's seeds exist for
+    /// regions with several solutions). It also keeps every cell's motion range below
+    /// [`crate::search::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
+    /// component), so the adaptive fetch interpolates them all.
+    pub fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, b: &Bound, scale: Vec2) -> bool {
+        let (c_lo, c_hi) = self.frame_box(p_lo, p_hi);
+        let region = Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
+        let Some((x0, y0, x1, y1)) = self.pixel_range(&region, Sampling::Adaptive.footprint()) else {
+            return false;
+        };
+        let [gx, gy] = self.lookup_gradient(x0, y0, x1, y1);
+        scale.x * scale.x * gx + scale.y * scale.y * gy < UNIQUE_GRADIENT
+    }
+
+    /// The box of target positions `p_lo..=p_hi` in frame coordinates (the bounding box of its
+    /// rotated corners).
+    #[inline]
+    fn frame_box(&self, p_lo: Vec2, p_hi: Vec2) -> (Vec2, Vec2) {
+        if self.frame.is_identity() {
+            (p_lo, p_hi)
+        } else if p_lo == p_hi {
+            let c = self.frame.to_frame(p_lo);
+            (c, c)
+        } else {
+            let f = &self.frame;
+            let c = [
+                f.to_frame(p_lo),
+                f.to_frame(p_hi),
+                f.to_frame(Vec2::new(p_lo.x, p_hi.y)),
+                f.to_frame(Vec2::new(p_hi.x, p_lo.y)),
+            ];
+            (c[0].min(c[1]).min(c[2]).min(c[3]), c[0].max(c[1]).max(c[2]).max(c[3]))
+        }
     }
 
     /// Search region of target pixel position `p` under motion bound `b`, in frame coordinates.
@@ -540,21 +790,7 @@ impl MotionPyramid {
         if b.is_empty() {
             return None;
         }
-        let (c_lo, c_hi) = if self.frame.is_identity() {
-            (p_lo, p_hi)
-        } else if p_lo == p_hi {
-            let c = self.frame.to_frame(p_lo);
-            (c, c)
-        } else {
-            let f = &self.frame;
-            let c = [
-                f.to_frame(p_lo),
-                f.to_frame(p_hi),
-                f.to_frame(Vec2::new(p_lo.x, p_hi.y)),
-                f.to_frame(Vec2::new(p_hi.x, p_lo.y)),
-            ];
-            (c[0].min(c[1]).min(c[2]).min(c[3]), c[0].max(c[1]).max(c[2]).max(c[3]))
-        };
+        let (c_lo, c_hi) = self.frame_box(p_lo, p_hi);
         let region_of = |b: &Bound| Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
         let mut region = region_of(&b);
         let mut range = self.pixel_range(&region, expand)?;
@@ -732,6 +968,63 @@ mod tests {
             }
         }
         b
+    }
+
+    /// An affine motion field `v(q) = A q + c` at depth 0.5 (`w x h`).
+    fn affine(w: u32, h: u32, a: [[f32; 2]; 2], c: Vec2) -> Image<Motion> {
+        Image::from_fn(w, h, |x, y| {
+            let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            Motion { v: Vec2::new(a[0][0] * q.x + a[0][1] * q.y, a[1][0] * q.x + a[1][1] * q.y) + c, depth: 0.5 }
+        })
+    }
+
+    /// The gradient mipmap of an affine field holds the squared rows of its matrix everywhere
+    /// (bilinear interpolation of an affine field is the field), and the unique-solution test
+    /// follows `sx^2 |row x|^2 + sy^2 |row y|^2 < 1/2`, the motion scale included.
+    #[test]
+    fn gradient_of_an_affine_field_is_its_jacobian() {
+        let m = affine(37, 29, [[0.3, 0.1], [0.0, -0.2]], Vec2::new(-4.0, 2.0));
+        let pyr = MotionPyramid::build(&m).unwrap();
+        let (w, h) = pyr.size();
+        for (x0, y0, x1, y1) in [(0, 0, w - 1, h - 1), (3, 4, 9, 5), (20, 10, 20, 10)] {
+            let [gx, gy] = pyr.lookup_gradient(x0, y0, x1, y1);
+            assert!((gx - 0.1).abs() < 1e-5 && (gy - 0.04).abs() < 1e-5, "{gx} {gy}");
+        }
+        let (p_lo, p_hi) = (Vec2::new(12.5, 10.5), Vec2::new(15.5, 13.5));
+        let b = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), 6, 0.5).unwrap().motion;
+        assert!(pyr.unique_solution(p_lo, p_hi, &b, Vec2::ONE));
+        // 0.1 + 0.04 < 0.5, 4 (0.1 + 0.04) = 0.56 >= 0.5, 0.1 + 4 * 0.04 = 0.26 < 0.5.
+        assert!(!pyr.unique_solution(p_lo, p_hi, &b, Vec2::splat(2.0)));
+        assert!(pyr.unique_solution(p_lo, p_hi, &b, Vec2::new(1.0, 2.0)));
+        // A magnifying field (|Dv| = 0.6 per axis: 0.36 + 0.36 >= 0.5) has no such guarantee.
+        let zoom = MotionPyramid::build(&affine(37, 29, [[0.6, 0.0], [0.0, 0.6]], Vec2::ZERO)).unwrap();
+        assert!(!zoom.unique_solution(p_lo, p_hi, &zoom.global(), Vec2::ONE));
+    }
+
+    /// A depth step or an empty texel in the region stops the unique-solution test (the fetch
+    /// does not interpolate across them); a region clear of them passes.
+    #[test]
+    fn depth_steps_and_empty_texels_are_not_unique() {
+        let base = affine(40, 24, [[0.2, 0.0], [0.0, 0.2]], Vec2::ZERO);
+        let (p_lo, p_hi) = (Vec2::new(4.5, 4.5), Vec2::new(7.5, 7.5));
+        let bound = |pyr: &MotionPyramid| pyr.tight_bound_box(p_lo, p_hi, pyr.global(), 6, 0.5).unwrap().motion;
+        // 0.9 behind 0.5 is a step of (0.9 - 0.5) / (1 - 0.9) = 4 > DEPTH_CONTINUITY.
+        for (x_step, depth, want) in [(6, 0.9, false), (6, 1.0, false), (30, 0.9, true), (30, 1.0, true)] {
+            let m = Image::from_fn(40, 24, |x, y| {
+                let s = *base.get(x, y);
+                if x == x_step && (3..=9).contains(&y) {
+                    Motion { depth, ..s }
+                } else {
+                    s
+                }
+            });
+            let pyr = MotionPyramid::build(&m).unwrap();
+            assert_eq!(
+                pyr.unique_solution(p_lo, p_hi, &bound(&pyr), Vec2::ONE),
+                want,
+                "step at {x_step}, depth {depth}"
+            );
+        }
     }
 
     /// Every texel of every level equals the brute-force min-max over the pixels it covers,

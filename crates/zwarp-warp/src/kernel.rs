@@ -85,6 +85,10 @@ pub(crate) struct StageBound {
     /// Layers `k > 0`: min target depth of the valid samples over the box's final region
     /// (`-inf` for layer 0, where it is not used).
     pub min_depth: f32,
+    /// Layer 0 of a box not [`Self::resolved`]: every pixel's region holds at most one
+    /// solution, which one seed at the region's centre finds wherever it converges
+    /// ([`crate::MotionPyramid::unique_solution`]); `false` elsewhere.
+    pub unique: bool,
 }
 
 impl StageBound {
@@ -187,14 +191,31 @@ impl<'a> Kernel<'a> {
             (self.bound_iterations(), self.params.sampling.footprint(), self.params.motion_scale);
         let start = pyr.global().scaled(scale);
         let s = if k == 0 {
-            pyr.tight_bound_box_scaled(p_lo, p_hi, start, iters, expand, scale)
-                .map(|t| StageBound { motion: t.motion, min_depth: f32::NEG_INFINITY })
+            pyr.tight_bound_box_scaled(p_lo, p_hi, start, iters, expand, scale).map(|t| StageBound {
+                motion: t.motion,
+                min_depth: f32::NEG_INFINITY,
+                unique: self.unique_solution(p_lo, p_hi, &t.motion),
+            })
         } else {
-            pyr.tight_bound_box_with_depth_scaled(p_lo, p_hi, start, iters, expand, scale)
-                .map(|t| StageBound { motion: t.motion, min_depth: t.min_depth })
+            pyr.tight_bound_box_with_depth_scaled(p_lo, p_hi, start, iters, expand, scale).map(|t| StageBound {
+                motion: t.motion,
+                min_depth: t.min_depth,
+                unique: false,
+            })
         };
         t.memo[k] = Some(s);
         s
+    }
+
+    /// [`StageBound::unique`] for layer 0's tile bound `motion` over the box `p_lo..=p_hi`:
+    /// only for a bound wider than a pixel, stratified seeds and the adaptive fetch.
+    fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, motion: &Bound) -> bool {
+        let e = motion.extent();
+        let p = self.params;
+        !(e.x <= 1.0 && e.y <= 1.0)
+            && p.seeding == SeedStrategy::Stratified
+            && p.sampling == crate::Sampling::Adaptive
+            && self.layers[0].pyramid().unique_solution(p_lo, p_hi, motion, p.motion_scale)
     }
 
     /// The warp of one target pixel over all layers, from layer `k0` on with the state the
@@ -227,6 +248,21 @@ impl<'a> Kernel<'a> {
             let pyr = self.layers[k].pyramid();
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
             let Some(start) = self.start(b, k) else { continue };
+            if start.unique && best.is_none() {
+                // One solution at most in the pixel's region under the tile's bound: one seed at
+                // its centre finds it without tightening; where that walk fails, the pixel takes
+                // the complete search below.
+                let tb = TightBound {
+                    motion: start.motion,
+                    region: pyr.region(p, &start.motion),
+                    min_depth: f32::NEG_INFINITY,
+                };
+                if let (Some(c), _) = self.search_layer(k, x, y, p, &tb, None, 1, seeds) {
+                    prev_q = Some(c.q);
+                    best = Some(c);
+                    continue;
+                }
+            }
             let tb = if start.resolved() && best.is_none() {
                 // The tile's bound is already narrower than a pixel: one seed at the centre of
                 // this pixel's region, whatever further tightening would give.
@@ -263,7 +299,7 @@ impl<'a> Kernel<'a> {
             if params.holes == HolePolicy::Awoc && awoc.is_none() {
                 awoc = Some((pyr.frame(), tb));
             }
-            match self.search_layer(k, x, y, p, &tb, prev_q, seeds) {
+            match self.search_layer(k, x, y, p, &tb, prev_q, params.n_seeds, seeds) {
                 (Some(c), _) => {
                     prev_q = Some(c.q);
                     if best.is_none_or(|b| c.depth < b.depth) {
@@ -330,7 +366,7 @@ impl<'a> Kernel<'a> {
         })
     }
 
-    /// Seeds (N in the region `tb`, plus an earlier layer's converged position) and the
+    /// Seeds (`n_seeds` in the region `tb`, plus an earlier layer's converged position) and the
     /// fixed-point search of layer `k` for pixel `(x, y)` at source position `p`.
     #[allow(clippy::too_many_arguments)]
     #[inline]
@@ -342,13 +378,14 @@ impl<'a> Kernel<'a> {
         p: Vec2,
         tb: &TightBound,
         prev_q: Option<Vec2>,
+        n_seeds: u32,
         seeds: &mut [Vec2; MAX_SEEDS as usize],
     ) -> (Option<Candidate>, crate::search::Approach) {
         let params = self.params;
         let frame = self.layers[k].pyramid().frame();
         let mut n = match params.seeding {
             SeedStrategy::Stratified => {
-                let ne = effective_seeds(params.n_seeds, tb.region.extent());
+                let ne = effective_seeds(n_seeds, tb.region.extent());
                 // The key only jitters seeds 2.. (one seed sits at the region centre).
                 let key = if ne > 1 { seed_key(x, y, k as u32) } else { 0 };
                 stratified_seeds(&frame, &tb.region, ne, key, seeds)
@@ -541,9 +578,13 @@ impl<'a> Kernel<'a> {
             };
             for (i, s) in r.into_iter().enumerate() {
                 if t0 + i < n {
-                    out.push(s.map(|(motion, z)| StageBound {
-                        motion,
-                        min_depth: if k > 0 { z } else { f32::NEG_INFINITY },
+                    out.push(s.map(|(motion, z)| {
+                        let unique = k == 0 && {
+                            let x0 = (t0 + i) as u32 * TILE;
+                            let x1 = (x0 + TILE).min(self.tw) - 1;
+                            self.unique_solution(self.target_pos(x0, y0), self.target_pos(x1, y1), &motion)
+                        };
+                        StageBound { motion, min_depth: if k > 0 { z } else { f32::NEG_INFINITY }, unique }
                     }));
                 }
             }
@@ -715,7 +756,22 @@ impl<'a> Kernel<'a> {
             }
             // Lanes without a candidate: the resolved tile's region, or the pixel's tightened
             // bound.
-            let searching = active & !(_mm256_movemask_ps(has) as u8);
+            let mut searching = active & !(_mm256_movemask_ps(has) as u8);
+            if searching != 0 && sk.unique {
+                // Kernel::pixel_from: one seed at the centre of the region under the tile's bound
+                // where it holds one solution at most; the lanes it fails take the complete search.
+                let region = sw::region8(frame, px, py, &sw::splat_bound(&sk.motion));
+                let r = sw::search8(ls, k, frame, px, py, xi, yi, searching, &region, None, 1);
+                let now = r.converged;
+                pqx = _mm256_blendv_ps(pqx, r.qx, now);
+                pqy = _mm256_blendv_ps(pqy, r.qy, now);
+                bz = _mm256_blendv_ps(bz, r.depth, now);
+                bqx = _mm256_blendv_ps(bqx, r.qx, now);
+                bqy = _mm256_blendv_ps(bqy, r.qy, now);
+                btag = _mm256_blendv_epi8(btag, r.tag, _mm256_castps_si256(now));
+                has = _mm256_or_ps(has, now);
+                searching &= !(_mm256_movemask_ps(now) as u8);
+            }
             let first = if searching == 0 {
                 None
             } else if sk.resolved() {
@@ -730,7 +786,7 @@ impl<'a> Kernel<'a> {
                     continue;
                 }
                 let prev = with_prev.then_some((pqx, pqy, has));
-                let r = sw::search8(ls, k, frame, px, py, xi, yi, bits, &region, prev);
+                let r = sw::search8(ls, k, frame, px, py, xi, yi, bits, &region, prev, ls.n_seeds);
                 let now = r.converged;
                 if !with_prev {
                     // Kernel::pixel_from: a failed search of a lane without a candidate.

@@ -355,6 +355,60 @@ mod avx2 {
     }
 }
 
+/// Scratch of [`gradient_pair`]: two rows of cells and the next image row's planes.
+#[derive(Default)]
+struct GradScratch {
+    cells: Vec<[f32; 2]>,
+    next: [Vec<f32>; 3],
+}
+
+/// Level-1 rows per task of the preparation: a task reads one image row of the next task's
+/// inputs for its last row of gradient texels.
+const GRAD_ROWS: usize = 8;
+
+/// The gradient texels of level-1 row `ty` ([`crate::bounds::gradient_row`]) from its image
+/// rows (`own`: motion x, motion y, target depth of one or two rows) and the next image row's
+/// planes (`next`), or, where the next row belongs to another task, that row validated here
+/// from the inputs as [`row`] validates it.
+fn gradient_pair(
+    input: &RowInput<'_>,
+    ty: usize,
+    h: usize,
+    own: [&[f32]; 3],
+    next: Option<[&[f32]; 3]>,
+    sc: &mut GradScratch,
+    out: &mut [[f32; 2]],
+) {
+    let w = input.w;
+    fn split(p: &[f32], r: usize, w: usize) -> &[f32] {
+        let r = r.min(p.len() / w - 1);
+        &p[r * w..(r + 1) * w]
+    }
+    let r0 = own.map(|p| split(p, 0, w));
+    let r1 = own.map(|p| split(p, 1, w));
+    let y2 = 2 * ty + 2;
+    let r2: [&[f32]; 3] = if let Some(n) = next {
+        n
+    } else if y2 < h {
+        let (d, m) = (&input.depth[y2 * w..(y2 + 1) * w], &input.motion[y2 * w..(y2 + 1) * w]);
+        let [nx, ny, nz] = &mut sc.next;
+        for v in [&mut *nx, &mut *ny, &mut *nz] {
+            v.resize(w, 0.0);
+        }
+        for ((((d, m), x), y), z) in d.iter().zip(m).zip(nx.iter_mut()).zip(ny.iter_mut()).zip(nz.iter_mut()) {
+            let finite_v = m.v.x.is_finite() & m.v.y.is_finite();
+            let valid = (*d < EMPTY_DEPTH) & (m.depth >= 0.0) & (m.depth < 1.0) & finite_v;
+            *x = if valid { m.v.x } else { 0.0 };
+            *y = if valid { m.v.y } else { 0.0 };
+            *z = if valid { m.depth } else { f32::INFINITY };
+        }
+        [&sc.next[0][..], &sc.next[1][..], &sc.next[2][..]]
+    } else {
+        r1
+    };
+    crate::bounds::gradient_row([r0, r1, r2], 2 * ty + 1 < h, &mut sc.cells, out);
+}
+
 /// A layer ready to be warped: its validated samples ([`SamplePlanes`], empty ones with an
 /// infinite target depth) and the min-max motion mipmap in the frame chosen for the bound kind
 /// (seed 000 Sec. 3.3). Build once per source/target pair and reuse across calls with different
@@ -390,6 +444,7 @@ struct Spare {
     level1: Vec<[f32; 4]>,
     oriented: Vec<[f32; 4]>,
     zmin: Vec<f32>,
+    grad: Vec<[f32; 2]>,
 }
 
 /// `v` resized to `n` elements, reusing its allocation when it is large enough; new buffers are
@@ -490,7 +545,7 @@ impl PreparedLayer {
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
         let n = wu * h as usize;
-        let Spare { planes, level1, oriented, zmin } = spare;
+        let Spare { planes, level1, oriented, zmin, grad } = spare;
         let mut vx = reuse(planes.vx, n, 0.0);
         let mut vy = reuse(planes.vy, n, 0.0);
         let mut z = reuse(planes.z, n, 0.0);
@@ -501,22 +556,63 @@ impl PreparedLayer {
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
         let input = RowInput { depth, motion, earlier, w: wu, frame: ob };
+        let mut grad = reuse_mip(grad, lw * lh, all, [0.0; 2]);
+        let hu = h as usize;
+        // Tasks of GRAD_ROWS level-1 rows: each pair of image rows, then the gradient texels of
+        // the pair before it while both are in cache (a cell spans the next pair's first row;
+        // only a task's last pair reads that row from the inputs).
+        let (cw, cl) = (GRAD_ROWS * 2 * wu, GRAD_ROWS * lw);
+        let task = |sc: &mut GradScratch,
+                    c: usize,
+                    [vx, vy, z]: [&mut [f32]; 3],
+                    aab: &mut [[f32; 4]],
+                    zmin: &mut [f32],
+                    g: &mut [[f32; 2]],
+                    mut ob: Option<&mut [[f32; 4]]>| {
+            let pairs = aab.len() / lw;
+            let mut st = RowStats::EMPTY;
+            for j in 0..pairs {
+                let (p, t) = (j * 2 * wu..((j + 1) * 2 * wu).min(vx.len()), j * lw..(j + 1) * lw);
+                let out = RowOutput {
+                    vx: &mut vx[p.clone()],
+                    vy: &mut vy[p.clone()],
+                    z: &mut z[p.clone()],
+                    aab: &mut aab[t.clone()],
+                    ob: ob.as_deref_mut().map(|o| &mut o[t.clone()]),
+                    zmin: &mut zmin[t],
+                };
+                st = st.merge(row(&input, c * GRAD_ROWS + j, out));
+            }
+            fn p(q: &[f32], j: usize, wu: usize) -> &[f32] {
+                &q[(j * 2 * wu).min(q.len())..((j + 1) * 2 * wu).min(q.len())]
+            }
+            for j in 0..pairs {
+                let p = |q, j| p(q, j, wu);
+                let own = [p(vx, j), p(vy, j), p(z, j)];
+                let next = (j + 1 < pairs).then(|| [&p(vx, j + 1)[..wu], &p(vy, j + 1)[..wu], &p(z, j + 1)[..wu]]);
+                gradient_pair(&input, c * GRAD_ROWS + j, hu, own, next, sc, &mut g[j * lw..(j + 1) * lw]);
+            }
+            st
+        };
         let rows = vx
-            .par_chunks_mut(2 * wu)
-            .zip(vy.par_chunks_mut(2 * wu))
-            .zip(z.par_chunks_mut(2 * wu))
-            .zip(aab.par_chunks_mut(lw))
-            .zip(zmin.par_chunks_mut(lw));
+            .par_chunks_mut(cw)
+            .zip(vy.par_chunks_mut(cw))
+            .zip(z.par_chunks_mut(cw))
+            .zip(aab.par_chunks_mut(cl))
+            .zip(zmin.par_chunks_mut(cl))
+            .zip(grad.par_chunks_mut(cl));
         let stats = if need_ob {
-            rows.zip(obd[..lw * lh].par_chunks_mut(lw))
+            rows.zip(obd[..lw * lh].par_chunks_mut(cl))
                 .enumerate()
-                .map(|(ty, (((((vx, vy), z), aab), zmin), o))| {
-                    row(&input, ty, RowOutput { vx, vy, z, aab, ob: Some(o), zmin })
+                .map_init(GradScratch::default, |sc, (c, ((((((vx, vy), z), aab), zmin), g), o))| {
+                    task(sc, c, [vx, vy, z], aab, zmin, g, Some(o))
                 })
                 .reduce(|| RowStats::EMPTY, RowStats::merge)
         } else {
             rows.enumerate()
-                .map(|(ty, ((((vx, vy), z), aab), zmin))| row(&input, ty, RowOutput { vx, vy, z, aab, ob: None, zmin }))
+                .map_init(GradScratch::default, |sc, (c, (((((vx, vy), z), aab), zmin), g))| {
+                    task(sc, c, [vx, vy, z], aab, zmin, g, None)
+                })
                 .reduce(|| RowStats::EMPTY, RowStats::merge)
         };
         if stats.flags & 1 != 0 {
@@ -529,9 +625,9 @@ impl PreparedLayer {
         // global bounds being the unions of the level-1 texels.
         let use_ob = need_ob && stats.ob.pixel_area() < stats.aab.pixel_area();
         let (pyramid, oriented) = if use_ob {
-            (MotionPyramid::from_level1(w, h, ob, obd, zmin), aab)
+            (MotionPyramid::from_level1(w, h, ob, obd, zmin, grad), aab)
         } else {
-            (MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin), obd)
+            (MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin, grad), obd)
         };
         let surfaces = SurfaceMotion { lo: stats.surf_lo, hi: stats.surf_hi, all_finite: stats.flags & 4 == 0 };
         Ok(PreparedLayer { w, h, planes: SamplePlanes { vx, vy, z }, pyramid, bound, oriented, surfaces })
@@ -543,8 +639,8 @@ impl PreparedLayer {
     }
     /// The large buffers, for [`Self::prepare_stack_recycling`].
     fn into_spare(self) -> Spare {
-        let (level1, zmin) = self.pyramid.into_buffers();
-        Spare { planes: self.planes, level1, oriented: self.oriented, zmin }
+        let (level1, zmin, grad) = self.pyramid.into_buffers();
+        Spare { planes: self.planes, level1, oriented: self.oriented, zmin, grad }
     }
     /// The motion range of the layer's surfaces (see [`SurfaceMotion`]).
     pub fn surfaces(&self) -> SurfaceMotion {

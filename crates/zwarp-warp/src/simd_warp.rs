@@ -317,7 +317,7 @@ unsafe fn hash8(v: __m256i) -> __m256i {
 /// Searches layer `k` for the `active` lanes at target positions `(px, py)` (target pixels
 /// `(xi, yi)`) with the seeds `stratified_seeds` places in each lane's search region
 /// `[lo.x, lo.y, hi.x, hi.y]` (frame coordinates of `frame`): one at the centre where the
-/// region is within one pixel, else `effective_seeds` of them (corners first, then the
+/// region is within one pixel, else `effective_seeds` of them (of at most `n_seeds`) (corners first, then the
 /// jittered R2 points), plus, with cross-layer seeding, an earlier layer's converged position
 /// `prev` where the lane has one (`prev_has`) inside its region (appended, or in place of the
 /// last seed when there are N); the candidate of minimal depth wins in seed order. The walk
@@ -339,6 +339,7 @@ pub(crate) unsafe fn search8(
     active: u8,
     region: &[__m256; 4],
     prev: Option<(__m256, __m256, __m256)>,
+    n_seeds: u32,
 ) -> Lanes {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
@@ -352,7 +353,7 @@ pub(crate) unsafe fn search8(
     // effective_seeds: one seed iff both extents <= 1, else min(N, ceil((ex + 1)(ey + 1))).
     let single = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(ex, one), _mm256_cmp_ps::<_CMP_LE_OQ>(ey, one));
     let area = _mm256_ceil_ps(_mm256_mul_ps(_mm256_add_ps(ex, one), _mm256_add_ps(ey, one)));
-    let nf = splat(ls.n_seeds as f32);
+    let nf = splat(n_seeds as f32);
     let nsel = _mm256_blendv_ps(nf, area, _mm256_cmp_ps::<_CMP_LT_OQ>(area, nf));
     let ne = _mm256_blendv_epi8(_mm256_cvttps_epi32(nsel), _mm256_set1_epi32(1), _mm256_castps_si256(single));
     let ne = _mm256_and_si256(ne, _mm256_castps_si256(act));

@@ -208,6 +208,26 @@ pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
     ]
 }
 
+/// A walk toward a tilted wall with a box in front (one layer, as depth and motion): the wall's
+/// motion expands about the image centre `c` by `s`, `v(q) = s (q - c)`, its depth
+/// `0.3 + 0.004 x + 0.003 y`; the box (pixels `[w/8, w/3) x [h/4, h/2)`, depth 0.2) moves by its
+/// own `(5, -3)` px besides. With `2 s^2 < 1/2` the wall's tiles away from the box hold one
+/// solution per pixel (`MotionPyramid::unique_solution`) although their bounds span pixels;
+/// the box's silhouette keeps the complete search busy.
+pub fn approach_field(w: u32, h: u32, s: f32) -> (Image<f32>, Image<Motion>) {
+    let c = glam::Vec2::new(w as f32, h as f32) * 0.5;
+    let in_box = |x: u32, y: u32| x >= w / 8 && x < w / 3 && y >= h / 4 && y < h / 2;
+    let motion = Image::from_fn(w, h, |x, y| {
+        let q = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        if in_box(x, y) {
+            Motion { v: s * (q - c) + glam::Vec2::new(5.0, -3.0), depth: 0.2 }
+        } else {
+            Motion { v: s * (q - c), depth: 0.3 + 0.004 * x as f32 + 0.003 * y as f32 }
+        }
+    });
+    (motion.map(|m| m.depth), motion)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

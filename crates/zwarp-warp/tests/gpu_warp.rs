@@ -489,6 +489,36 @@ fn multisample_matches_cpu_bit_for_bit() {
     assert!(gpu.contains("divisible by 2"), "{gpu}");
 }
 
+/// Tiles whose region holds one solution (`MotionPyramid::unique_solution`: a walk toward a wall
+/// past a box, `synth::approach_field`) take one seed at the centre of the region under the
+/// tile's bound on the GPU as on the CPU: bit for bit, for N = 4 and 16, axis-aligned and
+/// oriented bounds, and motion scales (the gradient test scales with them).
+#[test]
+fn unique_solution_tiles_match_cpu_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    for (w, h, s) in [(64u32, 48u32, 0.4f32), (61, 37, 0.3)] {
+        let (d, m) = zwarp_warp::synth::approach_field(w, h, s);
+        let layers = [WarpLayer { depth: &d, motion: &m }];
+        for (bound, scale) in [
+            (BoundKind::Tight, Vec2::ONE),
+            (BoundKind::Oriented, Vec2::ONE),
+            (BoundKind::Tight, Vec2::new(0.5, 1.5)),
+            (BoundKind::Tight, Vec2::splat(-1.2)),
+        ] {
+            for n in [4, 16] {
+                let p = WarpParams { n_seeds: n, bound, motion_scale: scale, ..base() };
+                let what = format!("{w}x{h} s={s} {bound:?} scale {scale} N={n}");
+                let cpu = warp_depth(&layers, &p).unwrap();
+                assert_bits(&k.warp(&layers, &p).unwrap(), &cpu, &what);
+                if scale == Vec2::ONE {
+                    assert!(cpu.counts().0 > cpu.depth.len() / 2, "{what}");
+                }
+            }
+        }
+    }
+}
+
 /// The engine path with multisample: `encode_prepare` on the source size, `encode_prepared`
 /// with two motion scales, each equal to the CPU warp with that scale, target-sized outputs.
 #[test]

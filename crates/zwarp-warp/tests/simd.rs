@@ -97,6 +97,24 @@ fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
     }
 }
 
+/// Tiles whose region holds one solution (`MotionPyramid::unique_solution`: a walk toward a wall
+/// past a box, `synth::approach_field`) take one seed per lane; the AVX2 gradient texels and
+/// the lanes' one-seed pass equal the portable ones, with the box's tiles on the complete path.
+#[test]
+fn avx2_warp_equals_the_portable_warp_approaching_a_wall() {
+    for (w, h, s) in [(64u32, 48u32, 0.4f32), (77, 45, 0.3)] {
+        let (d, m) = synth::approach_field(w, h, s);
+        let layers = [WarpLayer { depth: &d, motion: &m }];
+        for bound in [BoundKind::Tight, BoundKind::Oriented] {
+            for n in [1, 4, 16] {
+                let params = WarpParams { n_seeds: n, bound, record_source: true, ..WarpParams::default() };
+                let (a, b) = both(&layers, &params);
+                assert!(bits(&a) == bits(&b), "{w}x{h} s={s} {bound:?} N={n}");
+            }
+        }
+    }
+}
+
 /// Nearest sampling (WOC's warp, seed 000 Sec. 5: the exact texel depths) through the lanes.
 #[test]
 fn avx2_warp_equals_the_portable_warp_with_nearest_sampling() {

@@ -799,3 +799,52 @@ fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hi
         }
     }
 }
+
+/// A camera walking toward a tilted wall past a box (`synth::approach_field`): the wall's motion
+/// expands about the image centre by `s`, so its tiles' bounds span more than a pixel, but the
+/// field is a contraction there (`2 s^2 < 1/2`): tiles whose region holds only wall
+/// (`MotionPyramid::unique_solution` of the tile's bound) take one seed at the centre of the
+/// region under the tile's bound. Their pixels do not depend on N (they did with per-pixel
+/// seeds), converge wherever the wall's solution lies in the image, and solve `q + v(q) = p` to
+/// the threshold.
+#[test]
+fn a_contracting_field_takes_one_seed_whatever_n() {
+    let (w, h) = (64u32, 48u32);
+    let s = 0.4;
+    let c = Vec2::new(32.0, 24.0);
+    let (depth, motion) = zwarp_warp::synth::approach_field(w, h, s);
+    let layers = [WarpLayer { depth: &depth, motion: &motion }];
+    let run = |n| {
+        let p = WarpParams { n_seeds: n, record_source: true, bound: BoundKind::Tight, ..Default::default() };
+        warp_depth(&layers, &p).unwrap()
+    };
+    let (a, b) = (run(4), run(16));
+    let (sa, sb) = (a.source.as_ref().unwrap(), b.source.as_ref().unwrap());
+    let prepared = PreparedLayer::prepare_stack(&layers, BoundKind::Tight).unwrap();
+    let pyr = prepared[0].pyramid();
+    let params = WarpParams::default();
+    let mut unique = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let (x0, y0) = (x / 4 * 4, y / 4 * 4);
+            let (p_lo, p_hi) =
+                (Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5), Vec2::new(x0 as f32 + 3.5, y0 as f32 + 3.5));
+            let tile = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), params.bound_iterations, 0.5).unwrap().motion;
+            let e = tile.extent();
+            if (e.x <= 1.0 && e.y <= 1.0) || !pyr.unique_solution(p_lo, p_hi, &tile, Vec2::ONE) {
+                continue;
+            }
+            unique += 1;
+            assert_eq!(a.depth.get(x, y).to_bits(), b.depth.get(x, y).to_bits(), "pixel ({x}, {y})");
+            assert_eq!(sa.get(x, y), sb.get(x, y), "pixel ({x}, {y})");
+            let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let q = c + (p - c) / (1.0 + s);
+            if q.x > 1.0 && q.y > 1.0 && q.x < w as f32 - 1.0 && q.y < h as f32 - 1.0 {
+                assert_eq!(*a.state.get(x, y), PixelState::Converged, "pixel ({x}, {y})");
+                let sq = sa.get(x, y).q;
+                assert!((sq + s * (sq - c) - p).length() < params.threshold, "pixel ({x}, {y}): q {sq}");
+            }
+        }
+    }
+    assert!(unique > (w * h / 4) as usize, "{unique} pixels in unique tiles");
+}

@@ -395,7 +395,7 @@ impl WarpKernel {
         };
         let samples = self.storage(nl as u64 * wh * 16, "zwarp warp samples")?;
         let mip = self.storage(nl as u64 * total as u64 * 16, "zwarp warp mipmap")?;
-        let zmin = self.storage(nl as u64 * total as u64 * 4, "zwarp warp min-depth mipmap")?;
+        let zmin = self.storage(nl as u64 * total as u64 * 16, "zwarp warp min-depth and gradient mipmap")?;
         let groups = (width.div_ceil(8), height.div_ceil(8));
         // Samples of every layer first: the mipmap of layer k reads layers < k (de-duplication).
         for (k, l) in layers.iter().enumerate() {

@@ -8,7 +8,8 @@
 // - samples: L * wh texels (v.x, v.y, target depth or 2.0 if invalid, raw source depth),
 //   the CPU's `validated_samples` (invalid samples have target depth outside [0, 1)).
 // - mip / zmin: per layer `level_total` texels, levels 1..=top packed at params.levels[l-1].x;
-//   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin = min target depth.
+//   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin texel = (min target depth,
+//   component-wise largest bounds::cell_gradient of the cells whose top-left texel it covers, 0).
 // - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole),
 //   one per target pixel.
 
@@ -64,6 +65,8 @@ const BRACKET_SPAN_RATIO: f32 = 4.0;
 // zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
+// zwarp_warp::bounds::UNIQUE_GRADIENT.
+const UNIQUE_GRADIENT: f32 = 0.5;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
 // f32::EPSILON.
 const EPS: f32 = 1.1920929e-7;
@@ -76,9 +79,9 @@ const EPS: f32 = 1.1920929e-7;
 @group(0) @binding(3) var<storage, read_write> samples_out: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> samples: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> mip: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read_write> zmin: array<f32>;
+@group(0) @binding(5) var<storage, read_write> zmin: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> mip_ro: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read> zmin_ro: array<f32>;
+@group(0) @binding(5) var<storage, read> zmin_ro: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(7) var<storage, read_write> out_state: array<u32>;
 @group(0) @binding(8) var<storage, read_write> fill_depth: array<f32>;
@@ -171,9 +174,41 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
+    // bounds::gradient_row: the cells whose top-left texel lies in the block (clamped at the
+    // right and bottom border).
+    var g = vec2<f32>(params.inf.y);
+    for (var dy = 0u; dy < 2u; dy++) {
+        let y = gid.y * 2u + dy;
+        for (var dx = 0u; dx < 2u; dx++) {
+            let x = gid.x * 2u + dx;
+            if (x < w && y < h) {
+                let x1 = min(x + 1u, w - 1u);
+                let y1 = min(y + 1u, h - 1u);
+                let a = samples[k * wh + y * w + x].xyz;
+                let b = samples[k * wh + y * w + x1].xyz;
+                let c = samples[k * wh + y1 * w + x].xyz;
+                let d = samples[k * wh + y1 * w + x1].xyz;
+                g = max(g, cell_gradient(a, b, c, d));
+            }
+        }
+    }
     let o = k * params.level_total + lv.x + gid.y * lv.y + gid.x;
     mip[o] = vec4<f32>(lo, hi);
-    zmin[o] = z;
+    zmin[o] = vec4<f32>(z, g, 0.0);
+}
+
+// bounds::cell_gradient: the squared norms of the rows of the bilinear fetch's Jacobian over
+// the cell a b / c d (motion .xy, target depth .z), +inf where the depths stop the fetch from
+// interpolating it.
+fn cell_gradient(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
+    let gx = max(abs(b.xy - a.xy), abs(d.xy - c.xy));
+    let gy = max(abs(c.xy - a.xy), abs(d.xy - b.xy));
+    let z_lo = min(min(a.z, b.z), min(c.z, d.z));
+    let z_hi = max(max(a.z, b.z), max(c.z, d.z));
+    if ((z_hi - z_lo) < DEPTH_CONTINUITY * (1.0 - z_hi)) {
+        return gx * gx + gy * gy;
+    }
+    return vec2<f32>(params.inf.x);
 }
 
 // MotionPyramid::from_samples, level params.level from the level below.
@@ -188,6 +223,7 @@ fn mip_up(@builtin(global_invocation_id) gid: vec3<u32>) {
     var lo = vec2<f32>(params.inf.x);
     var hi = vec2<f32>(params.inf.y);
     var z = params.inf.x;
+    var g = vec2<f32>(params.inf.y);
     for (var dy = 0u; dy < 2u; dy++) {
         let y = gid.y * 2u + dy;
         for (var dx = 0u; dx < 2u; dx++) {
@@ -197,13 +233,14 @@ fn mip_up(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let t = mip[o];
                 lo = min(lo, t.xy);
                 hi = max(hi, t.zw);
-                z = min(z, zmin[o]);
+                z = min(z, zmin[o].x);
+                g = max(g, zmin[o].yz);
             }
         }
     }
     let o = base + lv.x + gid.y * lv.y + gid.x;
     mip[o] = vec4<f32>(lo, hi);
-    zmin[o] = z;
+    zmin[o] = vec4<f32>(z, g, 0.0);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -285,10 +322,28 @@ fn lookup_min_depth(k: u32, r: vec4<u32>) -> f32 {
     var z = params.inf.x;
     for (var ty = ty0; ty <= ty1; ty++) {
         for (var tx = tx0; tx <= tx1; tx++) {
-            z = min(z, zmin_ro[base + ty * lv.y + tx]);
+            z = min(z, zmin_ro[base + ty * lv.y + tx].x);
         }
     }
     return z;
+}
+
+// MotionPyramid::lookup_gradient.
+fn lookup_gradient(k: u32, r: vec4<u32>) -> vec2<f32> {
+    let l = level_for_range(r);
+    let lv = params.levels[l - 1u];
+    let base = k * params.level_total + lv.x;
+    let tx0 = r.x >> l;
+    let tx1 = min(r.z >> l, lv.y - 1u);
+    let ty0 = r.y >> l;
+    let ty1 = min(r.w >> l, lv.z - 1u);
+    var g = vec2<f32>(params.inf.y);
+    for (var ty = ty0; ty <= ty1; ty++) {
+        for (var tx = tx0; tx <= tx1; tx++) {
+            g = max(g, zmin_ro[base + ty * lv.y + tx].yz);
+        }
+    }
+    return g;
 }
 
 fn is_empty(b: vec4<f32>) -> bool {
@@ -319,14 +374,8 @@ fn region_of(c_lo: vec2<f32>, c_hi: vec2<f32>, b: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(c_lo - b.zw, c_hi - b.xy);
 }
 
-// MotionPyramid::tight_bound_box (Fig. 5): tightening from `start` for the box of target
-// positions [c_lo, c_hi], stopping at the fixed point.
-fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, iterations: u32, expand: f32) -> Tight {
-    var b = start;
-    let none = Tight(false, vec4<f32>(0.0), vec4<f32>(0.0));
-    if (is_empty(b)) {
-        return none;
-    }
+// MotionPyramid::frame_box: the box of target positions [p_lo, p_hi] in layer k's frame.
+fn frame_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>) -> vec4<f32> {
     var c_lo = p_lo;
     var c_hi = p_hi;
     if (!is_identity(k)) {
@@ -342,6 +391,40 @@ fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, i
             c_hi = max(max(max(c0, c1), c2), c3);
         }
     }
+    return vec4<f32>(c_lo, c_hi);
+}
+
+// Kernel::unique_solution for layer 0's tile bound b over [p_lo, p_hi]
+// (MotionPyramid::unique_solution): a bound wider than a pixel, stratified seeds, the adaptive
+// fetch, and the scaled motion a contraction on the box's region.
+fn unique_solution(p_lo: vec2<f32>, p_hi: vec2<f32>, b: vec4<f32>) -> bool {
+    let e = b.zw - b.xy;
+    if ((e.x <= 1.0 && e.y <= 1.0) || (params.flags & (FLAG_SEED_PIXEL | FLAG_SEED_OFFSET)) != 0u
+        || (params.flags & FLAG_ADAPTIVE) == 0u) {
+        return false;
+    }
+    let c = frame_box(0u, p_lo, p_hi);
+    let region = region_of(c.xy, c.zw, b);
+    let r = pixel_range(0u, region.xy, region.zw, 0.5);
+    if (!r.ok) {
+        return false;
+    }
+    let g = lookup_gradient(0u, r.r);
+    let s = params.motion_scale;
+    return s.x * s.x * g.x + s.y * s.y * g.y < UNIQUE_GRADIENT;
+}
+
+// MotionPyramid::tight_bound_box (Fig. 5): tightening from `start` for the box of target
+// positions [c_lo, c_hi], stopping at the fixed point.
+fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, iterations: u32, expand: f32) -> Tight {
+    var b = start;
+    let none = Tight(false, vec4<f32>(0.0), vec4<f32>(0.0));
+    if (is_empty(b)) {
+        return none;
+    }
+    let c = frame_box(k, p_lo, p_hi);
+    let c_lo = c.xy;
+    let c_hi = c.zw;
     var region = region_of(c_lo, c_hi, b);
     var range = pixel_range(k, region.xy, region.zw, expand);
     if (!range.ok) {
@@ -536,12 +619,87 @@ struct Cand {
     tag: u32,
 };
 
+// The seeds of layer k for pixel (x, y) at p (Kernel::search_layer: ns stratified seeds in
+// region, plus the cross-layer seed prev_q as seed n - 1 where cross_seed) and
+// search::fixed_point_search_closest over them.
+struct Found {
+    found: Cand,
+    // The smallest squared residual of a smooth sampled iterate and that sample's depth.
+    closest: f32,
+    closest_z: f32,
+};
+
+fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32, n: u32, cross_seed: bool,
+                prev_q: vec2<f32>, max_q: vec2<f32>, thr2: f32) -> Found {
+    let key = seed_key(x, y, k);
+    var found = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+    // search::fixed_point_search_closest: the smallest squared residual of a smooth sampled
+    // iterate and that sample's depth.
+    var closest = params.inf.x;
+    var closest_z = params.inf.x;
+    for (var i = 0u; i < n; i++) {
+        var seed: vec2<f32>;
+        if (cross_seed && i == n - 1u) {
+            seed = prev_q;
+        } else if ((params.flags & FLAG_SEED_PIXEL) != 0u) {
+            seed = p;
+        } else if ((params.flags & FLAG_SEED_OFFSET) != 0u) {
+            seed = p + params.seed_offset;
+        } else {
+            seed = stratified_seed(k, i, ns, region, key);
+        }
+        var q = clamp(seed, vec2<f32>(0.0), max_q);
+        var empties = 0u;
+        var done = false;
+        for (var it = 0u; it < params.iterations; it++) {
+            let s = stack_sample(k, q, &empties);
+            if (!s.ok) {
+                break;
+            }
+            let wv = p - s.v;
+            let step = wv - q;
+            let r2 = dot(step, step);
+            if (s.bilinear && r2 < closest) {
+                closest = r2;
+                closest_z = s.depth;
+            }
+            var next = wv;
+            if ((params.flags & FLAG_ACCEL) != 0u) {
+                let m00 = 1.0 + s.dvdx.x;
+                let m01 = s.dvdy.x;
+                let m10 = s.dvdx.y;
+                let m11 = 1.0 + s.dvdy.y;
+                let det = m00 * m11 - m01 * m10;
+                if (abs(det) > 0.05) {
+                    next = q + vec2<f32>(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
+                }
+            }
+            if (r2 < thr2) {
+                // search::fixed_point_search: the sample at q, no polishing sample.
+                let c = Cand(true, q, s.depth, s.tag);
+                if (!found.ok || c.depth < found.depth) {
+                    found = c;
+                }
+                done = true;
+                break;
+            }
+            q = next;
+        }
+        if (done && (params.flags & FLAG_FIRST) != 0u) {
+            break;
+        }
+    }
+    return Found(found, closest, closest_z);
+}
+
 // The CPU's 4x4 tile stage (depth_warp::Kernel::band): the 8x8 workgroup holds 4 tiles; one
 // invocation per (tile, layer) tightens the tile's bound, the pixels then start from it.
 var<workgroup> tile_motion: array<vec4<f32>, 32>;
 var<workgroup> tile_ok: array<u32, 32>;
 // Layers k > 0: min target depth over the tile's search region (Kernel::tile_bounds).
 var<workgroup> tile_zmin: array<f32, 32>;
+// Layer 0: StageBound::unique (Kernel::unique_solution).
+var<workgroup> tile_unique: array<u32, 32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
@@ -562,6 +720,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         var ok = 0u;
         var motion = vec4<f32>(0.0);
         var tz = params.inf.y;
+        var unique = 0u;
         if (tx0 < tw && ty0 < th) {
             let tx1 = min(tx0 + 4u, tw) - 1u;
             let ty1 = min(ty0 + 4u, th) - 1u;
@@ -573,6 +732,9 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             let tile = tight_bound_box(kt, p_lo, p_hi, gb, iters, expand);
             ok = select(0u, 1u, tile.ok);
             motion = tile.motion;
+            if (tile.ok && kt == 0u && unique_solution(p_lo, p_hi, tile.motion)) {
+                unique = 1u;
+            }
             if (tile.ok && kt > 0u) {
                 // tight_bound_box_with_depth: the final region's range always exists here.
                 let r = pixel_range(kt, tile.region.xy, tile.region.zw, expand);
@@ -582,6 +744,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         tile_ok[task] = ok;
         tile_motion[task] = motion;
         tile_zmin[task] = tz;
+        tile_unique[task] = unique;
     }
     workgroupBarrier();
     let x = gid.x;
@@ -611,6 +774,21 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         }
         let start = tile_motion[k * 4u + tile_index];
         let e = start.zw - start.xy;
+        if (tile_unique[k * 4u + tile_index] != 0u && !best.ok) {
+            // Kernel::pixel_from: one solution at most in the region under the tile's bound;
+            // one seed at its centre, the complete search below where it fails.
+            var c = p;
+            if (!is_identity(k)) {
+                c = to_frame(k, p);
+            }
+            let one = search_seeds(k, x, y, p, region_of(c, c, start), 1u, 1u, false, prev_q, max_q, thr2);
+            if (one.found.ok) {
+                has_prev = true;
+                prev_q = one.found.q;
+                best = one.found;
+                continue;
+            }
+        }
         var tb: Tight;
         if (e.x <= 1.0 && e.y <= 1.0 && !best.ok) {
             var c = p;
@@ -661,64 +839,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                 cross_seed = true;
             }
         }
-        let key = seed_key(x, y, k);
-        var found = Cand(false, vec2<f32>(0.0), 0.0, 0u);
-        // search::fixed_point_search_closest: the smallest squared residual of a smooth sampled
-        // iterate and that sample's depth.
-        var closest = params.inf.x;
-        var closest_z = params.inf.x;
-        for (var i = 0u; i < n; i++) {
-            var seed: vec2<f32>;
-            if (cross_seed && i == n - 1u) {
-                seed = prev_q;
-            } else if ((params.flags & FLAG_SEED_PIXEL) != 0u) {
-                seed = p;
-            } else if ((params.flags & FLAG_SEED_OFFSET) != 0u) {
-                seed = p + params.seed_offset;
-            } else {
-                seed = stratified_seed(k, i, ns, tb.region, key);
-            }
-            var q = clamp(seed, vec2<f32>(0.0), max_q);
-            var empties = 0u;
-            var done = false;
-            for (var it = 0u; it < params.iterations; it++) {
-                let s = stack_sample(k, q, &empties);
-                if (!s.ok) {
-                    break;
-                }
-                let wv = p - s.v;
-                let step = wv - q;
-                let r2 = dot(step, step);
-                if (s.bilinear && r2 < closest) {
-                    closest = r2;
-                    closest_z = s.depth;
-                }
-                var next = wv;
-                if ((params.flags & FLAG_ACCEL) != 0u) {
-                    let m00 = 1.0 + s.dvdx.x;
-                    let m01 = s.dvdy.x;
-                    let m10 = s.dvdx.y;
-                    let m11 = 1.0 + s.dvdy.y;
-                    let det = m00 * m11 - m01 * m10;
-                    if (abs(det) > 0.05) {
-                        next = q + vec2<f32>(m11 * step.x - m01 * step.y, -m10 * step.x + m00 * step.y) / det;
-                    }
-                }
-                if (r2 < thr2) {
-                    // search::fixed_point_search: the sample at q, no polishing sample.
-                    let c = Cand(true, q, s.depth, s.tag);
-                    if (!found.ok || c.depth < found.depth) {
-                        found = c;
-                    }
-                    done = true;
-                    break;
-                }
-                q = next;
-            }
-            if (done && (params.flags & FLAG_FIRST) != 0u) {
-                break;
-            }
-        }
+        let sr = search_seeds(k, x, y, p, tb.region, ns, n, cross_seed, prev_q, max_q, thr2);
+        let found = sr.found;
+        let closest = sr.closest;
+        let closest_z = sr.closest_z;
         if (found.ok) {
             has_prev = true;
             prev_q = found.q;
