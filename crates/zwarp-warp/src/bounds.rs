@@ -28,6 +28,7 @@ use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
+use crate::prepare::{fmax, fmin};
 use crate::search::Sampling;
 
 /// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
@@ -204,25 +205,6 @@ pub struct MotionPyramid {
     grad: Vec<[f32; 2]>,
 }
 
-/// Compare-select `min` / `max` (no NaN reaches them: empty texels are `+inf`), so the cell
-/// loops vectorize.
-#[inline(always)]
-fn smin(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-#[inline(always)]
-fn smax(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
 /// Squared norms of the rows of the Jacobian of the adaptive fetch's bilinear interpolant over
 /// the cell of texels `a b / c d` (each `[vx, vy, z]`, `z = +inf` for an empty texel), bounded
 /// per entry by the larger of the cell's two differences along its axis (the bilinear
@@ -234,12 +216,12 @@ fn smax(a: f32, b: f32) -> f32 {
 pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32; 2] {
     let mut g = [0f32; 2];
     for (i, g) in g.iter_mut().enumerate() {
-        let dx = smax((b[i] - a[i]).abs(), (d[i] - c[i]).abs());
-        let dy = smax((c[i] - a[i]).abs(), (d[i] - b[i]).abs());
+        let dx = fmax((b[i] - a[i]).abs(), (d[i] - c[i]).abs());
+        let dy = fmax((c[i] - a[i]).abs(), (d[i] - b[i]).abs());
         *g = dx * dx + dy * dy;
     }
-    let z_lo = smin(smin(a[2], b[2]), smin(c[2], d[2]));
-    let z_hi = smax(smax(a[2], b[2]), smax(c[2], d[2]));
+    let z_lo = fmin(fmin(a[2], b[2]), fmin(c[2], d[2]));
+    let z_hi = fmax(fmax(a[2], b[2]), fmax(c[2], d[2]));
     if (z_hi - z_lo) < crate::search::DEPTH_CONTINUITY * (1.0 - z_hi) {
         g
     } else {
@@ -295,7 +277,7 @@ pub(crate) fn gradient_row(rows: [PlaneRow<'_>; 3], two: bool, scratch: &mut Vec
     let (r0, r1) = scratch.split_at(wu + 1);
     for (tx, o) in out.iter_mut().enumerate() {
         let i = 2 * tx;
-        *o = [0, 1].map(|c| smax(smax(r0[i][c], r0[i + 1][c]), smax(r1[i][c], r1[i + 1][c])));
+        *o = [0, 1].map(|c| fmax(fmax(r0[i][c], r0[i + 1][c]), fmax(r1[i][c], r1[i + 1][c])));
     }
 }
 
@@ -470,7 +452,7 @@ impl MotionPyramid {
                         for y in 2 * ty..(2 * ty + 2).min(prev.h as usize) {
                             for x in 2 * tx..(2 * tx + 2).min(prev.w as usize) {
                                 let t = pg[y * prev.w as usize + x];
-                                g = [smax(g[0], t[0]), smax(g[1], t[1])];
+                                g = [fmax(g[0], t[0]), fmax(g[1], t[1])];
                             }
                         }
                         *out = g;
@@ -631,7 +613,7 @@ impl MotionPyramid {
         for ty in ty0..=ty1 {
             let row = &self.grad[l.off + ty as usize * l.w as usize..];
             for t in &row[tx0 as usize..=tx1 as usize] {
-                g = [smax(g[0], t[0]), smax(g[1], t[1])];
+                g = [fmax(g[0], t[0]), fmax(g[1], t[1])];
             }
         }
         g

@@ -89,9 +89,10 @@ pub(crate) fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowSta
 }
 
 /// `min` / `max` as compare-selects: no NaN reaches them (NaN input is rejected through the
-/// flags), and they are what `minps` / `maxps` compute.
+/// flags; empty texels are `+inf`), and they are what `minps` / `maxps` compute, so loops of
+/// them vectorize and AVX2 builds stay bit-identical.
 #[inline(always)]
-fn fmin(a: f32, b: f32) -> f32 {
+pub(crate) fn fmin(a: f32, b: f32) -> f32 {
     if a < b {
         a
     } else {
@@ -99,7 +100,7 @@ fn fmin(a: f32, b: f32) -> f32 {
     }
 }
 #[inline(always)]
-fn fmax(a: f32, b: f32) -> f32 {
+pub(crate) fn fmax(a: f32, b: f32) -> f32 {
     if a > b {
         a
     } else {

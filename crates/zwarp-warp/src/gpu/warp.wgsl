@@ -310,8 +310,9 @@ fn lookup_range(k: u32, r: vec4<u32>) -> vec4<f32> {
     return b;
 }
 
-// MotionPyramid::lookup_min_depth.
-fn lookup_min_depth(k: u32, r: vec4<u32>) -> f32 {
+// MotionPyramid::lookup_min_depth (.x) and MotionPyramid::lookup_gradient (.yz): the min-depth
+// texels the range touches at its level, reduced by min and max.
+fn lookup_zmin(k: u32, r: vec4<u32>) -> vec3<f32> {
     let l = level_for_range(r);
     let lv = params.levels[l - 1u];
     let base = k * params.level_total + lv.x;
@@ -320,30 +321,15 @@ fn lookup_min_depth(k: u32, r: vec4<u32>) -> f32 {
     let ty0 = r.y >> l;
     let ty1 = min(r.w >> l, lv.z - 1u);
     var z = params.inf.x;
-    for (var ty = ty0; ty <= ty1; ty++) {
-        for (var tx = tx0; tx <= tx1; tx++) {
-            z = min(z, zmin_ro[base + ty * lv.y + tx].x);
-        }
-    }
-    return z;
-}
-
-// MotionPyramid::lookup_gradient.
-fn lookup_gradient(k: u32, r: vec4<u32>) -> vec2<f32> {
-    let l = level_for_range(r);
-    let lv = params.levels[l - 1u];
-    let base = k * params.level_total + lv.x;
-    let tx0 = r.x >> l;
-    let tx1 = min(r.z >> l, lv.y - 1u);
-    let ty0 = r.y >> l;
-    let ty1 = min(r.w >> l, lv.z - 1u);
     var g = vec2<f32>(params.inf.y);
     for (var ty = ty0; ty <= ty1; ty++) {
         for (var tx = tx0; tx <= tx1; tx++) {
-            g = max(g, zmin_ro[base + ty * lv.y + tx].yz);
+            let t = zmin_ro[base + ty * lv.y + tx];
+            z = min(z, t.x);
+            g = max(g, t.yz);
         }
     }
-    return g;
+    return vec3<f32>(z, g);
 }
 
 fn is_empty(b: vec4<f32>) -> bool {
@@ -409,7 +395,7 @@ fn unique_solution(p_lo: vec2<f32>, p_hi: vec2<f32>, b: vec4<f32>) -> bool {
     if (!r.ok) {
         return false;
     }
-    let g = lookup_gradient(0u, r.r);
+    let g = lookup_zmin(0u, r.r).yz;
     let s = params.motion_scale;
     return s.x * s.x * g.x + s.y * s.y * g.y < UNIQUE_GRADIENT;
 }
@@ -738,7 +724,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             if (tile.ok && kt > 0u) {
                 // tight_bound_box_with_depth: the final region's range always exists here.
                 let r = pixel_range(kt, tile.region.xy, tile.region.zw, expand);
-                tz = lookup_min_depth(kt, r.r);
+                tz = lookup_zmin(kt, r.r).x;
             }
         }
         tile_ok[task] = ok;
@@ -809,7 +795,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             if (!r.ok) {
                 continue;
             }
-            if (lookup_min_depth(k, r.r) >= best.depth) {
+            if (lookup_zmin(k, r.r).x >= best.depth) {
                 continue;
             }
         } else {
