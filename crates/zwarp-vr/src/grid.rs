@@ -52,7 +52,11 @@ impl WarpMatrix {
             Vec4::Z,
             Vec4::new(0.5 * tw, 0.5 * th, 0.0, 1.0),
         );
-        Ok(WarpMatrix(to_pixel * dst.view_proj() * vp.inverse() * to_ndc))
+        // In f64: in f32 the inverse of a view-projection with a far / near ratio of 10^4 and an
+        // eye 100 m from the origin loses most of the precision of post-projection depths near 1
+        // (a point 56 m away moved by metres between two eyes 64 mm apart).
+        let m = to_pixel.as_dmat4() * dst.view_proj().as_dmat4() * vp.as_dmat4().inverse() * to_ndc.as_dmat4();
+        Ok(WarpMatrix(m.as_mat4()))
     }
 
     /// The homogeneous target of a source point.
