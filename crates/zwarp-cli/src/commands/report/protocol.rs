@@ -395,6 +395,12 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
             "lowpass,rubber,stretch,pushpull",
         ]));
         out.push(job(format!("vr_{}", sc.label), Section::Vr, sc, "vr", a, true));
+    }
+    // Fig. 7 (A-buffer ray casting against warping the composited image) on every file scene,
+    // where the glass objects meet real occlusion; the colour scene alone without one.
+    let files: Vec<&SceneSpec> = scenes.iter().copied().filter(|sc| !sc.procedural).collect();
+    let glass = if files.is_empty() { colour_scene.into_iter().copied().collect() } else { files };
+    for sc in glass {
         let mut a = size(s.colour);
         a.extend(strings(&[
             "--frames",
@@ -420,6 +426,21 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Fig. 7's glass rows run on every file scene (the colour and VR tables on the first);
+    /// without file scenes on the colour scene.
+    #[test]
+    fn glass_rows_run_on_every_file_scene() {
+        let scenes: Vec<SceneSpec> =
+            ["cb", "/data/sponza@p.json", "/data/city"].iter().map(|s| SceneSpec::new(s)).collect();
+        let ids: Vec<String> = jobs(Level::Quick, &scenes).into_iter().map(|j| j.id).collect();
+        let has = |id: &str| ids.iter().any(|i| i == id);
+        assert!(has("vr_glass_sponza") && has("vr_glass_city") && !has("vr_glass_cb"), "{ids:?}");
+        assert!(has("vr_sponza") && !has("vr_city"), "{ids:?}");
+        let procedural: Vec<SceneSpec> = ["yr", "cb"].iter().map(|s| SceneSpec::new(s)).collect();
+        let ids: Vec<String> = jobs(Level::Quick, &procedural).into_iter().map(|j| j.id).collect();
+        assert_eq!(ids.iter().filter(|i| i.starts_with("vr_glass_")).collect::<Vec<_>>(), ["vr_glass_cb"]);
+    }
 
     #[test]
     fn every_section_has_jobs_at_every_level() {
