@@ -290,7 +290,7 @@ pub fn ray_cast(
     // Target pixel + depth -> source pixel + depth: the inverse of the forward warp.
     let inv = WarpMatrix::new(dst, src)?;
     let (tw, th) = base.size();
-    let (sw, sh) = (src.width as f32, src.height as f32);
+    let caster = Caster { ab, tree, sw: src.width as f32, sh: src.height as f32, p };
     let out: Vec<([f32; 3], u32)> = (0..tw * th)
         .into_par_iter()
         .map(|i| {
@@ -304,7 +304,7 @@ pub fn ray_cast(
             let (Some(a), Some(e)) = (inv.project(px, py, 0.0), inv.project(px, py, end)) else {
                 return (b, 0);
             };
-            let (acc, steps) = cast_one([a.0, a.1, a.2], [e.0, e.1, e.2], ab, tree, sw, sh, p);
+            let (acc, steps) = caster.cast_one([a.0, a.1, a.2], [e.0, e.1, e.2]);
             ([acc[0] + (1.0 - acc[3]) * b[0], acc[1] + (1.0 - acc[3]) * b[1], acc[2] + (1.0 - acc[3]) * b[2]], steps)
         })
         .collect();
@@ -312,51 +312,6 @@ pub fn ray_cast(
         color: Image::from_vec(tw, th, out.iter().map(|o| o.0).collect())?,
         steps: Image::from_vec(tw, th, out.iter().map(|o| o.1).collect())?,
     })
-}
-
-/// One ray from `a` to `b` (source pixel x, y, depth): premultiplied colour and steps.
-///
-/// Where the ray runs outside the source image (the border strip the source did not see) it
-/// continues the transparent surfaces at the image border, as the hole filling does for opaque
-/// ones: those pieces of the ray are clamped onto the border (x and y clamped, depth kept) and
-/// traversed in ray order with the inside piece, so a pane that reaches the border still covers
-/// the strip at its own depth.
-#[allow(clippy::too_many_arguments)]
-fn cast_one(
-    a: [f32; 3],
-    b: [f32; 3],
-    ab: &ABuffer,
-    tree: &MinMaxTree,
-    sw: f32,
-    sh: f32,
-    p: &RayCastParams,
-) -> ([f32; 4], u32) {
-    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    // Where the ray crosses the image's border lines: the ends of the pieces.
-    let mut cuts = [0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0];
-    let mut n = 1;
-    for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
-        if v.abs() > 1e-12 {
-            for edge in [0.0, hi] {
-                let t = (edge - o) / v;
-                if t > 0.0 && t < 1.0 {
-                    cuts[n] = t;
-                    n += 1;
-                }
-            }
-        }
-    }
-    cuts[n] = 1.0;
-    cuts[..=n].sort_by(f32::total_cmp);
-    let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
-    let clamp = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
-    let mut ray = RayState { acc: [0.0; 4], last: None, steps: 0 };
-    for w in cuts[..=n].windows(2) {
-        if w[1] > w[0] && ray.acc[3] < p.opacity {
-            cast_piece(clamp(at(w[0])), clamp(at(w[1])), ab, tree, sw, sh, p, &mut ray);
-        }
-    }
-    (ray.acc, ray.steps)
 }
 
 /// What a ray carries from one piece to the next: premultiplied colour, the last fragment hit
@@ -368,126 +323,167 @@ struct RayState {
     steps: u32,
 }
 
-/// The traversal of one straight piece of a ray from `a` to `b` (source pixel x, y, depth, inside
-/// the image), compositing into `ray`.
-#[allow(clippy::too_many_arguments)]
-fn cast_piece(
-    a: [f32; 3],
-    b: [f32; 3],
-    ab: &ABuffer,
-    tree: &MinMaxTree,
+/// What every ray of one [`ray_cast`] reads: the A-buffer, its quadtree, the source size and
+/// the parameters.
+#[derive(Clone, Copy)]
+struct Caster<'a> {
+    ab: &'a ABuffer,
+    tree: &'a MinMaxTree,
     sw: f32,
     sh: f32,
-    p: &RayCastParams,
-    ray: &mut RayState,
-) {
-    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    // Clip to the source image (slabs in x and y).
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
-        if v.abs() < 1e-12 {
-            if o < 0.0 || o >= hi {
-                return;
-            }
-        } else {
-            let (mut ta, mut tb) = ((0.0 - o) / v, (hi - o) / v);
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            t0 = t0.max(ta);
-            t1 = t1.min(tb);
-        }
-    }
-    // Empty-space skipping in depth: start where the ray reaches the nearest fragment.
-    let (zmin, zmax) = tree.range();
-    if d[2].abs() > 1e-12 {
-        let (ta, tb) = ((zmin - a[2]) / d[2], (zmax - a[2]) / d[2]);
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb) + 1e-6);
-    } else if a[2] < zmin || a[2] > zmax {
-        return;
-    }
-    if t0 >= t1 {
-        return;
-    }
-    let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
-    // Cell index of the ray just after `t` (so a boundary point belongs to the next cell): a
-    // thousandth of a pixel, several float steps even at 8K coordinates (a smaller step can
-    // round back into the cell just left, which would then be visited twice).
-    let nudge = 1e-3 / (d[0].abs() + d[1].abs()).max(1e-3);
-    let cell = |t: f32, level: usize| {
-        let q = at((t + nudge).min(t1));
-        let (x, y) = ((q[0].clamp(0.0, sw - 1e-3)) as u32, (q[1].clamp(0.0, sh - 1e-3)) as u32);
-        (x >> level, y >> level)
-    };
-    let exit = |t: f32, level: usize, cx: u32, cy: u32| {
-        let s = (1u32 << level) as f32;
-        let mut te = t1;
-        for (o, v, c) in [(a[0], d[0], cx), (a[1], d[1], cy)] {
-            if v > 1e-12 {
-                te = te.min(((c + 1) as f32 * s - o) / v);
-            } else if v < -1e-12 {
-                te = te.min((c as f32 * s - o) / v);
-            }
-        }
-        te.max(t)
-    };
-    let RayState { acc, last, steps } = ray;
-    let mut level = LEVELS;
-    let mut t = t0;
-    while t < t1 && acc[3] < p.opacity && *steps < p.max_steps {
-        *steps += 1;
-        let (cx, cy) = cell(t, level);
-        let te = exit(t, level, cx, cy);
-        let (za, zb) = (at(t)[2], at(te)[2]);
-        let (lo, hi) = (za.min(zb), za.max(zb));
-        let n = tree.node(level, cx, cy);
-        let hit = lo <= n[1] && hi >= n[0];
-        if hit && level > 0 {
-            level -= 1;
-            continue;
-        }
-        if hit {
-            // A leaf: the fragments whose boxes the ray's depth span meets, in ray order.
-            let fr = ab.fragments(cx, cy);
-            let forward = zb >= za;
-            let mut visit = |i: usize, f: &Fragment| {
-                if acc[3] >= p.opacity || !(lo <= f.depth + f.half && hi >= f.depth - f.half) {
-                    return;
-                }
-                if let Some((l, px, li)) = *last {
-                    if px == (cx, cy) {
-                        // The pixel again (the border piece of a ray continues in the pixel
-                        // where the inside piece ended): only the fragments after the last hit.
-                        if (forward && i <= li) || (!forward && i >= li) {
-                            return;
-                        }
-                    } else if l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
-                        // The same surface again in a neighbouring pixel within its thickness
-                        // (overlapping boxes). Fragments of one pixel are distinct surfaces.
-                        return;
+    p: &'a RayCastParams,
+}
+
+impl Caster<'_> {
+    /// One ray from `a` to `b` (source pixel x, y, depth): premultiplied colour and steps.
+    ///
+    /// Where the ray runs outside the source image (the border strip the source did not see) it
+    /// continues the transparent surfaces at the image border, as the hole filling does for opaque
+    /// ones: those pieces of the ray are clamped onto the border (x and y clamped, depth kept) and
+    /// traversed in ray order with the inside piece, so a pane that reaches the border still covers
+    /// the strip at its own depth.
+    fn cast_one(&self, a: [f32; 3], b: [f32; 3]) -> ([f32; 4], u32) {
+        let Caster { sw, sh, p, .. } = *self;
+        let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        // Where the ray crosses the image's border lines: the ends of the pieces.
+        let mut cuts = [0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let mut n = 1;
+        for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
+            if v.abs() > 1e-12 {
+                for edge in [0.0, hi] {
+                    let t = (edge - o) / v;
+                    if t > 0.0 && t < 1.0 {
+                        cuts[n] = t;
+                        n += 1;
                     }
                 }
-                over(acc, &f.rgba);
-                *last = Some((*f, (cx, cy), i));
-            };
-            if forward {
-                fr.iter().enumerate().for_each(|(i, f)| visit(i, f));
+            }
+        }
+        cuts[n] = 1.0;
+        cuts[..=n].sort_by(f32::total_cmp);
+        let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
+        let clamp = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
+        let mut ray = RayState { acc: [0.0; 4], last: None, steps: 0 };
+        for w in cuts[..=n].windows(2) {
+            if w[1] > w[0] && ray.acc[3] < p.opacity {
+                self.cast_piece(clamp(at(w[0])), clamp(at(w[1])), &mut ray);
+            }
+        }
+        (ray.acc, ray.steps)
+    }
+
+    /// The traversal of one straight piece of a ray from `a` to `b` (source pixel x, y, depth, inside
+    /// the image), compositing into `ray`.
+    fn cast_piece(&self, a: [f32; 3], b: [f32; 3], ray: &mut RayState) {
+        let Caster { ab, tree, sw, sh, p } = *self;
+        let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        // Clip to the source image (slabs in x and y).
+        let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        for (o, v, hi) in [(a[0], d[0], sw), (a[1], d[1], sh)] {
+            if v.abs() < 1e-12 {
+                if o < 0.0 || o >= hi {
+                    return;
+                }
             } else {
-                fr.iter().enumerate().rev().for_each(|(i, f)| visit(i, f));
+                let (mut ta, mut tb) = ((0.0 - o) / v, (hi - o) / v);
+                if ta > tb {
+                    std::mem::swap(&mut ta, &mut tb);
+                }
+                t0 = t0.max(ta);
+                t1 = t1.min(tb);
             }
         }
-        // Advance past the node; ascend when the next node is no sibling (other parent).
-        let next = te.max(t + nudge);
-        if next >= t1 {
-            break;
+        // Empty-space skipping in depth: start where the ray reaches the nearest fragment.
+        let (zmin, zmax) = tree.range();
+        if d[2].abs() > 1e-12 {
+            let (ta, tb) = ((zmin - a[2]) / d[2], (zmax - a[2]) / d[2]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb) + 1e-6);
+        } else if a[2] < zmin || a[2] > zmax {
+            return;
         }
-        if level < LEVELS {
-            let (nx, ny) = cell(next, level);
-            if (nx >> 1, ny >> 1) != (cx >> 1, cy >> 1) {
-                level += 1;
+        if t0 >= t1 {
+            return;
+        }
+        let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
+        // Cell index of the ray just after `t` (so a boundary point belongs to the next cell): a
+        // thousandth of a pixel, several float steps even at 8K coordinates (a smaller step can
+        // round back into the cell just left, which would then be visited twice).
+        let nudge = 1e-3 / (d[0].abs() + d[1].abs()).max(1e-3);
+        let cell = |t: f32, level: usize| {
+            let q = at((t + nudge).min(t1));
+            let (x, y) = ((q[0].clamp(0.0, sw - 1e-3)) as u32, (q[1].clamp(0.0, sh - 1e-3)) as u32);
+            (x >> level, y >> level)
+        };
+        let exit = |t: f32, level: usize, cx: u32, cy: u32| {
+            let s = (1u32 << level) as f32;
+            let mut te = t1;
+            for (o, v, c) in [(a[0], d[0], cx), (a[1], d[1], cy)] {
+                if v > 1e-12 {
+                    te = te.min(((c + 1) as f32 * s - o) / v);
+                } else if v < -1e-12 {
+                    te = te.min((c as f32 * s - o) / v);
+                }
             }
+            te.max(t)
+        };
+        let RayState { acc, last, steps } = ray;
+        let mut level = LEVELS;
+        let mut t = t0;
+        while t < t1 && acc[3] < p.opacity && *steps < p.max_steps {
+            *steps += 1;
+            let (cx, cy) = cell(t, level);
+            let te = exit(t, level, cx, cy);
+            let (za, zb) = (at(t)[2], at(te)[2]);
+            let (lo, hi) = (za.min(zb), za.max(zb));
+            let n = tree.node(level, cx, cy);
+            let hit = lo <= n[1] && hi >= n[0];
+            if hit && level > 0 {
+                level -= 1;
+                continue;
+            }
+            if hit {
+                // A leaf: the fragments whose boxes the ray's depth span meets, in ray order.
+                let fr = ab.fragments(cx, cy);
+                let forward = zb >= za;
+                let mut visit = |i: usize, f: &Fragment| {
+                    if acc[3] >= p.opacity || !(lo <= f.depth + f.half && hi >= f.depth - f.half) {
+                        return;
+                    }
+                    if let Some((l, px, li)) = *last {
+                        if px == (cx, cy) {
+                            // The pixel again (the border piece of a ray continues in the pixel
+                            // where the inside piece ended): only the fragments after the last hit.
+                            if (forward && i <= li) || (!forward && i >= li) {
+                                return;
+                            }
+                        } else if l.item == f.item && (l.depth - f.depth).abs() <= l.half + f.half {
+                            // The same surface again in a neighbouring pixel within its thickness
+                            // (overlapping boxes). Fragments of one pixel are distinct surfaces.
+                            return;
+                        }
+                    }
+                    over(acc, &f.rgba);
+                    *last = Some((*f, (cx, cy), i));
+                };
+                if forward {
+                    fr.iter().enumerate().for_each(|(i, f)| visit(i, f));
+                } else {
+                    fr.iter().enumerate().rev().for_each(|(i, f)| visit(i, f));
+                }
+            }
+            // Advance past the node; ascend when the next node is no sibling (other parent).
+            let next = te.max(t + nudge);
+            if next >= t1 {
+                break;
+            }
+            if level < LEVELS {
+                let (nx, ny) = cell(next, level);
+                if (nx >> 1, ny >> 1) != (cx >> 1, cy >> 1) {
+                    level += 1;
+                }
+            }
+            t = next;
         }
-        t = next;
     }
 }
