@@ -31,11 +31,13 @@ pub enum HolePolicy {
     Awoc,
     /// Sec. 4 protocol for single-layer quality ("the single-layer solution keeps holes (filled
     /// with the background depth)"): a hole bracketed by converged pixels within `radius` on both
-    /// sides of at least one of the four directions takes the *farthest* of the nearest
-    /// converged pixels along the directions that cross it — bracketed within
-    /// [`BRACKET_SPAN_RATIO`] times its narrowest bracket ([`PixelState::Filled`]). A
-    /// disocclusion sliver lies between the occluder and the surface it uncovers; the uncovered
-    /// surface is the farther side (a probe along a long crack runs on to unrelated surfaces). Holes wider than `2 radius` (and sky) stay far. Not conservative: for quality, never
+    /// sides of at least one of the four directions takes the depth of the *farther* sides of
+    /// the directions that cross it — bracketed within [`BRACKET_SPAN_RATIO`] times its
+    /// narrowest bracket: the mean of those within [`FAR_SIDE_SPREAD`] of the farthest, weighted
+    /// by inverse distance ([`PixelState::Filled`]). A disocclusion sliver lies between the
+    /// occluder and the surface it uncovers; the uncovered surface is the farther side (a probe
+    /// along a long crack runs on to unrelated surfaces). Holes wider than `2 radius` (and sky)
+    /// stay far. Not conservative: for quality, never
     /// for culling. This is the part of the protocol that needs only the warped buffer (the
     /// WGSL twin does the same); the complete protocol, which also keeps sky seen through a hole
     /// far and fills the strips a moving camera uncovers at the image border, needs the source
@@ -57,8 +59,9 @@ impl HolePolicy {
 pub enum FillRule {
     /// [`HolePolicy::Dilate`]: surrounded in all four directions, nearest neighbour wins.
     Nearest,
-    /// [`HolePolicy::Background`]: bracketed in one direction; the farthest side of the
-    /// directions bracketed within [`BRACKET_SPAN_RATIO`] times the narrowest bracket wins.
+    /// [`HolePolicy::Background`]: bracketed in one direction; the far sides of the directions
+    /// bracketed within [`BRACKET_SPAN_RATIO`] times the narrowest bracket, averaged over
+    /// those within [`FAR_SIDE_SPREAD`] of the farthest (inverse-distance weights).
     Background,
 }
 
@@ -141,6 +144,11 @@ fn fill_holes_listed(
 /// many times the narrowest bracket of the hole.
 pub const BRACKET_SPAN_RATIO: f32 = 4.0;
 
+/// [`FillRule::Background`] averages the far sides that lie within this relative step of the
+/// farthest one, `(z_far - z) <= FAR_SIDE_SPREAD (1 - z_far)`: within a factor 1.25 in linear
+/// depth (the step form of [`crate::search::DEPTH_CONTINUITY`]), i.e. on the uncovered surface.
+pub const FAR_SIDE_SPREAD: f32 = 0.25;
+
 /// The four probe directions of [`fill_holes`] (each probed both ways): horizontal, vertical and
 /// both diagonals.
 pub const FILL_DIRECTIONS: [(i64, i64); 4] = [(1, 0), (0, 1), (1, 1), (1, -1)];
@@ -168,23 +176,32 @@ pub fn hole_fill(rule: FillRule, probe: impl Fn(i64, i64) -> Option<(i64, f32)>)
             best.map(|(_, z)| z)
         }
         FillRule::Background => {
-            // The farthest side of the directions that cross the hole: those bracketed within
+            // The far sides of the directions that cross the hole: those bracketed within
             // BRACKET_SPAN_RATIO times the narrowest bracket. A probe that runs much farther
             // goes along the hole (a crack between two layers' samples, a long sliver) to
-            // surfaces the hole does not separate.
-            let mut spans = [(f32::INFINITY, 0.0f32); 4];
+            // surfaces the hole does not separate. Per direction (span, far side's depth, its
+            // distance).
+            let mut spans = [(f32::INFINITY, 0.0f32, 0.0f32); 4];
             for (i, (dx, dy)) in FILL_DIRECTIONS.into_iter().enumerate() {
                 let step = if dx != 0 && dy != 0 { std::f32::consts::SQRT_2 } else { 1.0 };
                 if let (Some(a), Some(b)) = (probe(dx, dy), probe(-dx, -dy)) {
-                    spans[i] = ((a.0 + b.0) as f32 * step, a.1.max(b.1));
+                    let far = if a.1 >= b.1 { a } else { b };
+                    spans[i] = ((a.0 + b.0) as f32 * step, far.1, far.0 as f32 * step);
                 }
             }
             let narrowest = spans.iter().map(|s| s.0).fold(f32::INFINITY, f32::min);
-            spans
-                .iter()
-                .filter(|s| s.0.is_finite() && s.0 <= BRACKET_SPAN_RATIO * narrowest)
-                .map(|s| s.1)
-                .reduce(f32::max)
+            let crossing = spans.iter().filter(|s| s.0.is_finite() && s.0 <= BRACKET_SPAN_RATIO * narrowest);
+            let farthest = crossing.clone().map(|s| s.1).reduce(f32::max)?;
+            // The uncovered surface is the farthest side; the far sides on that surface (within
+            // FAR_SIDE_SPREAD) are averaged, nearer ones weighing more, so the fill follows the
+            // surface across the hole instead of copying one direction's pixel in streaks. As
+            // offsets from the farthest, so that equal sides give their depth exactly.
+            let (mut num, mut den) = (0.0f32, 0.0f32);
+            for s in crossing.filter(|s| farthest - s.1 <= FAR_SIDE_SPREAD * (1.0 - farthest)) {
+                num += (farthest - s.1) / s.2;
+                den += 1.0 / s.2;
+            }
+            Some(farthest - num / den)
         }
     }
 }
@@ -626,6 +643,26 @@ mod tests {
         let (mut d3, mut s3) = grid(&["55...", "55...", "55..."]);
         fill_holes(&mut d3, &mut s3, 4, FillRule::Background);
         assert!(s3.data().iter().filter(|&&st| st == PixelState::Filled).count() == 0);
+    }
+
+    #[test]
+    fn background_fill_averages_the_far_sides_on_the_uncovered_surface() {
+        // Horizontal bracket: far side 0.90 one pixel away; vertical: 0.91 two pixels away (the
+        // uncovered surface, within FAR_SIDE_SPREAD of the farthest); one diagonal: 0.3 both
+        // ways (the occluder side, left out); the other diagonal is not bracketed.
+        let probe = |dx: i64, dy: i64| match (dx, dy) {
+            (1, 0) => Some((1, 0.90)),
+            (-1, 0) | (0, -1) => Some((1, 0.5)),
+            (0, 1) => Some((2, 0.91)),
+            (1, -1) | (-1, 1) => Some((1, 0.3)),
+            _ => None,
+        };
+        let z = hole_fill(FillRule::Background, probe).unwrap();
+        // Inverse-distance weights 1 and 1/2: 0.91 - (0.01 / 1) / (1 + 1/2).
+        assert!((z - (0.91 - 0.01 / 1.5)).abs() < 1e-6, "{z}");
+        // Equal far sides give their depth exactly, whatever their distances.
+        let equal = |dx: i64, dy: i64| if dx == 0 { Some((1 + dy.abs(), 0.7)) } else { Some((3, 0.7)) };
+        assert_eq!(hole_fill(FillRule::Background, equal), Some(0.7));
     }
 
     #[test]

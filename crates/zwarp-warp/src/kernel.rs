@@ -73,7 +73,15 @@ impl MotionSource for StackSampler<'_> {
         if *empties >= 2 {
             return None;
         }
-        self.layers[..self.k].iter().rev().find_map(|l| l.fetch(q))
+        // Under the adaptive fetch only a bilinear sample is borrowed: a nearest one sits on the
+        // front layer's silhouette, where its texel lands within the threshold of pixels that see
+        // past the edge (a layer-0 sliver "found" by layer k over the sky the reference shows).
+        self.layers[..self.k]
+            .iter()
+            .rev()
+            .find_map(|l| l.fetch(q).map(|s| (s, l.sampling())))
+            .filter(|(s, sampling)| s.smooth || *sampling == crate::Sampling::Nearest)
+            .map(|(s, _)| s)
     }
 }
 
@@ -244,6 +252,9 @@ impl<'a> Kernel<'a> {
         // The nearest depth of a layer that, before any candidate, failed with a walk within the
         // coverage radius of p.
         let mut cover = f32::INFINITY;
+        // The farthest sample of the failed walks of the layers searched before any candidate
+        // (WarpParams::ground_layer).
+        let mut farthest = f32::NEG_INFINITY;
         for k in k0..self.layers.len() {
             let pyr = self.layers[k].pyramid();
             // No valid sample can move to p from this layer: skip it (cheap for sparse layers).
@@ -310,12 +321,19 @@ impl<'a> Kernel<'a> {
                     if best.is_none() && a.r2 < cover2 {
                         cover = cover.min(a.depth);
                     }
+                    if best.is_none() {
+                        farthest = farthest.max(a.farthest);
+                    }
                 }
             }
         }
         // A deeper layer's candidate behind a front surface that covers p is hidden
         // (WarpParams::cover_radius): the pixel goes to the hole policy.
         if best.is_some_and(|c| crate::hidden_behind(c.depth, cover) || self.covered_at_source(&c, p)) {
+            best = None;
+        }
+        // A ground layer's candidate behind the far side of the front layers' failed walks.
+        if best.is_some_and(|c| self.behind_ground_disocclusion(&c, farthest)) {
             best = None;
         }
         if let Some(c) = best {
@@ -338,6 +356,17 @@ impl<'a> Kernel<'a> {
             }
         }
         (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+
+    /// `true` if `c` comes from the ground layer of [`crate::WarpParams::ground_layer`] and lies
+    /// [`crate::hidden_behind`] `farthest`, the farthest sample of the walks that failed before
+    /// it (`-inf`: no such sample, nothing known in front: kept).
+    #[inline]
+    pub fn behind_ground_disocclusion(&self, c: &Candidate, farthest: f32) -> bool {
+        self.params.ground_layer
+            && c.tag as usize + 1 == self.layers.len()
+            && farthest > f32::NEG_INFINITY
+            && crate::hidden_behind(c.depth, farthest)
     }
 
     /// `true` if a layer in front of candidate `c`'s own (its tag) has, at `c`'s source position,
@@ -728,6 +757,9 @@ impl<'a> Kernel<'a> {
         // within the coverage radius (Kernel::pixel_from).
         let mut cover = _mm256_set1_ps(f32::INFINITY);
         let cover2 = _mm256_set1_ps(self.params.cover_radius * self.params.cover_radius);
+        // Per lane the farthest sample of those failed walks (Kernel::behind_ground_disocclusion).
+        let neg_inf = _mm256_set1_ps(f32::NEG_INFINITY);
+        let mut farthest = neg_inf;
         for k in 0..self.layers.len() {
             let Some(sk) = stages[k][t] else { continue };
             let frame = self.layers[k].pyramid().frame();
@@ -795,6 +827,7 @@ impl<'a> Kernel<'a> {
                     let z =
                         _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), r.closest_depth, _mm256_and_ps(failed, near));
                     cover = _mm256_min_ps(cover, z);
+                    farthest = _mm256_max_ps(farthest, _mm256_blendv_ps(neg_inf, r.farthest, failed));
                 }
                 // Found: the cross-layer seed of later layers; nearer than the candidate (or the
                 // first): the candidate.
@@ -820,6 +853,17 @@ impl<'a> Kernel<'a> {
         has = _mm256_andnot_ps(hidden, has);
         // Kernel::covered_at_source for the lanes whose candidate comes from a deeper layer.
         has = _mm256_andnot_ps(sw::covered_at_source8(ls, px, py, bqx, bqy, bz, btag, has, cover2), has);
+        if self.params.ground_layer {
+            // Kernel::behind_ground_disocclusion: a ground layer's candidate behind the farthest
+            // sample of the failed walks before it.
+            let last = _mm256_castsi256_ps(_mm256_cmpeq_epi32(btag, _mm256_set1_epi32(self.layers.len() as i32 - 1)));
+            let known = _mm256_cmp_ps::<_CMP_GT_OQ>(farthest, neg_inf);
+            let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(
+                _mm256_mul_ps(_mm256_sub_ps(one, bz), _mm256_set1_ps(crate::COVER_DEPTH_RATIO)),
+                _mm256_sub_ps(one, farthest),
+            );
+            has = _mm256_andnot_ps(_mm256_and_ps(_mm256_and_ps(last, known), behind), has);
+        }
         self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
     }
 
@@ -887,5 +931,37 @@ impl<'a> Kernel<'a> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::search::{SamplePlanes, Sampling};
+    use zwarp_core::Motion;
+
+    #[test]
+    fn an_empty_landing_borrows_only_a_bilinear_sample() {
+        // Layer 0: a surface over columns 0..2 of a 4x4 image, empty beyond; layer 1: empty.
+        let (w, h) = (4, 4);
+        let surface =
+            |x: usize| if x < 2 { Motion { v: Vec2::ZERO, depth: 0.5 } } else { Motion { v: Vec2::ZERO, depth: 1.0 } };
+        let front = SamplePlanes::from_motion(&(0..16).map(|i| surface(i % 4)).collect::<Vec<_>>());
+        let back = SamplePlanes::from_motion(&[Motion { v: Vec2::ZERO, depth: 1.0 }; 16]);
+        let samplers = [
+            LayerSampler::new(&front, w, h, Sampling::Adaptive, 0),
+            LayerSampler::new(&back, w, h, Sampling::Adaptive, 1),
+        ];
+        let stack = StackSampler { layers: &samplers, k: 1, cross: true };
+        // Inside the surface the 2x2 cell is valid: the bilinear sample is borrowed (tag 0).
+        let inner = stack.sample(Vec2::new(1.2, 2.0), &mut 0).expect("borrowed");
+        assert!(inner.smooth && inner.tag == 0 && inner.depth == 0.5);
+        // On its last column the cell reaches the empty texels: the nearest sample there sits on
+        // the silhouette and is not borrowed, although layer 0's own fetch returns it.
+        let edge = Vec2::new(1.8, 2.0);
+        assert!(samplers[0].fetch(edge).is_some_and(|s| !s.smooth));
+        assert!(stack.sample(edge, &mut 0).is_none());
+        // A second empty landing fails the seed whatever layer 0 holds.
+        assert!(stack.sample(Vec2::new(1.2, 2.0), &mut 1).is_none());
     }
 }

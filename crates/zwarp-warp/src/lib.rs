@@ -139,7 +139,9 @@ pub struct WarpParams {
     /// Candidate choice among converged seeds (paper: minimal depth).
     pub choice: CandidateChoice,
     /// Cross-layer seeding (Fig. 6): when an iterate of layer k lands in an empty texel, borrow
-    /// the sample of the nearest non-empty layer above; a second empty landing fails the seed.
+    /// the sample of the nearest non-empty layer above (under [`Sampling::Adaptive`] only a
+    /// bilinear one: a nearest sample sits on that layer's silhouette); a second empty landing
+    /// fails the seed.
     /// Also seeds layer k+1 with layer k's converged position.
     pub cross_layer: bool,
     /// Record the converged source position per pixel in [`WarpOutput::source`].
@@ -188,6 +190,15 @@ pub struct WarpParams {
     /// (`q' = p - v(q)` with that front sample's motion) lands within the radius and is nearer
     /// (a texel-wide sliver at the seam between two layers' views of one wall). Default 3.5.
     pub cover_radius: f32,
+    /// The last layer is a ground layer peeled alone, without the objects standing on it
+    /// (seed 000 Sec. 3.4 and 4: "the last layer was peeled without foreground objects"). Its
+    /// samples do not know what stands in front of them, so its candidate at a pixel where every
+    /// layer searched before it failed is hidden (the pixel goes to the hole policy) when those
+    /// failed walks sampled a surface it lies [`hidden_behind`]: that surface is the far side of
+    /// the disocclusion, and the region it bounds is that surface continued more often than
+    /// ground seen through every object (the candidate of a peeled layer knows its occluders and
+    /// is kept). Default `false`; `zwarp eval` sets it when it peels the ground separately.
+    pub ground_layer: bool,
 }
 
 impl Default for WarpParams {
@@ -215,6 +226,7 @@ impl Default for WarpParams {
             motion_scale: glam::Vec2::ONE,
             multisample: 1,
             cover_radius: 3.5,
+            ground_layer: false,
         }
     }
 }

@@ -194,6 +194,12 @@ impl<'a> LayerSampler<'a> {
     pub(crate) fn planes(&self) -> (&'a [f32], &'a [f32], &'a [f32], u32, u32) {
         (self.vx, self.vy, self.z, self.w, self.h)
     }
+    /// How the planes are sampled between texel centres.
+    #[inline]
+    pub fn sampling(&self) -> Sampling {
+        self.sampling
+    }
+
     /// `true` if `q` lies inside the image `[0, w) x [0, h)`.
     #[inline]
     pub fn inside(&self, q: Vec2) -> bool {
@@ -446,11 +452,14 @@ pub struct Approach {
     pub r2: f32,
     /// Target depth of that iterate's sample (`+inf` if none).
     pub depth: f32,
+    /// The largest target depth of any sample of any seed's walk (`-inf` if none): the far side
+    /// of a disocclusion the walks oscillated across ([`crate::WarpParams::ground_layer`]).
+    pub farthest: f32,
 }
 
 impl Approach {
-    /// No smooth sampled iterate.
-    pub const NONE: Approach = Approach { r2: f32::INFINITY, depth: f32::INFINITY };
+    /// No sampled iterate.
+    pub const NONE: Approach = Approach { r2: f32::INFINITY, depth: f32::INFINITY, farthest: f32::NEG_INFINITY };
 }
 
 /// [`fixed_point_search`], also returning the closest approach of its walks. A failed search
@@ -476,8 +485,9 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
             let step = w - q;
             let r2 = step.length_squared();
             if s.smooth && r2 < closest.r2 {
-                closest = Approach { r2, depth: s.depth };
+                closest = Approach { r2, depth: s.depth, farthest: closest.farthest };
             }
+            closest.farthest = closest.farthest.max(s.depth);
             if r2 < thr2 {
                 // Converged: the sample at `q` (Fig. 3), no further "polishing" sample (measured
                 // neutral for quality on the procedural scenes, ~10 % of the warp's cost).

@@ -64,6 +64,9 @@ pub(crate) struct Lanes {
     /// returns them.
     pub closest: __m256,
     pub closest_depth: __m256,
+    /// The largest depth of any sample of the lane's walks (`-inf` if none), as
+    /// `search::Approach::farthest`.
+    pub farthest: __m256,
 }
 
 /// The nearer of two closest approaches `(r2, depth)` per lane (the first on ties, as the
@@ -322,7 +325,8 @@ unsafe fn hash8(v: __m256i) -> __m256i {
 /// `prev` where the lane has one (`prev_has`) inside its region (appended, or in place of the
 /// last seed when there are N); the candidate of minimal depth wins in seed order. The walk
 /// samples layer `k` with the cross-layer fallback of `StackSampler` (the first empty landing
-/// borrows the nearest non-empty layer above, the second fails).
+/// borrows the nearest non-empty layer above unless the adaptive fetch gave a nearest sample
+/// there, the second fails).
 ///
 /// # Safety
 /// The CPU must support AVX2; the planes must be `w * h` long.
@@ -390,12 +394,16 @@ pub(crate) unsafe fn search8(
         // The first iteration alone (most lanes converge in it); the others walk again from
         // their seed with the complete step.
         let (now, depth, more, (closest, closest_depth)) = first8(ls, k, px, py, qx, qy, act);
-        let mut out = Lanes { converged: now, depth, qx, qy, tag: _mm256_set1_epi32(k as i32), closest, closest_depth };
+        // Lanes that stop after the first iterate without converging had no sample.
+        let farthest = splat(f32::NEG_INFINITY);
+        let tag = _mm256_set1_epi32(k as i32);
+        let mut out = Lanes { converged: now, depth, qx, qy, tag, closest, closest_depth, farthest };
         if _mm256_movemask_ps(more) != 0 {
-            let (c2, d2, qx2, qy2, t2, a2) = walk8(ls, k, px, py, qx, qy, more);
+            let (c2, d2, qx2, qy2, t2, a2, f2) = walk8(ls, k, px, py, qx, qy, more);
             // The walk repeats the first iterate: its approach is the lane's whole approach.
             out.closest = _mm256_blendv_ps(out.closest, a2.0, more);
             out.closest_depth = _mm256_blendv_ps(out.closest_depth, a2.1, more);
+            out.farthest = _mm256_blendv_ps(out.farthest, f2, more);
             out.converged = _mm256_or_ps(out.converged, c2);
             out.depth = _mm256_blendv_ps(out.depth, d2, c2);
             out.qx = _mm256_blendv_ps(out.qx, qx2, c2);
@@ -436,6 +444,7 @@ pub(crate) unsafe fn search8(
     let (mut cqx, mut cqy) = (zero, zero);
     let mut ctag = _mm256_setzero_si256();
     let mut closest = (inf, inf);
+    let mut farthest = splat(f32::NEG_INFINITY);
     for j in 0..max_n {
         let ji = _mm256_set1_epi32(j);
         let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, ji));
@@ -488,8 +497,9 @@ pub(crate) unsafe fn search8(
         // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
-        let (now, z, wqx, wqy, wtag, wa) = walk8(ls, k, px, py, qx, qy, live);
+        let (now, z, wqx, wqy, wtag, wa, wf) = walk8(ls, k, px, py, qx, qy, live);
         closest = nearer(closest, wa);
+        farthest = _mm256_max_ps(farthest, wf);
         // MinDepth in seed order: the first candidate, then strictly nearer ones.
         let take = _mm256_and_ps(
             now,
@@ -501,7 +511,7 @@ pub(crate) unsafe fn search8(
         ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
         has = _mm256_or_ps(has, now);
     }
-    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag, closest: closest.0, closest_depth: closest.1 }
+    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag, closest: closest.0, closest_depth: closest.1, farthest }
 }
 
 /// The first iteration of [`walk8`] for one seed per lane (the lanes' own layer only, no
@@ -669,7 +679,7 @@ impl Texels {
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
 /// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, and
 /// the walk's closest approach (smallest squared residual of a smooth sampled iterate and its
-/// depth, `+inf` if none).
+/// depth, `+inf` if none) and its farthest sample's depth (`-inf` if none).
 #[inline]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::type_complexity)]
@@ -681,10 +691,11 @@ unsafe fn walk8(
     mut qx: __m256,
     mut qy: __m256,
     mut live: __m256,
-) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256)) {
+) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256), __m256) {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
     let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
+    let mut farthest = splat(f32::NEG_INFINITY);
     let thr2 = splat(ls.thr2);
     let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
     let mut conv = zero;
@@ -727,7 +738,10 @@ unsafe fn walk8(
                 s.dyx = _mm256_blendv_ps(s.dyx, b.dyx, take);
                 s.dyy = _mm256_blendv_ps(s.dyy, b.dyy, take);
                 s.smooth = _mm256_blendv_ps(s.smooth, b.smooth, take);
-                s.has = _mm256_or_ps(s.has, take);
+                // StackSampler under the adaptive fetch borrows bilinear samples only: a nearest
+                // one fails the seed.
+                let usable = if ls.nearest { take } else { _mm256_and_ps(take, b.smooth) };
+                s.has = _mm256_or_ps(s.has, usable);
                 tag = _mm256_blendv_epi8(tag, _mm256_set1_epi32(j as i32), _mm256_castps_si256(take));
                 need = _mm256_andnot_ps(take, need);
             }
@@ -736,6 +750,7 @@ unsafe fn walk8(
         if _mm256_movemask_ps(live) == 0 {
             break;
         }
+        farthest = _mm256_max_ps(farthest, _mm256_blendv_ps(splat(f32::NEG_INFINITY), s.z, live));
         // fixed_point_search: w = p - v, step = w - q, converged if |step|^2 < thr^2.
         let wx = _mm256_sub_ps(px, s.vx);
         let wy = _mm256_sub_ps(py, s.vy);
@@ -771,7 +786,7 @@ unsafe fn walk8(
         qx = nx;
         qy = ny;
     }
-    (conv, depth, cqx, cqy, ctag, closest)
+    (conv, depth, cqx, cqy, ctag, closest, farthest)
 }
 
 /// A lane mask (all bits set per active lane) from the low 8 bits of `bits`.

@@ -208,6 +208,22 @@ pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
     ]
 }
 
+/// A disocclusion over a separately peeled ground (seed 000 Sec. 3.4's last layer, as depth and
+/// motion, 32x4): layer 0 holds a near object (depth 0.5) over texels `0..16` moving -14 px and
+/// beyond it a far surface `far` that stays, so target pixels 2..16 are uncovered; the ground
+/// layer lies at 0.95 everywhere and stays. On pixels 6..12 layer 0's walks oscillate between
+/// both sides without coming within the default coverage radius (3.5 px) of the pixel, and the
+/// ground converges. With `far` = 0.95 the far side is the ground itself.
+pub fn ground_gap_layers(far: f32) -> Vec<(Image<f32>, Image<Motion>)> {
+    let (w, h) = (32, 4);
+    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
+    let layer = |f: &dyn Fn(u32) -> Motion| {
+        let motion = Image::from_fn(w, h, |x, _| f(x));
+        (motion.map(|s| s.depth), motion)
+    };
+    vec![layer(&|x| if x < 16 { m(-14.0, 0.5) } else { m(0.0, far) }), layer(&|_| m(0.0, 0.95))]
+}
+
 /// A walk toward a tilted wall with a box in front (one layer, as depth and motion): the wall's
 /// motion expands about the image centre `c` by `s`, `v(q) = s (q - c)`, its depth
 /// `0.3 + 0.004 x + 0.003 y`; the box (pixels `[w/8, w/3) x [h/4, h/2)`, depth 0.2) moves by its

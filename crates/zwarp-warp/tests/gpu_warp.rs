@@ -145,6 +145,25 @@ fn seam_coverage_matches_cpu() {
     }
 }
 
+/// `WarpParams::ground_layer` (`synth::ground_gap_layers`): the GPU hides the ground seen
+/// through a disocclusion in front of a far surface, and keeps it where the far side is ground,
+/// as the CPU does.
+#[test]
+fn ground_layer_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    for (far, ground_layer) in [(0.8, true), (0.8, false), (0.95, true)] {
+        let gap = zwarp_warp::synth::ground_gap_layers(far);
+        let layers: Vec<WarpLayer<'_>> = gap.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
+        let p = WarpParams { n_seeds: 4, ground_layer, ..base() };
+        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
+        assert_eq!(gpu.state, cpu.state, "far {far} ground_layer {ground_layer}");
+        assert_eq!(gpu.depth, cpu.depth, "far {far} ground_layer {ground_layer}");
+        let hidden = ground_layer && far < 0.95;
+        assert_eq!(*cpu.state.get(8, 1), if hidden { PixelState::Hole } else { PixelState::Converged });
+    }
+}
+
 #[test]
 fn rendered_frame_pair_matches_cpu() {
     let Some(ctx) = test_context() else { return };

@@ -86,6 +86,8 @@ fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
                             choice,
                             holes,
                             record_source: true,
+                            // The third rendered layer is the ground alone.
+                            ground_layer: l == 3,
                             ..WarpParams::default()
                         };
                         let (a, b) = both(&layers, &params);

@@ -800,6 +800,38 @@ fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hi
     }
 }
 
+/// [`synth::ground_gap_layers`]: the ground layer (peeled without the objects) converges in the
+/// gap a near object uncovers in front of a far surface. With `ground_layer` its candidate lies
+/// behind the far side the front layer's failed walks sampled and the gap goes to the hole
+/// policy, as with layer 0 alone (more layers never give a farther answer there); where the
+/// far side is the ground itself the ground is kept. AVX2 and portable builds agree.
+#[test]
+fn a_ground_layer_seen_through_a_disocclusion_in_front_of_a_far_surface_is_hidden() {
+    let warp = |ls: &[(Image<f32>, Image<Motion>)], ground_layer: bool| {
+        let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
+        let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, ground_layer, ..Default::default() };
+        let fast = warp_depth(&layers, &params).unwrap();
+        zwarp_warp::simd::set_simd(false);
+        let portable = warp_depth(&layers, &params).unwrap();
+        zwarp_warp::simd::set_simd(true);
+        assert_eq!((&fast.depth, &fast.state), (&portable.depth, &portable.state), "ground_layer {ground_layer}");
+        fast
+    };
+    let (object, ground) = (synth::ground_gap_layers(0.8), synth::ground_gap_layers(0.95));
+    let (alone, off, on) = (warp(&object[..1], true), warp(&object, false), warp(&object, true));
+    let open = warp(&ground, true);
+    for y in 0..4 {
+        for x in 6..12 {
+            assert_eq!(*alone.state.get(x, y), PixelState::Hole, "layer 0 alone ({x},{y})");
+            assert_eq!((*off.state.get(x, y), *off.depth.get(x, y)), (PixelState::Converged, 0.95), "({x},{y})");
+            assert_eq!(*on.state.get(x, y), PixelState::Hole, "({x},{y})");
+            assert_eq!((*open.state.get(x, y), *open.depth.get(x, y)), (PixelState::Converged, 0.95), "({x},{y})");
+        }
+        // Both sides of the gap are layer 0's.
+        assert_eq!((*on.depth.get(0, y), *on.depth.get(20, y)), (0.5, 0.8));
+    }
+}
+
 /// A camera walking toward a tilted wall past a box (`synth::approach_field`): the wall's motion
 /// expands about the image centre by `s`, so its tiles' bounds span more than a pixel, but the
 /// field is a contraction there (`2 s^2 < 1/2`): tiles whose region holds only wall

@@ -305,8 +305,9 @@ impl Warper {
     }
 
     /// Sets the source view: its camera, its peeled depth layers (nearest first, `1.0` =
-    /// empty; a last layer may hold the ground alone, Sec. 3.4) and optionally the item (object
-    /// id) buffer of each layer, which moving objects need (see [`Warper::warp_to`]).
+    /// empty; a last layer may hold the ground alone, Sec. 3.4, with `WarpParams::ground_layer`
+    /// set) and optionally the item (object id) buffer of each layer, which moving objects need
+    /// (see [`Warper::warp_to`]).
     pub fn prepare(&mut self, camera: &Camera, layers: &[Image<f32>], items: Option<&[Image<u32>]>) -> Result<()> {
         let Some(first) = layers.first() else {
             return Err(Error::invalid("prepare needs at least one depth layer"));
@@ -335,7 +336,8 @@ impl Warper {
 
     /// [`Warper::prepare`] from images that live on the GPU (a [`Backend::Gpu`] warper only):
     /// the source view's camera and its depth layers (nearest first, `1.0` = empty; a last
-    /// layer may hold the ground alone, Sec. 3.4), each with its optional item image, all of
+    /// layer may hold the ground alone, Sec. 3.4, with `WarpParams::ground_layer` set), each with
+    /// its optional item image, all of
     /// the camera's size times `WarpParams::multisample` and on the warper's device. The
     /// images are copied on the GPU into the warper's buffers (reused while the size stays;
     /// the copy is submitted here, so the caller may overwrite its images afterwards);

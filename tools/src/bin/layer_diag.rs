@@ -30,7 +30,7 @@ fn main() {
     );
     let loaded = load_scene(spec, &SceneOptions::default()).unwrap();
     let scene = &loaded.scene;
-    let path = CameraPath::from_json_file(pathf).unwrap();
+    let path = if pathf == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(pathf).unwrap() };
     let speed: f32 = std::env::var("SPEED").map_or(1.0, |s| s.parse().unwrap());
     let total = path.frame_count_at(speed);
     let last = total - 2;
@@ -145,6 +145,120 @@ fn main() {
                 sb.get(x, y).layer as i32
             );
         }
+    }
+    if let Ok(d) = std::env::var("DETAIL") {
+        // Both layers' samples along the source column through `q` of pixel DETAIL=x,y.
+        let (x, y) = d.split_once(',').expect("DETAIL=x,y");
+        let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
+        let q = sb.get(x, y).q;
+        println!("DETAIL p ({x},{y}) q {q:?} layer {}", sb.get(x, y).layer);
+        let qx = q.x as u32;
+        let qy = std::env::var("DROW").ok().map(|r| r.parse::<u32>().unwrap());
+        let cells: Vec<(u32, u32)> = match qy {
+            Some(r) => {
+                let c0 = std::env::var("DCOL").map_or(qx, |c| c.parse().unwrap());
+                (c0..(c0 + 6).min(w)).flat_map(|c| (r..r + 4).map(move |rr| (c, rr))).collect()
+            }
+            None => (0..(q.y as u32 + 3).min(h)).map(|r| (qx, r)).collect(),
+        };
+        for (qx, sy) in cells {
+            let row: Vec<String> = lm
+                .iter()
+                .take(2)
+                .map(|(dd, m)| {
+                    let z = *dd.get(qx, sy);
+                    let mv = m.get(qx, sy);
+                    format!(
+                        "z {:6.2} v ({:7.2},{:7.2}) -> ({:7.2},{:7.2})",
+                        if z >= 1.0 { -1.0 } else { ca.linear_depth(z) },
+                        mv.v.x,
+                        mv.v.y,
+                        qx as f32 + 0.5 + mv.v.x,
+                        sy as f32 + 0.5 + mv.v.y
+                    )
+                })
+                .collect();
+            println!("  ({qx},{sy}): {}", row.join(" | "));
+        }
+    }
+    if let Ok(d) = std::env::var("TRACE") {
+        // Layer 0's (single-layer) search at pixel TRACE=x,y: global-frame tight bound, seeds, walks.
+        use zwarp_warp::search::{LayerSampler, MotionSource, SamplePlanes, Sampling};
+        let (x, y) = d.split_once(',').expect("TRACE=x,y");
+        let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
+        let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        let planes = SamplePlanes::from_motion(single.1.data());
+        let ls = LayerSampler::new(&planes, w, h, Sampling::Adaptive, 0);
+        let pyr = zwarp_warp::MotionPyramid::build(&single.1).unwrap();
+        let tb = pyr.tight_bound(p, 6, 0.5);
+        println!("TRACE p {p:?} tight {:?}", tb.map(|t| (t.motion, t.region)));
+        let extra: Vec<glam::Vec2> = std::env::var("SEEDS")
+            .ok()
+            .map(|s| {
+                s.split(';')
+                    .map(|t| {
+                        let (a, b) = t.split_once(',').unwrap();
+                        glam::Vec2::new(a.parse().unwrap(), b.parse().unwrap())
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let mut seeds = extra;
+        if let Some(t) = tb {
+            let mut buf = [glam::Vec2::ZERO; 64];
+            let n = zwarp_warp::search::stratified_seeds(
+                &pyr.frame(),
+                &t.region,
+                4,
+                zwarp_warp::search::seed_key(x, y, 0),
+                &mut buf,
+            );
+            seeds.extend_from_slice(&buf[..n]);
+        }
+        for s0 in seeds {
+            let mut q = s0;
+            print!("  seed {q:?}:");
+            for _ in 0..6 {
+                let Some(s) = ls.sample(q, &mut ()) else {
+                    print!(" out/empty");
+                    break;
+                };
+                let step = p - s.v - q;
+                print!(
+                    " [q ({:.2},{:.2}) z {:.3} smooth {} r {:.3}]",
+                    q.x,
+                    q.y,
+                    ca.linear_depth(s.depth.min(0.999999)),
+                    s.smooth,
+                    step.length()
+                );
+                q = match zwarp_warp::search::newton_step(&s, step) {
+                    Some(d) => q + d,
+                    None => p - s.v,
+                };
+            }
+            println!();
+        }
+    }
+    if let Ok(f) = std::env::var("DUMP") {
+        // Raw little-endian f32 planes: reference, a, b linear depths; a, b states; b layer.
+        let mut out = Vec::new();
+        let planes: [&dyn Fn(u32, u32) -> f32; 6] = [
+            &|x, y| lin(*reference.get(x, y)),
+            &|x, y| lin(*oa.depth.get(x, y)),
+            &|x, y| lin(*ob.depth.get(x, y)),
+            &|x, y| *oa.state.get(x, y) as u8 as f32,
+            &|x, y| *ob.state.get(x, y) as u8 as f32,
+            &|x, y| sb.get(x, y).layer as i32 as f32,
+        ];
+        for pl in planes {
+            for y in 0..h {
+                for x in 0..w {
+                    out.extend_from_slice(&pl(x, y).to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(f, out).unwrap();
     }
     for &(x, y, ea, eb) in worse.iter().step_by((worse.len() / 12).max(1)) {
         let r = lin(*reference.get(x, y));

@@ -346,6 +346,12 @@ struct PairBuffers {
 }
 
 impl PairBuffers {
+    /// `true` if the last of [`Self::prefix`]`(l)` is the separately peeled ground
+    /// (`WarpParams::ground_layer`).
+    fn ground_last(&self, l: usize) -> bool {
+        l > 1 && self.ground.is_some()
+    }
+
     /// The `l` layers to warp: L = 1 is the plain depth buffer; otherwise `l - 1` peeled layers
     /// plus the ground layer when the scene has ground, else `l` peeled layers.
     fn prefix(&self, l: usize) -> Vec<WarpLayer<'_>> {
@@ -546,6 +552,7 @@ pub fn evaluate(
                                                 bound,
                                                 holes: plan.holes(),
                                                 multisample: ms,
+                                                ground_layer: bufs.ground_last(l),
                                                 ..WarpParams::default()
                                             };
                                             // The preparation's buffers carry over from one timed

@@ -90,6 +90,8 @@ const FLAG_SEED_OFFSET: u32 = 32;
 const FLAG_BACKGROUND: u32 = 64;
 /// `HolePolicy::Awoc`: the warp pass fills non-converged pixels from the region corners.
 const FLAG_AWOC: u32 = 128;
+/// `WarpParams::ground_layer`: the last layer is the ground peeled alone.
+const FLAG_GROUND: u32 = 256;
 
 /// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
 /// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
@@ -349,6 +351,9 @@ impl WarpKernel {
         }
         if params.choice == CandidateChoice::FirstConverged {
             flags |= FLAG_FIRST;
+        }
+        if params.ground_layer {
+            flags |= FLAG_GROUND;
         }
         match params.seeding {
             SeedStrategy::Stratified => {}

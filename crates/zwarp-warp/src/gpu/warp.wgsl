@@ -57,11 +57,15 @@ const FLAG_BACKGROUND: u32 = 64u;
 // HolePolicy::Awoc (Sec. 5.3): non-converged pixels take the nearest sample at the corners of
 // the first searched layer's tight region.
 const FLAG_AWOC: u32 = 128u;
+// WarpParams::ground_layer: the last layer is the ground peeled alone.
+const FLAG_GROUND: u32 = 256u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
 // zwarp_warp::holes::BRACKET_SPAN_RATIO.
 const BRACKET_SPAN_RATIO: f32 = 4.0;
+// zwarp_warp::holes::FAR_SIDE_SPREAD.
+const FAR_SIDE_SPREAD: f32 = 0.25;
 // zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
@@ -508,7 +512,8 @@ fn inside(q: vec2<f32>) -> bool {
 }
 
 // StackSampler::sample (Fig. 6): an empty landing in layer k > 0 borrows the nearest
-// non-empty layer above once; the second empty landing fails the seed.
+// non-empty layer above once (under the adaptive fetch only a bilinear sample); the second empty
+// landing fails the seed.
 fn stack_sample(k: u32, q: vec2<f32>, empties: ptr<function, u32>) -> Smp {
     let none = Smp(false, vec2<f32>(0.0), 0.0, 0u, vec2<f32>(0.0), vec2<f32>(0.0), false);
     if (!inside(q)) {
@@ -528,7 +533,10 @@ fn stack_sample(k: u32, q: vec2<f32>, empties: ptr<function, u32>) -> Smp {
     for (var j = i32(k) - 1; j >= 0; j--) {
         let s = fetch(u32(j), q);
         if (s.ok) {
-            return s;
+            if (s.bilinear || (params.flags & FLAG_ADAPTIVE) == 0u) {
+                return s;
+            }
+            return none;
         }
     }
     return none;
@@ -613,6 +621,8 @@ struct Found {
     // The smallest squared residual of a smooth sampled iterate and that sample's depth.
     closest: f32,
     closest_z: f32,
+    // The largest depth of any sample of the walks (-inf if none): search::Approach::farthest.
+    farthest: f32,
 };
 
 fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32, n: u32, cross_seed: bool,
@@ -623,6 +633,7 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
     // iterate and that sample's depth.
     var closest = params.inf.x;
     var closest_z = params.inf.x;
+    var farthest = params.inf.y;
     for (var i = 0u; i < n; i++) {
         var seed: vec2<f32>;
         if (cross_seed && i == n - 1u) {
@@ -649,6 +660,7 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
                 closest = r2;
                 closest_z = s.depth;
             }
+            farthest = max(farthest, s.depth);
             var next = wv;
             if ((params.flags & FLAG_ACCEL) != 0u) {
                 let m00 = 1.0 + s.dvdx.x;
@@ -675,7 +687,7 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
             break;
         }
     }
-    return Found(found, closest, closest_z);
+    return Found(found, closest, closest_z, farthest);
 }
 
 // The CPU's 4x4 tile stage (depth_warp::Kernel::band): the 8x8 workgroup holds 4 tiles; one
@@ -754,6 +766,9 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     // depth_warp::Kernel::pixel_from: the nearest depth of a layer that, before any candidate,
     // failed with a walk within the coverage radius of p.
     var cover = params.inf.x;
+    // The farthest sample of the failed walks of the layers searched before any candidate
+    // (Kernel::behind_ground_disocclusion).
+    var farthest = params.inf.y;
     for (var k = 0u; k < params.layers; k++) {
         if (tile_ok[k * 4u + tile_index] == 0u) {
             continue;
@@ -835,8 +850,11 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             if (!best.ok || found.depth < best.depth) {
                 best = found;
             }
-        } else if (!best.ok && closest < params.cover2) {
-            cover = min(cover, closest_z);
+        } else if (!best.ok) {
+            if (closest < params.cover2) {
+                cover = min(cover, closest_z);
+            }
+            farthest = max(farthest, sr.farthest);
         }
     }
     // zwarp_warp::hidden_behind: a deeper layer's candidate behind a covering front surface.
@@ -872,6 +890,12 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                 }
             }
         }
+    }
+    // Kernel::behind_ground_disocclusion: a ground layer's candidate behind the farthest sample
+    // of the failed walks before it.
+    if (best.ok && (params.flags & FLAG_GROUND) != 0u && best.tag + 1u == params.layers && farthest > params.inf.y
+        && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - farthest) {
+        best.ok = false;
     }
     let i = y * tw + x;
     if (best.ok) {
@@ -912,8 +936,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
 // holes::fill_holes. Fig. 8 (FillRule::Nearest): a hole with a converged pixel within the radius
 // on both sides along all four directions takes the depth of the nearest one (ties: the farther
 // depth). FLAG_BACKGROUND (FillRule::Background): a hole bracketed along at least one direction
-// takes the farthest side of the directions bracketed within BRACKET_SPAN_RATIO times the
-// narrowest bracket. On the target grid.
+// takes the far sides of the directions bracketed within BRACKET_SPAN_RATIO times the narrowest
+// bracket, averaged over those within FAR_SIDE_SPREAD of the farthest. On the target grid.
 @compute @workgroup_size(8, 8, 1)
 fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w = params.target_size.x;
@@ -936,6 +960,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
     // side, and the narrowest span.
     var bg_span = array<f32, 4>(-1.0, -1.0, -1.0, -1.0);
     var bg_far = array<f32, 4>(0.0, 0.0, 0.0, 0.0);
+    var bg_far_d = array<f32, 4>(0.0, 0.0, 0.0, 0.0);
     var bg_min = -1.0;
     for (var dir = 0; dir < 4; dir++) {
         var dx = 1;
@@ -955,6 +980,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
         var hits = 0;
         var span = 0.0;
         var side_z = 0.0;
+        var side_d = 0.0;
         for (var side = 0; side < 2; side++) {
             let sx = select(-dx, dx, side == 0);
             let sy = select(-dy, dy, side == 0);
@@ -975,6 +1001,8 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                         best_z = z;
                     }
                     span += f32(kk);
+                    // The far side (ties: the + side, as holes::hole_fill) and its distance.
+                    side_d = select(d, side_d, side == 1 && z <= side_z);
                     side_z = select(z, max(side_z, z), side == 1);
                     hit = true;
                     break;
@@ -990,6 +1018,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
             let sp = span * step;
             bg_span[dir] = sp;
             bg_far[dir] = side_z;
+            bg_far_d[dir] = side_d;
             bg_min = select(sp, min(bg_min, sp), bg_min >= 0.0);
         }
     }
@@ -1002,6 +1031,17 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                 found = true;
             }
         }
+        // holes::hole_fill: the far sides within FAR_SIDE_SPREAD of the farthest, averaged with
+        // inverse-distance weights.
+        var num = 0.0;
+        var den = 0.0;
+        for (var j = 0; j < 4; j++) {
+            if (bg_span[j] >= 0.0 && bg_span[j] <= BRACKET_SPAN_RATIO * bg_min && z - bg_far[j] <= FAR_SIDE_SPREAD * (1.0 - z)) {
+                num += (z - bg_far[j]) / bg_far_d[j];
+                den += 1.0 / bg_far_d[j];
+            }
+        }
+        z -= num / den;
         if (found) {
             fill_depth[i] = z;
             fill_state[i] = 1u;
