@@ -452,8 +452,9 @@ pub struct Approach {
     pub r2: f32,
     /// Target depth of that iterate's sample (`+inf` if none).
     pub depth: f32,
-    /// The largest target depth of any sample of any seed's walk (`-inf` if none): the far side
-    /// of a disocclusion the walks oscillated across ([`crate::WarpParams::ground_layer`]).
+    /// The largest target depth of any sample of any seed's walk after its first step (`-inf` if
+    /// none): the far side of a disocclusion the walks oscillated across, not a surface a seed
+    /// happened to start on ([`crate::WarpParams::ground_layer`]).
     pub farthest: f32,
 }
 
@@ -479,7 +480,7 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
     for (i, &seed) in seeds.iter().enumerate() {
         let mut walk = S::Walk::default();
         let mut q = seed;
-        for _ in 0..params.iterations {
+        for it in 0..params.iterations {
             let Some(s) = src.sample(q, &mut walk) else { break };
             let w = p - s.v;
             let step = w - q;
@@ -487,7 +488,9 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
             if s.smooth && r2 < closest.r2 {
                 closest = Approach { r2, depth: s.depth, farthest: closest.farthest };
             }
-            closest.farthest = closest.farthest.max(s.depth);
+            if it > 0 {
+                closest.farthest = closest.farthest.max(s.depth);
+            }
             if r2 < thr2 {
                 // Converged: the sample at `q` (Fig. 3), no further "polishing" sample (measured
                 // neutral for quality on the procedural scenes, ~10 % of the warp's cost).

@@ -64,8 +64,8 @@ pub(crate) struct Lanes {
     /// returns them.
     pub closest: __m256,
     pub closest_depth: __m256,
-    /// The largest depth of any sample of the lane's walks (`-inf` if none), as
-    /// `search::Approach::farthest`.
+    /// The largest depth of any sample of the lane's walks after their first step (`-inf` if
+    /// none), as `search::Approach::farthest`.
     pub farthest: __m256,
 }
 
@@ -679,7 +679,7 @@ impl Texels {
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
 /// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, and
 /// the walk's closest approach (smallest squared residual of a smooth sampled iterate and its
-/// depth, `+inf` if none) and its farthest sample's depth (`-inf` if none).
+/// depth, `+inf` if none) and its farthest sample's depth after the first step (`-inf` if none).
 #[inline]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::type_complexity)]
@@ -705,7 +705,7 @@ unsafe fn walk8(
     let mut closest = (splat(f32::INFINITY), splat(f32::INFINITY));
     // Whether the walk already borrowed once (StackSampler's count of empty landings).
     let mut borrowed = zero;
-    for _ in 0..ls.iterations {
+    for it in 0..ls.iterations {
         // StackSampler: outside the image fails the seed.
         let inside = _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
@@ -750,7 +750,9 @@ unsafe fn walk8(
         if _mm256_movemask_ps(live) == 0 {
             break;
         }
-        farthest = _mm256_max_ps(farthest, _mm256_blendv_ps(splat(f32::NEG_INFINITY), s.z, live));
+        if it > 0 {
+            farthest = _mm256_max_ps(farthest, _mm256_blendv_ps(splat(f32::NEG_INFINITY), s.z, live));
+        }
         // fixed_point_search: w = p - v, step = w - q, converged if |step|^2 < thr^2.
         let wx = _mm256_sub_ps(px, s.vx);
         let wy = _mm256_sub_ps(py, s.vy);

@@ -621,7 +621,8 @@ struct Found {
     // The smallest squared residual of a smooth sampled iterate and that sample's depth.
     closest: f32,
     closest_z: f32,
-    // The largest depth of any sample of the walks (-inf if none): search::Approach::farthest.
+    // The largest depth of any sample of the walks after their first step (-inf if none):
+    // search::Approach::farthest.
     farthest: f32,
 };
 
@@ -660,7 +661,9 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
                 closest = r2;
                 closest_z = s.depth;
             }
-            farthest = max(farthest, s.depth);
+            if (it > 0u) {
+                farthest = max(farthest, s.depth);
+            }
             var next = wv;
             if ((params.flags & FLAG_ACCEL) != 0u) {
                 let m00 = 1.0 + s.dvdx.x;
