@@ -181,6 +181,41 @@ fn main() {
             println!("  ({qx},{sy}): {}", row.join(" | "));
         }
     }
+    if std::env::var_os("CMP0").is_some() {
+        // Does the peeled layer 0 equal the plain frame (L = 1's input)?
+        let (a0, b0) = (&single.0, &lm[0].0);
+        let differ = a0.data().iter().zip(b0.data()).filter(|(x, y)| x != y).count();
+        let mdiff = single.1.data().iter().zip(lm[0].1.data()).filter(|(x, y)| x != y).count();
+        println!("CMP0 depth texels differing: {differ}, motion texels differing: {mdiff}");
+    }
+    if let Ok(d) = std::env::var("COVER") {
+        // The b-run candidate at pixel COVER=x,y and what the front layers hold at its source
+        // position and one fixed-point step from there (Kernel::covered_at_source).
+        let (x, y) = d.split_once(',').expect("COVER=x,y");
+        let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
+        let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        let c = sb.get(x, y);
+        println!("COVER p {p:?} b layer {} q {:?} depth {:.3}", c.layer, c.q, lin(*ob.depth.get(x, y)));
+        let layers = prefix(lb);
+        for (j, l) in layers.iter().enumerate().take(c.layer as usize + 1) {
+            for (what, q) in [("at q", c.q)] {
+                let (qx, qy) = (q.x as u32, q.y as u32);
+                for (ox, oy) in [(0i32, 0i32), (-1, 0), (1, 0), (0, -1), (0, 1)] {
+                    let (tx, ty) = ((qx as i32 + ox) as u32, (qy as i32 + oy) as u32);
+                    let m = l.motion.get(tx, ty);
+                    let z = *l.depth.get(tx, ty);
+                    let land = glam::Vec2::new(tx as f32 + 0.5, ty as f32 + 0.5) + m.v;
+                    println!(
+                        "  layer {j} {what} texel ({tx},{ty}): z {:.3} v {:?} lands {:?} (dist {:.2})",
+                        if z >= 1.0 { -1.0 } else { ca.linear_depth(z) },
+                        m.v,
+                        land,
+                        (land - p).length()
+                    );
+                }
+            }
+        }
+    }
     if let Ok(d) = std::env::var("TRACE") {
         // Layer 0's (single-layer) search at pixel TRACE=x,y: global-frame tight bound, seeds, walks.
         use zwarp_warp::search::{LayerSampler, MotionSource, SamplePlanes, Sampling};
