@@ -57,7 +57,12 @@ pub struct HoleFillKernel {
 impl HoleFillKernel {
     /// Compiles `holes.wgsl`.
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let pipelines = AutoPipelines::new(ctx, "holes.wgsl", include_str!("holes.wgsl"), "hole-fill")?;
+        let pipelines = AutoPipelines::new(
+            ctx,
+            "holes.wgsl",
+            concat!(include_str!("fill_rule.wgsl"), include_str!("holes.wgsl")),
+            "hole-fill",
+        )?;
         Ok(HoleFillKernel {
             ctx: ctx.clone(),
             fill: pipelines.pipeline("fill")?,

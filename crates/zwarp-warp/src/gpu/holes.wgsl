@@ -57,11 +57,6 @@ const HOLE: u32 = 2u;
 // Horizontal, vertical, both diagonals (zwarp_warp::FILL_DIRECTIONS), each probed both ways.
 const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
 
-// zwarp_warp::holes::BRACKET_SPAN_RATIO.
-const BRACKET_SPAN_RATIO: f32 = 4.0;
-// zwarp_warp::holes::FAR_SIDE_SPREAD.
-const FAR_SIDE_SPREAD: f32 = 0.25;
-
 // Nearest converged pixel from (x, y) along (dx, dy) within the radius: (k, depth), k = 0 if
 // none (the image edge or the radius ends the probe).
 fn probe(x: i32, y: i32, dx: i32, dy: i32, radius: u32) -> vec2<f32> {
@@ -130,31 +125,6 @@ fn background_fill(x: i32, y: i32, radius: u32) -> vec2<f32> {
         narrowest = select(span[j], min(narrowest, span[j]), narrowest >= 0.0);
     }
     return far_sides(span, far, far_d, narrowest);
-}
-
-// The FillRule::Background decision from the four directions' (span (-1: not bracketed), far
-// side's depth, its distance) and the narrowest span: (depth, 1), or (0, 0) if none crosses.
-fn far_sides(span: array<f32, 4>, far: array<f32, 4>, far_d: array<f32, 4>, narrowest: f32) -> vec2<f32> {
-    var found = false;
-    var z = 0.0;
-    for (var j = 0; j < 4; j++) {
-        if (span[j] >= 0.0 && span[j] <= BRACKET_SPAN_RATIO * narrowest) {
-            z = select(far[j], max(z, far[j]), found);
-            found = true;
-        }
-    }
-    if (!found) {
-        return vec2<f32>(0.0, 0.0);
-    }
-    var num = 0.0;
-    var den = 0.0;
-    for (var j = 0; j < 4; j++) {
-        if (span[j] >= 0.0 && span[j] <= BRACKET_SPAN_RATIO * narrowest && z - far[j] <= FAR_SIDE_SPREAD * (1.0 - z)) {
-            num += (z - far[j]) / far_d[j];
-            den += 1.0 / far_d[j];
-        }
-    }
-    return vec2<f32>(z - num / den, 1.0);
 }
 
 // Step 3 of fill_background (zwarp_warp::holes::fill_border_holes) at hole (x, y): a hole whose

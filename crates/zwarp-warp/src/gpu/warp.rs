@@ -181,7 +181,12 @@ pub struct WarpKernel {
 impl WarpKernel {
     /// Compiles `warp.wgsl` on `ctx`'s device (an engine's own via [`GpuContext::from_device`]).
     pub fn new(ctx: &GpuContext) -> Result<Self> {
-        let pipelines = AutoPipelines::new(ctx, "warp.wgsl", include_str!("warp.wgsl"), "warp")?;
+        let pipelines = AutoPipelines::new(
+            ctx,
+            "warp.wgsl",
+            concat!(include_str!("fill_rule.wgsl"), include_str!("warp.wgsl")),
+            "warp",
+        )?;
         let pipe = |entry: &str| pipelines.pipeline(entry);
         Ok(WarpKernel {
             ctx: ctx.clone(),

@@ -62,10 +62,6 @@ const FLAG_GROUND: u32 = 256u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
-// zwarp_warp::holes::BRACKET_SPAN_RATIO.
-const BRACKET_SPAN_RATIO: f32 = 4.0;
-// zwarp_warp::holes::FAR_SIDE_SPREAD.
-const FAR_SIDE_SPREAD: f32 = 0.25;
 // zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
@@ -1026,27 +1022,10 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     if (background) {
-        var found = false;
-        var z = 0.0;
-        for (var j = 0; j < 4; j++) {
-            if (bg_span[j] >= 0.0 && bg_span[j] <= BRACKET_SPAN_RATIO * bg_min) {
-                z = select(bg_far[j], max(z, bg_far[j]), found);
-                found = true;
-            }
-        }
-        // holes::hole_fill: the far sides within FAR_SIDE_SPREAD of the farthest, averaged with
-        // inverse-distance weights.
-        var num = 0.0;
-        var den = 0.0;
-        for (var j = 0; j < 4; j++) {
-            if (bg_span[j] >= 0.0 && bg_span[j] <= BRACKET_SPAN_RATIO * bg_min && z - bg_far[j] <= FAR_SIDE_SPREAD * (1.0 - z)) {
-                num += (z - bg_far[j]) / bg_far_d[j];
-                den += 1.0 / bg_far_d[j];
-            }
-        }
-        z -= num / den;
-        if (found) {
-            fill_depth[i] = z;
+        // fill_rule.wgsl (holes::hole_fill).
+        let f = far_sides(bg_span, bg_far, bg_far_d, bg_min);
+        if (f.y > 0.0) {
+            fill_depth[i] = f.x;
             fill_state[i] = 1u;
         }
     } else if (best_ok) {
