@@ -376,11 +376,13 @@ impl<'a> Kernel<'a> {
     /// a crack between two layers' samples). Decided from the source alone (seed 000 Sec. 3.4:
     /// a deeper layer fills what the front layer disoccludes, nothing else).
     ///
-    /// Each front surface at `c.q` is also followed one fixed-point step (`q' = p - v(c.q)`):
-    /// if a front layer's sample at `q'` converges at `p` (within the search threshold) and `c`
-    /// lies behind it, the front layers have a surface at `p` that their own seeds missed —
-    /// typically a sliver a texel wide in one layer at the seam between two layers' views of
-    /// one wall — and `c`, seen through the seam, is hidden.
+    /// Each front surface at `c.q` is also followed one fixed-point step (`q' = p - v(c.q)`,
+    /// inside the image):
+    /// if a front layer's sample at `q'`, or one of the texels of the cell around `q'` (from its
+    /// centre: where the cell is a discontinuity the fetch gives only one of them), lands within
+    /// the coverage radius of `p` and `c` lies behind it, the front layers have a surface at `p`
+    /// that their own seeds missed — typically a sliver a texel wide in one layer at the seam
+    /// between two layers' views of one wall — and `c`, seen through the seam, is hidden.
     #[inline]
     pub fn covered_at_source(&self, c: &Candidate, p: Vec2) -> bool {
         let cover2 = self.params.cover_radius * self.params.cover_radius;
@@ -391,7 +393,12 @@ impl<'a> Kernel<'a> {
         front.iter().any(|s| {
             let Some(f) = s.fetch(c.q) else { return false };
             let q = p - f.v;
-            hides(c.q, &f) || front.iter().any(|t| t.fetch(q).is_some_and(|g| hides(q, &g)))
+            hides(c.q, &f)
+                || (self.samplers[0].inside(q)
+                    && front.iter().any(|t| {
+                        t.fetch(q).is_some_and(|g| hides(q, &g))
+                            || t.cell_texels(q).any(|(centre, g)| hides(centre, &g))
+                    }))
         })
     }
 
@@ -851,8 +858,28 @@ impl<'a> Kernel<'a> {
             _mm256_sub_ps(one, cover),
         );
         has = _mm256_andnot_ps(hidden, has);
-        // Kernel::covered_at_source for the lanes whose candidate comes from a deeper layer.
-        has = _mm256_andnot_ps(sw::covered_at_source8(ls, px, py, bqx, bqy, bz, btag, has, cover2), has);
+        // Kernel::covered_at_source itself for the lanes whose candidate comes from a deeper
+        // layer (few: disocclusions).
+        let deep = _mm256_movemask_ps(_mm256_and_ps(
+            has,
+            _mm256_castsi256_ps(_mm256_cmpgt_epi32(btag, _mm256_setzero_si256())),
+        )) as u8;
+        if deep != 0 {
+            let (mut qx, mut qy, mut z, mut tags, mut pxs, mut pys) =
+                ([0f32; 8], [0f32; 8], [0f32; 8], [0i32; 8], [0f32; 8], [0f32; 8]);
+            _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
+            _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
+            _mm256_storeu_ps(z.as_mut_ptr(), bz);
+            _mm256_storeu_si256(tags.as_mut_ptr() as *mut __m256i, btag);
+            _mm256_storeu_ps(pxs.as_mut_ptr(), px);
+            _mm256_storeu_ps(pys.as_mut_ptr(), py);
+            let mut covered = 0u8;
+            for i in (0..8).filter(|i| deep >> i & 1 != 0) {
+                let c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
+                covered |= (self.covered_at_source(&c, Vec2::new(pxs[i], pys[i])) as u8) << i;
+            }
+            has = _mm256_andnot_ps(sw::lane_mask(covered), has);
+        }
         if self.params.ground_layer {
             // Kernel::behind_ground_disocclusion: a ground layer's candidate behind the farthest
             // sample of the failed walks before it.

@@ -187,8 +187,9 @@ pub struct WarpParams {
     /// the radius of `p` and is nearer by [`COVER_DEPTH_RATIO`] still covers `p` (its search
     /// only missed, e.g. on a crack between the samples of two layers), so the candidate is
     /// hidden too; so is one where a front layer's sample one fixed-point step further
-    /// (`q' = p - v(q)` with that front sample's motion) lands within the radius and is nearer
-    /// (a texel-wide sliver at the seam between two layers' views of one wall). Default 3.5.
+    /// (`q' = p - v(q)` with that front sample's motion), or a texel of the cell around `q'`
+    /// (from its centre), lands within the radius and is nearer (a texel-wide sliver at the seam
+    /// between two layers' views of one wall). Default 3.5.
     pub cover_radius: f32,
     /// The last layer is a ground layer peeled alone, without the objects standing on it
     /// (seed 000 Sec. 3.4 and 4: "the last layer was peeled without foreground objects"). Its

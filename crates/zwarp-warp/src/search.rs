@@ -213,6 +213,30 @@ impl<'a> LayerSampler<'a> {
         Motion { v: Vec2::new(self.vx[i], self.vy[i]), depth: self.z[i] }
     }
 
+    /// The valid texels of the 2x2 cell the adaptive fetch reads at `q` (inside, see
+    /// [`Self::inside`]; indices clamped as the fetch clamps them): per texel its centre and its
+    /// nearest sample. Where the cell is a discontinuity the fetch returns one of them; the
+    /// coverage test looks at each (`Kernel::covered_at_source`).
+    pub fn cell_texels(&self, q: Vec2) -> impl Iterator<Item = (Vec2, Sample)> + '_ {
+        let (tx, ty) = ((q.x + 0.5) as u32, (q.y + 0.5) as u32); // floor(q - 0.5) + 1
+        let (wm, hm) = (self.w - 1, self.h - 1);
+        let (x0, y0, x1, y1) = (tx.saturating_sub(1).min(wm), ty.saturating_sub(1).min(hm), tx.min(wm), ty.min(hm));
+        [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].into_iter().filter_map(move |(x, y)| {
+            let m = self.at(x, y);
+            ((m.depth >= 0.0) & (m.depth < 1.0)).then(|| {
+                let sample = Sample {
+                    v: self.scale * m.v,
+                    depth: m.depth,
+                    tag: self.tag,
+                    dv: [Vec2::ZERO; 2],
+                    dz: Vec2::ZERO,
+                    smooth: false,
+                };
+                (Vec2::new(x as f32 + 0.5, y as f32 + 0.5), sample)
+            })
+        })
+    }
+
     /// The sample at `q` (must be inside, see [`Self::inside`]); `None` if empty.
     #[inline(always)]
     pub fn fetch(&self, q: Vec2) -> Option<Sample> {
@@ -631,6 +655,35 @@ mod tests {
 
     fn sp(t: u32) -> SearchParams {
         SearchParams { iterations: t, threshold: 0.5, choice: CandidateChoice::MinDepth, accelerate: false }
+    }
+
+    #[test]
+    fn cell_texels_are_the_texels_the_adaptive_fetch_reads() {
+        // A motion step between columns 7 and 8 (a discontinuity: the fetch at x = 7.6 returns
+        // the nearest texel, column 7) and an empty texel at (8, 4).
+        let mut m = shift(Vec2::new(2.0, 0.0));
+        for y in 0..16 {
+            for x in 8..16 {
+                m[y * 16 + x].v = Vec2::new(-3.0, 0.0);
+            }
+        }
+        m[4 * 16 + 8].depth = 1.0;
+        let planes = SamplePlanes::from_motion(&m);
+        let s = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0);
+        let q = Vec2::new(7.6, 4.2);
+        assert!(s.fetch(q).is_some_and(|f| !f.smooth && f.v == Vec2::new(2.0, 0.0)));
+        let cell: Vec<(Vec2, Vec2)> = s.cell_texels(q).map(|(c, t)| (c, t.v)).collect();
+        assert_eq!(
+            cell,
+            [
+                (Vec2::new(7.5, 3.5), Vec2::new(2.0, 0.0)),
+                (Vec2::new(8.5, 3.5), Vec2::new(-3.0, 0.0)),
+                (Vec2::new(7.5, 4.5), Vec2::new(2.0, 0.0)),
+            ]
+        );
+        // At the image corner the indices clamp as the fetch clamps them.
+        assert_eq!(s.cell_texels(Vec2::new(0.2, 0.2)).count(), 4);
+        assert!(s.cell_texels(Vec2::new(0.2, 0.2)).all(|(c, _)| c == Vec2::new(0.5, 0.5)));
     }
 
     #[test]

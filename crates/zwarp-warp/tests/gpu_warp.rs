@@ -137,7 +137,7 @@ fn seam_coverage_matches_cpu() {
     for sliver in [true, false] {
         let seam = zwarp_warp::synth::seam_layers(sliver);
         let layers: Vec<WarpLayer<'_>> = seam.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
-        let p = WarpParams { n_seeds: 4, cover_radius: 1.0, ..base() };
+        let p = WarpParams { n_seeds: 4, cover_radius: 0.5, ..base() };
         let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
         assert_eq!(gpu.state, cpu.state, "sliver {sliver}");
         assert_eq!(gpu.depth, cpu.depth, "sliver {sliver}");

@@ -778,9 +778,9 @@ fn deeper_layers_do_not_show_through_a_near_wall() {
 fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hidden() {
     let warp = |ls: &[(Image<f32>, Image<Motion>)]| {
         let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
-        // A coverage radius of one pixel: the wall's edges (landing 1 px to either side) do not
-        // cover the seam by themselves.
-        let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, cover_radius: 1.0, ..Default::default() };
+        // A coverage radius of half a pixel: the wall's edge texels around the seam (their
+        // centres landing 0.6 and 1.5 px from pixel 10's) do not cover it by themselves.
+        let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, cover_radius: 0.5, ..Default::default() };
         warp_depth(&layers, &params).unwrap()
     };
     let seam = synth::seam_layers(true);

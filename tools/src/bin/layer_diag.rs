@@ -198,7 +198,13 @@ fn main() {
         println!("COVER p {p:?} b layer {} q {:?} depth {:.3}", c.layer, c.q, lin(*ob.depth.get(x, y)));
         let layers = prefix(lb);
         for (j, l) in layers.iter().enumerate().take(c.layer as usize + 1) {
-            for (what, q) in [("at q", c.q)] {
+            let step = if c.layer as usize > j {
+                let m = l.motion.get(c.q.x as u32, c.q.y as u32);
+                Some(p - m.v)
+            } else {
+                None
+            };
+            for (what, q) in std::iter::once(("at q", c.q)).chain(step.map(|s| ("one step", s))) {
                 let (qx, qy) = (q.x as u32, q.y as u32);
                 for (ox, oy) in [(0i32, 0i32), (-1, 0), (1, 0), (0, -1), (0, 1)] {
                     let (tx, ty) = ((qx as i32 + ox) as u32, (qy as i32 + oy) as u32);

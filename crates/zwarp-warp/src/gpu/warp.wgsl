@@ -861,8 +861,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         best.ok = false;
     }
     // depth_warp::Kernel::covered_at_source: a front layer's surface at the candidate's own
-    // source position lands within the coverage radius of p, or converges at p one fixed-point
-    // step from there, and hides the candidate.
+    // source position lands within the coverage radius of p, or does one fixed-point step from
+    // there (its sample or a texel of the cell around that position), and hides the candidate.
     if (best.ok) {
         let hidden_z = (1.0 - best.depth) * COVER_DEPTH_RATIO;
         for (var j = 0u; j < min(best.tag, params.layers); j++) {
@@ -877,11 +877,25 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
             let q2 = p - s.v;
             if (inside(q2)) {
+                // LayerSampler::cell_texels: the texels of the cell the fetch reads at q2.
+                let ix = u32(q2.x + 0.5);
+                let iy = u32(q2.y + 0.5);
+                let cx = vec2<u32>(min(max(ix, 1u) - 1u, params.size.x - 1u), min(ix, params.size.x - 1u));
+                let cy = vec2<u32>(min(max(iy, 1u) - 1u, params.size.y - 1u), min(iy, params.size.y - 1u));
                 for (var i = 0u; i < min(best.tag, params.layers); i++) {
                     let g = fetch(i, q2);
                     let d2 = (q2 + g.v) - p;
                     if (g.ok && d2.x * d2.x + d2.y * d2.y < params.cover2 && hidden_z < 1.0 - g.depth) {
                         best.ok = false;
+                    }
+                    for (var c = 0u; c < 4u; c++) {
+                        let tx = cx[c & 1u];
+                        let ty = cy[c >> 1u];
+                        let t = at(i, tx, ty);
+                        let d3 = (vec2<f32>(f32(tx) + 0.5, f32(ty) + 0.5) + t.xy) - p;
+                        if (valid_z(t.z) && d3.x * d3.x + d3.y * d3.y < params.cover2 && hidden_z < 1.0 - t.z) {
+                            best.ok = false;
+                        }
                     }
                 }
                 if (!best.ok) {
