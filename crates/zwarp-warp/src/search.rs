@@ -222,18 +222,20 @@ impl<'a> LayerSampler<'a> {
         let (wm, hm) = (self.w - 1, self.h - 1);
         let (x0, y0, x1, y1) = (tx.saturating_sub(1).min(wm), ty.saturating_sub(1).min(hm), tx.min(wm), ty.min(hm));
         [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].into_iter().filter_map(move |(x, y)| {
-            let m = self.at(x, y);
-            ((m.depth >= 0.0) & (m.depth < 1.0)).then(|| {
-                let sample = Sample {
-                    v: self.scale * m.v,
-                    depth: m.depth,
-                    tag: self.tag,
-                    dv: [Vec2::ZERO; 2],
-                    dz: Vec2::ZERO,
-                    smooth: false,
-                };
-                (Vec2::new(x as f32 + 0.5, y as f32 + 0.5), sample)
-            })
+            self.nearest(self.at(x, y)).map(|s| (Vec2::new(x as f32 + 0.5, y as f32 + 0.5), s))
+        })
+    }
+
+    /// The nearest (unsmoothed) sample of texel motion `m`, scaled; `None` if empty.
+    #[inline]
+    fn nearest(&self, m: Motion) -> Option<Sample> {
+        ((m.depth >= 0.0) & (m.depth < 1.0)).then(|| Sample {
+            v: self.scale * m.v,
+            depth: m.depth,
+            tag: self.tag,
+            dv: [Vec2::ZERO; 2],
+            dz: Vec2::ZERO,
+            smooth: false,
         })
     }
 
@@ -344,19 +346,7 @@ impl<'a> LayerSampler<'a> {
                 }
             }
         }
-        let m = self.at(xn, yn);
-        if m.depth >= 0.0 && m.depth < 1.0 {
-            Some(Sample {
-                v: self.scale * m.v,
-                depth: m.depth,
-                tag: self.tag,
-                dv: [Vec2::ZERO; 2],
-                dz: Vec2::ZERO,
-                smooth: false,
-            })
-        } else {
-            None
-        }
+        self.nearest(self.at(xn, yn))
     }
 }
 
