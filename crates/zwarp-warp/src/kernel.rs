@@ -858,38 +858,29 @@ impl<'a> Kernel<'a> {
             _mm256_sub_ps(one, cover),
         );
         has = _mm256_andnot_ps(hidden, has);
-        // Kernel::covered_at_source itself for the lanes whose candidate comes from a deeper
-        // layer (few: disocclusions).
+        // Kernel::covered_at_source and behind_ground_disocclusion themselves for the lanes whose
+        // candidate comes from a deeper layer (few: disocclusions).
         let deep = _mm256_movemask_ps(_mm256_and_ps(
             has,
             _mm256_castsi256_ps(_mm256_cmpgt_epi32(btag, _mm256_setzero_si256())),
         )) as u8;
         if deep != 0 {
-            let (mut qx, mut qy, mut z, mut tags, mut pxs, mut pys) =
-                ([0f32; 8], [0f32; 8], [0f32; 8], [0i32; 8], [0f32; 8], [0f32; 8]);
+            let (mut qx, mut qy, mut z, mut far, mut tags, mut pxs, mut pys) =
+                ([0f32; 8], [0f32; 8], [0f32; 8], [0f32; 8], [0i32; 8], [0f32; 8], [0f32; 8]);
             _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
             _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
             _mm256_storeu_ps(z.as_mut_ptr(), bz);
+            _mm256_storeu_ps(far.as_mut_ptr(), farthest);
             _mm256_storeu_si256(tags.as_mut_ptr() as *mut __m256i, btag);
             _mm256_storeu_ps(pxs.as_mut_ptr(), px);
             _mm256_storeu_ps(pys.as_mut_ptr(), py);
-            let mut covered = 0u8;
+            let mut hidden = 0u8;
             for i in (0..8).filter(|i| deep >> i & 1 != 0) {
                 let c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
-                covered |= (self.covered_at_source(&c, Vec2::new(pxs[i], pys[i])) as u8) << i;
+                let p = Vec2::new(pxs[i], pys[i]);
+                hidden |= ((self.covered_at_source(&c, p) || self.behind_ground_disocclusion(&c, far[i])) as u8) << i;
             }
-            has = _mm256_andnot_ps(sw::lane_mask(covered), has);
-        }
-        if self.params.ground_layer {
-            // Kernel::behind_ground_disocclusion: a ground layer's candidate behind the farthest
-            // sample of the failed walks before it.
-            let last = _mm256_castsi256_ps(_mm256_cmpeq_epi32(btag, _mm256_set1_epi32(self.layers.len() as i32 - 1)));
-            let known = _mm256_cmp_ps::<_CMP_GT_OQ>(farthest, neg_inf);
-            let behind = _mm256_cmp_ps::<_CMP_LT_OQ>(
-                _mm256_mul_ps(_mm256_sub_ps(one, bz), _mm256_set1_ps(crate::COVER_DEPTH_RATIO)),
-                _mm256_sub_ps(one, farthest),
-            );
-            has = _mm256_andnot_ps(_mm256_and_ps(_mm256_and_ps(last, known), behind), has);
+            has = _mm256_andnot_ps(sw::lane_mask(hidden), has);
         }
         self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
     }
