@@ -317,11 +317,16 @@ pub struct ZwarpMaps<'a> {
 
 impl<'a> ZwarpMaps<'a> {
     /// Peels the centre map of `rig` (see [`peel_options`]); empty layers are dropped (nothing to
-    /// warp from them).
+    /// warp from them). When the ground layer is kept behind kept object layers, the warps apply
+    /// `WarpParams::ground_layer` (seed 000 Sec. 3.4: the ground peeled alone, last).
     pub fn new(scene: &Scene, rig: &'a LightRig, t: f32, params: &ShadowParams) -> Result<Self> {
         params.validate()?;
-        let layers = render_layers(scene, &rig.center, t, &peel_options(scene, rig, params))?;
+        let peel = peel_options(scene, rig, params);
+        let layers = render_layers(scene, &rig.center, t, &peel)?;
+        let ground_kept = peel.ground_separate && layers.last().is_some_and(|g| g.coverage() > 0);
         let mut layers: Vec<Layer> = layers.into_iter().filter(|l| l.coverage() > 0).collect();
+        // WarpParams::ground_layer: the last kept layer is the ground behind object layers.
+        let ground_layer = ground_kept && layers.len() > 1;
         if layers.is_empty() {
             // Nothing in front of the light at all: keep one empty layer so warps still give maps.
             layers.push(Layer {
@@ -335,7 +340,7 @@ impl<'a> ZwarpMaps<'a> {
             reference: Vec::new(),
             shared: Vec::new(),
             k_ref: Vec2::ZERO,
-            params: params.warp_params(),
+            params: WarpParams { ground_layer, ..params.warp_params() },
             motion_ms: 0.0,
             mipmap_ms: 0.0,
             warp_ms: 0.0,

@@ -466,3 +466,23 @@ fn shared_mipmap_equals_per_sample_scaled_mipmaps() {
         assert!(signs.len() >= 3, "the samples do not exercise mixed-sign scales: {signs:?}");
     }
 }
+
+#[test]
+fn the_ground_layer_rule_follows_the_kept_ground_layer() {
+    // Boxes on a ground, L = 3: two object layers and the ground peeled alone, last.
+    let (scene, _, light) = boxes_scene();
+    let p = ShadowParams { samples: 4, sm_size: 128, ..ShadowParams::default() };
+    let rig = LightRig::new(&scene, 0.0, &light, p.samples, p.sm_size, p.seed, p.jitter).unwrap();
+    let maps = ZwarpMaps::new(&scene, &rig, 0.0, &p).unwrap();
+    let ground = maps.layers().last().unwrap();
+    assert!(ground.items.data().iter().all(|&i| i == 0 || i == zwarp_core::NO_ITEM), "the ground alone is last");
+    assert!(maps.layers().len() > 1 && maps.sample_params(0).unwrap().ground_layer);
+    // One layer (no separate ground), or the ground alone (nothing in front of it): no rule.
+    let one = ZwarpMaps::new(&scene, &rig, 0.0, &ShadowParams { layers: 1, ..p }).unwrap();
+    assert!(!one.sample_params(0).unwrap().ground_layer);
+    let bare = square_over_plane(false);
+    let rig = LightRig::new(&bare, 0.0, &light, p.samples, p.sm_size, p.seed, p.jitter).unwrap();
+    let alone = ZwarpMaps::new(&bare, &rig, 0.0, &p).unwrap();
+    assert_eq!(alone.layers().len(), 1);
+    assert!(!alone.sample_params(0).unwrap().ground_layer);
+}

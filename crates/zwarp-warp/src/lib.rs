@@ -198,7 +198,8 @@ pub struct WarpParams {
     /// failed walks sampled a surface it lies [`hidden_behind`]: that surface is the far side of
     /// the disocclusion, and the region it bounds is that surface continued more often than
     /// ground seen through every object (the candidate of a peeled layer knows its occluders and
-    /// is kept). Default `false`; `zwarp eval` sets it when it peels the ground separately.
+    /// is kept). Default `false`; `zwarp eval` and `zwarp_shadows` set it when they peel the ground
+    /// separately (and, for shadows, the ground layer is kept behind object layers).
     pub ground_layer: bool,
 }
 

@@ -97,6 +97,9 @@ pub struct GpuShadowLayers {
     pub k_ref: Vec2,
     /// Map size (square maps: `sm x sm`).
     pub size: (u32, u32),
+    /// The last kept layer is the separately peeled ground behind kept object layers
+    /// (`WarpParams::ground_layer`, as the CPU's `ZwarpMaps`).
+    pub ground_layer: bool,
 }
 
 /// The GPU soft-shadow pipeline (seed 000, Sec. 6) on one device: a depth renderer, the warp
@@ -427,7 +430,8 @@ impl GpuShadows {
                 kept.len()
             )));
         }
-        Ok(GpuShadowLayers { layers: kept, coverage: counts, k_ref, size: (w, h) })
+        let ground_layer = peel.ground_separate && counts.last().is_some_and(|&c| c > 0) && kept.len() > 1;
+        Ok(GpuShadowLayers { layers: kept, coverage: counts, k_ref, size: (w, h), ground_layer })
     }
 
     /// zwarp (seed 000, Sec. 6): per sample `i`, the full-map GPU warp of the peeled `layers`
@@ -460,11 +464,12 @@ impl GpuShadows {
             &views,
             w,
             h,
-            &sample_warp_params(params, layers.k_ref, layers.k_ref),
+            &WarpParams { ground_layer: layers.ground_layer, ..sample_warp_params(params, layers.k_ref, layers.k_ref) },
         )?;
         self.ctx.queue.submit([enc.finish()]);
         for &shift in &rig.shifts {
-            let wp = sample_warp_params(params, shift, layers.k_ref);
+            let wp =
+                WarpParams { ground_layer: layers.ground_layer, ..sample_warp_params(params, shift, layers.k_ref) };
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
             let out = self.warp.encode_prepared(&mut enc, &prepared, wp.motion_scale)?;
             self.encode_accumulate(&mut enc, recv, &out.depth, (w, h), shift, &lit)?;
