@@ -868,10 +868,11 @@ fn colour_commands_gpu_backend_matches_cpu() {
 }
 
 /// The JSON fields of every `zwarp vr` row.
-const VR_FIELDS: [&str; 23] = [
+const VR_FIELDS: [&str; 24] = [
     "method",
     "strategy",
     "holes",
+    "filter",
     "abuffer",
     "eye",
     "psnr",
@@ -900,14 +901,32 @@ fn vr_writes_the_documented_fields() {
     let j = d.join("vr.json");
     let img = d.join("img");
     let (ok, out, err) = vr_small(
-        &["--method", "grid,points,didyk,fpi", "--holes", "lowpass,pushpull", "--images", img.to_str().unwrap()],
+        &[
+            "--method",
+            "grid,points,didyk,fpi",
+            "--filter",
+            "bilinear,adaptive",
+            "--holes",
+            "lowpass,pushpull",
+            "--images",
+            img.to_str().unwrap(),
+        ],
         &j,
     );
     assert!(ok, "{err}");
     assert!(out.contains("| grid") && out.contains("speedup"), "{out}");
     let rows = json_rows(&j);
-    // (3 methods x 2 holes + fpi) x 2 strategies x 2 eyes, no transparency: abuffer off only.
-    assert_eq!(rows.len(), 28, "{rows:?}");
+    // (4 method/filter pairs x 2 holes + fpi) x 2 strategies x 2 eyes, no transparency:
+    // abuffer off only.
+    assert_eq!(rows.len(), 36, "{rows:?}");
+    let filters: Vec<(&str, &str)> =
+        rows.iter().map(|r| (r["method"].as_str().unwrap(), r["filter"].as_str().unwrap())).collect();
+    for pair in
+        [("grid", "bilinear"), ("grid", "adaptive"), ("didyk", "bilinear"), ("points", "nearest"), ("fpi", "builtin")]
+    {
+        assert!(filters.contains(&pair), "{pair:?} in {filters:?}");
+    }
+    assert!(!filters.contains(&("didyk", "adaptive")), "only the grid methods take --filter");
     for r in &rows {
         for k in VR_FIELDS {
             assert!(!r[k].is_null(), "field {k} missing in {r}");
@@ -940,9 +959,10 @@ fn vr_writes_the_documented_fields() {
     assert!(rows.iter().filter(|r| r["method"] == "points").all(|r| r["primitives"].as_f64().unwrap() == 64.0 * 48.0));
     for f in [
         "cb_reference_anaglyph.png",
-        "cb_cyclops_grid_lowpass_anaglyph.png",
-        "cb_cyclops_grid_grid.png",
-        "cb_alternate_grid_lowpass_left_flip.png",
+        "cb_cyclops_grid-bilinear_lowpass_anaglyph.png",
+        "cb_cyclops_grid-adaptive_grid.png",
+        "cb_alternate_grid-adaptive_lowpass_left_flip.png",
+        "cb_cyclops_didyk_lowpass_anaglyph.png",
     ] {
         assert!(img.join(f).exists(), "{f}");
     }
@@ -1005,6 +1025,7 @@ fn vr_rejects_bad_input_in_one_line() {
         (vec!["--holes", "inpaint"], "inpaint"),
         (vec!["--strategy", "mono"], "mono"),
         (vec!["--abuffer", "maybe"], "maybe"),
+        (vec!["--filter", "trilinear"], "trilinear"),
     ];
     for (extra, what) in cases {
         let mut args = vec!["vr", "--scene", "cb", "--json", js];

@@ -8,8 +8,9 @@
 //!   estimation error.
 //! - [`grid`]: the adaptive grid warp (Sec. 4.1.4, 5.1): cells from the quadtree, vertices
 //!   shared where pixels are connected and separate across discontinuities, one combined warp
-//!   matrix per view, a CPU rasteriser with a depth test, adaptive texture filtering; the
-//!   baselines `points`, `quads` and Didyk et al. 2010's disparity quadtree.
+//!   matrix per view, a CPU rasteriser with a depth test, bilinear or the paper's adaptive
+//!   texture filtering ([`ColorFilter`]); the baselines `points`, `quads` and Didyk et al.
+//!   2010's disparity quadtree.
 //! - [`holes`]: depth-aware low-pass pyramid hole filling with an epipolar border search
 //!   (Sec. 5.2); baselines rubber sheets, stretch in-painting (Table 2) and push-pull.
 //! - [`abuffer`]: the A-buffer of transparent fragments with its min-max quadtree (Sec. 4.2) and
@@ -32,7 +33,7 @@ pub mod holes;
 pub mod quadtree;
 
 pub use abuffer::{ray_cast, ABuffer, Fragment, MinMaxTree, RayCastParams, MAX_FRAGMENTS};
-pub use grid::{warp, Method, WarpMatrix, WarpOutput};
+pub use grid::{warp, ColorFilter, Method, WarpMatrix, WarpOutput};
 pub use holes::{fill_holes, HoleMethod};
 pub use quadtree::{Collinearity, QuadTree, Reduction};
 

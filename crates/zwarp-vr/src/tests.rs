@@ -3,7 +3,9 @@
 use glam::{Mat4, Vec3};
 use zwarp_core::{Camera, Image};
 
-use crate::grid::{corner_depth, didyk_cells, grid_cells, warp, Method, Source, WarpMatrix, WarpOutput, WarpParams};
+use crate::grid::{
+    corner_depth, didyk_cells, grid_cells, warp, ColorFilter, Method, Source, WarpMatrix, WarpOutput, WarpParams,
+};
 use crate::holes::{epipolar_dir, epipole, fill_holes, lowpass_pyramid, HoleMethod};
 use crate::quadtree::*;
 
@@ -713,4 +715,29 @@ fn warp_matrix_keeps_far_depths_precise() {
         assert!((ratio - 1.0).abs() < 1e-3, "{world}: linear depth ratio {ratio}");
         assert!((x - t.x).abs() < 0.05 && (y - t.y).abs() < 0.05, "{world}: ({x}, {y}) vs {t}");
     }
+}
+
+#[test]
+fn the_adaptive_filter_keeps_silhouettes_hard_and_bilinear_blends_them() {
+    let (w, h) = (64, 32);
+    let (cam, dst, planes) = occluder(w, h);
+    let (d, c) = trace(&cam, &planes);
+    let src = Source { cam: &cam, depth: &d, color: &c };
+    let grid = Method::Grid(Reduction::Irregular);
+    let hard = warp(&src, &dst, grid, &WarpParams { filter: ColorFilter::Adaptive, ..WarpParams::default() }).unwrap();
+    let soft = warp(&src, &dst, grid, &WarpParams { filter: ColorFilter::Bilinear, ..WarpParams::default() }).unwrap();
+    // The filter changes the colour fetch only: same cells, coverage and depth.
+    assert_eq!((hard.primitives, &hard.hole, &hard.depth), (soft.primitives, &soft.hole, &soft.depth));
+    // Red occluder over a blue wall: a covered pixel mixing both sits on a silhouette.
+    let mixed = |o: &WarpOutput| {
+        (0..o.color.len())
+            .filter(|&i| !o.hole.data()[i] && o.color.data()[i][0] > 0.01 && o.color.data()[i][2] > 0.01)
+            .count()
+    };
+    assert_eq!(mixed(&hard), 0, "nearest across the discontinuity");
+    assert!(mixed(&soft) >= h as usize, "a blend along the occluder's edges: {}", mixed(&soft));
+    // Off the silhouettes both fetch the same colour.
+    let same = (0..hard.color.len()).filter(|&i| hard.color.data()[i] == soft.color.data()[i]).count();
+    assert!(same >= hard.color.len() - 4 * h as usize, "{same}");
+    assert!(ColorFilter::parse("nearest").unwrap_err().to_string().contains("adaptive, bilinear"));
 }

@@ -18,7 +18,7 @@ use serde::Serialize;
 use zwarp_core::{Camera, Image, Scene};
 use zwarp_vr::grid::{draw_cells, Source, WarpParams};
 use zwarp_vr::holes::hole_depth;
-use zwarp_vr::{fill_holes, ray_cast, ABuffer, HoleMethod, Method, MinMaxTree, RayCastParams};
+use zwarp_vr::{fill_holes, ray_cast, ABuffer, ColorFilter, HoleMethod, Method, MinMaxTree, RayCastParams};
 
 use super::colorwarp;
 use crate::args::{Backend, SceneArgs, SizeArgs};
@@ -43,6 +43,11 @@ pub struct VrArgs {
     /// Strategies (comma list of cyclops, alternate).
     #[arg(long, default_value = "cyclops,alternate")]
     pub strategy: String,
+    /// Colour fetch of the grid methods (comma list of bilinear, adaptive): `adaptive` is seed
+    /// 003 Sec. 5.1's (nearest across discontinuities), `bilinear` the default
+    /// (`zwarp_vr::ColorFilter`). Quads and Didyk fetch bilinear, points nearest.
+    #[arg(long, default_value = "bilinear")]
+    pub filter: String,
     /// Hole filling (comma list of lowpass, rubber, stretch, pushpull).
     #[arg(long, default_value = "lowpass,rubber,stretch,pushpull")]
     pub holes: String,
@@ -83,6 +88,9 @@ pub struct VrRow {
     pub strategy: String,
     /// `lowpass`, `rubber`, `stretch`, `pushpull` (`builtin` for fpi).
     pub holes: String,
+    /// Colour fetch: `bilinear` or `adaptive` (grid methods), `bilinear` (quads, Didyk),
+    /// `nearest` (points), `builtin` (fpi).
+    pub filter: String,
     /// Transparent fragments ray cast from the A-buffer (`false`: the composited image warped
     /// as if opaque, or no transparency at all).
     pub abuffer: bool,
@@ -268,7 +276,9 @@ fn parse<T>(s: &str, what: &str, f: impl Fn(&str) -> zwarp_core::Result<T>) -> R
 
 /// The validated options.
 struct Plan {
-    methods: Vec<Method>,
+    /// Each method with its colour filter (one per `--filter` for the grid methods).
+    variants: Vec<(Method, Option<ColorFilter>)>,
+    filters: Vec<ColorFilter>,
     strategies: Vec<bool>,
     holes: Vec<HoleMethod>,
     abuffer: Vec<bool>,
@@ -287,6 +297,7 @@ fn plan(args: &VrArgs) -> Result<Plan> {
     }
     let methods = parse(&args.method, "--method", Method::parse)?;
     let holes = parse(&args.holes, "--holes", HoleMethod::parse)?;
+    let filters = parse(&args.filter, "--filter", ColorFilter::parse)?;
     let strategies = parse(&args.strategy, "--strategy", |s| match s {
         "cyclops" => Ok(false),
         "alternate" => Ok(true),
@@ -297,7 +308,14 @@ fn plan(args: &VrArgs) -> Result<Plan> {
         "off" => Ok(false),
         o => Err(zwarp_core::Error::invalid(format!("'{o}' is neither on nor off"))),
     })?;
-    Ok(Plan { methods, strategies, holes, abuffer })
+    let variants = methods
+        .iter()
+        .flat_map(|&m| match m {
+            Method::Grid(_) => filters.iter().map(|&f| (m, Some(f))).collect::<Vec<_>>(),
+            _ => vec![(m, None)],
+        })
+        .collect();
+    Ok(Plan { variants, filters, strategies, holes, abuffer })
 }
 
 #[derive(Default)]
@@ -312,8 +330,18 @@ struct Acc {
     render: Vec<f64>,
 }
 
-/// Row key: (alternate, right eye, method, holes name, abuffer).
-type Key = (bool, bool, String, String, bool);
+/// Row key: (alternate, right eye, method, filter name, holes name, abuffer).
+type Key = (bool, bool, String, String, String, bool);
+
+/// JSON `filter` of a row: the grid methods' [`ColorFilter`], else the method's own fetch.
+fn filter_name(m: Method, filter: Option<ColorFilter>) -> &'static str {
+    match (m, filter) {
+        (_, Some(f)) => f.name(),
+        (Method::Points, None) => "nearest",
+        (Method::Fpi, None) => "builtin",
+        _ => "bilinear",
+    }
+}
 
 /// The pixels of the eye `reference` that `source` did not see.
 fn unseen(scene: &Scene, reference: &EyeView, source: &EyeView) -> Result<Image<bool>> {
@@ -348,7 +376,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
     // Frames with a previous one (the alternate strategy's source).
     let picked = frames.pick(args.frames, 1..=total - 1, Lone::Middle)?;
     let bar = harness::progress(
-        (picked.len() * p.strategies.len() * 2 * p.methods.len()) as u64,
+        (picked.len() * p.strategies.len() * 2 * p.variants.len()) as u64,
         format!("vr {}", args.scene.scene),
         true,
     );
@@ -395,7 +423,14 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                 };
                 let mask = unseen(&loaded.scene, reference, src)?;
                 let render_ms = Timing::of(render_samples).median;
-                for &m in &p.methods {
+                for &(m, filter) in &p.variants {
+                    let wp = zwarp_vr::grid::WarpParams { filter: filter.unwrap_or(wp.filter), ..wp };
+                    let fname = filter_name(m, filter);
+                    // Image names carry the filter only when several are compared.
+                    let tag = match filter {
+                        Some(f) if p.filters.len() > 1 => format!("{}-{}", m.name(), f.name()),
+                        _ => m.name(),
+                    };
                     for &ab in &abuffers {
                         // Without the A-buffer the composited image is warped as if opaque.
                         let colour = if ab { &src.opaque } else { &src.seen };
@@ -405,10 +440,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                         let med = |f: fn(&zwarp_vr::grid::StageMs) -> f64| harness::timing_of(&stage, f).median;
                         let (mq, mg, mw) = (med(|s| s.quadtree), med(|s| s.grid), med(|s| s.warp));
                         if ki == 0 && args.images.is_some() && !out.cells.is_empty() && !right {
-                            grids.push((
-                                format!("{strategy}_{}", m.name()),
-                                draw_cells(colour, &out.cells, [1.0, 0.1, 0.1]),
-                            ));
+                            grids.push((format!("{strategy}_{tag}"), draw_cells(colour, &out.cells, [1.0, 0.1, 0.1])));
                         }
                         let hole_list: Vec<Option<HoleMethod>> =
                             if m == Method::Fpi { vec![None] } else { p.holes.iter().copied().map(Some).collect() };
@@ -450,7 +482,10 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                                 Some(&mask),
                                 Figures::Headline,
                             )?;
-                            let a = harness::entry(&mut accs, (alternate, right, m.name(), hname.clone(), ab));
+                            let a = harness::entry(
+                                &mut accs,
+                                (alternate, right, m.name(), fname.to_string(), hname.clone(), ab),
+                            );
                             a.quality.push(q);
                             a.primitives.push(out.primitives as f64);
                             a.quadtree.push(mq);
@@ -470,7 +505,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                                     ""
                                 };
                                 shots.push(Shot {
-                                    name: format!("{strategy}_{}_{hname}{ab_name}", m.name()),
+                                    name: format!("{strategy}_{tag}_{hname}{ab_name}"),
                                     right,
                                     image: pred,
                                     reference: reference.seen.clone(),
@@ -514,7 +549,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
     let med = |v: &[f64]| Timing::of(v).median;
     Ok(accs
         .into_iter()
-        .map(|((alternate, right, method, holes, ab), a)| {
+        .map(|((alternate, right, method, filter, holes, ab), a)| {
             let (q, g, wv, hl, abm) = (med(&a.quadtree), med(&a.grid), med(&a.warp), med(&a.holes), med(&a.abuffer));
             let warp_ms = q + g + wv + hl + abm;
             let render_ms = med(&a.render);
@@ -523,6 +558,7 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
                 method,
                 strategy: if alternate { "alternate" } else { "cyclops" }.into(),
                 holes,
+                filter,
                 abuffer: ab,
                 eye: if right { "right" } else { "left" }.into(),
                 scene: args.scene.scene.clone(),
@@ -556,6 +592,7 @@ pub fn table(rows: &[VrRow]) -> String {
         "method",
         "strategy",
         "holes",
+        "filter",
         "abuffer",
         "eye",
         "PSNR",
@@ -577,6 +614,7 @@ pub fn table(rows: &[VrRow]) -> String {
             r.method.clone(),
             r.strategy.clone(),
             r.holes.clone(),
+            r.filter.clone(),
             if r.abuffer { "on" } else { "off" }.into(),
             r.eye.clone(),
             fmt(r.psnr, 2),

@@ -17,7 +17,7 @@ use zwarp_core::{Camera, Error, Image, Result};
 use zwarp_gpu::readback::copy_texture;
 use zwarp_gpu::GpuContext;
 
-use crate::grid::{corner_depths, Mesh, Primitives, Source, StageMs, WarpOutput};
+use crate::grid::{corner_depths, ColorFilter, Mesh, Primitives, Source, StageMs, WarpOutput};
 
 /// Mirror of `Params` in gridwarp.wgsl.
 #[repr(C)]
@@ -146,10 +146,10 @@ impl GridWarpKernel {
         let (sw, sh) = src.depth.size();
         let (tw, th) = (dst.width, dst.height);
         self.ctx.check_texture_size(tw, th, "GPU grid warp target")?;
-        let filter = match (&mesh.primitives, &mesh.tree) {
-            (Primitives::Points, _) => 0,
-            (_, None) => 1,
-            (_, Some(_)) => 2,
+        let filter = match (&mesh.primitives, &mesh.tree, mesh.filter) {
+            (Primitives::Points, _, _) => 0,
+            (_, Some(_), ColorFilter::Adaptive) => 2,
+            _ => 1,
         };
         let links: Vec<u32> = match &mesh.tree {
             Some(tree) => {
@@ -297,12 +297,14 @@ mod tests {
         let (cam, depth, color, eye) = frame();
         let src = Source { cam: &cam, depth: &depth, color: &color };
         let p = WarpParams::default();
-        for method in [
-            Method::Grid(Reduction::Irregular),
-            Method::Grid(Reduction::Cross),
-            Method::Quads,
-            Method::Didyk,
-            Method::Points,
+        let adaptive = WarpParams { filter: ColorFilter::Adaptive, ..p };
+        for (method, p) in [
+            (Method::Grid(Reduction::Irregular), p),
+            (Method::Grid(Reduction::Irregular), adaptive),
+            (Method::Grid(Reduction::Cross), adaptive),
+            (Method::Quads, p),
+            (Method::Didyk, p),
+            (Method::Points, p),
         ] {
             let mesh = Mesh::build(&src, &eye, method, &p).unwrap();
             let cpu = raster(&src, &eye, &mesh).unwrap();

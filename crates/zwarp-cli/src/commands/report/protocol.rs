@@ -389,6 +389,8 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
             &reps,
             "--method",
             "grid,quads,points,didyk,fpi",
+            "--filter",
+            "bilinear,adaptive",
             "--strategy",
             "cyclops,alternate",
             "--holes",
