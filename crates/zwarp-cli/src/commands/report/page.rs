@@ -680,7 +680,10 @@ fn vr(report: &Report, out: &Path) -> Vec<Block> {
                 f(num(r, "speedup"), 2),
             ]);
         }
-        for p in pngs(out, j).into_iter().filter(|p| p.contains("grid") || p.contains("anaglyph")).take(4) {
+        // The grid method's cells drawn over the source (Fig. 12-13) and its eyes as anaglyphs.
+        let grid_method = |p: &str| p.contains("_grid_") || p.contains("_grid-");
+        let shown = |p: &str| p.ends_with("_grid.png") || p.ends_with("lowpass_anaglyph.png");
+        for p in pngs(out, j).into_iter().filter(|p| grid_method(p) && shown(p)).take(4) {
             images.push(Block::Image { caption: format!("vr on {}: {}", j.scene, file_stem(&p)), path: p });
         }
     }
