@@ -303,38 +303,22 @@ impl Mesh {
             Method::Quads => {
                 let cells =
                     (0..h).flat_map(|y| (0..w).map(move |x| Cell { x0: x, y0: y, x1: x + 1, y1: y + 1 })).collect();
-                let ms = StageMs { grid: ms_since(t), ..StageMs::default() };
-                Ok(Mesh {
-                    method,
-                    primitives: Primitives::Cells(cells),
-                    tree: None,
-                    filter: ColorFilter::Bilinear,
-                    matrix,
-                    ms,
-                })
+                Ok(Mesh::connected(method, Primitives::Cells(cells), matrix, ms_since(t)))
             }
             Method::Didyk => {
                 let cells = didyk_cells(src, &matrix, p.didyk_px)?;
-                let ms = StageMs { grid: ms_since(t), ..StageMs::default() };
-                Ok(Mesh {
-                    method,
-                    primitives: Primitives::Cells(cells),
-                    tree: None,
-                    filter: ColorFilter::Bilinear,
-                    matrix,
-                    ms,
-                })
+                Ok(Mesh::connected(method, Primitives::Cells(cells), matrix, ms_since(t)))
             }
-            Method::Points => Ok(Mesh {
-                method,
-                primitives: Primitives::Points,
-                tree: None,
-                filter: ColorFilter::Bilinear,
-                matrix,
-                ms: StageMs::default(),
-            }),
+            Method::Points => Ok(Mesh::connected(method, Primitives::Points, matrix, 0.0)),
             Method::Fpi => Err(Error::invalid("the fpi warp is a per-pixel search: it draws no mesh")),
         }
+    }
+
+    /// A mesh without a quadtree (quads, Didyk, points): every corner shared, bilinear fetch
+    /// (points: nearest); `grid_ms` is the time of building its primitives.
+    fn connected(method: Method, primitives: Primitives, matrix: WarpMatrix, grid_ms: f64) -> Self {
+        let ms = StageMs { grid: grid_ms, ..StageMs::default() };
+        Mesh { method, primitives, tree: None, filter: ColorFilter::Bilinear, matrix, ms }
     }
 
     /// The adaptive grid of a quadtree built by the caller (e.g. once for both eyes).
