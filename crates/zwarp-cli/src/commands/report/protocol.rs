@@ -398,6 +398,25 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
         ]));
         out.push(job(format!("vr_{}", sc.label), Section::Vr, sc, "vr", a, true));
     }
+    // Table 1 (the grid against Didyk et al.: primitives and PSNR) on every other scene.
+    for sc in scenes.iter().copied().filter(|sc| colour_scene.is_none_or(|c| c.label != sc.label)) {
+        let mut a = size(s.colour);
+        a.extend(strings(&[
+            "--frames",
+            "1",
+            "--reps",
+            &reps,
+            "--method",
+            "grid,didyk",
+            "--filter",
+            "bilinear,adaptive",
+            "--strategy",
+            "cyclops,alternate",
+            "--holes",
+            "lowpass",
+        ]));
+        out.push(job(format!("vr_grid_{}", sc.label), Section::Vr, sc, "vr", a, false));
+    }
     // Fig. 7 (A-buffer ray casting against warping the composited image) on every file scene,
     // where the glass objects meet real occlusion; the colour scene alone without one.
     let files: Vec<&SceneSpec> = scenes.iter().copied().filter(|sc| !sc.procedural).collect();
@@ -429,7 +448,8 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
 mod tests {
     use super::*;
 
-    /// Fig. 7's glass rows run on every file scene (the colour and VR tables on the first);
+    /// Fig. 7's glass rows run on every file scene (the colour and VR tables on the first, the
+    /// grid-vs-Didyk rows on every other scene);
     /// without file scenes on the colour scene.
     #[test]
     fn glass_rows_run_on_every_file_scene() {
@@ -439,6 +459,8 @@ mod tests {
         let has = |id: &str| ids.iter().any(|i| i == id);
         assert!(has("vr_glass_sponza") && has("vr_glass_city") && !has("vr_glass_cb"), "{ids:?}");
         assert!(has("vr_sponza") && !has("vr_city"), "{ids:?}");
+        // The grid against Didyk et al. on every other scene.
+        assert!(has("vr_grid_cb") && has("vr_grid_city") && !has("vr_grid_sponza"), "{ids:?}");
         let procedural: Vec<SceneSpec> = ["yr", "cb"].iter().map(|s| SceneSpec::new(s)).collect();
         let ids: Vec<String> = jobs(Level::Quick, &procedural).into_iter().map(|j| j.id).collect();
         assert_eq!(ids.iter().filter(|i| i.starts_with("vr_glass_")).collect::<Vec<_>>(), ["vr_glass_cb"]);
