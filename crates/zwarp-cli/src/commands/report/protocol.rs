@@ -243,6 +243,9 @@ fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
+/// Every hole fill of `zwarp vr` (seed 003 Table 2).
+const HOLES: &str = "lowpass,rubber,stretch,pushpull";
+
 /// The jobs of `level` on `scenes` (the smoke level keeps only the first scene).
 pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
     let s = sizes(level);
@@ -355,6 +358,13 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
     }
     // Colour: on the first scene with colour detail everywhere (every scene has the triplanar
     // pattern) — the first file scene if one is given, else cb.
+    // `zwarp vr` at the colour size on one frame, both strategies, with `methods` and `extra`.
+    let vr_args = |methods: &str, extra: &[&str]| {
+        let mut a = size(s.colour);
+        a.extend(strings(&["--frames", "1", "--reps", &reps, "--method", methods, "--strategy", "cyclops,alternate"]));
+        a.extend(strings(extra));
+        a
+    };
     let colour_scene = scenes
         .iter()
         .find(|sc| !sc.procedural)
@@ -381,40 +391,12 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
         ]));
         out.push(job(format!("blur_{}", sc.label), Section::Colour, sc, "blur", a, true));
         // Seed 003 Tables 1-2 on the opaque scene, Fig. 7 with a fifth of the objects glass.
-        let mut a = size(s.colour);
-        a.extend(strings(&[
-            "--frames",
-            "1",
-            "--reps",
-            &reps,
-            "--method",
-            "grid,quads,points,didyk,fpi",
-            "--filter",
-            "bilinear,adaptive",
-            "--strategy",
-            "cyclops,alternate",
-            "--holes",
-            "lowpass,rubber,stretch,pushpull",
-        ]));
+        let a = vr_args("grid,quads,points,didyk,fpi", &["--filter", "bilinear,adaptive", "--holes", HOLES]);
         out.push(job(format!("vr_{}", sc.label), Section::Vr, sc, "vr", a, true));
     }
     // Table 1 (the grid against Didyk et al.: primitives and PSNR) on every other scene.
     for sc in scenes.iter().copied().filter(|sc| colour_scene.is_none_or(|c| c.label != sc.label)) {
-        let mut a = size(s.colour);
-        a.extend(strings(&[
-            "--frames",
-            "1",
-            "--reps",
-            &reps,
-            "--method",
-            "grid,didyk",
-            "--filter",
-            "bilinear,adaptive",
-            "--strategy",
-            "cyclops,alternate",
-            "--holes",
-            "lowpass",
-        ]));
+        let a = vr_args("grid,didyk", &["--filter", "bilinear,adaptive", "--holes", "lowpass"]);
         out.push(job(format!("vr_grid_{}", sc.label), Section::Vr, sc, "vr", a, false));
     }
     // Fig. 7 (A-buffer ray casting against warping the composited image) on every file scene,
@@ -422,23 +404,7 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
     let files: Vec<&SceneSpec> = scenes.iter().copied().filter(|sc| !sc.procedural).collect();
     let glass = if files.is_empty() { colour_scene.into_iter().copied().collect() } else { files };
     for sc in glass {
-        let mut a = size(s.colour);
-        a.extend(strings(&[
-            "--frames",
-            "1",
-            "--reps",
-            &reps,
-            "--method",
-            "grid",
-            "--strategy",
-            "cyclops,alternate",
-            "--holes",
-            "lowpass",
-            "--transparent",
-            "0.2",
-            "--abuffer",
-            "on,off",
-        ]));
+        let a = vr_args("grid", &["--holes", "lowpass", "--transparent", "0.2", "--abuffer", "on,off"]);
         out.push(job(format!("vr_glass_{}", sc.label), Section::Vr, sc, "vr", a, false));
     }
     out
