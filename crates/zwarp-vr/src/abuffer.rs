@@ -183,6 +183,8 @@ impl ABuffer {
 #[derive(Clone, Debug)]
 pub struct MinMaxTree {
     levels: Vec<(u32, u32, Vec<[f32; 2]>)>,
+    /// `[min, max]` over the roots, kept once: every ray piece reads it ([`Self::range`]).
+    range: (f32, f32),
 }
 
 const EMPTY: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
@@ -220,13 +222,13 @@ impl MinMaxTree {
                 .collect();
             levels.push((nw, nh, next));
         }
-        MinMaxTree { levels }
+        let range = levels[LEVELS].2.iter().fold((EMPTY[0], EMPTY[1]), |r, n| (r.0.min(n[0]), r.1.max(n[1])));
+        MinMaxTree { levels, range }
     }
 
-    /// `[min, max]` extruded depth over the whole A-buffer.
+    /// `[min, max]` extruded depth over the whole A-buffer (`[+inf, -inf]` if empty).
     pub fn range(&self) -> (f32, f32) {
-        let top = &self.levels[LEVELS].2;
-        top.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |r, n| (r.0.min(n[0]), r.1.max(n[1])))
+        self.range
     }
 
     /// Node `(x, y)` of `level`: `[min, max]` extruded depth.

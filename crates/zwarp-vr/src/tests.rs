@@ -531,6 +531,9 @@ fn ray_casting_the_source_view_itself_is_the_composite() {
     let tree = MinMaxTree::build(&ab);
     let root = tree.node(LEVELS, 0, 0);
     assert!(root[0] < 0.3 && root[1] > 0.5, "{root:?}");
+    // The range over the whole tree: the union of its two 32 x 32 roots (40 x 24 pixels).
+    let roots = [tree.node(LEVELS, 0, 0), tree.node(LEVELS, 1, 0)];
+    assert_eq!(tree.range(), (roots[0][0].min(roots[1][0]), roots[0][1].max(roots[1][1])));
     let r = ray_cast(&ab, &tree, &cam, &cam, &color, &od, &RayCastParams::default()).unwrap();
     let want = ab.composite(&color).unwrap();
     for (a, b) in r.color.data().iter().zip(want.data()) {
@@ -540,6 +543,7 @@ fn ray_casting_the_source_view_itself_is_the_composite() {
     // A ray through empty space skips it in a few steps.
     let empty = ABuffer::from_layers(&[], &od, glass).unwrap();
     assert!(empty.is_empty());
+    assert_eq!(MinMaxTree::build(&empty).range(), (f32::INFINITY, f32::NEG_INFINITY));
 }
 
 #[test]
