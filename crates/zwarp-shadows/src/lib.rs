@@ -264,6 +264,12 @@ pub fn render_sample_map(scene: &Scene, rig: &LightRig, t: f32, i: usize) -> Res
     render_depth(scene, cam, t)
 }
 
+/// `WarpParams::ground_layer` of the kept (non-empty) layers: the ground was peeled alone as
+/// the last layer, it covers texels, and object layers were kept in front of it (CPU and GPU).
+pub(crate) fn ground_layer_kept(ground_separate: bool, ground_covered: bool, kept: usize) -> bool {
+    ground_separate && ground_covered && kept > 1
+}
+
 /// The peeling options of the zwarp method: L layers with the ground as the last one when the
 /// scene has ground instances (else L object layers), umbra culling sized from the emitter.
 pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> PeelOptions {
@@ -323,10 +329,9 @@ impl<'a> ZwarpMaps<'a> {
         params.validate()?;
         let peel = peel_options(scene, rig, params);
         let layers = render_layers(scene, &rig.center, t, &peel)?;
-        let ground_kept = peel.ground_separate && layers.last().is_some_and(|g| g.coverage() > 0);
+        let ground_covered = layers.last().is_some_and(|g| g.coverage() > 0);
         let mut layers: Vec<Layer> = layers.into_iter().filter(|l| l.coverage() > 0).collect();
-        // WarpParams::ground_layer: the last kept layer is the ground behind object layers.
-        let ground_layer = ground_kept && layers.len() > 1;
+        let ground_layer = ground_layer_kept(peel.ground_separate, ground_covered, layers.len());
         if layers.is_empty() {
             // Nothing in front of the light at all: keep one empty layer so warps still give maps.
             layers.push(Layer {

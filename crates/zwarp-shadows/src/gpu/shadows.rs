@@ -430,7 +430,8 @@ impl GpuShadows {
                 kept.len()
             )));
         }
-        let ground_layer = peel.ground_separate && counts.last().is_some_and(|&c| c > 0) && kept.len() > 1;
+        let ground_layer =
+            crate::ground_layer_kept(peel.ground_separate, counts.last().is_some_and(|&c| c > 0), kept.len());
         Ok(GpuShadowLayers { layers: kept, coverage: counts, k_ref, size: (w, h), ground_layer })
     }
 
@@ -468,8 +469,8 @@ impl GpuShadows {
         )?;
         self.ctx.queue.submit([enc.finish()]);
         for &shift in &rig.shifts {
-            let wp =
-                WarpParams { ground_layer: layers.ground_layer, ..sample_warp_params(params, shift, layers.k_ref) };
+            // Only the motion scale differs from the prepared parameters.
+            let wp = sample_warp_params(params, shift, layers.k_ref);
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
             let out = self.warp.encode_prepared(&mut enc, &prepared, wp.motion_scale)?;
             self.encode_accumulate(&mut enc, recv, &out.depth, (w, h), shift, &lit)?;
