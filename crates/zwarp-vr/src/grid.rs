@@ -388,10 +388,25 @@ pub fn warp(src: &Source<'_>, dst: &Camera, method: Method, p: &WarpParams) -> R
 /// Draws `mesh` on the CPU: warped quads rasterised with a depth test (or splats), then the
 /// colour fetch (stage `warp`; the mesh's own stage times are kept).
 pub fn raster(src: &Source<'_>, dst: &Camera, mesh: &Mesh) -> Result<WarpOutput> {
+    raster_impl(src, dst, mesh, None)
+}
+
+/// [`raster`] restricted to the target pixels set in `only` (the target's size): quads whose
+/// footprint touches none of them are not drawn. Exact on those pixels (every quad covering
+/// one is drawn, so the depth test picks the same one); the other pixels are undefined. The
+/// rubber-sheet hole fill draws the connected quads of the holes alone this way.
+pub fn raster_where(src: &Source<'_>, dst: &Camera, mesh: &Mesh, only: &Image<bool>) -> Result<WarpOutput> {
+    if only.size() != (dst.width, dst.height) {
+        return Err(Error::invalid("raster_where: the pixel mask does not have the target camera's size"));
+    }
+    raster_impl(src, dst, mesh, Some(only))
+}
+
+fn raster_impl(src: &Source<'_>, dst: &Camera, mesh: &Mesh, only: Option<&Image<bool>>) -> Result<WarpOutput> {
     src.check()?;
     let t = Instant::now();
     let mut out = match &mesh.primitives {
-        Primitives::Cells(cells) => raster_cells(src, dst, mesh, cells)?,
+        Primitives::Cells(cells) => raster_cells(src, dst, mesh, cells, only.map(MaskSums::new).as_ref())?,
         Primitives::Points => points(src, dst, &mesh.matrix)?,
     };
     out.ms = StageMs { warp: ms_since(t), ..mesh.ms };
@@ -450,6 +465,19 @@ pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u3
         (cx as i32, cy as i32),
     ];
     let inside = |i: usize| pos[i].0 >= 0 && pos[i].1 >= 0 && pos[i].0 < w as i32 && pos[i].1 < h as i32;
+    if tree.is_none() {
+        // Rubber sheets: every pixel of the corner inside the image is connected to the cell
+        // pixel, no extrapolation: their mean, summed in index order as below (the per-pixel
+        // quads ask this a million times).
+        let (mut s, mut n) = (0.0, 0u32);
+        for (i, &(x, y)) in pos.iter().enumerate() {
+            if inside(i) {
+                s += *depth.get(x as u32, y as u32);
+                n += 1;
+            }
+        }
+        return s / n as f32;
+    }
     let me = pos.iter().position(|&q| q == (px as i32, py as i32)).expect("the cell pixel touches its corner");
     let mut parent = [0usize, 1, 2, 3];
     fn find(p: &mut [usize; 4], i: usize) -> usize {
@@ -474,7 +502,16 @@ pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u3
         }
     }
     let root = find(&mut parent, me);
-    let comp: Vec<usize> = (0..4).filter(|&i| inside(i) && find(&mut parent, i) == root).collect();
+    // The members of `me`'s component in index order (no allocation: this runs per cell corner).
+    let mut members = [0usize; 4];
+    let mut count = 0;
+    for i in 0..4 {
+        if inside(i) && find(&mut parent, i) == root {
+            members[count] = i;
+            count += 1;
+        }
+    }
+    let comp = &members[..count];
     let d = |i: usize| *depth.get(pos[i].0 as u32, pos[i].1 as u32);
     let cols = comp.iter().any(|&i| i % 2 == 0) && comp.iter().any(|&i| i % 2 == 1);
     let rows = comp.iter().any(|&i| i < 2) && comp.iter().any(|&i| i >= 2);
@@ -522,7 +559,7 @@ pub fn corner_depth(depth: &Image<f32>, tree: Option<&QuadTree>, cx: u32, cy: u3
         }
         n => {
             let mut s = 0.0;
-            for &i in &comp {
+            for &i in comp {
                 let mut v = d(i);
                 if !cols {
                     v += extrapolate(i, 1, 0);
@@ -616,7 +653,40 @@ const BAND: u32 = 16;
 /// Warps the quads of `cells` (corners by [`corner_depth`] with the mesh's tree, `None`: all
 /// connected) and rasterises them with a depth test, then fetches colour with [`sample`] and
 /// the mesh's filter.
-fn raster_cells(src: &Source<'_>, dst: &Camera, mesh: &Mesh, cells: &[Cell]) -> Result<WarpOutput> {
+/// Summed-area table of a pixel mask: whether a pixel box holds a set pixel, in O(1).
+struct MaskSums {
+    w: usize,
+    sums: Vec<u32>,
+}
+
+impl MaskSums {
+    fn new(mask: &Image<bool>) -> Self {
+        let (w, h) = (mask.width() as usize, mask.height() as usize);
+        let mut sums = vec![0u32; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut row = 0;
+            for x in 0..w {
+                row += *mask.get(x as u32, y as u32) as u32;
+                sums[(y + 1) * (w + 1) + x + 1] = sums[y * (w + 1) + x + 1] + row;
+            }
+        }
+        MaskSums { w: w + 1, sums }
+    }
+
+    /// `true` if the inclusive pixel box `[x0, y0, x1, y1]` (inside the mask) holds a set pixel.
+    fn any(&self, [x0, y0, x1, y1]: [i32; 4]) -> bool {
+        let at = |x: i32, y: i32| self.sums[y as usize * self.w + x as usize];
+        at(x1 + 1, y1 + 1) + at(x0, y0) > at(x0, y1 + 1) + at(x1 + 1, y0)
+    }
+}
+
+fn raster_cells(
+    src: &Source<'_>,
+    dst: &Camera,
+    mesh: &Mesh,
+    cells: &[Cell],
+    only: Option<&MaskSums>,
+) -> Result<WarpOutput> {
     let (m, tree) = (&mesh.matrix, mesh.tree.as_ref());
     let (tw, th) = (dst.width, dst.height);
     let tris: Vec<Tri> = cells
@@ -628,7 +698,10 @@ fn raster_cells(src: &Source<'_>, dst: &Camera, mesh: &Mesh, cells: &[Cell]) -> 
                 (m.apply(cx as f32, cy as f32, d[i]), Vec2::new(cx as f32, cy as f32))
             });
             let clamp = [c.x0 as f32, c.y0 as f32, c.x1 as f32, c.y1 as f32];
-            CELL_TRIANGLES.into_iter().filter_map(move |[a, b, c]| make_tri([v[a], v[b], v[c]], clamp, tw, th))
+            CELL_TRIANGLES
+                .into_iter()
+                .filter_map(move |[a, b, c]| make_tri([v[a], v[b], v[c]], clamp, tw, th))
+                .filter(move |t| only.is_none_or(|m| m.any(t.bb)))
         })
         .collect();
     let bands = th.div_ceil(BAND) as usize;

@@ -14,7 +14,7 @@ use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Camera, Error, Image, Result};
 
-use crate::grid::{warp, Method, Source, WarpOutput, WarpParams};
+use crate::grid::{raster_where, Mesh, Method, Source, WarpOutput, WarpParams};
 
 /// A hole-filling method (JSON `holes`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -236,7 +236,9 @@ pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: H
             zwarp_color::push_pull(&mut out, &hole.map(|&x| !x))?;
         }
         HoleMethod::Rubber => {
-            let q = warp(src, dst, Method::Quads, &WarpParams::default())?;
+            // The connected quads drawn where the holes are (exact there, a fraction of the work).
+            let mesh = Mesh::build(src, dst, Method::Quads, &WarpParams::default())?;
+            let q = raster_where(src, dst, &mesh, hole)?;
             let mut still = hole.clone();
             for (i, (o, &hl)) in out.data_mut().iter_mut().zip(hole.data()).enumerate() {
                 if hl && !q.hole.data()[i] {

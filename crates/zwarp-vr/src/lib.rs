@@ -33,7 +33,7 @@ pub mod holes;
 pub mod quadtree;
 
 pub use abuffer::{ray_cast, ABuffer, Fragment, MinMaxTree, RayCastParams, MAX_FRAGMENTS};
-pub use grid::{warp, ColorFilter, Method, WarpMatrix, WarpOutput};
+pub use grid::{raster_where, warp, ColorFilter, Method, WarpMatrix, WarpOutput};
 pub use holes::{fill_holes, HoleMethod};
 pub use quadtree::{Collinearity, QuadTree, Reduction};
 

@@ -4,7 +4,8 @@ use glam::{Mat4, Vec3};
 use zwarp_core::{Camera, Image};
 
 use crate::grid::{
-    corner_depth, didyk_cells, grid_cells, warp, ColorFilter, Method, Source, WarpMatrix, WarpOutput, WarpParams,
+    corner_depth, didyk_cells, grid_cells, raster_where, warp, ColorFilter, Method, Source, WarpMatrix, WarpOutput,
+    WarpParams,
 };
 use crate::holes::{epipolar_dir, epipole, fill_holes, lowpass_pyramid, HoleMethod};
 use crate::quadtree::*;
@@ -417,6 +418,32 @@ fn holes_are_filled_from_the_background_side_only() {
         assert!(worst > 0.1, "{m:?}: {worst}");
         assert!(f.data().iter().all(|p| p.iter().all(|v| v.is_finite())));
     }
+}
+
+#[test]
+fn drawing_only_where_asked_is_exact_there() {
+    // Per-pixel quads over an occluder and its background, drawn everywhere and only where a
+    // scattered mask (plus the disocclusion) is set: equal depth, colour and holes there.
+    let (w, h) = (64, 40);
+    let (cam, dst, planes) = occluder(w, h);
+    let (d, c) = trace(&cam, &planes);
+    let src = Source { cam: &cam, depth: &d, color: &c };
+    let mesh = crate::grid::Mesh::build(&src, &dst, Method::Quads, &WarpParams::default()).unwrap();
+    let all = crate::grid::raster(&src, &dst, &mesh).unwrap();
+    let only = Image::from_fn(w, h, |x, y| all.hole.get(x, y) | ((x * 7 + y * 13) % 11 == 0));
+    let part = raster_where(&src, &dst, &mesh, &only).unwrap();
+    let set: Vec<usize> = (0..only.len()).filter(|&i| only.data()[i]).collect();
+    assert!(set.len() > 200 && set.len() < only.len() / 2, "{} pixels asked", set.len());
+    for &i in &set {
+        assert_eq!(part.hole.data()[i], all.hole.data()[i], "hole at {i}");
+        assert_eq!(part.depth.data()[i].to_bits(), all.depth.data()[i].to_bits(), "depth at {i}");
+        assert_eq!(part.color.data()[i], all.color.data()[i], "colour at {i}");
+    }
+    // Fewer pixels drawn: most of the rest are left as holes.
+    let skipped = (0..only.len()).filter(|&i| !only.data()[i] && part.hole.data()[i]).count();
+    assert!(skipped > only.len() / 2, "{skipped} pixels skipped");
+    let wrong = Image::new(w + 1, h, false);
+    assert!(raster_where(&src, &dst, &mesh, &wrong).unwrap_err().to_string().contains("mask"));
 }
 
 #[test]
