@@ -3,9 +3,10 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1]`
 //!
-//! `bi` is `WarpParams::bound_iterations`.
+//! `bi` is `WarpParams::bound_iterations`; `render=0` leaves the depth render out of the loop (to
+//! profile the prediction alone).
 //!
 //! Prints the median and min..max wall ms of `part` (all threads) over `reps` warm runs, the
 //! floor's and a depth render's of the target view (zwarp-raster), interleaved, their ratios, and an FNV fingerprint of the output (depth bits and states) that
@@ -24,7 +25,7 @@ fn stats(mut t: Vec<f64>) -> (f64, f64, f64) {
 }
 
 fn main() {
-    let args = zwarp_tools::common::KeyArgs::from_env("scene, w, h, l, n, reps, frame, speed, part, bi, path");
+    let args = zwarp_tools::common::KeyArgs::from_env("scene, w, h, l, n, reps, frame, speed, part, bi, path, render");
     let get = |k: &str, d: &str| args.get(k, d);
     let name = get("scene", "cb");
     let (w, h): (u32, u32) = (get("w", "1920").parse().unwrap(), get("h", "1080").parse().unwrap());
@@ -104,9 +105,11 @@ fn main() {
         let t0 = Instant::now();
         floor::floor_pass(&layers, 1, w, &mut floor_out).unwrap();
         tf.push(t0.elapsed().as_secs_f64() * 1e3);
-        let t0 = Instant::now();
-        std::hint::black_box(zwarp_raster::render_depth(&scene, &cb, tb).unwrap());
-        tr.push(t0.elapsed().as_secs_f64() * 1e3);
+        if get("render", "1") != "0" {
+            let t0 = Instant::now();
+            std::hint::black_box(zwarp_raster::render_depth(&scene, &cb, tb).unwrap());
+            tr.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
     }
     match part.as_str() {
         // The forward baselines write depth only: the fingerprint takes it with far-hole states.
@@ -121,7 +124,7 @@ fn main() {
     }
     let (p, plo, phi) = stats(tp);
     let (f, flo, fhi) = stats(tf);
-    let (r, rlo, rhi) = stats(tr);
+    let (r, rlo, rhi) = if tr.is_empty() { (f64::NAN, f64::NAN, f64::NAN) } else { stats(tr) };
     println!(
         "{name} {w}x{h} L={l} N={n} {part}: {p:.2} ms [{plo:.2}, {phi:.2}]  floor {f:.2} ms [{flo:.2}, {fhi:.2}]  x floor {:.1}  render {r:.2} ms [{rlo:.2}, {rhi:.2}]  render/{part} {:.2}  hash {fp:016x}",
         p / f,
