@@ -777,6 +777,7 @@ enum Filter<'a> {
 }
 
 /// Colour of `color` at source position `uv` (pixel units) with `filter`.
+#[inline(always)]
 fn sample(color: &Image<[f32; 3]>, uv: Vec2, filter: Filter<'_>) -> [f32; 3] {
     let (w, h) = (color.width() as i32, color.height() as i32);
     let nx = (uv.x.floor() as i32).clamp(0, w - 1);
@@ -812,6 +813,50 @@ fn sample(color: &Image<[f32; 3]>, uv: Vec2, filter: Filter<'_>) -> [f32; 3] {
     acc.map(|a| a / wsum)
 }
 
+/// One target row of [`resolve`]: the rasterised depth and texture coordinates in, the
+/// outputs to fill.
+struct ResolveRow<'a> {
+    color: &'a mut [[f32; 3]],
+    depth: &'a mut [f32],
+    hole: &'a mut [bool],
+    zbuf: &'a [f32],
+    uv: &'a [Vec2],
+}
+
+/// [`resolve`] of one row: the colour fetch and the reprojected depth of every covered pixel,
+/// black, far and a hole elsewhere.
+#[inline(always)]
+fn resolve_row(src: &Source<'_>, m: &WarpMatrix, filter: Filter<'_>, row: ResolveRow<'_>) {
+    let (sw, sh) = src.depth.size();
+    for i in 0..row.zbuf.len() {
+        let z = row.zbuf[i];
+        row.hole[i] = !z.is_finite();
+        if row.hole[i] {
+            (row.color[i], row.depth[i]) = ([0.0; 3], 1.0);
+            continue;
+        }
+        let q = row.uv[i];
+        let (nx, ny) =
+            ((q.x.floor() as i32).clamp(0, sw as i32 - 1) as u32, (q.y.floor() as i32).clamp(0, sh as i32 - 1) as u32);
+        row.depth[i] = match m.project(nx as f32 + 0.5, ny as f32 + 0.5, *src.depth.get(nx, ny)) {
+            Some((_, _, z)) if z.is_finite() => z.clamp(0.0, 1.0),
+            _ => z.clamp(0.0, 1.0),
+        };
+        row.color[i] = sample(src.color, q, filter);
+    }
+}
+
+/// [`resolve_row`] built for AVX2 (chosen at run time): the same operations, with the rounding
+/// of `floor` as an instruction instead of a library call.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn resolve_row_avx2(src: &Source<'_>, m: &WarpMatrix, filter: Filter<'_>, row: ResolveRow<'_>) {
+    resolve_row(src, m, filter, row)
+}
+
 /// Colour fetch and output buffers. The depth of a covered pixel is its source texel
 /// reprojected by `m` (the surface's own depth, not the cell's interpolation, which is flat
 /// across a rigid cell), clamped to `[0, 1]`.
@@ -825,28 +870,24 @@ fn resolve(
     filter: Filter<'_>,
 ) -> WarpOutput {
     let n = (tw * th) as usize;
-    let (sw, sh) = src.depth.size();
-    let px: Vec<([f32; 3], f32)> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            if !zbuf[i].is_finite() {
-                return ([0.0; 3], 1.0);
+    let mut color = vec![[0.0f32; 3]; n];
+    let mut depth = vec![0.0f32; n];
+    let mut hole = vec![false; n];
+    let t = tw as usize;
+    color
+        .par_chunks_mut(t)
+        .zip(depth.par_chunks_mut(t))
+        .zip(hole.par_chunks_mut(t))
+        .zip(zbuf.par_chunks(t).zip(uv.par_chunks(t)))
+        .for_each(|(((c, d), hl), (z, q))| {
+            let row = ResolveRow { color: c, depth: d, hole: hl, zbuf: z, uv: q };
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: only taken when the CPU reports AVX2.
+                return unsafe { resolve_row_avx2(src, m, filter, row) };
             }
-            let q = uv[i];
-            let (nx, ny) = (
-                (q.x.floor() as i32).clamp(0, sw as i32 - 1) as u32,
-                (q.y.floor() as i32).clamp(0, sh as i32 - 1) as u32,
-            );
-            let d = match m.project(nx as f32 + 0.5, ny as f32 + 0.5, *src.depth.get(nx, ny)) {
-                Some((_, _, z)) if z.is_finite() => z.clamp(0.0, 1.0),
-                _ => zbuf[i].clamp(0.0, 1.0),
-            };
-            (sample(src.color, q, filter), d)
-        })
-        .collect();
-    let color: Vec<[f32; 3]> = px.iter().map(|p| p.0).collect();
-    let depth: Vec<f32> = px.iter().map(|p| p.1).collect();
-    let hole: Vec<bool> = zbuf.iter().map(|z| !z.is_finite()).collect();
+            resolve_row(src, m, filter, row)
+        });
     WarpOutput {
         color: Image::from_vec(tw, th, color).expect("sized"),
         depth: Image::from_vec(tw, th, depth).expect("sized"),
@@ -902,32 +943,38 @@ pub fn disparity_pyramid(src: &Source<'_>, m: &WarpMatrix) -> DisparityPyramid {
     let (w, h) = src.depth.size();
     // Level 0: [min x, max x, min y, max y] of the disparity.
     let mut lv: Vec<(u32, u32, Vec<[f32; 4]>)> = Vec::new();
-    let base: Vec<[f32; 4]> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            match m.project(x, y, *src.depth.get(i % w, i / w)) {
-                Some((tx, ty, _)) => [tx - x, tx - x, ty - y, ty - y],
-                None => [f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY],
+    let mut base = vec![[0.0f32; 4]; (w * h) as usize];
+    base.par_chunks_mut(w as usize).zip(src.depth.data().par_chunks(w as usize)).enumerate().for_each(
+        |(y, (row, drow))| {
+            let y = y as f32 + 0.5;
+            for (x, (o, &d)) in row.iter_mut().zip(drow).enumerate() {
+                let x = x as f32 + 0.5;
+                *o = match m.project(x, y, d) {
+                    Some((tx, ty, _)) => [tx - x, tx - x, ty - y, ty - y],
+                    None => [f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY],
+                };
             }
-        })
-        .collect();
+        },
+    );
     lv.push((w, h, base));
     for _ in 0..LEVELS {
         let (pw, ph, prev) = lv.last().expect("level 0");
+        let (pw, ph) = (*pw as usize, *ph as usize);
         let (nw, nh) = (pw.div_ceil(2), ph.div_ceil(2));
-        let mut next = vec![[f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY]; (nw * nh) as usize];
-        for y in 0..*ph {
-            for x in 0..*pw {
-                let s = prev[(y * pw + x) as usize];
-                let t = &mut next[((y / 2) * nw + x / 2) as usize];
-                t[0] = t[0].min(s[0]);
-                t[1] = t[1].max(s[1]);
-                t[2] = t[2].min(s[2]);
-                t[3] = t[3].max(s[3]);
+        let mut next = vec![[f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY]; nw * nh];
+        // Each texel folds its children row by row, left to right.
+        next.par_chunks_mut(nw).enumerate().for_each(|(ny, row)| {
+            for y in (2 * ny)..(2 * ny + 2).min(ph) {
+                for (x, s) in prev[y * pw..(y + 1) * pw].iter().enumerate() {
+                    let t = &mut row[x / 2];
+                    t[0] = t[0].min(s[0]);
+                    t[1] = t[1].max(s[1]);
+                    t[2] = t[2].min(s[2]);
+                    t[3] = t[3].max(s[3]);
+                }
             }
-        }
-        lv.push((nw, nh, next));
+        });
+        lv.push((nw as u32, nh as u32, next));
     }
     lv
 }

@@ -91,43 +91,46 @@ pub fn lowpass_pyramid(color: &Image<[f32; 3]>, depth: &Image<f32>, hole: &Image
     color.check_same_size(depth, "low-pass pyramid colour vs depth")?;
     color.check_same_size(hole, "low-pass pyramid colour vs hole mask")?;
     let (w, h) = color.size();
-    let texels = color.data().iter().zip(depth.data()).map(|(c, &d)| Vec4::new(c[0], c[1], c[2], d)).collect();
-    let mut levels =
-        vec![PyramidLevel { width: w, height: h, texels, valid: hole.data().iter().map(|&x| !x).collect() }];
+    let texels = color.data().par_iter().zip(depth.data()).map(|(c, &d)| Vec4::new(c[0], c[1], c[2], d)).collect();
+    let valid = hole.data().par_iter().map(|&x| !x).collect();
+    let mut levels = vec![PyramidLevel { width: w, height: h, texels, valid }];
     while levels.last().is_some_and(|l| l.width > 1 || l.height > 1) {
         let p = levels.last().expect("a level");
         let (nw, nh) = (p.width.div_ceil(2), p.height.div_ceil(2));
-        let out: Vec<(Vec4, bool)> = (0..nw * nh)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = (i % nw, i / nw);
-                let mut kid = [(Vec4::ZERO, false); 4];
-                let mut n = 0;
-                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let (cx, cy) = (2 * x + dx, 2 * y + dy);
-                    if cx < p.width && cy < p.height {
-                        let k = (cy * p.width + cx) as usize;
-                        kid[n] = (p.texels[k], p.valid[k]);
-                        n += 1;
+        let mut texels = vec![Vec4::ZERO; (nw * nh) as usize];
+        let mut valid = vec![false; (nw * nh) as usize];
+        texels.par_chunks_mut(nw as usize).zip(valid.par_chunks_mut(nw as usize)).enumerate().for_each(
+            |(y, (trow, vrow))| {
+                let y = y as u32;
+                for (x, (t, v)) in trow.iter_mut().zip(vrow.iter_mut()).enumerate() {
+                    let x = x as u32;
+                    // The valid children in order (no allocation: this runs per texel).
+                    let mut kids = [Vec4::ZERO; 4];
+                    let mut n = 0;
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (cx, cy) = (2 * x + dx, 2 * y + dy);
+                        if cx < p.width && cy < p.height {
+                            let k = (cy * p.width + cx) as usize;
+                            if p.valid[k] {
+                                kids[n] = p.texels[k];
+                                n += 1;
+                            }
+                        }
                     }
+                    if n == 0 {
+                        continue;
+                    }
+                    let kids = &kids[..n];
+                    let mean = kids.iter().map(|t| t.w).sum::<f32>() / n as f32;
+                    // Only texels at or behind the mean depth (a hair of slack for equal depths).
+                    let slack = 1e-6 * mean.abs().max(1.0);
+                    let behind = || kids.iter().filter(|t| t.w >= mean - slack);
+                    *t = behind().copied().sum::<Vec4>() / behind().count() as f32;
+                    *v = true;
                 }
-                let valid: Vec<Vec4> = kid[..n].iter().filter(|k| k.1).map(|k| k.0).collect();
-                if valid.is_empty() {
-                    return (Vec4::ZERO, false);
-                }
-                let mean = valid.iter().map(|t| t.w).sum::<f32>() / valid.len() as f32;
-                // Only texels at or behind the mean depth (a hair of slack for equal depths).
-                let slack = 1e-6 * mean.abs().max(1.0);
-                let sel: Vec<&Vec4> = valid.iter().filter(|t| t.w >= mean - slack).collect();
-                (sel.iter().copied().sum::<Vec4>() / sel.len() as f32, true)
-            })
-            .collect();
-        levels.push(PyramidLevel {
-            width: nw,
-            height: nh,
-            texels: out.iter().map(|o| o.0).collect(),
-            valid: out.iter().map(|o| o.1).collect(),
-        });
+            },
+        );
+        levels.push(PyramidLevel { width: nw, height: nh, texels, valid });
     }
     Ok(levels)
 }

@@ -629,24 +629,27 @@ fn ray_casting_beats_warping_the_composite_as_if_opaque() {
 
 #[test]
 fn the_interior_fast_path_matches_the_general_tests() {
-    // A plane with a step and scattered bumps: every pixel's node equals the general path's.
-    let d = Image::from_fn(24, 20, |x, y| {
-        let v = 0.4 + 0.003 * x as f32 + 0.002 * y as f32 + if (x * 7 + y * 3) % 11 == 0 { 0.2 } else { 0.0 };
-        if x > 12 {
-            v + 0.1
-        } else {
-            v
-        }
-    });
-    for r in [Reduction::Cross, Reduction::PartialCross, Reduction::Irregular] {
-        let t = QuadTree::build(&d, r, &Collinearity::default()).unwrap();
-        for y in 0..20 {
-            for x in 0..24 {
-                assert_eq!(
-                    t.levels[0].get(x, y),
-                    crate::quadtree::pixel_node_general(&d, x, y, &Collinearity::default(), r),
-                    "{r:?} ({x}, {y})"
-                );
+    // A plane with a step and scattered bumps, at sizes whose interior rows end inside and
+    // past a vector of lanes: every pixel's node equals the general path's.
+    for (w, h) in [(24, 20), (70, 9), (5, 9), (37, 6)] {
+        let d = Image::from_fn(w, h, |x, y| {
+            let v = 0.4 + 0.003 * x as f32 + 0.002 * y as f32 + if (x * 7 + y * 3) % 11 == 0 { 0.2 } else { 0.0 };
+            if x > 12 {
+                v + 0.1
+            } else {
+                v
+            }
+        });
+        for r in [Reduction::Cross, Reduction::PartialCross, Reduction::Irregular] {
+            let t = QuadTree::build(&d, r, &Collinearity::default()).unwrap();
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        t.levels[0].get(x, y),
+                        crate::quadtree::pixel_node_general(&d, x, y, &Collinearity::default(), r),
+                        "{w}x{h} {r:?} ({x}, {y})"
+                    );
+                }
             }
         }
     }
