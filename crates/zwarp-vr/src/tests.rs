@@ -380,21 +380,22 @@ fn bad_warp_input_is_an_error() {
 // --- holes ------------------------------------------------------------------------------
 
 /// A red near slab (|x| <= 1.5 at y = 5) in front of a blue-ish far wall, warped to the right
-/// eye: a disocclusion beside the slab.
-fn occluder(w: u32, h: u32) -> (Camera, Camera, [Plane; 2]) {
+/// eye: a disocclusion beside the slab. The source camera, the target camera and the source's
+/// depth and colour.
+fn occluder(w: u32, h: u32) -> (Camera, Camera, Image<f32>, Image<[f32; 3]>) {
     let cam = camera(Vec3::ZERO, w, h);
     let planes = [
         Plane { n: Vec3::Y, k: 5.0, half_x: Some(1.5), color: red },
         Plane { n: Vec3::Y, k: 40.0, half_x: None, color: blue },
     ];
-    (cam, shifted(&cam, 0.5), planes)
+    let (d, c) = trace(&cam, &planes);
+    (cam, shifted(&cam, 0.5), d, c)
 }
 
 #[test]
 fn holes_are_filled_from_the_background_side_only() {
     let (w, h) = (64, 32);
-    let (cam, dst, planes) = occluder(w, h);
-    let (d, c) = trace(&cam, &planes);
+    let (cam, dst, d, c) = occluder(w, h);
     let src = Source { cam: &cam, depth: &d, color: &c };
     let out = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
     let holes: Vec<usize> = (0..out.hole.len()).filter(|&i| out.hole.data()[i]).collect();
@@ -425,8 +426,7 @@ fn drawing_only_where_asked_is_exact_there() {
     // Per-pixel quads over an occluder and its background, drawn everywhere and only where a
     // scattered mask (plus the disocclusion) is set: equal depth, colour and holes there.
     let (w, h) = (64, 40);
-    let (cam, dst, planes) = occluder(w, h);
-    let (d, c) = trace(&cam, &planes);
+    let (cam, dst, d, c) = occluder(w, h);
     let src = Source { cam: &cam, depth: &d, color: &c };
     let mesh = crate::grid::Mesh::build(&src, &dst, Method::Quads, &WarpParams::default()).unwrap();
     let all = crate::grid::raster(&src, &dst, &mesh).unwrap();
@@ -754,8 +754,7 @@ fn warp_matrix_keeps_far_depths_precise() {
 #[test]
 fn the_adaptive_filter_keeps_silhouettes_hard_and_bilinear_blends_them() {
     let (w, h) = (64, 32);
-    let (cam, dst, planes) = occluder(w, h);
-    let (d, c) = trace(&cam, &planes);
+    let (cam, dst, d, c) = occluder(w, h);
     let src = Source { cam: &cam, depth: &d, color: &c };
     let grid = Method::Grid(Reduction::Irregular);
     let hard = warp(&src, &dst, grid, &WarpParams { filter: ColorFilter::Adaptive, ..WarpParams::default() }).unwrap();
