@@ -689,33 +689,25 @@ fn raster_cells(
 ) -> Result<WarpOutput> {
     let (m, tree) = (&mesh.matrix, mesh.tree.as_ref());
     let (tw, th) = (dst.width, dst.height);
-    // The (at most two) triangles of a cell. A pure function of the cell, recomputed where it
-    // is drawn instead of stored: a million per-pixel quads would otherwise hold ~200 MB.
-    let tris_of = |c: &Cell| -> [Option<Tri>; 2] {
-        let d = corner_depths(src.depth, tree, c);
-        let v: [(Vec4, Vec2); 4] = std::array::from_fn(|i| {
-            let (cx, cy) = c.corner(i);
-            (m.apply(cx as f32, cy as f32, d[i]), Vec2::new(cx as f32, cy as f32))
-        });
-        let clamp = [c.x0 as f32, c.y0 as f32, c.x1 as f32, c.y1 as f32];
-        CELL_TRIANGLES
-            .map(|[a, b, c]| make_tri([v[a], v[b], v[c]], clamp, tw, th).filter(|t| only.is_none_or(|m| m.any(t.bb))))
-    };
-    // The bands each cell's triangles reach; each band draws its cells in cell order, each
-    // cell's triangles in order (the depth test keeps the first of equal depths).
-    let reach: Vec<(u32, u32)> = cells
+    let tris: Vec<Tri> = cells
         .par_iter()
-        .map(|c| {
-            tris_of(c)
-                .iter()
-                .flatten()
-                .fold((u32::MAX, 0), |(lo, hi), t| (lo.min(t.bb[1] as u32 / BAND), hi.max(t.bb[3] as u32 / BAND)))
+        .flat_map_iter(|c| {
+            let d = corner_depths(src.depth, tree, c);
+            let v: [(Vec4, Vec2); 4] = std::array::from_fn(|i| {
+                let (cx, cy) = c.corner(i);
+                (m.apply(cx as f32, cy as f32, d[i]), Vec2::new(cx as f32, cy as f32))
+            });
+            let clamp = [c.x0 as f32, c.y0 as f32, c.x1 as f32, c.y1 as f32];
+            CELL_TRIANGLES
+                .into_iter()
+                .filter_map(move |[a, b, c]| make_tri([v[a], v[b], v[c]], clamp, tw, th))
+                .filter(move |t| only.is_none_or(|m| m.any(t.bb)))
         })
         .collect();
     let bands = th.div_ceil(BAND) as usize;
     let mut lists: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (i, &(lo, hi)) in reach.iter().enumerate() {
-        for b in lo..=hi {
+    for (i, t) in tris.iter().enumerate() {
+        for b in (t.bb[1] as u32 / BAND)..=(t.bb[3] as u32 / BAND) {
             lists[b as usize].push(i as u32);
         }
     }
@@ -729,8 +721,8 @@ fn raster_cells(
             let y1 = (y0 + BAND as i32).min(th as i32) - 1;
             #[cfg(target_arch = "x86_64")]
             let avx2 = std::arch::is_x86_feature_detected!("avx2");
-            for t in lists[b].iter().flat_map(|&ci| tris_of(&cells[ci as usize])).flatten() {
-                let t = &t;
+            for &ti in &lists[b] {
+                let t = &tris[ti as usize];
                 for y in t.bb[1].max(y0)..=t.bb[3].min(y1) {
                     let row = (y - y0) as usize * tw as usize;
                     let (zr, uvr) = (&mut zb[row..row + tw as usize], &mut uvb[row..row + tw as usize]);
