@@ -1272,6 +1272,16 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
+    /// Seeded numbers in `[0, 1]` (xorshift32).
+    fn xorshift(mut s: u32) -> impl FnMut() -> f32 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s as f32 / u32::MAX as f32
+        }
+    }
+
     #[test]
     #[cfg(target_arch = "x86_64")]
     fn the_avx2_span_is_the_scalar_span() {
@@ -1282,13 +1292,7 @@ mod tests {
         // the target), rasterised over rows that already hold depths: same depths and texture
         // coordinates, bit for bit.
         let (tw, th) = (53u32, 29u32);
-        let mut s = 0x9e37_79b9u32;
-        let mut rnd = move || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            s as f32 / u32::MAX as f32
-        };
+        let mut rnd = xorshift(0x9e37_79b9);
         let mut drawn = 0;
         for n in 0..400 {
             let span = if n % 3 == 0 { 4.0 } else { 40.0 };
@@ -1324,15 +1328,10 @@ mod tests {
         }
         // Seeded rows of covered pixels, holes (inf, NaN) and texture coordinates across the
         // whole source (borders included), with a depth buffer holding near, far and empty
-        // texels: colour, depth and hole flags equal bit for bit for both filters it serves.
+        // texels: colour, depth and hole flags equal bit for bit (the bilinear fetch, the one the
+        // eight lanes serve).
         let (w, h) = (37u32, 11u32);
-        let mut s = 0x2545_f491u32;
-        let mut rnd = move || {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            s as f32 / u32::MAX as f32
-        };
+        let mut rnd = xorshift(0x2545_f491);
         let depth = Image::from_fn(w, h, |x, y| [0.3, 0.97, 1.0, 0.999][((x * 7 + y * 3) % 4) as usize]);
         let color = Image::from_fn(w, h, |x, y| [x as f32 / w as f32, y as f32 / h as f32, ((x ^ y) % 5) as f32 / 4.0]);
         let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 1.0, 0.1, 100.0, w, h).unwrap();
