@@ -250,11 +250,19 @@ pub struct RayCastParams {
     pub opacity: f32,
     /// Traversal steps per ray at most (a guard; a ray across a `w x h` image needs far fewer).
     pub max_steps: u32,
+    /// Pixels on the edge of a transparent surface (their opacity differs from a 4-neighbour's
+    /// by more than [`EDGE_OPACITY`]) take the mean of 2x2 rays across the pixel instead of
+    /// the one through its centre: the fragments are pixel boxes, so one ray puts a glass edge
+    /// on whole pixels where the warp moved it by a fraction of one.
+    pub edge_rays: bool,
 }
+
+/// Opacity difference to a 4-neighbour that makes a pixel an edge pixel ([`RayCastParams::edge_rays`]).
+pub const EDGE_OPACITY: f32 = 0.02;
 
 impl Default for RayCastParams {
     fn default() -> Self {
-        RayCastParams { opacity: 0.99, max_steps: 1 << 16 }
+        RayCastParams { opacity: 0.99, max_steps: 1 << 16, edge_rays: true }
     }
 }
 
@@ -293,26 +301,62 @@ pub fn ray_cast(
     let inv = WarpMatrix::new(dst, src)?;
     let (tw, th) = base.size();
     let caster = Caster { ab, tree, sw: src.width as f32, sh: src.height as f32, p };
-    let out: Vec<([f32; 3], u32)> = (0..tw * th)
-        .into_par_iter()
-        .map(|i| {
+    // The premultiplied colour and steps of the ray through target position (px, py), ending at
+    // the warped opaque depth of pixel (x, y).
+    let cast = |x: u32, y: u32, px: f32, py: f32| -> ([f32; 4], u32) {
+        let end = depth.get(x, y).clamp(0.0, 1.0);
+        match (inv.project(px, py, 0.0), inv.project(px, py, end)) {
+            (Some(a), Some(e)) => caster.cast_one([a.0, a.1, a.2], [e.0, e.1, e.2]),
+            _ => ([0.0; 4], 0),
+        }
+    };
+    let mut rays: Vec<([f32; 4], u32)> = if ab.is_empty() {
+        vec![([0.0; 4], 0); (tw * th) as usize]
+    } else {
+        (0..tw * th)
+            .into_par_iter()
+            .map(|i| cast(i % tw, i / tw, (i % tw) as f32 + 0.5, (i / tw) as f32 + 0.5))
+            .collect()
+    };
+    if p.edge_rays && !ab.is_empty() {
+        let alpha = |x: u32, y: u32| rays[(y * tw + x) as usize].0[3];
+        let edge = |i: u32| {
             let (x, y) = (i % tw, i / tw);
-            let b = *base.get(x, y);
-            if ab.is_empty() {
-                return (b, 0);
-            }
-            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
-            let end = depth.get(x, y).clamp(0.0, 1.0);
-            let (Some(a), Some(e)) = (inv.project(px, py, 0.0), inv.project(px, py, end)) else {
-                return (b, 0);
-            };
-            let (acc, steps) = caster.cast_one([a.0, a.1, a.2], [e.0, e.1, e.2]);
-            ([acc[0] + (1.0 - acc[3]) * b[0], acc[1] + (1.0 - acc[3]) * b[1], acc[2] + (1.0 - acc[3]) * b[2]], steps)
+            let a = alpha(x, y);
+            [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
+                .into_iter()
+                .any(|(u, v)| u < tw && v < th && (alpha(u, v) - a).abs() > EDGE_OPACITY)
+        };
+        let edges: Vec<(u32, ([f32; 4], u32))> = (0..tw * th)
+            .into_par_iter()
+            .filter(|&i| edge(i))
+            .map(|i| {
+                let (x, y) = (i % tw, i / tw);
+                let (mut acc, mut steps) = ([0.0f32; 4], 0);
+                for (ox, oy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+                    let (c, n) = cast(x, y, x as f32 + ox, y as f32 + oy);
+                    for (a, c) in acc.iter_mut().zip(c) {
+                        *a += 0.25 * c;
+                    }
+                    steps += n;
+                }
+                (i, (acc, steps))
+            })
+            .collect();
+        for (i, r) in edges {
+            rays[i as usize] = r;
+        }
+    }
+    let color = rays
+        .par_iter()
+        .zip(base.data())
+        .map(|((acc, _), b)| {
+            [acc[0] + (1.0 - acc[3]) * b[0], acc[1] + (1.0 - acc[3]) * b[1], acc[2] + (1.0 - acc[3]) * b[2]]
         })
         .collect();
     Ok(RayCast {
-        color: Image::from_vec(tw, th, out.iter().map(|o| o.0).collect())?,
-        steps: Image::from_vec(tw, th, out.iter().map(|o| o.1).collect())?,
+        color: Image::from_vec(tw, th, color)?,
+        steps: Image::from_vec(tw, th, rays.iter().map(|r| r.1).collect())?,
     })
 }
 

@@ -655,6 +655,56 @@ fn the_interior_fast_path_matches_the_general_tests() {
     }
 }
 
+#[test]
+fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
+    // A glass slab (|x| <= 1 at y = 6) over a wall, the eye moved by a fraction of a pixel's
+    // parallax: 2x2 rays on the pixels where the opacity changes give colours between the hard
+    // ones around them; every other pixel is the one-ray result, bit for bit.
+    let (w, h) = (96, 48);
+    let cam = camera(Vec3::ZERO, w, h);
+    let dst = shifted(&cam, 0.37);
+    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
+    let pane = [Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red }];
+    let (sd, sc) = trace(&cam, &wall);
+    let (gd, _) = trace(&cam, &pane);
+    let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
+    let ab = ABuffer::from_layers(&[(gd, items)], &sd, glass).unwrap();
+    let src = Source { cam: &cam, depth: &sd, color: &sc };
+    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
+    let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let cast = |edge_rays| {
+        let p = RayCastParams { edge_rays, ..RayCastParams::default() };
+        ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &p).unwrap().color
+    };
+    let (soft, hard) = (cast(true), cast(false));
+    let mut blended = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = (soft.get(x, y), hard.get(x, y));
+            if a == b {
+                continue;
+            }
+            // Only where the hard image changes to a neighbour, and between the colours there.
+            let around: Vec<[f32; 3]> = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
+                .into_iter()
+                .filter(|&(u, v)| u < w && v < h)
+                .map(|(u, v)| *hard.get(u, v))
+                .chain([*b])
+                .collect();
+            assert!(around.iter().any(|c| c != b), "({x}, {y}) changed off an edge");
+            for k in 0..3 {
+                let lo = around.iter().map(|c| c[k]).fold(f32::INFINITY, f32::min);
+                let hi = around.iter().map(|c| c[k]).fold(f32::NEG_INFINITY, f32::max);
+                assert!(a[k] >= lo - 0.02 && a[k] <= hi + 0.02, "({x}, {y}) channel {k}: {} not in [{lo}, {hi}]", a[k]);
+            }
+            blended += 1;
+        }
+    }
+    // Both vertical edges of the pane, one pixel each per row at most.
+    assert!(blended >= h as usize && blended <= 4 * h as usize, "{blended} edge pixels blended");
+}
+
 /// A glass pane (normal `pane_n`, `dot(pane_n, x) = 6`, covering the whole view) in front of a
 /// wall, seen by a `w x h` camera with near plane `near`, ray cast to the eye `u` to its right
 /// over the warped, hole-filled wall: the ray cast and that opaque base.
