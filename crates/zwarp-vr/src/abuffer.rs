@@ -250,14 +250,14 @@ pub struct RayCastParams {
     pub opacity: f32,
     /// Traversal steps per ray at most (a guard; a ray across a `w x h` image needs far fewer).
     pub max_steps: u32,
-    /// Pixels on the edge of a transparent surface (their opacity differs from a 4-neighbour's
-    /// by more than [`EDGE_OPACITY`]) take the mean of 2x2 rays across the pixel instead of
-    /// the one through its centre: the fragments are pixel boxes, so one ray puts a glass edge
-    /// on whole pixels where the warp moved it by a fraction of one.
+    /// Pixels on the edge of a transparent surface (their opacity differs from one of their 8
+    /// neighbours' by more than [`EDGE_OPACITY`]) take the mean of 3x3 rays across the pixel
+    /// instead of the one through its centre: the fragments are pixel boxes, so one ray puts a
+    /// glass edge on whole pixels where the warp moved it by a fraction of one.
     pub edge_rays: bool,
 }
 
-/// Opacity difference to a 4-neighbour that makes a pixel an edge pixel ([`RayCastParams::edge_rays`]).
+/// Opacity difference to a neighbour that makes a pixel an edge pixel ([`RayCastParams::edge_rays`]).
 pub const EDGE_OPACITY: f32 = 0.02;
 
 impl Default for RayCastParams {
@@ -323,9 +323,10 @@ pub fn ray_cast(
         let edge = |i: u32| {
             let (x, y) = (i % tw, i / tw);
             let a = alpha(x, y);
-            [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
-                .into_iter()
-                .any(|(u, v)| u < tw && v < th && (alpha(u, v) - a).abs() > EDGE_OPACITY)
+            (0..9u32).filter(|&k| k != 4).any(|k| {
+                let (u, v) = ((x + k % 3).wrapping_sub(1), (y + k / 3).wrapping_sub(1));
+                u < tw && v < th && (alpha(u, v) - a).abs() > EDGE_OPACITY
+            })
         };
         let edges: Vec<(u32, ([f32; 4], u32))> = (0..tw * th)
             .into_par_iter()
@@ -333,10 +334,12 @@ pub fn ray_cast(
             .map(|i| {
                 let (x, y) = (i % tw, i / tw);
                 let (mut acc, mut steps) = ([0.0f32; 4], 0);
-                for (ox, oy) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+                // A 3x3 grid of rays at the centres of the pixel's ninths.
+                for k in 0..9 {
+                    let (ox, oy) = ((1 + 2 * (k % 3)) as f32 / 6.0, (1 + 2 * (k / 3)) as f32 / 6.0);
                     let (c, n) = cast(x, y, x as f32 + ox, y as f32 + oy);
                     for (a, c) in acc.iter_mut().zip(c) {
-                        *a += 0.25 * c;
+                        *a += c / 9.0;
                     }
                     steps += n;
                 }

@@ -658,7 +658,7 @@ fn the_interior_fast_path_matches_the_general_tests() {
 #[test]
 fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
     // A glass slab (|x| <= 1 at y = 6) over a wall, the eye moved by a fraction of a pixel's
-    // parallax: 2x2 rays on the pixels where the opacity changes give colours between the hard
+    // parallax: 3x3 rays on the pixels where the opacity changes give colours between the hard
     // ones around them; every other pixel is the one-ray result, bit for bit.
     let (w, h) = (96, 48);
     let cam = camera(Vec3::ZERO, w, h);
@@ -686,8 +686,8 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
                 continue;
             }
             // Only where the hard image changes to a neighbour, and between the colours there.
-            let around: Vec<[f32; 3]> = [(x.wrapping_sub(1), y), (x + 1, y), (x, y.wrapping_sub(1)), (x, y + 1)]
-                .into_iter()
+            let around: Vec<[f32; 3]> = (0..9u32)
+                .map(|k| ((x + k % 3).wrapping_sub(1), (y + k / 3).wrapping_sub(1)))
                 .filter(|&(u, v)| u < w && v < h)
                 .map(|(u, v)| *hard.get(u, v))
                 .chain([*b])
@@ -701,7 +701,7 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
             blended += 1;
         }
     }
-    // Both vertical edges of the pane, one pixel each per row at most.
+    // Both vertical edges of the pane, a pixel or two each per row.
     assert!(blended >= h as usize && blended <= 4 * h as usize, "{blended} edge pixels blended");
 }
 
