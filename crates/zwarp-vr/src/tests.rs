@@ -21,6 +21,7 @@ fn shifted(cam: &Camera, u: f32) -> Camera {
 }
 
 /// A plane `dot(n, x) = k` limited to `|x.x| <= half_x` (infinite if `None`), with a colour.
+#[derive(Clone, Copy)]
 struct Plane {
     n: Vec3,
     k: f32,
@@ -661,21 +662,10 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
     // parallax: 3x3 rays on the pixels where the opacity changes give colours between the hard
     // ones around them; every other pixel is the one-ray result, bit for bit.
     let (w, h) = (96, 48);
-    let cam = camera(Vec3::ZERO, w, h);
-    let dst = shifted(&cam, 0.37);
-    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
-    let pane = [Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red }];
-    let (sd, sc) = trace(&cam, &wall);
-    let (gd, _) = trace(&cam, &pane);
-    let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
-    let ab = ABuffer::from_layers(&[(gd, items)], &sd, glass).unwrap();
-    let src = Source { cam: &cam, depth: &sd, color: &sc };
-    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
-    let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
-    let tree = MinMaxTree::build(&ab);
+    let pane = Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red };
     let cast = |edge_rays| {
         let p = RayCastParams { edge_rays, ..RayCastParams::default() };
-        ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &p).unwrap().color
+        ray_cast_glass(w, h, 0.1, 0.37, pane, &p).0.color
     };
     let (soft, hard) = (cast(true), cast(false));
     let mut blended = 0;
@@ -709,10 +699,23 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
 /// wall, seen by a `w x h` camera with near plane `near`, ray cast to the eye `u` to its right
 /// over the warped, hole-filled wall: the ray cast and that opaque base.
 fn ray_cast_pane(w: u32, h: u32, near: f32, u: f32, pane_n: Vec3) -> (crate::abuffer::RayCast, Image<[f32; 3]>) {
+    let pane = Plane { n: pane_n, k: 6.0, half_x: None, color: red };
+    ray_cast_glass(w, h, near, u, pane, &RayCastParams::default())
+}
+
+/// [`ray_cast_pane`] for any glass plane `pane` and ray-cast parameters `p`.
+fn ray_cast_glass(
+    w: u32,
+    h: u32,
+    near: f32,
+    u: f32,
+    pane: Plane,
+    p: &RayCastParams,
+) -> (crate::abuffer::RayCast, Image<[f32; 3]>) {
     let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), near, 100.0, w, h).unwrap();
     let dst = shifted(&cam, u);
     let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
-    let pane = [Plane { n: pane_n, k: 6.0, half_x: None, color: red }];
+    let pane = [pane];
     let (sd, sc) = trace(&cam, &wall);
     let (gd, _) = trace(&cam, &pane);
     let items = gd.map(|&d| if d < 1.0 { 1 } else { zwarp_core::NO_ITEM });
@@ -721,7 +724,7 @@ fn ray_cast_pane(w: u32, h: u32, near: f32, u: f32, pane_n: Vec3) -> (crate::abu
     let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
     let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
     let tree = MinMaxTree::build(&ab);
-    let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
+    let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, p).unwrap();
     (rc, base)
 }
 
