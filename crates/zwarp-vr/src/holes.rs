@@ -295,14 +295,16 @@ pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: H
                 // (2^(l-1) pixels) reaches it: the colour of the border, blurred more the farther
                 // the pixel is from it (Mark's blurred stripes, seed 003 Sec. 5.2). A hole that
                 // reaches the image border has no background side: it continues the surface at
-                // its inner border (read there, level 1).
+                // its inner border, read there at level 0 (the border texel; nothing on the far
+                // side to blend with, and a blur measured further from the unseen strip's truth,
+                // Sponza 1280x720 cyclops right eye 22.32 -> 22.45 dB in the holes).
                 let (mut lvl, at) = match (a, b) {
                     (Some(a), Some(b)) => {
                         let v = if a.1 >= b.1 { a.0 * d } else { -b.0 * d };
                         ((0.5 * v.length()).log2().ceil().max(0.0) as usize + 1, p + 0.5 * v)
                     }
-                    (Some(a), None) => (1, p + a.0 * d),
-                    (None, Some(b)) => (1, p - b.0 * d),
+                    (Some(a), None) => (0, p + a.0 * d),
+                    (None, Some(b)) => (0, p - b.0 * d),
                     (None, None) => (top, p),
                 };
                 lvl = lvl.min(top);
