@@ -334,10 +334,11 @@ pub fn ray_cast(
             .map(|i| {
                 let (x, y) = (i % tw, i / tw);
                 let (mut acc, mut steps) = ([0.0f32; 4], 0);
-                // A 3x3 grid of rays at the centres of the pixel's ninths.
+                // A 3x3 grid of rays at the centres of the pixel's ninths; the middle one is the
+                // centre ray already cast.
                 for k in 0..9 {
                     let (ox, oy) = ((1 + 2 * (k % 3)) as f32 / 6.0, (1 + 2 * (k / 3)) as f32 / 6.0);
-                    let (c, n) = cast(x, y, x as f32 + ox, y as f32 + oy);
+                    let (c, n) = if k == 4 { rays[i as usize] } else { cast(x, y, x as f32 + ox, y as f32 + oy) };
                     for (a, c) in acc.iter_mut().zip(c) {
                         *a += c / 9.0;
                     }

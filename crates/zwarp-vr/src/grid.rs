@@ -732,7 +732,7 @@ fn raster_cells(
                         unsafe { raster_span_avx2(t, y, zr, uvr) };
                         continue;
                     }
-                    raster_span(t, y, t.bb[0], zr, uvr);
+                    raster_span(t, y, zr, uvr);
                 }
             }
         },
@@ -744,15 +744,15 @@ fn raster_cells(
     Ok(resolve(src, m, tw, th, &zbuf, &uv, filter))
 }
 
-/// Rasterises row `y` of triangle `t` from column `x0` to its bounding box's right end into one
-/// row of the depth buffer and texture coordinates: the pixel centres inside every edge (within
+/// Rasterises row `y` of triangle `t` (its bounding box's columns) into one row of the depth
+/// buffer and texture coordinates: the pixel centres inside every edge (within
 /// the edge tolerance) and nearer than what the row holds take the triangle's depth and its
 /// perspective-correct texture coordinate, clamped inside the cell.
 #[inline]
-fn raster_span(t: &Tri, y: i32, x0: i32, zr: &mut [f32], uvr: &mut [Vec2]) {
+fn raster_span(t: &Tri, y: i32, zr: &mut [f32], uvr: &mut [Vec2]) {
     let inv = 1.0 / t.area;
     let py = y as f32 + 0.5;
-    for x in x0..=t.bb[2] {
+    for x in t.bb[0]..=t.bb[2] {
         let q = Vec2::new(x as f32 + 0.5, py);
         let mut l = [0.0f32; 3];
         let mut inside = true;
@@ -780,6 +780,24 @@ fn raster_span(t: &Tri, y: i32, x0: i32, zr: &mut [f32], uvr: &mut [Vec2]) {
                 Vec2::new(u.clamp(t.clamp[0] + 1e-3, t.clamp[2] - 1e-3), v.clamp(t.clamp[1] + 1e-3, t.clamp[3] - 1e-3));
         }
     }
+}
+
+/// `f32::clamp` per lane as two compare-selects (below `lo`: `lo`, then above `hi`: `hi`; NaN
+/// stays NaN), bit for bit the scalar clamp of the AVX2 twins.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn clamp8(
+    v: std::arch::x86_64::__m256,
+    lo: std::arch::x86_64::__m256,
+    hi: std::arch::x86_64::__m256,
+) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    let v = _mm256_blendv_ps(v, lo, _mm256_cmp_ps::<_CMP_LT_OQ>(v, lo));
+    _mm256_blendv_ps(v, hi, _mm256_cmp_ps::<_CMP_GT_OQ>(v, hi))
 }
 
 /// [`raster_span`] over the whole span, eight pixels at a time: the same operations in the same
@@ -838,12 +856,8 @@ unsafe fn raster_span_avx2(t: &Tri, y: i32, zr: &mut [f32], uvr: &mut [Vec2]) {
             if bits != 0 {
                 _mm256_maskstore_ps(zr.as_mut_ptr().add(k), _mm256_castps_si256(nearer), z);
                 let iw = dot(t.iw);
-                let clamp = |v: __m256, lo: __m256, hi: __m256| {
-                    let v = _mm256_blendv_ps(v, lo, _mm256_cmp_ps::<_CMP_LT_OQ>(v, lo));
-                    _mm256_blendv_ps(v, hi, _mm256_cmp_ps::<_CMP_GT_OQ>(v, hi))
-                };
-                let u = clamp(_mm256_div_ps(dot(t.uw), iw), lo_u, hi_u);
-                let v = clamp(_mm256_div_ps(dot(t.vw), iw), lo_v, hi_v);
+                let u = clamp8(_mm256_div_ps(dot(t.uw), iw), lo_u, hi_u);
+                let v = clamp8(_mm256_div_ps(dot(t.vw), iw), lo_v, hi_v);
                 let (mut us, mut vs) = ([0f32; 8], [0f32; 8]);
                 _mm256_storeu_ps(us.as_mut_ptr(), u);
                 _mm256_storeu_ps(vs.as_mut_ptr(), v);
@@ -964,11 +978,6 @@ unsafe fn resolve_row_avx2(src: &Source<'_>, m: &WarpMatrix, filter: Filter<'_>,
     let (wm, hm) = (_mm256_set1_epi32(sw as i32 - 1), _mm256_set1_epi32(sh as i32 - 1));
     let zi = _mm256_setzero_si256();
     let clampi = |v: __m256i, hi: __m256i| _mm256_min_epi32(_mm256_max_epi32(v, zi), hi);
-    // f32::clamp(0, 1): two compare-selects (NaN stays NaN).
-    let clamp01 = |v: __m256| {
-        let v = _mm256_blendv_ps(v, s(0.0), _mm256_cmp_ps::<_CMP_LT_OQ>(v, s(0.0)));
-        _mm256_blendv_ps(v, s(1.0), _mm256_cmp_ps::<_CMP_GT_OQ>(v, s(1.0)))
-    };
     let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
     let wv = _mm256_set1_epi32(sw as i32);
     let depth = src.depth.data().as_ptr();
@@ -1009,7 +1018,7 @@ unsafe fn resolve_row_avx2(src: &Source<'_>, m: &WarpMatrix, filter: Filter<'_>,
             _mm256_cmp_ps::<_CMP_GT_OQ>(hw, s(1e-9)),
             _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_and_ps(pz, absmask), s(f32::INFINITY)),
         );
-        let dz = clamp01(_mm256_blendv_ps(z, pz, ok));
+        let dz = clamp8(_mm256_blendv_ps(z, pz, ok), s(0.0), s(1.0));
         // The bilinear fetch (`sample`): four taps, weights of at most 0 add nothing.
         let (fx, fy) = (_mm256_sub_ps(qx, s(0.5)), _mm256_sub_ps(qy, s(0.5)));
         let (x0, y0) = (_mm256_cvttps_epi32(_mm256_floor_ps(fx)), _mm256_cvttps_epi32(_mm256_floor_ps(fy)));
@@ -1306,7 +1315,7 @@ mod tests {
                 let z0: Vec<f32> = (0..tw).map(|_| if rnd() < 0.3 { f32::INFINITY } else { rnd() }).collect();
                 let (mut za, mut zb) = (z0.clone(), z0);
                 let (mut ua, mut ub) = (vec![Vec2::splat(-1.0); tw as usize], vec![Vec2::splat(-1.0); tw as usize]);
-                raster_span(&t, y, t.bb[0], &mut za, &mut ua);
+                raster_span(&t, y, &mut za, &mut ua);
                 // SAFETY: checked above.
                 unsafe { raster_span_avx2(&t, y, &mut zb, &mut ub) };
                 assert_eq!(
