@@ -401,11 +401,30 @@ fn holes_are_filled_from_the_background_side_only() {
     let out = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
     let holes: Vec<usize> = (0..out.hole.len()).filter(|&i| out.hole.data()[i]).collect();
     assert!(holes.len() >= h as usize * 2, "a disocclusion opened: {} holes", holes.len());
+    // Low-pass: the background, plus the red's expected share (at most 1/2) in the hole pixel
+    // beside the red slab's warped silhouette; pure background a pixel farther.
+    let red_at =
+        |x: i64, y: u32| x >= 0 && x < w as i64 && !out.hole.get(x as u32, y) && out.color.get(x as u32, y)[0] > 0.5;
+    let f = fill_holes(&out, &src, &dst, HoleMethod::LowPass).unwrap();
+    let mut mixed = 0;
+    for &i in &holes {
+        let p = f.data()[i];
+        let (x, y) = ((i as u32 % w) as i64, i as u32 / w);
+        assert!((p[0] + p[2] - 1.0).abs() < 1e-5 && p[1] == 0.0 && p[0] <= 0.5 + 1e-6, "hole pixel {i} got {p:?}");
+        if red_at(x - 1, y) || red_at(x + 1, y) {
+            mixed += usize::from(p[0] > 0.0);
+        } else {
+            assert_eq!(p, [0.0, 0.0, 1.0], "hole pixel {i} away from the red");
+        }
+    }
+    assert!(mixed >= h as usize, "the silhouette's hole pixels take the red's share: {mixed}");
     for m in [HoleMethod::LowPass, HoleMethod::Stretch] {
         let f = fill_holes(&out, &src, &dst, m).unwrap();
-        for &i in &holes {
-            let p = f.data()[i];
-            assert!(p[0] < 1e-3 && p[2] > 0.999, "{m:?}: hole pixel {i} got {p:?}");
+        if m == HoleMethod::Stretch {
+            for &i in &holes {
+                let p = f.data()[i];
+                assert!(p[0] < 1e-3 && p[2] > 0.999, "{m:?}: hole pixel {i} got {p:?}");
+            }
         }
         for i in 0..f.len() {
             if !out.hole.data()[i] {
@@ -420,6 +439,21 @@ fn holes_are_filled_from_the_background_side_only() {
         assert!(worst > 0.1, "{m:?}: {worst}");
         assert!(f.data().iter().all(|p| p.iter().all(|v| v.is_finite())));
     }
+}
+
+#[test]
+fn the_foreground_share_falls_from_a_half_to_zero_a_pixel_past_the_texel_boundary() {
+    // Source = target: the boundary of foreground texel (10, 5) towards +x is x = 11.
+    let cam = camera(Vec3::ZERO, 32, 16);
+    let edge = crate::holes::ForegroundEdge::new(&cam, &cam).unwrap();
+    let d = 0.9;
+    let share = |px: f32| edge.share(glam::Vec2::new(px, 5.5), (10, 5), d, -glam::Vec2::X);
+    // u = distance past the boundary; share = (1 - u) / 2.
+    for (px, want) in [(11.0, 0.5), (11.25, 0.375), (11.5, 0.25), (12.0, 0.0), (12.5, 0.0)] {
+        assert!((share(px) - want).abs() < 1e-4, "p.x {px}: {} vs {want}", share(px));
+    }
+    // A pixel that warps back into the foreground texel itself sits on the boundary.
+    assert!((share(10.8) - 0.5).abs() < 1e-6);
 }
 
 #[test]
