@@ -198,25 +198,12 @@ pub fn heuristic_warp_into(
         .enumerate()
         .for_each(|(y, ((c, d), r))| {
             let py = y as f32 + 0.5;
+            #[allow(unused_mut)]
             let mut x0 = 0;
             #[cfg(target_arch = "x86_64")]
             if crate::lanes::simd_enabled() {
-                while x0 + 8 <= wu {
-                    // SAFETY: AVX2 is present (checked); the eight pixels lie in the row.
-                    unsafe {
-                        crate::lanes::avx2::heuristic8(
-                            field,
-                            src,
-                            params,
-                            x0,
-                            y,
-                            &mut c[x0..x0 + 8],
-                            &mut d[x0..x0 + 8],
-                            &mut r[x0..x0 + 8],
-                        )
-                    };
-                    x0 += 8;
-                }
+                // SAFETY: AVX2 is present (checked); the rows are the field's rows.
+                x0 = unsafe { crate::lanes::avx2::heuristic_row(field, src, params, y, c, d, r) };
             }
             for x in x0..wu {
                 let px = heuristic_pixel(&s, src, Vec2::new(x as f32 + 0.5, py), params, &sp);

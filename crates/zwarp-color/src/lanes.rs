@@ -175,21 +175,57 @@ pub(crate) mod avx2 {
         )
     }
 
-    /// Float `idx` (per lane, `0..32`) of the 32 floats at `p`.
+    /// Lanes of `v` picked by the constant indices `i`.
     #[inline(always)]
-    unsafe fn pick32(p: *const f32, idx: __m256i) -> __m256 {
-        let r0 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p), idx);
-        let r1 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(8)), idx);
-        let r2 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(16)), idx);
-        let r3 = _mm256_permutevar8x32_ps(_mm256_loadu_ps(p.add(24)), idx);
-        let v = _mm256_blendv_ps(r0, r1, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(7))));
-        let v = _mm256_blendv_ps(v, r2, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(15))));
-        _mm256_blendv_ps(v, r3, _mm256_castsi256_ps(_mm256_cmpgt_epi32(idx, _mm256_set1_epi32(23))))
+    unsafe fn pick(v: __m256, i: [i32; 8]) -> __m256 {
+        _mm256_permutevar8x32_ps(v, _mm256_setr_epi32(i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]))
+    }
+
+    /// Eight RGB texels at `p` (24 floats) as three channel vectors: the AoS -> SoA transpose by
+    /// permutes and immediate blends.
+    #[inline(always)]
+    unsafe fn rgb8(p: *const f32) -> [__m256; 3] {
+        // a = r0 g0 b0 r1 g1 b1 r2 g2 | b = b2 r3 g3 b3 r4 g4 b4 r5 | c = g5 b5 r6 g6 b6 r7 g7 b7
+        let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
+        let r = _mm256_blend_ps::<0b1100_0000>(
+            _mm256_blend_ps::<0b0011_1000>(pick(a, [0, 3, 6, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 1, 4, 7, 0, 0])),
+            pick(c, [0, 0, 0, 0, 0, 0, 2, 5]),
+        );
+        let g = _mm256_blend_ps::<0b1110_0000>(
+            _mm256_blend_ps::<0b0001_1000>(pick(a, [1, 4, 7, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 2, 5, 0, 0, 0])),
+            pick(c, [0, 0, 0, 0, 0, 0, 3, 6]),
+        );
+        let bl = _mm256_blend_ps::<0b1110_0000>(
+            _mm256_blend_ps::<0b0001_1100>(pick(a, [2, 5, 0, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 3, 6, 0, 0, 0])),
+            pick(c, [0, 0, 0, 0, 0, 1, 4, 7]),
+        );
+        [r, g, bl]
+    }
+
+    /// Eight pixels' channel vectors stored as eight RGB triples at `p` (the SoA -> AoS
+    /// transpose).
+    #[inline(always)]
+    unsafe fn store_rgb8(p: *mut f32, [r, g, b]: [__m256; 3]) {
+        let o0 = _mm256_blend_ps::<0b0010_0100>(
+            _mm256_blend_ps::<0b1001_0010>(pick(r, [0, 0, 0, 1, 0, 0, 2, 0]), pick(g, [0, 0, 0, 0, 1, 0, 0, 2])),
+            pick(b, [0, 0, 0, 0, 0, 1, 0, 0]),
+        );
+        let o1 = _mm256_blend_ps::<0b0100_1001>(
+            _mm256_blend_ps::<0b0010_0100>(pick(r, [0, 3, 0, 0, 4, 0, 0, 5]), pick(g, [0, 0, 3, 0, 0, 4, 0, 0])),
+            pick(b, [2, 0, 0, 3, 0, 0, 4, 0]),
+        );
+        let o2 = _mm256_blend_ps::<0b1001_0010>(
+            _mm256_blend_ps::<0b0100_1001>(pick(r, [0, 0, 6, 0, 0, 7, 0, 0]), pick(g, [5, 0, 0, 6, 0, 0, 7, 0])),
+            pick(b, [0, 5, 0, 0, 6, 0, 0, 7]),
+        );
+        _mm256_storeu_ps(p, o0);
+        _mm256_storeu_ps(p.add(8), o1);
+        _mm256_storeu_ps(p.add(16), o2);
     }
 
     /// The colour texels of each lane's cell (per channel the four texels) for the `live`
-    /// lanes: through a [`window`] with row loads (the window's 9 texels of a row are 27 floats:
-    /// four loads, a lane's float picked by permutes and blends), else with gathers.
+    /// lanes: through a [`window`] (each row's texels `m..m + 8` and `m + 1..m + 9`
+    /// transposed to channel vectors, a lane's texel picked by a permute), else with gathers.
     #[inline(always)]
     unsafe fn cell_rgb(color: &[[f32; 3]], l: &Loc, live: __m256, w: i32, len: usize) -> [[__m256; 4]; 3] {
         let base = color.as_ptr() as *const f32;
@@ -197,13 +233,20 @@ pub(crate) mod avx2 {
         let wu = w as usize;
         let mut out = [[_mm256_setzero_ps(); 4]; 3];
         match window(l, live, w, len) {
-            Some((m, d)) if 3 * (m + wu) + 32 <= 3 * len => {
-                let d3 = _mm256_mullo_epi32(d, three);
-                let (top, bot) = (base.add(3 * m), base.add(3 * (m + wu)));
+            Some((m, d)) if m + wu + 9 <= len => {
+                let rows = [
+                    rgb8(base.add(3 * m)),
+                    rgb8(base.add(3 * (m + 1))),
+                    rgb8(base.add(3 * (m + wu))),
+                    rgb8(base.add(3 * (m + wu + 1))),
+                ];
                 for (ch, o) in out.iter_mut().enumerate() {
-                    let i = _mm256_add_epi32(d3, _mm256_set1_epi32(ch as i32));
-                    let i1 = _mm256_add_epi32(i, three);
-                    *o = [pick32(top, i), pick32(top, i1), pick32(bot, i), pick32(bot, i1)];
+                    *o = [
+                        _mm256_permutevar8x32_ps(rows[0][ch], d),
+                        _mm256_permutevar8x32_ps(rows[1][ch], d),
+                        _mm256_permutevar8x32_ps(rows[2][ch], d),
+                        _mm256_permutevar8x32_ps(rows[3][ch], d),
+                    ];
                 }
             }
             _ => {
@@ -250,9 +293,31 @@ pub(crate) mod avx2 {
     }
 
     /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image).
+    /// The heuristic warp of row `y`, eight pixels at a time ([`heuristic8`]) while eight remain:
+    /// returns where the portable path takes over.
     #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn heuristic_row(
+        f: &Field<'_>,
+        color: &[[f32; 3]],
+        params: &HeuristicParams,
+        y: usize,
+        oc: &mut [[f32; 3]],
+        od: &mut [f32],
+        or: &mut [f32],
+    ) -> usize {
+        let mut x0 = 0;
+        while x0 + 8 <= oc.len() {
+            heuristic8(f, color, params, x0, y, &mut oc[x0..x0 + 8], &mut od[x0..x0 + 8], &mut or[x0..x0 + 8]);
+            x0 += 8;
+        }
+        x0
+    }
+
+    /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image); inlined into
+    /// [`heuristic_row`], whose loop keeps the set-up out of the per-group work.
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) unsafe fn heuristic8(
+    unsafe fn heuristic8(
         f: &Field<'_>,
         color: &[[f32; 3]],
         params: &HeuristicParams,
@@ -404,13 +469,8 @@ pub(crate) mod avx2 {
             let bot = mix(c[2], c[3], l.ax);
             *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
         }
-        let (mut r, mut g, mut b) = ([0f32; 8], [0f32; 8], [0f32; 8]);
-        _mm256_storeu_ps(r.as_mut_ptr(), rgb[0]);
-        _mm256_storeu_ps(g.as_mut_ptr(), rgb[1]);
-        _mm256_storeu_ps(b.as_mut_ptr(), rgb[2]);
-        for k in 0..8 {
-            oc[k] = [r[k], g[k], b[k]];
-        }
+        debug_assert!(oc.len() == 8);
+        store_rgb8(oc.as_mut_ptr() as *mut f32, rgb);
         _mm256_storeu_ps(od.as_mut_ptr(), outz);
         _mm256_storeu_ps(or.as_mut_ptr(), outr);
     }
@@ -610,13 +670,7 @@ pub(crate) mod avx2 {
             let bot = mix(c[2], c[3], l.ax);
             *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
         }
-        let (mut r, mut g, mut b) = ([0f32; 8], [0f32; 8], [0f32; 8]);
-        _mm256_storeu_ps(r.as_mut_ptr(), rgb[0]);
-        _mm256_storeu_ps(g.as_mut_ptr(), rgb[1]);
-        _mm256_storeu_ps(b.as_mut_ptr(), rgb[2]);
-        for k in 0..8 {
-            hits.color[k] = [r[k], g[k], b[k]];
-        }
+        store_rgb8(hits.color.as_mut_ptr() as *mut f32, rgb);
         _mm256_storeu_ps(hits.depth.as_mut_ptr(), cz);
         _mm256_storeu_ps(hits.residual.as_mut_ptr(), res);
         hits
