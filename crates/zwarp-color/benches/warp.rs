@@ -45,9 +45,7 @@ fn main() {
         let rp = RobustParams { fallback: hp, ..RobustParams::default() };
         g.bench_function(format!("{name}/robust"), |b| b.iter(|| robust_warp(field, color, &rp).expect("robust")));
         let mut floor = Image::new(0, 0, [0.0f32; 3]);
-        g.bench_function(format!("{name}/floor"), |b| {
-            b.iter(|| floor_pass(field, color, &mut floor).expect("floor"))
-        });
+        g.bench_function(format!("{name}/floor"), |b| b.iter(|| floor_pass(field, color, &mut floor).expect("floor")));
     }
     g.finish();
     c.final_summary();
