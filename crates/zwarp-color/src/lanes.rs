@@ -181,46 +181,66 @@ pub(crate) mod avx2 {
         _mm256_permutevar8x32_ps(v, _mm256_setr_epi32(i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]))
     }
 
-    /// Eight RGB texels at `p` (24 floats) as three channel vectors: the AoS -> SoA transpose by
-    /// permutes and immediate blends.
+    /// Lanes picked from three vectors by constant indices and merged by the immediate masks
+    /// (`MB`: lanes from `b`, `MC`: lanes from `c`, the rest from `a`): one lane shuffle of the
+    /// RGB transposes.
+    #[inline(always)]
+    unsafe fn merge3<const MB: i32, const MC: i32>(
+        (a, ia): (__m256, [i32; 8]),
+        (b, ib): (__m256, [i32; 8]),
+        (c, ic): (__m256, [i32; 8]),
+    ) -> __m256 {
+        _mm256_blend_ps::<MC>(_mm256_blend_ps::<MB>(pick(a, ia), pick(b, ib)), pick(c, ic))
+    }
+
+    /// Eight RGB texels at `p` (24 floats) as three channel vectors: the AoS -> SoA transpose.
     #[inline(always)]
     unsafe fn rgb8(p: *const f32) -> [__m256; 3] {
         // a = r0 g0 b0 r1 g1 b1 r2 g2 | b = b2 r3 g3 b3 r4 g4 b4 r5 | c = g5 b5 r6 g6 b6 r7 g7 b7
         let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
-        let r = _mm256_blend_ps::<0b1100_0000>(
-            _mm256_blend_ps::<0b0011_1000>(pick(a, [0, 3, 6, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 1, 4, 7, 0, 0])),
-            pick(c, [0, 0, 0, 0, 0, 0, 2, 5]),
-        );
-        let g = _mm256_blend_ps::<0b1110_0000>(
-            _mm256_blend_ps::<0b0001_1000>(pick(a, [1, 4, 7, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 2, 5, 0, 0, 0])),
-            pick(c, [0, 0, 0, 0, 0, 0, 3, 6]),
-        );
-        let bl = _mm256_blend_ps::<0b1110_0000>(
-            _mm256_blend_ps::<0b0001_1100>(pick(a, [2, 5, 0, 0, 0, 0, 0, 0]), pick(b, [0, 0, 0, 3, 6, 0, 0, 0])),
-            pick(c, [0, 0, 0, 0, 0, 1, 4, 7]),
-        );
-        [r, g, bl]
+        [
+            merge3::<0b0011_1000, 0b1100_0000>(
+                (a, [0, 3, 6, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 1, 4, 7, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 0, 2, 5]),
+            ),
+            merge3::<0b0001_1000, 0b1110_0000>(
+                (a, [1, 4, 7, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 2, 5, 0, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 0, 3, 6]),
+            ),
+            merge3::<0b0001_1100, 0b1110_0000>(
+                (a, [2, 5, 0, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 3, 6, 0, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 1, 4, 7]),
+            ),
+        ]
     }
 
     /// Eight pixels' channel vectors stored as eight RGB triples at `p` (the SoA -> AoS
     /// transpose).
     #[inline(always)]
     unsafe fn store_rgb8(p: *mut f32, [r, g, b]: [__m256; 3]) {
-        let o0 = _mm256_blend_ps::<0b0010_0100>(
-            _mm256_blend_ps::<0b1001_0010>(pick(r, [0, 0, 0, 1, 0, 0, 2, 0]), pick(g, [0, 0, 0, 0, 1, 0, 0, 2])),
-            pick(b, [0, 0, 0, 0, 0, 1, 0, 0]),
-        );
-        let o1 = _mm256_blend_ps::<0b0100_1001>(
-            _mm256_blend_ps::<0b0010_0100>(pick(r, [0, 3, 0, 0, 4, 0, 0, 5]), pick(g, [0, 0, 3, 0, 0, 4, 0, 0])),
-            pick(b, [2, 0, 0, 3, 0, 0, 4, 0]),
-        );
-        let o2 = _mm256_blend_ps::<0b1001_0010>(
-            _mm256_blend_ps::<0b0100_1001>(pick(r, [0, 0, 6, 0, 0, 7, 0, 0]), pick(g, [5, 0, 0, 6, 0, 0, 7, 0])),
-            pick(b, [0, 5, 0, 0, 6, 0, 0, 7]),
-        );
-        _mm256_storeu_ps(p, o0);
-        _mm256_storeu_ps(p.add(8), o1);
-        _mm256_storeu_ps(p.add(16), o2);
+        let o = [
+            merge3::<0b1001_0010, 0b0010_0100>(
+                (r, [0, 0, 0, 1, 0, 0, 2, 0]),
+                (g, [0, 0, 0, 0, 1, 0, 0, 2]),
+                (b, [0, 0, 0, 0, 0, 1, 0, 0]),
+            ),
+            merge3::<0b0010_0100, 0b0100_1001>(
+                (r, [0, 3, 0, 0, 4, 0, 0, 5]),
+                (g, [0, 0, 3, 0, 0, 4, 0, 0]),
+                (b, [2, 0, 0, 3, 0, 0, 4, 0]),
+            ),
+            merge3::<0b0100_1001, 0b1001_0010>(
+                (r, [0, 0, 6, 0, 0, 7, 0, 0]),
+                (g, [5, 0, 0, 6, 0, 0, 7, 0]),
+                (b, [0, 5, 0, 0, 6, 0, 0, 7]),
+            ),
+        ];
+        for (k, v) in o.into_iter().enumerate() {
+            _mm256_storeu_ps(p.add(8 * k), v);
+        }
     }
 
     /// The colour texels of each lane's cell (per channel the four texels) for the `live`
