@@ -277,7 +277,9 @@ pub(crate) fn gradient_row(rows: [PlaneRow<'_>; 3], two: bool, scratch: &mut Vec
     let (r0, r1) = scratch.split_at(wu + 1);
     for (tx, o) in out.iter_mut().enumerate() {
         let i = 2 * tx;
-        *o = [0, 1].map(|c| fmax(fmax(r0[i][c], r0[i + 1][c]), fmax(r1[i][c], r1[i + 1][c])));
+        // Spelled out: `[0, 1].map(..)` compiled to a call per element.
+        let m = |c: usize| fmax(fmax(r0[i][c], r0[i + 1][c]), fmax(r1[i][c], r1[i + 1][c]));
+        *o = [m(0), m(1)];
     }
 }
 
@@ -473,7 +475,24 @@ impl MotionPyramid {
                 .for_each(|(ty, (row, zrow))| {
                     let y0 = ty * 2;
                     let y1 = (y0 + 2).min(prev.h as usize);
-                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate() {
+                    let pw = prev.w as usize;
+                    // Full 2x2 blocks first, unrolled in the general loop's order (EMPTY, then
+                    // the upper row's two texels, then the lower row's).
+                    let full = if y1 == y0 + 2 { pw / 2 } else { 0 };
+                    let (up, lo) = (&pdata[y0 * pw..(y0 + 1) * pw], &pdata[(y0 + 1).min(y1 - 1) * pw..]);
+                    let (zup, zlo) = (&pz[y0 * pw..(y0 + 1) * pw], &pz[(y0 + 1).min(y1 - 1) * pw..]);
+                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate().take(full) {
+                        let (a, b, c, d) = (&up[2 * tx], &up[2 * tx + 1], &lo[2 * tx], &lo[2 * tx + 1]);
+                        let b = Bound::EMPTY
+                            .union(&Bound::from_texel(a))
+                            .union(&Bound::from_texel(b))
+                            .union(&Bound::from_texel(c))
+                            .union(&Bound::from_texel(d));
+                        *out = b.to_texel();
+                        *zout =
+                            f32::INFINITY.min(zup[2 * tx]).min(zup[2 * tx + 1]).min(zlo[2 * tx]).min(zlo[2 * tx + 1]);
+                    }
+                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate().skip(full) {
                         let x0 = tx * 2;
                         let x1 = (x0 + 2).min(prev.w as usize);
                         let mut b = Bound::EMPTY;
