@@ -89,7 +89,18 @@ pub(crate) fn hole_list(state: &Image<PixelState>) -> Vec<u32> {
         .enumerate()
         .flat_map_iter(|(c, chunk)| {
             let base = (c * w * 16) as u32;
-            chunk.iter().enumerate().filter(|(_, s)| **s == PixelState::Hole).map(move |(i, _)| base + i as u32)
+            // Holes are sparse: blocks of 64 states are tested with a branch-free (vectorised)
+            // fold first and only blocks holding a hole are listed pixel by pixel.
+            let mut list = Vec::new();
+            for (b, block) in chunk.chunks(64).enumerate() {
+                if block.iter().fold(false, |a, s| a | (*s == PixelState::Hole)) {
+                    let b0 = base + (b * 64) as u32;
+                    list.extend(
+                        block.iter().enumerate().filter(|(_, s)| **s == PixelState::Hole).map(|(i, _)| b0 + i as u32),
+                    );
+                }
+            }
+            list
         })
         .collect()
 }
