@@ -5,8 +5,8 @@
 //! mean depth, so foreground dissolves and background spreads into holes (Fig. 9). A hole pixel
 //! finds its distance to the background border by an epipolar search with exponentially
 //! growing steps and reads the level whose filter radius covers that distance. A hole pixel
-//! next to the foreground's warped silhouette also takes the foreground's expected share of it
-//! ([`ForegroundEdge`]): the source's samples place a silhouette only to within a texel.
+//! next to the foreground's warped silhouette also takes the foreground's expected share of it:
+//! the source's samples place a silhouette only to within a texel.
 //!
 //! Baselines: rubber sheets (the warp with quads connecting every pixel, shown in the holes),
 //! stretch in-painting (the background border pixel repeated along the epipolar line) and a
