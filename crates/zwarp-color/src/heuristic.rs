@@ -198,13 +198,16 @@ pub fn heuristic_warp_into(
         .enumerate()
         .for_each(|(y, ((c, d), r))| {
             let py = y as f32 + 0.5;
-            #[allow(unused_mut)]
-            let mut x0 = 0;
+            // The AVX2 lanes take the row while eight pixels remain, the portable path the rest.
             #[cfg(target_arch = "x86_64")]
-            if crate::lanes::simd_enabled() {
+            let x0 = if crate::lanes::simd_enabled() {
                 // SAFETY: AVX2 is present (checked); the rows are the field's rows.
-                x0 = unsafe { crate::lanes::avx2::heuristic_row(field, src, params, y, c, d, r) };
-            }
+                unsafe { crate::lanes::avx2::heuristic_row(field, src, params, y, c, d, r) }
+            } else {
+                0
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let x0 = 0;
             for x in x0..wu {
                 let px = heuristic_pixel(&s, src, Vec2::new(x as f32 + 0.5, py), params, &sp);
                 c[x] = px.color;

@@ -351,47 +351,42 @@ pub fn fill_holes(warped: &WarpOutput, src: &Source<'_>, dst: &Camera, method: H
                 let d = epipolar_dir(e, p);
                 let a = border_exp(hole, depth, p, d);
                 let b = border_exp(hole, depth, p, -d);
-                // Between two borders at different depths: the nearer one is the foreground
-                // (pixel, depth, direction), the farther one the background (pixel, distance).
+                // Between two borders: the farther one is the background side, the other the
+                // foreground where its depth is nearer (distance and depth along +-d, direction).
                 let sides = match (a, b) {
-                    (Some(a), Some(b)) if a.1 < b.1 => {
-                        Some((at_pixel(p + a.0 * d), a.1, d, at_pixel(p - b.0 * d), a.0 + b.0))
-                    }
-                    (Some(a), Some(b)) if b.1 < a.1 => {
-                        Some((at_pixel(p - b.0 * d), b.1, -d, at_pixel(p + a.0 * d), a.0 + b.0))
-                    }
+                    (Some(a), Some(b)) => Some(if a.1 >= b.1 { ((a, d), (b, -d)) } else { ((b, -d), (a, d)) }),
                     _ => None,
                 };
-                let mix = |bg: [f32; 3]| match sides {
-                    Some((f, fd, to_fg, _, _)) => {
-                        let s = edge.share(p, f, fd, to_fg);
+                let fg = sides.filter(|(g, f)| f.0 .1 < g.0 .1).map(|(_, f)| f);
+                let mix = |bg: [f32; 3]| match fg {
+                    Some(((dist, z), to_fg)) => {
+                        let f = at_pixel(p + dist * to_fg);
+                        let s = edge.share(p, f, z, to_fg);
                         let c = *color.get(f.0, f.1);
                         [bg[0] + s * (c[0] - bg[0]), bg[1] + s * (c[1] - bg[1]), bg[2] + s * (c[2] - bg[2])]
                     }
                     None => bg,
                 };
-                // A hole one pixel across: its background neighbour itself (nothing to low-pass).
-                if let Some((_, _, _, g, across)) = sides {
-                    if across <= 2.0 {
-                        *o = mix(*color.get(g.0, g.1));
-                        return;
-                    }
-                }
                 // Read half way to the background border, at the level whose filter radius
                 // (2^(l-1) pixels) reaches it: the colour of the border, blurred more the farther
-                // the pixel is from it (Mark's blurred stripes, seed 003 Sec. 5.2). A hole that
-                // reaches the image border has no background side: it continues the surface at
-                // its inner border, read there at level 0 (the border texel; nothing on the far
-                // side to blend with, and a blur measured further from the unseen strip's truth,
-                // Sponza 1280x720 cyclops right eye 22.32 -> 22.45 dB in the holes).
-                let (mut lvl, at) = match (a, b) {
-                    (Some(a), Some(b)) => {
-                        let v = if a.1 >= b.1 { a.0 * d } else { -b.0 * d };
+                // the pixel is from it (Mark's blurred stripes, seed 003 Sec. 5.2). A hole one
+                // pixel across between a foreground and a background reads its background
+                // neighbour itself (nothing to low-pass). A hole that reaches the image border has
+                // no background side: it continues the surface at its inner border, read there at
+                // level 0 (nothing on the far side to blend with; a blur measured worse there).
+                let (mut lvl, at) = match (sides, a, b) {
+                    (Some((((gd, _), to_bg), ((fd, _), _))), _, _) => {
+                        if fg.is_some() && gd + fd <= 2.0 {
+                            let g = at_pixel(p + gd * to_bg);
+                            *o = mix(*color.get(g.0, g.1));
+                            return;
+                        }
+                        let v = gd * to_bg;
                         ((0.5 * v.length()).log2().ceil().max(0.0) as usize + 1, p + 0.5 * v)
                     }
-                    (Some(a), None) => (0, p + a.0 * d),
-                    (None, Some(b)) => (0, p - b.0 * d),
-                    (None, None) => (top, p),
+                    (None, Some(a), _) => (0, p + a.0 * d),
+                    (None, _, Some(b)) => (0, p - b.0 * d),
+                    (None, None, None) => (top, p),
                 };
                 lvl = lvl.min(top);
                 loop {
