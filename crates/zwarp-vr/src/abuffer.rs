@@ -10,8 +10,10 @@
 //! stacklessly (Tevs et al.: descend where the ray's depth range meets a node's, advance past
 //! nodes it misses, ascend one level whenever the next node has no sibling in the ray
 //! direction). Leaf fragments are boxes extruded in depth, so neighbouring fragments form a
-//! closed surface; one surface is not hit twice where the boxes of neighbouring pixels overlap. Hits are composited front
-//! to back until an opacity threshold or the opaque depth.
+//! closed surface; one surface is not hit twice where the boxes of neighbouring pixels overlap.
+//! Hits are composited front to back until an opacity threshold or the opaque depth. On the
+//! edges of transparent surfaces four rays through the source texel centres around the pixel's
+//! ray are blended bilinearly ([`RayCastParams::edge_rays`]).
 
 use rayon::prelude::*;
 use zwarp_core::{Camera, Error, Image, Result, NO_ITEM};
@@ -251,9 +253,17 @@ pub struct RayCastParams {
     /// Traversal steps per ray at most (a guard; a ray across a `w x h` image needs far fewer).
     pub max_steps: u32,
     /// Pixels on the edge of a transparent surface (their opacity differs from one of their 8
-    /// neighbours' by more than [`EDGE_OPACITY`]) take the mean of 3x3 rays across the pixel
-    /// instead of the one through its centre: the fragments are pixel boxes, so one ray puts a
-    /// glass edge on whole pixels where the warp moved it by a fraction of one.
+    /// neighbours' by more than [`EDGE_OPACITY`]) take the bilinear blend of four rays instead of
+    /// the one through their centre: the rays through the centres of the four source texels
+    /// around the point where the centre ray meets that surface, weighted by the bilinear
+    /// weights of that point. The source holds the surface as point samples (one fragment per
+    /// texel it covers), so its edge lies somewhere between a covered and an uncovered texel
+    /// centre; the blend is the expected colour of the point-sampled target pixel under that
+    /// uncertainty (the bilinear filter the opaque warp applies to colour), where one ray puts
+    /// the edge on whole pixels. Each of the four rays ends at the warped opaque depth where it
+    /// lands. The surface is the nearest one the centre ray hits or, where that one also covers
+    /// all eight neighbours, the farthest it hits (the edge is a surface seen through it); a
+    /// centre ray that hits none takes the nearest surface its neighbours' rays hit.
     pub edge_rays: bool,
 }
 
@@ -301,17 +311,17 @@ pub fn ray_cast(
     let inv = WarpMatrix::new(dst, src)?;
     let (tw, th) = base.size();
     let caster = Caster { ab, tree, sw: src.width as f32, sh: src.height as f32, p };
-    // The premultiplied colour and steps of the ray through target position (px, py), ending at
-    // the warped opaque depth of pixel (x, y).
-    let cast = |x: u32, y: u32, px: f32, py: f32| -> ([f32; 4], u32) {
+    // The ray through target position (px, py), ending at the warped opaque depth of pixel
+    // (x, y).
+    let cast = |x: u32, y: u32, px: f32, py: f32| -> Ray {
         let end = depth.get(x, y).clamp(0.0, 1.0);
         match (inv.project(px, py, 0.0), inv.project(px, py, end)) {
             (Some(a), Some(e)) => caster.cast_one([a.0, a.1, a.2], [e.0, e.1, e.2]),
-            _ => ([0.0; 4], 0),
+            _ => Ray::MISS,
         }
     };
-    let mut rays: Vec<([f32; 4], u32)> = if ab.is_empty() {
-        vec![([0.0; 4], 0); (tw * th) as usize]
+    let mut rays: Vec<Ray> = if ab.is_empty() {
+        vec![Ray::MISS; (tw * th) as usize]
     } else {
         (0..tw * th)
             .into_par_iter()
@@ -319,58 +329,108 @@ pub fn ray_cast(
             .collect()
     };
     if p.edge_rays && !ab.is_empty() {
-        let alpha = |x: u32, y: u32| rays[(y * tw + x) as usize].0[3];
-        let edge = |i: u32| {
-            let (x, y) = (i % tw, i / tw);
-            let a = alpha(x, y);
-            (0..9u32).filter(|&k| k != 4).any(|k| {
+        let fwd = WarpMatrix::new(src, dst)?;
+        let neighbours = |x: u32, y: u32| {
+            (0..9u32).filter(|&k| k != 4).filter_map(move |k| {
                 let (u, v) = ((x + k % 3).wrapping_sub(1), (y + k / 3).wrapping_sub(1));
-                u < tw && v < th && (alpha(u, v) - a).abs() > EDGE_OPACITY
+                (u < tw && v < th).then(|| (v * tw + u) as usize)
             })
         };
-        let edges: Vec<(u32, ([f32; 4], u32))> = (0..tw * th)
-            .into_par_iter()
-            .filter(|&i| edge(i))
-            .map(|i| {
-                let (x, y) = (i % tw, i / tw);
-                let (mut acc, mut steps) = ([0.0f32; 4], 0);
-                // A 3x3 grid of rays at the centres of the pixel's ninths; the middle one is the
-                // centre ray already cast.
-                for k in 0..9 {
-                    let (ox, oy) = ((1 + 2 * (k % 3)) as f32 / 6.0, (1 + 2 * (k / 3)) as f32 / 6.0);
-                    let (c, n) = if k == 4 { rays[i as usize] } else { cast(x, y, x as f32 + ox, y as f32 + oy) };
-                    for (a, c) in acc.iter_mut().zip(c) {
-                        *a += c / 9.0;
-                    }
-                    steps += n;
+        let edge = |x: u32, y: u32| {
+            let a = rays[(y * tw + x) as usize].rgba[3];
+            neighbours(x, y).any(|j| (rays[j].rgba[3] - a).abs() > EDGE_OPACITY)
+        };
+        // The source depth of the surface whose edge pixel (x, y) lies on.
+        let surface = |x: u32, y: u32| -> Option<f32> {
+            let own = &rays[(y * tw + x) as usize];
+            if own.first.is_finite() {
+                let covered = neighbours(x, y).all(|j| {
+                    let n = &rays[j];
+                    n.first.is_finite() && (n.first - own.first).abs() <= n.first_half + own.first_half
+                });
+                Some(if covered { own.last } else { own.first })
+            } else {
+                let d = neighbours(x, y).map(|j| rays[j].first).fold(f32::INFINITY, f32::min);
+                d.is_finite().then_some(d)
+            }
+        };
+        // The four rays through the texel centres around where the centre ray of (x, y) meets
+        // the surface at source depth `z`, blended with that point's bilinear weights.
+        let blend = |x: u32, y: u32, z: f32| -> Option<Ray> {
+            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+            let end = depth.get(x, y).clamp(0.0, 1.0);
+            let (a, e) = (inv.project(px, py, 0.0)?, inv.project(px, py, end)?);
+            let dz = e.2 - a.2;
+            let t = if dz.abs() > 1e-12 { ((z - a.2) / dz).clamp(0.0, 1.0) } else { 0.0 };
+            let (gx, gy) = (a.0 + (e.0 - a.0) * t - 0.5, a.1 + (e.1 - a.1) * t - 0.5);
+            let (fx, fy) = (gx.floor(), gy.floor());
+            let (ax, ay) = (gx - fx, gy - fy);
+            // The pixel a target position lies in (clamped into the image).
+            let pixel = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
+            let mut out = Ray { rgba: [0.0; 4], ..rays[(y * tw + x) as usize] };
+            for k in 0..4u32 {
+                let (ox, oy) = ((k % 2) as f32, (k / 2) as f32);
+                let wgt = (ox * ax + (1.0 - ox) * (1.0 - ax)) * (oy * ay + (1.0 - oy) * (1.0 - ay));
+                let q = fwd.project(fx + 0.5 + ox, fy + 0.5 + oy, z)?;
+                let r = cast(pixel(q.0, tw), pixel(q.1, th), q.0, q.1);
+                for (o, c) in out.rgba.iter_mut().zip(r.rgba) {
+                    *o += wgt * c;
                 }
-                (i, (acc, steps))
+                out.steps += r.steps;
+            }
+            Some(out)
+        };
+        let edges: Vec<(usize, Ray)> = (0..tw * th)
+            .into_par_iter()
+            .filter_map(|i| {
+                let (x, y) = (i % tw, i / tw);
+                if !edge(x, y) {
+                    return None;
+                }
+                Some((i as usize, blend(x, y, surface(x, y)?)?))
             })
             .collect();
         for (i, r) in edges {
-            rays[i as usize] = r;
+            rays[i] = r;
         }
     }
     let color = rays
         .par_iter()
         .zip(base.data())
-        .map(|((acc, _), b)| {
+        .map(|(Ray { rgba: acc, .. }, b)| {
             [acc[0] + (1.0 - acc[3]) * b[0], acc[1] + (1.0 - acc[3]) * b[1], acc[2] + (1.0 - acc[3]) * b[2]]
         })
         .collect();
     Ok(RayCast {
         color: Image::from_vec(tw, th, color)?,
-        steps: Image::from_vec(tw, th, rays.iter().map(|r| r.1).collect())?,
+        steps: Image::from_vec(tw, th, rays.iter().map(|r| r.steps).collect())?,
     })
 }
 
+/// One cast ray: premultiplied colour, quadtree nodes visited, and the source depths of the
+/// first and last fragments it composited (`+inf` if none) with the first one's half extrusion.
+#[derive(Clone, Copy, Debug)]
+struct Ray {
+    rgba: [f32; 4],
+    steps: u32,
+    first: f32,
+    first_half: f32,
+    last: f32,
+}
+
+impl Ray {
+    /// A ray that hit nothing.
+    const MISS: Ray = Ray { rgba: [0.0; 4], steps: 0, first: f32::INFINITY, first_half: 0.0, last: f32::INFINITY };
+}
+
 /// What a ray carries from one piece to the next: premultiplied colour, the last fragment hit
-/// (with its pixel) and the quadtree nodes visited.
+/// (with its pixel), the quadtree nodes visited and the first fragment hit.
 struct RayState {
     acc: [f32; 4],
     /// The last fragment composited, its pixel and its index in that pixel's list.
     last: Option<(Fragment, (u32, u32), usize)>,
     steps: u32,
+    first: Option<Fragment>,
 }
 
 /// What every ray of one [`ray_cast`] reads: the A-buffer, its quadtree, the source size and
@@ -385,14 +445,14 @@ struct Caster<'a> {
 }
 
 impl Caster<'_> {
-    /// One ray from `a` to `b` (source pixel x, y, depth): premultiplied colour and steps.
+    /// One ray from `a` to `b` (source pixel x, y, depth).
     ///
     /// Where the ray runs outside the source image (the border strip the source did not see) it
     /// continues the transparent surfaces at the image border, as the hole filling does for opaque
     /// ones: those pieces of the ray are clamped onto the border (x and y clamped, depth kept) and
     /// traversed in ray order with the inside piece, so a pane that reaches the border still covers
     /// the strip at its own depth.
-    fn cast_one(&self, a: [f32; 3], b: [f32; 3]) -> ([f32; 4], u32) {
+    fn cast_one(&self, a: [f32; 3], b: [f32; 3]) -> Ray {
         let Caster { sw, sh, p, .. } = *self;
         let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         // Where the ray crosses the image's border lines: the ends of the pieces.
@@ -413,13 +473,17 @@ impl Caster<'_> {
         cuts[..=n].sort_by(f32::total_cmp);
         let at = |t: f32| [a[0] + d[0] * t, a[1] + d[1] * t, a[2] + d[2] * t];
         let clamp = |q: [f32; 3]| [q[0].clamp(0.0, sw - 1e-3), q[1].clamp(0.0, sh - 1e-3), q[2]];
-        let mut ray = RayState { acc: [0.0; 4], last: None, steps: 0 };
+        let mut ray = RayState { acc: [0.0; 4], last: None, steps: 0, first: None };
         for w in cuts[..=n].windows(2) {
             if w[1] > w[0] && ray.acc[3] < p.opacity {
                 self.cast_piece(clamp(at(w[0])), clamp(at(w[1])), &mut ray);
             }
         }
-        (ray.acc, ray.steps)
+        let last = ray.last.map_or(f32::INFINITY, |(f, _, _)| f.depth);
+        match ray.first {
+            Some(f) => Ray { rgba: ray.acc, steps: ray.steps, first: f.depth, first_half: f.half, last },
+            None => Ray { rgba: ray.acc, steps: ray.steps, ..Ray::MISS },
+        }
     }
 
     /// The traversal of one straight piece of a ray from `a` to `b` (source pixel x, y, depth, inside
@@ -477,7 +541,7 @@ impl Caster<'_> {
             }
             te.max(t)
         };
-        let RayState { acc, last, steps } = ray;
+        let RayState { acc, last, steps, first } = ray;
         let mut level = LEVELS;
         let mut t = t0;
         while t < t1 && acc[3] < p.opacity && *steps < p.max_steps {
@@ -514,6 +578,7 @@ impl Caster<'_> {
                         }
                     }
                     over(acc, &f.rgba);
+                    first.get_or_insert(*f);
                     *last = Some((*f, (cx, cy), i));
                 };
                 if forward {

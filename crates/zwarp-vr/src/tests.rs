@@ -693,7 +693,7 @@ fn the_interior_fast_path_matches_the_general_tests() {
 #[test]
 fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
     // A glass slab (|x| <= 1 at y = 6) over a wall, the eye moved by a fraction of a pixel's
-    // parallax: 3x3 rays on the pixels where the opacity changes give colours between the hard
+    // parallax: the edge rays on the pixels where the opacity changes give colours between the hard
     // ones around them; every other pixel is the one-ray result, bit for bit.
     let (w, h) = (96, 48);
     let pane = Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red };
@@ -727,6 +727,46 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
     }
     // Both vertical edges of the pane, a pixel or two each per row.
     assert!(blended >= h as usize && blended <= 4 * h as usize, "{blended} edge pixels blended");
+}
+
+#[test]
+fn edge_rays_are_the_bilinear_filter_of_the_panes_point_samples() {
+    // The slab |x| <= 1 at y = 6 seen by the source (one fragment per pixel whose centre it
+    // covers) and ray cast to an eye 0.37 to the right: every pixel's colour is the pane's
+    // coverage c over the opaque base, c g + (1 - c a) base, where c is the bilinear
+    // interpolation of the source's covered / uncovered texel centres at the point where the
+    // pixel's ray meets the pane — 0 or 1 inside and outside, a fraction on the edge pixels.
+    let (w, h, u) = (96u32, 48u32, 0.37);
+    let pane = Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red };
+    let (rc, base) = ray_cast_glass(w, h, 0.1, u, pane, &RayCastParams::default());
+    let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), 0.1, 100.0, w, h).unwrap();
+    let dst = shifted(&cam, u);
+    // Where a camera's ray through pixel position (px, py) meets the pane's plane y = 6.
+    let on_pane = |c: &Camera, px: f32, py: f32| {
+        let (a, b) = (c.unproject(px, py, 0.0), c.unproject(px, py, 1.0));
+        a + (b - a) * ((6.0 - a.y) / (b.y - a.y))
+    };
+    let covered = |sx: f32, sy: f32| (on_pane(&cam, sx, sy).x.abs() <= 1.0) as u8 as f32;
+    let g = glass(1);
+    let mut partial = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let s = cam.project(on_pane(&dst, x as f32 + 0.5, y as f32 + 0.5)).unwrap();
+            let (gx, gy) = (s.x - 0.5, s.y - 0.5);
+            let (fx, fy) = (gx.floor(), gy.floor());
+            let (ax, ay) = (gx - fx, gy - fy);
+            let c = (1.0 - ay) * ((1.0 - ax) * covered(fx + 0.5, fy + 0.5) + ax * covered(fx + 1.5, fy + 0.5))
+                + ay * ((1.0 - ax) * covered(fx + 0.5, fy + 1.5) + ax * covered(fx + 1.5, fy + 1.5));
+            let (got, b) = (rc.color.get(x, y), base.get(x, y));
+            for k in 0..3 {
+                let want = c * g[k] + (1.0 - c * g[3]) * b[k];
+                assert!((got[k] - want).abs() < 2e-3, "({x}, {y}) channel {k}: {} vs {want} (coverage {c})", got[k]);
+            }
+            partial += (c > 0.01 && c < 0.99) as usize;
+        }
+    }
+    // Both edges of the slab fall between texel centres in every row.
+    assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
 }
 
 /// A glass pane (normal `pane_n`, `dot(pane_n, x) = 6`, covering the whole view) in front of a
