@@ -262,8 +262,9 @@ pub struct RayCastParams {
     /// uncertainty (the bilinear filter the opaque warp applies to colour), where one ray puts
     /// the edge on whole pixels. Each of the four rays ends at the warped opaque depth where it
     /// lands. The surface is the nearest one the centre ray hits or, where that one also covers
-    /// all eight neighbours, the farthest it hits (the edge is a surface seen through it); a
-    /// centre ray that hits none takes the nearest surface its neighbours' rays hit.
+    /// all eight neighbours, the farthest one the nine rays hit (the edge is a surface seen
+    /// through it); a centre ray that hits none takes the nearest surface its neighbours' rays
+    /// hit.
     pub edge_rays: bool,
 }
 
@@ -348,7 +349,9 @@ pub fn ray_cast(
                     let n = &rays[j];
                     n.first.is_finite() && (n.first - own.first).abs() <= n.first_half + own.first_half
                 });
-                Some(if covered { own.last } else { own.first })
+                // Seen through it: the farthest surface the nine rays hit.
+                let deepest = neighbours(x, y).map(|j| rays[j].last).filter(|d| d.is_finite()).fold(own.last, f32::max);
+                Some(if covered { deepest } else { own.first })
             } else {
                 let d = neighbours(x, y).map(|j| rays[j].first).fold(f32::INFINITY, f32::min);
                 d.is_finite().then_some(d)

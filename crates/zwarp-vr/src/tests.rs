@@ -769,6 +769,56 @@ fn edge_rays_are_the_bilinear_filter_of_the_panes_point_samples() {
     assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
 }
 
+#[test]
+fn an_edge_seen_through_a_pane_is_filtered_at_its_own_depth() {
+    // A green pane covering the whole view at y = 4 in front of the red slab |x| <= 1 at y = 6:
+    // the slab's edges are seen through the pane, whose own texels cover every neighbour, so the
+    // edge rays align with the slab's texels (1.3 px more disparity than the pane's here). Every
+    // pixel is the pane over the slab's tent-interpolated coverage c over the base.
+    let (w, h, u) = (96u32, 48u32, 0.37);
+    let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), 0.1, 100.0, w, h).unwrap();
+    let dst = shifted(&cam, u);
+    let wall = [Plane { n: Vec3::Y, k: 40.0, half_x: None, color: smooth }];
+    let front = [Plane { n: Vec3::Y, k: 4.0, half_x: None, color: red }];
+    let slab = [Plane { n: Vec3::Y, k: 6.0, half_x: Some(1.0), color: red }];
+    let (sd, sc) = trace(&cam, &wall);
+    let layer = |planes: &[Plane], item: u32| {
+        let (d, _) = trace(&cam, planes);
+        let items = d.map(|&z| if z < 1.0 { item } else { zwarp_core::NO_ITEM });
+        (d, items)
+    };
+    let ab = ABuffer::from_layers(&[layer(&front, 2), layer(&slab, 1)], &sd, glass).unwrap();
+    let src = Source { cam: &cam, depth: &sd, color: &sc };
+    let warped = warp(&src, &dst, Method::Grid(Reduction::Irregular), &WarpParams::default()).unwrap();
+    let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
+    let tree = MinMaxTree::build(&ab);
+    let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
+    let on_slab = |c: &Camera, px: f32, py: f32| {
+        let (a, b) = (c.unproject(px, py, 0.0), c.unproject(px, py, 1.0));
+        a + (b - a) * ((6.0 - a.y) / (b.y - a.y))
+    };
+    let covered = |sx: f32, sy: f32| (on_slab(&cam, sx, sy).x.abs() <= 1.0) as u8 as f32;
+    let (g1, g2) = (glass(1), glass(2));
+    let mut partial = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let s = cam.project(on_slab(&dst, x as f32 + 0.5, y as f32 + 0.5)).unwrap();
+            let (gx, gy) = (s.x - 0.5, s.y - 0.5);
+            let (fx, fy) = (gx.floor(), gy.floor());
+            let (ax, ay) = (gx - fx, gy - fy);
+            let c = (1.0 - ay) * ((1.0 - ax) * covered(fx + 0.5, fy + 0.5) + ax * covered(fx + 1.5, fy + 0.5))
+                + ay * ((1.0 - ax) * covered(fx + 0.5, fy + 1.5) + ax * covered(fx + 1.5, fy + 1.5));
+            let (got, b) = (rc.color.get(x, y), base.get(x, y));
+            for k in 0..3 {
+                let want = g2[k] + (1.0 - g2[3]) * (c * g1[k] + (1.0 - c * g1[3]) * b[k]);
+                assert!((got[k] - want).abs() < 2e-3, "({x}, {y}) channel {k}: {} vs {want} (coverage {c})", got[k]);
+            }
+            partial += (c > 0.01 && c < 0.99) as usize;
+        }
+    }
+    assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
+}
+
 /// A glass pane (normal `pane_n`, `dot(pane_n, x) = 6`, covering the whole view) in front of a
 /// wall, seen by a `w x h` camera with near plane `near`, ray cast to the eye `u` to its right
 /// over the warped, hole-filled wall: the ray cast and that opaque base.
