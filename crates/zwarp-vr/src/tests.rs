@@ -729,6 +729,50 @@ fn edge_rays_blend_a_pane_edge_and_leave_the_rest_alone() {
     assert!(blended >= h as usize && blended <= 4 * h as usize, "{blended} edge pixels blended");
 }
 
+/// The source's coverage of the slab `|x| <= 1` on the plane `y = k` (one sample per texel
+/// centre) interpolated bilinearly at the point where target pixel `(x, y)`'s ray meets that
+/// plane: what the edge rays of [`ray_cast`] must give for that surface.
+fn slab_coverage(cam: &Camera, dst: &Camera, k: f32, x: u32, y: u32) -> f32 {
+    // Where a camera's ray through pixel position (px, py) meets the plane.
+    let on_plane = |c: &Camera, px: f32, py: f32| {
+        let (a, b) = (c.unproject(px, py, 0.0), c.unproject(px, py, 1.0));
+        a + (b - a) * ((k - a.y) / (b.y - a.y))
+    };
+    let covered = |sx: f32, sy: f32| (on_plane(cam, sx, sy).x.abs() <= 1.0) as u8 as f32;
+    let s = cam.project(on_plane(dst, x as f32 + 0.5, y as f32 + 0.5)).unwrap();
+    let (gx, gy) = (s.x - 0.5, s.y - 0.5);
+    let (fx, fy) = (gx.floor(), gy.floor());
+    let (ax, ay) = (gx - fx, gy - fy);
+    (1.0 - ay) * ((1.0 - ax) * covered(fx + 0.5, fy + 0.5) + ax * covered(fx + 1.5, fy + 0.5))
+        + ay * ((1.0 - ax) * covered(fx + 0.5, fy + 1.5) + ax * covered(fx + 1.5, fy + 1.5))
+}
+
+/// Every pixel of `got` is `want(c, base channel, channel)` for the slab's coverage `c`
+/// ([`slab_coverage`] on the plane y = 6) to 2e-3, and both of the slab's edges fall between
+/// texel centres in every row (a fraction of coverage on two pixels per row at least).
+fn assert_slab_edges_filtered(
+    got: &Image<[f32; 3]>,
+    base: &Image<[f32; 3]>,
+    cam: &Camera,
+    dst: &Camera,
+    want: impl Fn(f32, f32, usize) -> f32,
+) {
+    let (w, h) = got.size();
+    let mut partial = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let c = slab_coverage(cam, dst, 6.0, x, y);
+            let (g, b) = (got.get(x, y), base.get(x, y));
+            for k in 0..3 {
+                let want = want(c, b[k], k);
+                assert!((g[k] - want).abs() < 2e-3, "({x}, {y}) channel {k}: {} vs {want} (coverage {c})", g[k]);
+            }
+            partial += (c > 0.01 && c < 0.99) as usize;
+        }
+    }
+    assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
+}
+
 #[test]
 fn edge_rays_are_the_bilinear_filter_of_the_panes_point_samples() {
     // The slab |x| <= 1 at y = 6 seen by the source (one fragment per pixel whose centre it
@@ -741,32 +785,8 @@ fn edge_rays_are_the_bilinear_filter_of_the_panes_point_samples() {
     let (rc, base) = ray_cast_glass(w, h, 0.1, u, pane, &RayCastParams::default());
     let cam = Camera::perspective(Vec3::ZERO, Vec3::Y, Vec3::Z, 60f32.to_radians(), 0.1, 100.0, w, h).unwrap();
     let dst = shifted(&cam, u);
-    // Where a camera's ray through pixel position (px, py) meets the pane's plane y = 6.
-    let on_pane = |c: &Camera, px: f32, py: f32| {
-        let (a, b) = (c.unproject(px, py, 0.0), c.unproject(px, py, 1.0));
-        a + (b - a) * ((6.0 - a.y) / (b.y - a.y))
-    };
-    let covered = |sx: f32, sy: f32| (on_pane(&cam, sx, sy).x.abs() <= 1.0) as u8 as f32;
     let g = glass(1);
-    let mut partial = 0;
-    for y in 0..h {
-        for x in 0..w {
-            let s = cam.project(on_pane(&dst, x as f32 + 0.5, y as f32 + 0.5)).unwrap();
-            let (gx, gy) = (s.x - 0.5, s.y - 0.5);
-            let (fx, fy) = (gx.floor(), gy.floor());
-            let (ax, ay) = (gx - fx, gy - fy);
-            let c = (1.0 - ay) * ((1.0 - ax) * covered(fx + 0.5, fy + 0.5) + ax * covered(fx + 1.5, fy + 0.5))
-                + ay * ((1.0 - ax) * covered(fx + 0.5, fy + 1.5) + ax * covered(fx + 1.5, fy + 1.5));
-            let (got, b) = (rc.color.get(x, y), base.get(x, y));
-            for k in 0..3 {
-                let want = c * g[k] + (1.0 - c * g[3]) * b[k];
-                assert!((got[k] - want).abs() < 2e-3, "({x}, {y}) channel {k}: {} vs {want} (coverage {c})", got[k]);
-            }
-            partial += (c > 0.01 && c < 0.99) as usize;
-        }
-    }
-    // Both edges of the slab fall between texel centres in every row.
-    assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
+    assert_slab_edges_filtered(&rc.color, &base, &cam, &dst, |c, b, k| c * g[k] + (1.0 - c * g[3]) * b);
 }
 
 #[test]
@@ -793,30 +813,10 @@ fn an_edge_seen_through_a_pane_is_filtered_at_its_own_depth() {
     let base = fill_holes(&warped, &src, &dst, HoleMethod::LowPass).unwrap();
     let tree = MinMaxTree::build(&ab);
     let rc = ray_cast(&ab, &tree, &cam, &dst, &base, &warped.depth, &RayCastParams::default()).unwrap();
-    let on_slab = |c: &Camera, px: f32, py: f32| {
-        let (a, b) = (c.unproject(px, py, 0.0), c.unproject(px, py, 1.0));
-        a + (b - a) * ((6.0 - a.y) / (b.y - a.y))
-    };
-    let covered = |sx: f32, sy: f32| (on_slab(&cam, sx, sy).x.abs() <= 1.0) as u8 as f32;
     let (g1, g2) = (glass(1), glass(2));
-    let mut partial = 0;
-    for y in 0..h {
-        for x in 0..w {
-            let s = cam.project(on_slab(&dst, x as f32 + 0.5, y as f32 + 0.5)).unwrap();
-            let (gx, gy) = (s.x - 0.5, s.y - 0.5);
-            let (fx, fy) = (gx.floor(), gy.floor());
-            let (ax, ay) = (gx - fx, gy - fy);
-            let c = (1.0 - ay) * ((1.0 - ax) * covered(fx + 0.5, fy + 0.5) + ax * covered(fx + 1.5, fy + 0.5))
-                + ay * ((1.0 - ax) * covered(fx + 0.5, fy + 1.5) + ax * covered(fx + 1.5, fy + 1.5));
-            let (got, b) = (rc.color.get(x, y), base.get(x, y));
-            for k in 0..3 {
-                let want = g2[k] + (1.0 - g2[3]) * (c * g1[k] + (1.0 - c * g1[3]) * b[k]);
-                assert!((got[k] - want).abs() < 2e-3, "({x}, {y}) channel {k}: {} vs {want} (coverage {c})", got[k]);
-            }
-            partial += (c > 0.01 && c < 0.99) as usize;
-        }
-    }
-    assert!(partial >= 2 * h as usize, "{partial} partially covered pixels");
+    assert_slab_edges_filtered(&rc.color, &base, &cam, &dst, |c, b, k| {
+        g2[k] + (1.0 - g2[3]) * (c * g1[k] + (1.0 - c * g1[3]) * b)
+    });
 }
 
 /// A glass pane (normal `pane_n`, `dot(pane_n, x) = 6`, covering the whole view) in front of a
