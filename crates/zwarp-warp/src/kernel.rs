@@ -250,7 +250,7 @@ impl<'a> Kernel<'a> {
         let mut awoc: Option<(BoundFrame, TightBound)> = None;
         let cover2 = params.cover_radius * params.cover_radius;
         // The nearest depth of a layer that, before any candidate, failed with a walk within the
-        // coverage radius of p.
+        // coverage radius of p or one that cycled across p on one surface.
         let mut cover = f32::INFINITY;
         // The farthest sample of the failed walks of the layers searched before any candidate
         // (WarpParams::ground_layer).
@@ -318,8 +318,13 @@ impl<'a> Kernel<'a> {
                     }
                 }
                 (None, a) => {
+                    // Covered without a candidate: a walk within the coverage radius, or one that
+                    // cycled across p on one surface (search::Approach::straddle).
                     if best.is_none() && a.r2 < cover2 {
                         cover = cover.min(a.depth);
+                    }
+                    if best.is_none() {
+                        cover = cover.min(a.straddle);
                     }
                     if best.is_none() {
                         farthest = farthest.max(a.farthest);
@@ -834,6 +839,7 @@ impl<'a> Kernel<'a> {
                     let z =
                         _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), r.closest_depth, _mm256_and_ps(failed, near));
                     cover = _mm256_min_ps(cover, z);
+                    cover = _mm256_min_ps(cover, _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), r.straddle, failed));
                     farthest = _mm256_max_ps(farthest, _mm256_blendv_ps(neg_inf, r.farthest, failed));
                 }
                 // Found: the cross-layer seed of later layers; nearer than the candidate (or the

@@ -470,11 +470,39 @@ pub struct Approach {
     /// none): the far side of a disocclusion the walks oscillated across, not a surface a seed
     /// happened to start on ([`crate::WarpParams::ground_layer`]).
     pub farthest: f32,
+    /// The nearer target depth of the last two samples of a failed walk that ended on two smooth
+    /// samples of one surface landing on opposite sides of `p` ([`straddles`]), the smallest over
+    /// the walks (`+inf` if none): the walk cycled across `p` on a continuous surface, whose image
+    /// therefore covers `p` although no iterate converged (a fold at a curved surface's grazing
+    /// edge) — the multi-layer warp's second coverage test.
+    pub straddle: f32,
 }
 
 impl Approach {
     /// No sampled iterate.
-    pub const NONE: Approach = Approach { r2: f32::INFINITY, depth: f32::INFINITY, farthest: f32::NEG_INFINITY };
+    pub const NONE: Approach =
+        Approach { r2: f32::INFINITY, depth: f32::INFINITY, farthest: f32::NEG_INFINITY, straddle: f32::INFINITY };
+}
+
+/// Largest distance (pixels) between the landing points of two straddling samples
+/// ([`straddles`]).
+pub const STRADDLE_SPAN: f32 = 16.0;
+
+/// Largest ratio of the linear depths of two straddling samples ([`straddles`]), in the
+/// `1 - z` form of [`crate::COVER_DEPTH_RATIO`]: one surface, not two at different depths.
+pub const STRADDLE_DEPTH_RATIO: f32 = 1.5;
+
+/// Whether two consecutive smooth samples of a walk, with residuals `step_a`, `step_b`
+/// (`p - v(q) - q`) and target depths `za`, `zb`, land on opposite sides of `p` (a sample at `q`
+/// lands at `q + v(q) = p - step`) less than [`STRADDLE_SPAN`] apart, at depths within
+/// [`STRADDLE_DEPTH_RATIO`].
+#[inline(always)]
+pub fn straddles(step_a: Vec2, za: f32, step_b: Vec2, zb: f32) -> bool {
+    let (lo, hi) = (za.min(zb), za.max(zb));
+    let d = step_a - step_b;
+    step_a.dot(step_b) < 0.0
+        && d.length_squared() < STRADDLE_SPAN * STRADDLE_SPAN
+        && 1.0 - lo < STRADDLE_DEPTH_RATIO * (1.0 - hi)
 }
 
 /// [`fixed_point_search`], also returning the closest approach of its walks. A failed search
@@ -494,13 +522,29 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
     for (i, &seed) in seeds.iter().enumerate() {
         let mut walk = S::Walk::default();
         let mut q = seed;
+        // The previous iterate's smooth sample (residual, depth) and whether the last two
+        // straddle p (the nearer depth), for Approach::straddle.
+        let mut prev: Option<(Vec2, f32)> = None;
+        let mut pair = f32::INFINITY;
+        let mut converged = false;
         for it in 0..params.iterations {
+            pair = f32::INFINITY;
             let Some(s) = src.sample(q, &mut walk) else { break };
             let w = p - s.v;
             let step = w - q;
             let r2 = step.length_squared();
             if s.smooth && r2 < closest.r2 {
-                closest = Approach { r2, depth: s.depth, farthest: closest.farthest };
+                closest = Approach { r2, depth: s.depth, ..closest };
+            }
+            if s.smooth {
+                if let Some((ps, pz)) = prev {
+                    if straddles(ps, pz, step, s.depth) {
+                        pair = pz.min(s.depth);
+                    }
+                }
+                prev = Some((step, s.depth));
+            } else {
+                prev = None;
             }
             if it > 0 {
                 closest.farthest = closest.farthest.max(s.depth);
@@ -508,6 +552,7 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
             if r2 < thr2 {
                 // Converged: the sample at `q` (Fig. 3), no further "polishing" sample (measured
                 // neutral for quality on the procedural scenes, ~10 % of the warp's cost).
+                converged = true;
                 let c = Candidate { q, depth: s.depth, tag: s.tag, seed: i as u32 };
                 match params.choice {
                     CandidateChoice::FirstConverged => return (Some(c), closest),
@@ -532,6 +577,9 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
                 }
             }
             q = next;
+        }
+        if !converged {
+            closest.straddle = closest.straddle.min(pair);
         }
     }
     (best, closest)
@@ -794,6 +842,55 @@ mod tests {
                 dz: Vec2::ZERO,
                 smooth: false,
             })
+        }
+    }
+
+    /// A smooth surface whose image jumps over p = (10, 0): left of x = 10 it moves by `-jump`,
+    /// right of it by `+jump`, so a walk from x = 10 - jump cycles between 10 - jump and
+    /// 10 + jump, whose samples land `2 jump` either side of p; depths `zl` (left) and `zr`
+    /// (right).
+    struct Fold {
+        jump: f32,
+        zl: f32,
+        zr: f32,
+    }
+    impl MotionSource for Fold {
+        type Walk = ();
+        fn sample(&self, q: Vec2, _: &mut ()) -> Option<Sample> {
+            let left = q.x < 10.0;
+            Some(Sample {
+                v: Vec2::new(if left { -self.jump } else { self.jump }, 0.0),
+                depth: if left { self.zl } else { self.zr },
+                tag: 0,
+                dv: [Vec2::ZERO; 2],
+                dz: Vec2::ZERO,
+                smooth: true,
+            })
+        }
+    }
+
+    #[test]
+    fn a_walk_cycling_across_p_on_one_surface_straddles_it() {
+        let p = Vec2::new(10.0, 0.0);
+        let search = |f: &Fold| fixed_point_search_closest(f, p, &[Vec2::new(10.0 - f.jump, 0.0)], &sp(3));
+        // Landing 6 px either side of p (12 px apart) at depths within 1.5x: the nearer depth.
+        let (c, a) = search(&Fold { jump: 3.0, zl: 0.5, zr: 0.52 });
+        assert!(c.is_none());
+        assert_eq!(a.straddle, 0.5);
+        // Two surfaces (linear depths 5x apart) or landings more than STRADDLE_SPAN (16 px) apart:
+        // no straddle.
+        assert_eq!(search(&Fold { jump: 3.0, zl: 0.5, zr: 0.9 }).1.straddle, f32::INFINITY);
+        assert_eq!(search(&Fold { jump: 3.9, zl: 0.5, zr: 0.52 }).1.straddle, 0.5);
+        assert_eq!(search(&Fold { jump: 4.1, zl: 0.5, zr: 0.52 }).1.straddle, f32::INFINITY);
+        assert!(straddles(Vec2::new(6.0, 0.0), 0.5, Vec2::new(-6.0, 0.0), 0.6));
+        assert!(!straddles(Vec2::new(6.0, 0.0), 0.5, Vec2::new(6.0, 1.0), 0.5), "same side");
+        // A walk that converges has no straddle.
+        let (c, a) = search(&Fold { jump: 0.0, zl: 0.5, zr: 0.52 });
+        assert!(c.is_some() && a.straddle == f32::INFINITY, "{c:?} {a:?}");
+        // The WGSL twin's constants.
+        let wgsl = include_str!("gpu/warp.wgsl");
+        for (name, v) in [("STRADDLE_SPAN", STRADDLE_SPAN), ("STRADDLE_DEPTH_RATIO", STRADDLE_DEPTH_RATIO)] {
+            assert!(wgsl.contains(&format!("const {name}: f32 = {v:?};")), "{name}");
         }
     }
 

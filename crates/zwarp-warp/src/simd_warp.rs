@@ -67,6 +67,8 @@ pub(crate) struct Lanes {
     /// The largest depth of any sample of the lane's walks after their first step (`-inf` if
     /// none), as `search::Approach::farthest`.
     pub farthest: __m256,
+    /// `search::Approach::straddle` of the lane's walks (`+inf` if none).
+    pub straddle: __m256,
 }
 
 /// The nearer of two closest approaches `(r2, depth)` per lane (the first on ties, as the
@@ -322,13 +324,15 @@ pub(crate) unsafe fn search8(
         // Lanes that stop after the first iterate without converging had no sample.
         let farthest = splat(f32::NEG_INFINITY);
         let tag = _mm256_set1_epi32(k as i32);
-        let mut out = Lanes { converged: now, depth, qx, qy, tag, closest, closest_depth, farthest };
+        let straddle = inf;
+        let mut out = Lanes { converged: now, depth, qx, qy, tag, closest, closest_depth, farthest, straddle };
         if _mm256_movemask_ps(more) != 0 {
-            let (c2, d2, qx2, qy2, t2, a2, f2) = walk8(ls, k, px, py, qx, qy, more);
+            let (c2, d2, qx2, qy2, t2, a2, f2, s2) = walk8(ls, k, px, py, qx, qy, more);
             // The walk repeats the first iterate: its approach is the lane's whole approach.
             out.closest = _mm256_blendv_ps(out.closest, a2.0, more);
             out.closest_depth = _mm256_blendv_ps(out.closest_depth, a2.1, more);
             out.farthest = _mm256_blendv_ps(out.farthest, f2, more);
+            out.straddle = _mm256_blendv_ps(out.straddle, s2, more);
             out.converged = _mm256_or_ps(out.converged, c2);
             out.depth = _mm256_blendv_ps(out.depth, d2, c2);
             out.qx = _mm256_blendv_ps(out.qx, qx2, c2);
@@ -370,6 +374,7 @@ pub(crate) unsafe fn search8(
     let mut ctag = _mm256_setzero_si256();
     let mut closest = (inf, inf);
     let mut farthest = splat(f32::NEG_INFINITY);
+    let mut straddle = inf;
     for j in 0..max_n {
         let ji = _mm256_set1_epi32(j);
         let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, ji));
@@ -422,9 +427,10 @@ pub(crate) unsafe fn search8(
         // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
-        let (now, z, wqx, wqy, wtag, wa, wf) = walk8(ls, k, px, py, qx, qy, live);
+        let (now, z, wqx, wqy, wtag, wa, wf, ws) = walk8(ls, k, px, py, qx, qy, live);
         closest = nearer(closest, wa);
         farthest = _mm256_max_ps(farthest, wf);
+        straddle = _mm256_min_ps(straddle, _mm256_blendv_ps(inf, ws, live));
         // MinDepth in seed order: the first candidate, then strictly nearer ones.
         let take = _mm256_and_ps(
             now,
@@ -436,7 +442,17 @@ pub(crate) unsafe fn search8(
         ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
         has = _mm256_or_ps(has, now);
     }
-    Lanes { converged: has, depth, qx: cqx, qy: cqy, tag: ctag, closest: closest.0, closest_depth: closest.1, farthest }
+    Lanes {
+        converged: has,
+        depth,
+        qx: cqx,
+        qy: cqy,
+        tag: ctag,
+        closest: closest.0,
+        closest_depth: closest.1,
+        farthest,
+        straddle,
+    }
 }
 
 /// The first iteration of [`walk8`] for one seed per lane (the lanes' own layer only, no
@@ -602,9 +618,10 @@ impl Texels {
 }
 
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
-/// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, and
-/// the walk's closest approach (smallest squared residual of a smooth sampled iterate and its
-/// depth, `+inf` if none) and its farthest sample's depth after the first step (`-inf` if none).
+/// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, the
+/// walk's closest approach (smallest squared residual of a smooth sampled iterate and its depth,
+/// `+inf` if none), its farthest sample's depth after the first step (`-inf` if none) and, for
+/// the lanes that failed, its straddle depth (`search::Approach::straddle`, `+inf` if none).
 #[inline]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::type_complexity)]
@@ -616,11 +633,16 @@ unsafe fn walk8(
     mut qx: __m256,
     mut qy: __m256,
     mut live: __m256,
-) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256), __m256) {
+) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256), __m256, __m256) {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
+    let inf = splat(f32::INFINITY);
     let (wf, hf) = (splat(ls.w as f32), splat(ls.h as f32));
     let mut farthest = splat(f32::NEG_INFINITY);
+    // search::fixed_point_search_closest's straddle state: the previous iterate's smooth sample
+    // (lanes `prev_ok`: residual, depth) and the last two samples' straddle depth.
+    let (mut prev_ok, mut psx, mut psy, mut pz) = (zero, zero, zero, zero);
+    let mut pair = inf;
     let thr2 = splat(ls.thr2);
     let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
     let mut conv = zero;
@@ -631,6 +653,7 @@ unsafe fn walk8(
     // Whether the walk already borrowed once (StackSampler's count of empty landings).
     let mut borrowed = zero;
     for it in 0..ls.iterations {
+        pair = _mm256_blendv_ps(pair, inf, live);
         // StackSampler: outside the image fails the seed.
         let inside = _mm256_and_ps(
             _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
@@ -685,6 +708,26 @@ unsafe fn walk8(
         let sty = _mm256_sub_ps(wy, qy);
         let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
         closest = nearer(closest, (_mm256_blendv_ps(splat(f32::INFINITY), r2, _mm256_and_ps(live, s.smooth)), s.z));
+        // search::straddles of the previous and this smooth sample.
+        let smooth = _mm256_and_ps(live, s.smooth);
+        let (lo, hi) = (_mm256_min_ps(pz, s.z), _mm256_max_ps(pz, s.z));
+        let (dx, dy) = (_mm256_sub_ps(psx, stx), _mm256_sub_ps(psy, sty));
+        let cross = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(_mm256_mul_ps(psx, stx), _mm256_mul_ps(psy, sty)), zero);
+        let span = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+            splat(crate::search::STRADDLE_SPAN * crate::search::STRADDLE_SPAN),
+        );
+        let one_surface = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_sub_ps(one, lo),
+            _mm256_mul_ps(splat(crate::search::STRADDLE_DEPTH_RATIO), _mm256_sub_ps(one, hi)),
+        );
+        let straddling =
+            _mm256_and_ps(_mm256_and_ps(_mm256_and_ps(smooth, prev_ok), cross), _mm256_and_ps(span, one_surface));
+        pair = _mm256_blendv_ps(pair, lo, straddling);
+        prev_ok = smooth;
+        psx = _mm256_blendv_ps(psx, stx, smooth);
+        psy = _mm256_blendv_ps(psy, sty, smooth);
+        pz = _mm256_blendv_ps(pz, s.z, smooth);
         let now = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
         depth = _mm256_blendv_ps(depth, s.z, now);
         cqx = _mm256_blendv_ps(cqx, qx, now);
@@ -713,7 +756,7 @@ unsafe fn walk8(
         qx = nx;
         qy = ny;
     }
-    (conv, depth, cqx, cqy, ctag, closest, farthest)
+    (conv, depth, cqx, cqy, ctag, closest, farthest, _mm256_blendv_ps(pair, inf, conv))
 }
 
 /// A lane mask (all bits set per active lane) from the low 8 bits of `bits`.

@@ -62,6 +62,9 @@ const FLAG_GROUND: u32 = 256u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
+// search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
+const STRADDLE_SPAN: f32 = 16.0;
+const STRADDLE_DEPTH_RATIO: f32 = 1.5;
 // zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
@@ -620,7 +623,19 @@ struct Found {
     // The largest depth of any sample of the walks after their first step (-inf if none):
     // search::Approach::farthest.
     farthest: f32,
+    // search::Approach::straddle (+inf if none).
+    straddle: f32,
 };
+
+// search::straddles: two consecutive smooth samples (residuals a, b; depths za, zb) landing on
+// opposite sides of p less than STRADDLE_SPAN apart, at depths within STRADDLE_DEPTH_RATIO.
+fn straddles(a: vec2<f32>, za: f32, b: vec2<f32>, zb: f32) -> bool {
+    let lo = min(za, zb);
+    let hi = max(za, zb);
+    let d = a - b;
+    return dot(a, b) < 0.0 && dot(d, d) < STRADDLE_SPAN * STRADDLE_SPAN
+        && 1.0 - lo < STRADDLE_DEPTH_RATIO * (1.0 - hi);
+}
 
 fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32, n: u32, cross_seed: bool,
                 prev_q: vec2<f32>, max_q: vec2<f32>, thr2: f32) -> Found {
@@ -631,6 +646,7 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
     var closest = params.inf.x;
     var closest_z = params.inf.x;
     var farthest = params.inf.y;
+    var straddle = params.inf.x;
     for (var i = 0u; i < n; i++) {
         var seed: vec2<f32>;
         if (cross_seed && i == n - 1u) {
@@ -645,7 +661,13 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
         var q = clamp(seed, vec2<f32>(0.0), max_q);
         var empties = 0u;
         var done = false;
+        // The previous iterate's smooth sample and the last two samples' straddle depth.
+        var prev_ok = false;
+        var prev_step = vec2<f32>(0.0);
+        var prev_z = 0.0;
+        var pair = params.inf.x;
         for (var it = 0u; it < params.iterations; it++) {
+            pair = params.inf.x;
             let s = stack_sample(k, q, &empties);
             if (!s.ok) {
                 break;
@@ -656,6 +678,16 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
             if (s.bilinear && r2 < closest) {
                 closest = r2;
                 closest_z = s.depth;
+            }
+            if (s.bilinear) {
+                if (prev_ok && straddles(prev_step, prev_z, step, s.depth)) {
+                    pair = min(prev_z, s.depth);
+                }
+                prev_ok = true;
+                prev_step = step;
+                prev_z = s.depth;
+            } else {
+                prev_ok = false;
             }
             if (it > 0u) {
                 farthest = max(farthest, s.depth);
@@ -682,11 +714,14 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
             }
             q = next;
         }
+        if (!done) {
+            straddle = min(straddle, pair);
+        }
         if (done && (params.flags & FLAG_FIRST) != 0u) {
             break;
         }
     }
-    return Found(found, closest, closest_z, farthest);
+    return Found(found, closest, closest_z, farthest, straddle);
 }
 
 // The CPU's 4x4 tile stage (depth_warp::Kernel::band): the 8x8 workgroup holds 4 tiles; one
@@ -850,9 +885,12 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                 best = found;
             }
         } else if (!best.ok) {
+            // Covered without a candidate: a walk within the coverage radius, or one that cycled
+            // across p on one surface (search::Approach::straddle).
             if (closest < params.cover2) {
                 cover = min(cover, closest_z);
             }
+            cover = min(cover, sr.straddle);
             farthest = max(farthest, sr.farthest);
         }
     }
