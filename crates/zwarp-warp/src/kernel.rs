@@ -318,15 +318,13 @@ impl<'a> Kernel<'a> {
                     }
                 }
                 (None, a) => {
-                    // Covered without a candidate: a walk within the coverage radius, or one that
-                    // cycled across p on one surface (search::Approach::straddle).
-                    if best.is_none() && a.r2 < cover2 {
-                        cover = cover.min(a.depth);
-                    }
                     if best.is_none() {
+                        // Covered without a candidate: a walk within the coverage radius, or one
+                        // that cycled across p on one surface (search::Approach::straddle).
+                        if a.r2 < cover2 {
+                            cover = cover.min(a.depth);
+                        }
                         cover = cover.min(a.straddle);
-                    }
-                    if best.is_none() {
                         farthest = farthest.max(a.farthest);
                     }
                 }
