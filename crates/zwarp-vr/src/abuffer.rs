@@ -314,12 +314,14 @@ pub fn ray_cast(
     let caster = Caster { ab, tree, sw: src.width as f32, sh: src.height as f32, p };
     // The ray through target position (px, py), ending at the warped opaque depth of pixel
     // (x, y).
-    let cast = |x: u32, y: u32, px: f32, py: f32| -> Ray {
+    // Its ends in source pixel / depth space (`None` behind the source eye).
+    let ends = |x: u32, y: u32, px: f32, py: f32| {
         let end = depth.get(x, y).clamp(0.0, 1.0);
-        match (inv.project(px, py, 0.0), inv.project(px, py, end)) {
-            (Some(a), Some(e)) => caster.cast_one([a.0, a.1, a.2], [e.0, e.1, e.2]),
-            _ => Ray::MISS,
-        }
+        let (a, e) = (inv.project(px, py, 0.0)?, inv.project(px, py, end)?);
+        Some(([a.0, a.1, a.2], [e.0, e.1, e.2]))
+    };
+    let cast = |x: u32, y: u32, px: f32, py: f32| -> Ray {
+        ends(x, y, px, py).map_or(Ray::MISS, |(a, e)| caster.cast_one(a, e))
     };
     let mut rays: Vec<Ray> = if ab.is_empty() {
         vec![Ray::MISS; (tw * th) as usize]
@@ -349,9 +351,11 @@ pub fn ray_cast(
                     let n = &rays[j];
                     n.first.is_finite() && (n.first - own.first).abs() <= n.first_half + own.first_half
                 });
+                if !covered {
+                    return Some(own.first);
+                }
                 // Seen through it: the farthest surface the nine rays hit.
-                let deepest = neighbours(x, y).map(|j| rays[j].last).filter(|d| d.is_finite()).fold(own.last, f32::max);
-                Some(if covered { deepest } else { own.first })
+                Some(neighbours(x, y).map(|j| rays[j].last).filter(|d| d.is_finite()).fold(own.last, f32::max))
             } else {
                 let d = neighbours(x, y).map(|j| rays[j].first).fold(f32::INFINITY, f32::min);
                 d.is_finite().then_some(d)
@@ -360,12 +364,10 @@ pub fn ray_cast(
         // The four rays through the texel centres around where the centre ray of (x, y) meets
         // the surface at source depth `z`, blended with that point's bilinear weights.
         let blend = |x: u32, y: u32, z: f32| -> Option<Ray> {
-            let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
-            let end = depth.get(x, y).clamp(0.0, 1.0);
-            let (a, e) = (inv.project(px, py, 0.0)?, inv.project(px, py, end)?);
-            let dz = e.2 - a.2;
-            let t = if dz.abs() > 1e-12 { ((z - a.2) / dz).clamp(0.0, 1.0) } else { 0.0 };
-            let (gx, gy) = (a.0 + (e.0 - a.0) * t - 0.5, a.1 + (e.1 - a.1) * t - 0.5);
+            let (a, e) = ends(x, y, x as f32 + 0.5, y as f32 + 0.5)?;
+            let dz = e[2] - a[2];
+            let t = if dz.abs() > 1e-12 { ((z - a[2]) / dz).clamp(0.0, 1.0) } else { 0.0 };
+            let (gx, gy) = (a[0] + (e[0] - a[0]) * t - 0.5, a[1] + (e[1] - a[1]) * t - 0.5);
             let (fx, fy) = (gx.floor(), gy.floor());
             let (ax, ay) = (gx - fx, gy - fy);
             // The pixel a target position lies in (clamped into the image).
