@@ -141,35 +141,59 @@ pub fn rho_cells(field: &Field<'_>) -> Vec<f32> {
     let (cw, ch) = ((w - 1) as usize, (h - 1) as usize);
     let wu = w as usize;
     let mut out = vec![0.0f32; cw * ch];
-    out.par_chunks_mut(cw).enumerate().for_each(|(cy, row)| {
-        // The field on the two texel rows of this cell row (x and y components).
-        let mut buf = vec![0.0f32; 4 * wu];
-        let (ax, rest) = buf.split_at_mut(wu);
-        let (ay, rest) = rest.split_at_mut(wu);
-        let (bx, by) = rest.split_at_mut(wu);
-        for x in 0..wu {
-            let (a, b) = (field.v(cy * wu + x), field.v((cy + 1) * wu + x));
-            (ax[x], ay[x], bx[x], by[x]) = (a.x, a.y, b.x, b.y);
+    // The field on texel row y (x components, then y components), term by term in the order of
+    // Field::v (the same sums, so the same values), as plain slice loops the compiler vectorises.
+    let fill = |y: usize, o: &mut [f32]| {
+        let (ox, oy) = o.split_at_mut(wu);
+        ox.fill(0.0);
+        oy.fill(0.0);
+        for t in field.terms() {
+            for (o, &v) in ox.iter_mut().zip(&t.x[y * wu..(y + 1) * wu]) {
+                *o += t.scale.x * v;
+            }
+            for (o, &v) in oy.iter_mut().zip(&t.y[y * wu..(y + 1) * wu]) {
+                *o += t.scale.y * v;
+            }
         }
-        let mut cx0 = 0;
-        #[cfg(target_arch = "x86_64")]
-        if crate::lanes::simd_enabled() {
-            // SAFETY: AVX2 checked; rows hold w = cw + 1 values.
-            cx0 = unsafe { crate::lanes::avx2::rho_row(ax, ay, bx, by, row) };
-        }
-        for (cx, o) in row.iter_mut().enumerate().skip(cx0) {
-            let va = Vec2::new(ax[cx], ay[cx]);
-            let vb = Vec2::new(ax[cx + 1], ay[cx + 1]);
-            let vc = Vec2::new(bx[cx], by[cx]);
-            let vd = Vec2::new(bx[cx + 1], by[cx + 1]);
-            let (dxt, dxb, dyl, dyr) = (vb - va, vd - vc, vc - va, vd - vb);
-            *o = spectral_radius(dxt, dyl)
-                .max(spectral_radius(dxt, dyr))
-                .max(spectral_radius(dxb, dyl))
-                .max(spectral_radius(dxb, dyr));
+    };
+    // Bands of cell rows: each texel row is evaluated once per band, not once per cell row.
+    out.par_chunks_mut(cw * RHO_BAND).enumerate().for_each(|(b, band)| {
+        let (mut top, mut bottom) = (vec![0.0f32; 2 * wu], vec![0.0f32; 2 * wu]);
+        fill(b * RHO_BAND, &mut top);
+        for (r, row) in band.chunks_mut(cw).enumerate() {
+            fill(b * RHO_BAND + r + 1, &mut bottom);
+            let (ax, ay) = top.split_at(wu);
+            let (bx, by) = bottom.split_at(wu);
+            rho_row(ax, ay, bx, by, row);
+            std::mem::swap(&mut top, &mut bottom);
         }
     });
     out
+}
+
+/// Cell rows per task of [`rho_cells`].
+const RHO_BAND: usize = 16;
+
+/// The `rho` of one row of cells from the field on its two texel rows (`a`: top, `b`: bottom,
+/// `row.len() + 1` values each).
+fn rho_row(ax: &[f32], ay: &[f32], bx: &[f32], by: &[f32], row: &mut [f32]) {
+    let mut cx0 = 0;
+    #[cfg(target_arch = "x86_64")]
+    if crate::lanes::simd_enabled() {
+        // SAFETY: AVX2 checked; rows hold w = cw + 1 values.
+        cx0 = unsafe { crate::lanes::avx2::rho_row(ax, ay, bx, by, row) };
+    }
+    for (cx, o) in row.iter_mut().enumerate().skip(cx0) {
+        let va = Vec2::new(ax[cx], ay[cx]);
+        let vb = Vec2::new(ax[cx + 1], ay[cx + 1]);
+        let vc = Vec2::new(bx[cx], by[cx]);
+        let vd = Vec2::new(bx[cx + 1], by[cx + 1]);
+        let (dxt, dxb, dyl, dyr) = (vb - va, vd - vc, vc - va, vd - vb);
+        *o = spectral_radius(dxt, dyl)
+            .max(spectral_radius(dxt, dyr))
+            .max(spectral_radius(dxb, dyl))
+            .max(spectral_radius(dxb, dyr));
+    }
 }
 
 /// `max` of [`rho_cells`] over several fields of one source (eq. 9: `rho_max = max_{t,u,v} rho`,
@@ -230,27 +254,23 @@ impl Subdivision {
             )));
         }
         let (w, h) = (width as usize, height as usize);
-        // Level 0: per texel, the max over the (up to four) cells its footprint touches (a
-        // row max of neighbouring cells, then a column max of neighbouring rows).
+        // Level 0: per texel, the max over the (up to four) cells its footprint touches.
         let (cw, ch) = (w.saturating_sub(1), h.saturating_sub(1));
         let mut level: Vec<f32> = if cw == 0 || ch == 0 {
             vec![f32::INFINITY; w * h]
         } else {
-            let mut rowmax = vec![0.0f32; ch * w];
-            rowmax.par_chunks_mut(w).enumerate().for_each(|(cy, out)| {
-                let r = &rho[cy * cw..(cy + 1) * cw];
-                out[0] = r[0];
-                for x in 1..cw {
-                    out[x] = r[x - 1].max(r[x]);
-                }
-                out[cw] = r[cw - 1];
-            });
+            // Per texel row: the cell rows above and below (clamped) maxed per column, then
+            // each texel takes the max of the two columns of cells beside it (clamped).
             let mut l0 = vec![0.0f32; w * h];
             l0.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-                let a = &rowmax[y.saturating_sub(1).min(ch - 1) * w..][..w];
-                let b = &rowmax[y.min(ch - 1) * w..][..w];
-                for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+                let a = &rho[y.saturating_sub(1).min(ch - 1) * cw..][..cw];
+                let b = &rho[y.min(ch - 1) * cw..][..cw];
+                for ((o, a), b) in out[1..].iter_mut().zip(a).zip(b) {
                     *o = a.max(*b);
+                }
+                out[0] = out[1];
+                for x in 1..cw {
+                    out[x] = out[x].max(out[x + 1]);
                 }
             });
             l0
@@ -263,20 +283,11 @@ impl Subdivision {
             let prev = &level;
             let mut next = vec![0.0f32; nw * nh];
             next.par_chunks_mut(nw).enumerate().for_each(|(ny, out)| {
-                let y = 2 * ny;
-                for (nx, o) in out.iter_mut().enumerate() {
-                    let x = 2 * nx;
-                    let mut m = prev[y * lw + x];
-                    if x + 1 < lw {
-                        m = m.max(prev[y * lw + x + 1]);
-                    }
-                    if y + 1 < lh {
-                        m = m.max(prev[(y + 1) * lw + x]);
-                        if x + 1 < lw {
-                            m = m.max(prev[(y + 1) * lw + x + 1]);
-                        }
-                    }
-                    *o = m;
+                // The 2x2 block's max; the last row and column may be one texel thick.
+                let r0 = &prev[2 * ny * lw..][..lw];
+                let r1 = if 2 * ny + 1 < lh { &prev[(2 * ny + 1) * lw..][..lw] } else { r0 };
+                for ((o, a), b) in out.iter_mut().zip(r0.chunks(2)).zip(r1.chunks(2)) {
+                    *o = a[1..].iter().chain(b).fold(a[0], |m, &v| m.max(v));
                 }
             });
             levels.push(std::mem::replace(&mut level, next));

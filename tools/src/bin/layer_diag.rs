@@ -6,7 +6,7 @@
 //!
 //! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y,
 //! `COLS=a..b` others;
-//! `SPEED=s` takes the frames at `zwarp eval --speed s`).
+//! `SPEED=s` takes the frames at `zwarp eval --speed s`, `NOSIMD=1` runs the portable kernels).
 use zwarp_core::{motion_field, Image};
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
@@ -28,6 +28,9 @@ fn main() {
         a[7].parse().unwrap(),
         a[8].parse().unwrap(),
     );
+    if std::env::var_os("NOSIMD").is_some() {
+        zwarp_warp::simd::set_simd(false);
+    }
     let loaded = load_scene(spec, &SceneOptions::default()).unwrap();
     let scene = &loaded.scene;
     let path = if pathf == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(pathf).unwrap() };
@@ -44,7 +47,7 @@ fn main() {
     let has_ground = scene.instances.iter().any(|i| i.is_ground);
     let maxl = la.max(lb);
     let peel = PeelOptions {
-        layers: if has_ground { maxl - 1 } else { maxl },
+        layers: if has_ground { maxl.max(2) - 1 } else { maxl },
         ground_separate: has_ground,
         umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
     };

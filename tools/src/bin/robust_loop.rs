@@ -1,0 +1,72 @@
+//! Times the robust colour warp's stages (rho + subdivision, quads, whole) against the heuristic
+//! warp on one frame of a scene (`zwarp upsample --factor 2`'s temporal field at t = 0.5).
+//!
+//! `robust_loop SCENE [PATH.json|-] W H reps`
+use std::time::Instant;
+use zwarp_color::{
+    heuristic_warp_into, robust_warp_with, ColorWarpOutput, FieldParams, HeuristicParams, RobustParams, Seed,
+    Subdivision, WarpBasis,
+};
+use zwarp_core::motion_field;
+use zwarp_raster::{render_frame, FrameOptions};
+use zwarp_scene::{load_scene, CameraPath, SceneOptions};
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    if a.len() != 6 {
+        eprintln!("usage: robust_loop SCENE PATH.json|- W H reps");
+        std::process::exit(1);
+    }
+    let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
+    let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap();
+    let path = if a[2] == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(&a[2]).unwrap() };
+    let k = path.frame_count_at(1.0) / 3;
+    let (t0, t1) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
+    let (c0, c1) = (path.camera_at(t0, w, h).unwrap(), path.camera_at(t1, w, h).unwrap());
+    let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions { color: true, objects: None }).unwrap();
+    let color = f.color.as_ref().unwrap();
+    let m = motion_field(&f.depth, Some(&f.items), &c0, &c1, &loaded.scene.object_deltas(t0, t1)).unwrap();
+    let basis = WarpBasis::temporal(&f.depth, &m).unwrap();
+    let field = basis.field(FieldParams::temporal(0.5)).unwrap();
+    let hp = HeuristicParams { seed: Seed::Upstream(1.0), ..HeuristicParams::default() };
+    let rp = RobustParams { fallback: hp, ..RobustParams::default() };
+    let mut out = ColorWarpOutput::empty();
+    let med = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        (v[v.len() / 2], v[0], v[v.len() - 1])
+    };
+    let time = |f: &mut dyn FnMut()| {
+        f();
+        med((0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .collect())
+    };
+    let th = time(&mut || {
+        heuristic_warp_into(&field, color, &hp, &mut out).unwrap();
+    });
+    let ts = time(&mut || {
+        std::hint::black_box(Subdivision::of_field(&field, rp.tile).unwrap());
+    });
+    let sub = Subdivision::of_field(&field, rp.tile).unwrap();
+    let tq = time(&mut || {
+        robust_warp_with(&sub, &field, color, &rp, &mut out).unwrap();
+    });
+    let st = robust_warp_with(&sub, &field, color, &rp, &mut out).unwrap();
+
+    let mut fp = 0xcbf29ce484222325u64;
+    for c in out.color.data() {
+        for v in c {
+            for b in v.to_bits().to_le_bytes() {
+                fp = (fp ^ b as u64).wrapping_mul(0x100000001b3);
+            }
+        }
+    }
+    println!(
+        "heuristic {:.2} [{:.2},{:.2}]  subdivision {:.2} [{:.2},{:.2}]  quads {:.2} [{:.2},{:.2}]  robust/heuristic {:.2}  {:?}  hash {fp:016x}",
+        th.0, th.1, th.2, ts.0, ts.1, ts.2, tq.0, tq.1, tq.2, (ts.0 + tq.0) / th.0, st
+    );
+}
