@@ -2,11 +2,15 @@
 //! hurt): per-pixel depth error of both predictions against the render, a histogram of
 //! (state, chosen layer) for the pixels where b is worse by more than 5 % of the depth, and a
 //! sample of them. Frames as `zwarp eval --frames 4` picks them (`which` in 0..=3), the paper's
-//! hole protocol, umbra peeling, ground layer last when the scene has ground.
+//! hole protocol, umbra peeling, ground layer last when the scene has ground (and
+//! `WarpParams::ground_layer` on for L >= 2, as `zwarp eval` runs it).
 //!
 //! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y,
 //! `COLS=a..b` others;
-//! `SPEED=s` takes the frames at `zwarp eval --speed s`, `NOSIMD=1` runs the portable kernels).
+//! `SPEED=s` takes the frames at `zwarp eval --speed s`, `NOSIMD=1` runs the portable kernels,
+//! `SQERR=cap` sums the change of the squared depth error per (state, layer) transition over all
+//! pixels, errors capped at `cap` metres, `LISTC0F=1` with it lists the pixels layer 0 solved in
+//! run a that run b filled).
 use zwarp_core::{motion_field, Image};
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
@@ -78,6 +82,7 @@ fn main() {
             n_seeds: n,
             record_source: true,
             holes: zwarp_warp::HolePolicy::PAPER,
+            ground_layer: has_ground && l >= 2,
             ..WarpParams::default()
         };
         let mut o =
@@ -130,6 +135,42 @@ fn main() {
     }
     for (k, v) in &hist {
         println!("  a {:?}/{} -> b {:?}/{}: {v}", k.0, k.1, k.2, k.3);
+    }
+    if std::env::var_os("SQERR").is_some() {
+        // Per (state, layer) transition over all pixels: the change of the squared linear-depth
+        // error, errors clamped at SQERR metres (the metric normalises by the surface range).
+        let cap: f32 = std::env::var("SQERR").unwrap().parse().unwrap_or(100.0);
+        let mut acc = std::collections::BTreeMap::new();
+        for y in 0..h {
+            for x in 0..w {
+                let r = lin(*reference.get(x, y));
+                let ea = (lin(*oa.depth.get(x, y)) - r).abs().min(cap);
+                let eb = (lin(*ob.depth.get(x, y)) - r).abs().min(cap);
+                if ea == eb {
+                    continue;
+                }
+                let key = (
+                    format!("{:?}", oa.state.get(x, y)),
+                    sa.get(x, y).layer as i64,
+                    format!("{:?}", ob.state.get(x, y)),
+                    sb.get(x, y).layer as i64,
+                );
+                if std::env::var_os("LISTC0F").is_some() && key.0 == "Converged" && key.2 == "Filled" && key.1 == 0 {
+                    println!(
+                        "    C0F ({x},{y}) ref {r:.2} a {:.2} b {:.2} q {:?}",
+                        lin(*oa.depth.get(x, y)),
+                        lin(*ob.depth.get(x, y)),
+                        sa.get(x, y).q
+                    );
+                }
+                let e = acc.entry(key).or_insert((0usize, 0f64));
+                e.0 += 1;
+                e.1 += (eb * eb - ea * ea) as f64;
+            }
+        }
+        for (k, (n, d)) in &acc {
+            println!("  SQERR a {:?}/{} -> b {:?}/{}: {n} px, sum d(err^2) {d:.1}", k.0, k.1, k.2, k.3);
+        }
     }
     if let Ok(row) = std::env::var("ROW") {
         let y: u32 = row.parse().unwrap();
