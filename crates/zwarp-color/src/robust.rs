@@ -497,8 +497,8 @@ pub fn robust_warp_with(
         .zip(out.residual.data_mut().par_chunks_mut(BAND * wu))
         .enumerate()
         .map(|(b, ((cb, db), rb))| {
+            // Colour and residual are written wherever the depth is (a hit or the hole pass).
             db.fill(f32::INFINITY);
-            rb.fill(f32::INFINITY);
             let (y0, y1) = ((b * BAND) as i32, (b * BAND + cb.len() / wu) as i32);
             let mut searches = 0u64;
             for &qi in &binned[counts[b] as usize..counts[b + 1] as usize] {
