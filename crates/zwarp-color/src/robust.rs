@@ -286,8 +286,12 @@ impl Subdivision {
                 // The 2x2 block's max; the last row and column may be one texel thick.
                 let r0 = &prev[2 * ny * lw..][..lw];
                 let r1 = if 2 * ny + 1 < lh { &prev[(2 * ny + 1) * lw..][..lw] } else { r0 };
-                for ((o, a), b) in out.iter_mut().zip(r0.chunks(2)).zip(r1.chunks(2)) {
-                    *o = a[1..].iter().chain(b).fold(a[0], |m, &v| m.max(v));
+                let full = lw / 2;
+                for ((o, a), b) in out[..full].iter_mut().zip(r0.chunks_exact(2)).zip(r1.chunks_exact(2)) {
+                    *o = a[0].max(a[1]).max(b[0]).max(b[1]);
+                }
+                if lw % 2 == 1 {
+                    out[full] = r0[lw - 1].max(r1[lw - 1]);
                 }
             });
             levels.push(std::mem::replace(&mut level, next));

@@ -202,6 +202,78 @@ fn subdivision_tiles_the_image_and_isolates_discontinuities() {
     assert!(Subdivision::new(4, 4, vec![0.0; 9], 3).is_err());
 }
 
+/// On an odd-sized image (levels with a one-texel-thick last row and column), `rho_cells` equals
+/// the spectral radii taken directly from `Field::v` at each cell's corners, and every leaf is
+/// the largest aligned block of its tile whose footprint's cells all have `rho < 1`: its own
+/// cells do (or it is one texel), its parent's do not (or it is a whole tile).
+#[test]
+fn subdivision_leaves_are_the_largest_blocks_below_rho_one() {
+    let (w, h) = (37u32, 23u32);
+    let b = basis(Image::new(w, h, 0.5), |x, y| {
+        let mut v = Vec2::new(0.01 * x as f32, -0.02 * y as f32);
+        if x >= 12 {
+            v.x += 3.0;
+        }
+        if y >= 9 {
+            v.y += 2.0;
+        }
+        if (x, y) == (30, 17) {
+            v += Vec2::splat(5.0);
+        }
+        v
+    });
+    let f = b.field(FieldParams::temporal(1.0)).unwrap();
+    let rho = rho_cells(&f);
+    let (cw, ch) = (w - 1, h - 1);
+    for cy in 0..ch {
+        for cx in 0..cw {
+            let v = |x: u32, y: u32| f.v((y * w + x) as usize);
+            let (va, vb, vc, vd) = (v(cx, cy), v(cx + 1, cy), v(cx, cy + 1), v(cx + 1, cy + 1));
+            let (dxt, dxb, dyl, dyr) = (vb - va, vd - vc, vc - va, vd - vb);
+            let want = spectral_radius(dxt, dyl)
+                .max(spectral_radius(dxt, dyr))
+                .max(spectral_radius(dxb, dyl))
+                .max(spectral_radius(dxb, dyr));
+            assert_eq!(rho[(cy * cw + cx) as usize], want, "cell ({cx}, {cy})");
+        }
+    }
+    // The largest rho over the cells the footprint of the texels [x0, x1) x [y0, y1) touches.
+    let block_max = |x0: u32, y0: u32, x1: u32, y1: u32| {
+        let mut m = f32::NEG_INFINITY;
+        for cy in y0.saturating_sub(1)..y1.min(ch) {
+            for cx in x0.saturating_sub(1)..x1.min(cw) {
+                m = m.max(rho[(cy * cw + cx) as usize]);
+            }
+        }
+        m
+    };
+    for tile in [8, 16] {
+        let sub = Subdivision::new(w, h, rho.clone(), tile).unwrap();
+        let mut cover = Image::new(w, h, 0u32);
+        for l in sub.leaves() {
+            for y in l.y0..l.y1 {
+                for x in l.x0..l.x1 {
+                    *cover.get_mut(x, y) += 1;
+                }
+            }
+            // The aligned block of side s holding the leaf, clipped to the image; at the image's
+            // edge several sides clip to the leaf: the largest of them is the node.
+            let block = |s: u32| (l.x0 / s * s, l.y0 / s * s, (l.x0 / s * s + s).min(w), (l.y0 / s * s + s).min(h));
+            let mut size = (l.x1 - l.x0).max(l.y1 - l.y0).next_power_of_two();
+            assert_eq!(block(size), (l.x0, l.y0, l.x1, l.y1), "tile {tile}: {l:?} is not an aligned block");
+            while size < tile && block(2 * size) == block(size) {
+                size *= 2;
+            }
+            assert!(size == 1 || block_max(l.x0, l.y0, l.x1, l.y1) < 1.0, "tile {tile}: {l:?}");
+            if size < tile {
+                let (px, py, px1, py1) = block(2 * size);
+                assert!(block_max(px, py, px1, py1) >= 1.0, "tile {tile}: {l:?} merges");
+            }
+        }
+        assert!(cover.data().iter().all(|&c| c == 1), "tile {tile}");
+    }
+}
+
 #[test]
 fn spectral_radius_of_known_matrices() {
     assert!((spectral_radius(Vec2::new(0.5, 0.0), Vec2::new(0.0, -0.8)) - 0.8).abs() < 1e-6);
