@@ -519,38 +519,33 @@ pub fn robust_warp_with(
                     };
                     for py in q.py0.max(y0)..q.py1.min(y1) {
                         let row = (py - y0) as usize * wu;
-                        let mut px = q.px0;
-                        while px < q.px1 {
-                            let n = ((q.px1 - px) as usize).min(8);
-                            searches += n as u64;
-                            // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
-                            let hits = unsafe {
-                                crate::lanes::avx2::robust8(
-                                    field,
-                                    &sub.rho,
-                                    src,
-                                    &quad,
-                                    px,
-                                    n,
-                                    py,
-                                    params.iterations,
-                                    params.threshold,
-                                    params.accelerate,
-                                )
-                            };
-                            let mut m = hits.accepted;
-                            while m != 0 {
-                                let k = m.trailing_zeros() as usize;
-                                m &= m - 1;
-                                let i = row + px as usize + k;
-                                if hits.depth[k] < db[i] {
-                                    db[i] = hits.depth[k];
-                                    cb[i] = hits.color[k];
-                                    rb[i] = hits.residual[k];
-                                }
-                            }
-                            px += 8;
-                        }
+                        searches += (q.px1 - q.px0) as u64;
+                        // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
+                        unsafe {
+                            crate::lanes::avx2::robust_row(
+                                field,
+                                &sub.rho,
+                                src,
+                                &quad,
+                                (q.px0, q.px1, py),
+                                params.iterations,
+                                params.threshold,
+                                params.accelerate,
+                                |px, hits| {
+                                    let mut m = hits.accepted;
+                                    while m != 0 {
+                                        let k = m.trailing_zeros() as usize;
+                                        m &= m - 1;
+                                        let i = row + px as usize + k;
+                                        if hits.depth[k] < db[i] {
+                                            db[i] = hits.depth[k];
+                                            cb[i] = hits.color[k];
+                                            rb[i] = hits.residual[k];
+                                        }
+                                    }
+                                },
+                            )
+                        };
                     }
                     continue;
                 }
