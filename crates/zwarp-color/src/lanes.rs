@@ -43,6 +43,29 @@ pub(crate) mod avx2 {
         depth: *const f32,
     }
 
+    impl Planes {
+        /// The planes of `f` and its terms' factors broadcast.
+        #[inline(always)]
+        unsafe fn of(f: &Field<'_>) -> Self {
+            let terms = f.terms();
+            let mut pl = Planes {
+                n: terms.len(),
+                x: [std::ptr::null(); 3],
+                y: [std::ptr::null(); 3],
+                sx: [_mm256_setzero_ps(); 3],
+                sy: [_mm256_setzero_ps(); 3],
+                depth: f.depth().as_ptr(),
+            };
+            for (k, t) in terms.iter().enumerate() {
+                pl.x[k] = t.x.as_ptr();
+                pl.y[k] = t.y.as_ptr();
+                pl.sx[k] = _mm256_set1_ps(t.scale.x);
+                pl.sy[k] = _mm256_set1_ps(t.scale.y);
+            }
+            pl
+        }
+    }
+
     #[derive(Clone, Copy)]
     struct V2 {
         x: __m256,
@@ -357,21 +380,7 @@ pub(crate) mod avx2 {
         or: &mut [f32],
     ) {
         let (w, h) = f.size();
-        let terms = f.terms();
-        let mut pl = Planes {
-            n: terms.len(),
-            x: [std::ptr::null(); 3],
-            y: [std::ptr::null(); 3],
-            sx: [_mm256_setzero_ps(); 3],
-            sy: [_mm256_setzero_ps(); 3],
-            depth: f.depth().as_ptr(),
-        };
-        for (k, t) in terms.iter().enumerate() {
-            pl.x[k] = t.x.as_ptr();
-            pl.y[k] = t.y.as_ptr();
-            pl.sx[k] = _mm256_set1_ps(t.scale.x);
-            pl.sy[k] = _mm256_set1_ps(t.scale.y);
-        }
+        let pl = Planes::of(f);
         let wi = w as i32;
         let len = w as usize * h as usize;
         let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
@@ -550,21 +559,7 @@ pub(crate) mod avx2 {
         mut emit: impl FnMut(i32, &Hits),
     ) {
         let (w, h) = f.size();
-        let terms = f.terms();
-        let mut pl = Planes {
-            n: terms.len(),
-            x: [std::ptr::null(); 3],
-            y: [std::ptr::null(); 3],
-            sx: [_mm256_setzero_ps(); 3],
-            sy: [_mm256_setzero_ps(); 3],
-            depth: f.depth().as_ptr(),
-        };
-        for (k, t) in terms.iter().enumerate() {
-            pl.x[k] = t.x.as_ptr();
-            pl.y[k] = t.y.as_ptr();
-            pl.sx[k] = _mm256_set1_ps(t.scale.x);
-            pl.sy[k] = _mm256_set1_ps(t.scale.y);
-        }
+        let pl = Planes::of(f);
         let rp = rho.as_ptr();
         let wi = w as i32;
         let len = w as usize * h as usize;
