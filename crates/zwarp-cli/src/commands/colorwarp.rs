@@ -216,6 +216,47 @@ pub fn quality_cells(q: &Quality, convergence: bool) -> Vec<String> {
 
 /// The timing cells of [`columns`]: the method's time and its floor (`time_decimals`), the ratio
 /// of the two, the same-run render and the speedup over it.
+/// The speed figures of a colour-warp row, measured in the same run (JSON fields of the row).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WarpSpeed {
+    /// Median prediction time (ms), warm (what it covers: the row's documentation).
+    pub warp_ms: f64,
+    /// Fastest prediction.
+    pub warp_ms_min: f64,
+    /// Slowest prediction.
+    pub warp_ms_max: f64,
+    /// Median time (ms) of rendering the predicted view with colour.
+    pub render_ms: f64,
+    /// `render_ms / warp_ms`.
+    pub speedup: f64,
+    /// Median streaming floor (ms) of the prediction: read the field's planes, depth and colour
+    /// once, write the colour (`zwarp_color::floor`).
+    pub floor_ms: f64,
+    /// `warp_ms / floor_ms`.
+    pub floor_ratio: f64,
+}
+
+impl WarpSpeed {
+    /// The figures from the prediction times `ms` and the medians of the render and the floor.
+    pub fn of(ms: &[f64], render_ms: f64, floor_ms: f64) -> Self {
+        let t = crate::harness::Timing::of(ms);
+        WarpSpeed {
+            warp_ms: t.median,
+            warp_ms_min: t.min,
+            warp_ms_max: t.max,
+            render_ms,
+            speedup: render_ms / t.median.max(1e-9),
+            floor_ms,
+            floor_ratio: t.median / floor_ms.max(1e-9),
+        }
+    }
+
+    /// The table cells of [`speed_cells`].
+    pub fn cells(&self, time_decimals: usize) -> Vec<String> {
+        speed_cells(self.warp_ms, self.floor_ms, self.floor_ratio, self.render_ms, self.speedup, time_decimals)
+    }
+}
+
 pub fn speed_cells(
     ms: f64,
     floor_ms: f64,

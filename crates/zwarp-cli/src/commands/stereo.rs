@@ -73,20 +73,9 @@ pub struct StereoRow {
     /// Quality (means over the frames).
     #[serde(flatten)]
     pub quality: Quality,
-    /// Median prediction time (ms), warm.
-    pub warp_ms: f64,
-    /// Fastest prediction.
-    pub warp_ms_min: f64,
-    /// Slowest prediction.
-    pub warp_ms_max: f64,
-    /// Median time (ms) of rendering this eye with colour, same run.
-    pub render_ms: f64,
-    /// `render_ms / warp_ms`.
-    pub speedup: f64,
-    /// Median streaming floor (ms) of the prediction (`zwarp_color::floor`), same run.
-    pub floor_ms: f64,
-    /// `warp_ms / floor_ms`.
-    pub floor_ratio: f64,
+    /// Speed (the prediction of this eye; the render: this eye with colour).
+    #[serde(flatten)]
+    pub speed: colorwarp::WarpSpeed,
     /// The heuristic's fixed seed offset (pixels, x), the mean over the frames.
     pub seed_offset_px: f32,
 }
@@ -269,9 +258,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
     let rows = accs
         .into_iter()
         .map(|((alternate, right, m), a)| {
-            let t = Timing::of(&a.ms);
-            let render = Timing::of(&a.render).median;
-            let floor = Timing::of(&a.floor).median;
+            let speed = colorwarp::WarpSpeed::of(&a.ms, Timing::of(&a.render).median, Timing::of(&a.floor).median);
             StereoRow {
                 method: m.name().into(),
                 strategy: if alternate { "alternate" } else { "cyclops" }.into(),
@@ -282,13 +269,7 @@ fn evaluate(args: &StereoArgs, loaded: &crate::args::Loaded) -> Result<(Vec<Ster
                 width: w,
                 height: h,
                 quality: harness::mean_quality(&a.q),
-                warp_ms: t.median,
-                warp_ms_min: t.min,
-                warp_ms_max: t.max,
-                render_ms: render,
-                speedup: render / t.median.max(1e-9),
-                floor_ms: floor,
-                floor_ratio: t.median / floor.max(1e-9),
+                speed,
                 seed_offset_px: a.offset.iter().sum::<f32>() / a.offset.len().max(1) as f32,
             }
         })
@@ -302,7 +283,7 @@ pub fn table(rows: &[StereoRow]) -> String {
     for r in rows {
         let mut cells = vec![r.method.clone(), r.strategy.clone(), r.eye.clone()];
         cells.extend(colorwarp::quality_cells(&r.quality, true));
-        cells.extend(colorwarp::speed_cells(r.warp_ms, r.floor_ms, r.floor_ratio, r.render_ms, r.speedup, 2));
+        cells.extend(r.speed.cells(2));
         t.row(cells);
     }
     t.render()

@@ -81,22 +81,11 @@ pub struct UpsampleRow {
     /// Quality (means over the predicted frames).
     #[serde(flatten)]
     pub quality: Quality,
-    /// Median prediction time (ms): the warp from the motion buffers (reproject: the target's
-    /// depth re-render, its motion towards the source and the look-up), warm.
-    pub warp_ms: f64,
-    /// Fastest prediction.
-    pub warp_ms_min: f64,
-    /// Slowest prediction.
-    pub warp_ms_max: f64,
-    /// Median time (ms) of rendering the predicted frame with colour, same run.
-    pub render_ms: f64,
-    /// `render_ms / warp_ms`.
-    pub speedup: f64,
-    /// Median streaming floor (ms) of the prediction: read the field's planes, depth and colour
-    /// once, write the colour (`zwarp_color::floor`), same run.
-    pub floor_ms: f64,
-    /// `warp_ms / floor_ms`.
-    pub floor_ratio: f64,
+    /// Speed: the prediction is the warp from the motion buffers (reproject: the target's depth
+    /// re-render, its motion towards the source and the look-up); the render is the predicted
+    /// frame with colour.
+    #[serde(flatten)]
+    pub speed: colorwarp::WarpSpeed,
     /// Median time (ms) of the motion fields the field is built from, reported apart.
     pub motion_ms: f64,
 }
@@ -356,8 +345,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
     let rows = accs
         .into_iter()
         .map(|((interp, m), a)| {
-            let t = Timing::of(&a.ms);
-            let floor = Timing::of(&a.floor).median;
+            let speed = colorwarp::WarpSpeed::of(&a.ms, render, Timing::of(&a.floor).median);
             UpsampleRow {
                 method: m.name().into(),
                 mode: if interp { "interpolate" } else { "extrapolate" }.into(),
@@ -368,13 +356,7 @@ fn evaluate(args: &UpsampleArgs, plan: &Plan, loaded: &crate::args::Loaded) -> R
                 width: w,
                 height: h,
                 quality: harness::mean_quality(&a.q),
-                warp_ms: t.median,
-                warp_ms_min: t.min,
-                warp_ms_max: t.max,
-                render_ms: render,
-                speedup: render / t.median.max(1e-9),
-                floor_ms: floor,
-                floor_ratio: t.median / floor.max(1e-9),
+                speed,
                 motion_ms: Timing::of(&motion_ms).median,
             }
         })
@@ -388,7 +370,7 @@ pub fn table(rows: &[UpsampleRow]) -> String {
     for r in rows {
         let mut cells = vec![r.method.clone(), r.mode.clone(), r.motion.clone(), r.factor.to_string()];
         cells.extend(colorwarp::quality_cells(&r.quality, true));
-        cells.extend(colorwarp::speed_cells(r.warp_ms, r.floor_ms, r.floor_ratio, r.render_ms, r.speedup, 2));
+        cells.extend(r.speed.cells(2));
         t.row(cells);
     }
     t.render()
