@@ -66,6 +66,20 @@ pub(crate) mod avx2 {
         }
     }
 
+    /// The `active` lanes whose position `q` lies in the image `[0, w) x [0, h)`, and the
+    /// positions to sample: `q` there, a safe texel centre (0.5, 0.5) in the lanes that are done.
+    #[inline(always)]
+    unsafe fn in_image(qx: __m256, qy: __m256, wf: __m256, hf: __m256, active: __m256) -> (__m256, __m256, __m256) {
+        let zero = _mm256_setzero_ps();
+        let inside = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
+            _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
+        );
+        let active = _mm256_and_ps(active, inside);
+        let half = _mm256_set1_ps(0.5);
+        (active, _mm256_blendv_ps(half, qx, active), _mm256_blendv_ps(half, qy, active))
+    }
+
     #[derive(Clone, Copy)]
     struct V2 {
         x: __m256,
@@ -425,17 +439,11 @@ pub(crate) mod avx2 {
         let mut bz = _mm256_set1_ps(f32::NEG_INFINITY);
         let mut visited = zero;
         for _ in 0..params.iterations {
-            let inside = _mm256_and_ps(
-                _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
-                _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
-            );
-            active = _mm256_and_ps(active, inside);
+            let (sx, sy);
+            (active, sx, sy) = in_image(qx, qy, wf, hf, active);
             if _mm256_movemask_ps(active) == 0 {
                 break;
             }
-            // Lanes that are done sample a safe position.
-            let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
-            let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
             let l = locate(sx, sy, wi, wm, hm);
             let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
             let sm = smooth(&v4);
@@ -601,16 +609,11 @@ pub(crate) mod avx2 {
             let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
             let one = _mm256_set1_ps(1.0);
             for _ in 0..iterations {
-                let inside = _mm256_and_ps(
-                    _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(qx, zero), _mm256_cmp_ps::<_CMP_GE_OQ>(qy, zero)),
-                    _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(qx, wf), _mm256_cmp_ps::<_CMP_LT_OQ>(qy, hf)),
-                );
-                active = _mm256_and_ps(active, inside);
+                let (sx, sy);
+                (active, sx, sy) = in_image(qx, qy, wf, hf, active);
                 if _mm256_movemask_ps(active) == 0 {
                     break;
                 }
-                let sx = _mm256_blendv_ps(_mm256_set1_ps(0.5), qx, active);
-                let sy = _mm256_blendv_ps(_mm256_set1_ps(0.5), qy, active);
                 let l = locate(sx, sy, wi, wm, hm);
                 let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
                 let sm = smooth_rho(&l, rp);
