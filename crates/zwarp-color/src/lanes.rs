@@ -80,6 +80,26 @@ pub(crate) mod avx2 {
         (active, _mm256_blendv_ps(half, qx, active), _mm256_blendv_ps(half, qy, active))
     }
 
+    /// The field sample of each lane's cell: bilinear where `sm`, the nearest texel elsewhere —
+    /// `(vx, vy, depth)` and the bilinear rows `[top.x, top.y, bottom.x, bottom.y]` (the
+    /// Jacobian's finite differences).
+    #[inline(always)]
+    unsafe fn sample_cell(
+        l: &Loc,
+        v4: &[V2; 4],
+        z4: &[__m256; 4],
+        sm: __m256,
+    ) -> (__m256, __m256, __m256, [__m256; 4]) {
+        let tx = lerp(v4[0].x, v4[1].x, l.ax);
+        let ty = lerp(v4[0].y, v4[1].y, l.ax);
+        let bx = lerp(v4[2].x, v4[3].x, l.ax);
+        let by = lerp(v4[2].y, v4[3].y, l.ax);
+        let vx = _mm256_blendv_ps(near(l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), lerp(tx, bx, l.ay), sm);
+        let vy = _mm256_blendv_ps(near(l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), lerp(ty, by, l.ay), sm);
+        let bz = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
+        (vx, vy, _mm256_blendv_ps(near(l, *z4), bz, sm), [tx, ty, bx, by])
+    }
+
     #[derive(Clone, Copy)]
     struct V2 {
         x: __m256,
@@ -447,12 +467,7 @@ pub(crate) mod avx2 {
             let l = locate(sx, sy, wi, wm, hm);
             let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
             let sm = smooth(&v4);
-            let bx = lerp(lerp(v4[0].x, v4[1].x, l.ax), lerp(v4[2].x, v4[3].x, l.ax), l.ay);
-            let by = lerp(lerp(v4[0].y, v4[1].y, l.ax), lerp(v4[2].y, v4[3].y, l.ax), l.ay);
-            let bzl = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
-            let vx = _mm256_blendv_ps(near(&l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), bx, sm);
-            let vy = _mm256_blendv_ps(near(&l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), by, sm);
-            let z = _mm256_blendv_ps(near(&l, z4), bzl, sm);
+            let (vx, vy, z, _) = sample_cell(&l, &v4, &z4, sm);
             // Record the visit (the orbit's farthest sample).
             let better =
                 _mm256_and_ps(active, _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, bz), _mm256_andnot_ps(visited, all)));
@@ -617,14 +632,7 @@ pub(crate) mod avx2 {
                 let l = locate(sx, sy, wi, wm, hm);
                 let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
                 let sm = smooth_rho(&l, rp);
-                let tx = lerp(v4[0].x, v4[1].x, l.ax);
-                let ty = lerp(v4[0].y, v4[1].y, l.ax);
-                let bx = lerp(v4[2].x, v4[3].x, l.ax);
-                let by = lerp(v4[2].y, v4[3].y, l.ax);
-                let vx = _mm256_blendv_ps(near(&l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), lerp(tx, bx, l.ay), sm);
-                let vy = _mm256_blendv_ps(near(&l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), lerp(ty, by, l.ay), sm);
-                let bz = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
-                let z = _mm256_blendv_ps(near(&l, z4), bz, sm);
+                let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
                 let wx = _mm256_sub_ps(ppx, vx);
                 let wy = _mm256_sub_ps(ppy, vy);
                 let stx = _mm256_sub_ps(wx, qx);
