@@ -67,11 +67,11 @@ fn gpu_available() -> bool {
     true
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zwarp-cli-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh temp dir per test, removed when the guard drops (also when the test fails).
+fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let guard = tempfile::Builder::new().prefix(&format!("zwarp-cli-test-{name}-")).tempdir().unwrap();
+    let d = guard.path().to_path_buf();
+    (guard, d)
 }
 
 /// The error is the last stderr line (lavapipe may print noise before it), starts with
@@ -84,7 +84,7 @@ fn error_line(stderr: &str) -> String {
 
 #[test]
 fn missing_scene_file_is_a_clear_error() {
-    let d = tmp("missing");
+    let (_dir, d) = tmp("missing");
     let (ok, _, err) = zwarp(&["render", "--scene", "/nonexistent/model.obj", "--out", d.to_str().unwrap()]);
     assert!(!ok);
     assert!(error_line(&err).contains("/nonexistent/model.obj"), "{err}");
@@ -92,7 +92,7 @@ fn missing_scene_file_is_a_clear_error() {
 
 #[test]
 fn unknown_format_is_a_clear_error() {
-    let d = tmp("unknown");
+    let (_dir, d) = tmp("unknown");
     let f = d.join("scene.xyz");
     std::fs::write(&f, "not a mesh").unwrap();
     let (ok, _, err) = zwarp(&["render", "--scene", f.to_str().unwrap(), "--out", d.to_str().unwrap()]);
@@ -102,7 +102,7 @@ fn unknown_format_is_a_clear_error() {
 
 #[test]
 fn zero_size_image_is_rejected() {
-    let d = tmp("zero");
+    let (_dir, d) = tmp("zero");
     let (ok, _, err) =
         zwarp(&["render", "--scene", "mo", "--scale", "0.01", "--width", "0", "--out", d.to_str().unwrap()]);
     assert!(!ok);
@@ -127,7 +127,7 @@ fn closed_stdout_is_not_a_panic() {
 
 #[test]
 fn bad_camera_paths_are_rejected() {
-    let d = tmp("paths");
+    let (_dir, d) = tmp("paths");
     let one_key = d.join("one.json");
     std::fs::write(&one_key, r#"{"fov_y_deg":60,"near":0.1,"far":100,"up":[0,0,1],"fps":30,"keys":[{"t":0,"eye":[0,0,1],"target":[1,0,1]}]}"#).unwrap();
     let near_far = d.join("nf.json");
@@ -152,7 +152,7 @@ fn bad_camera_paths_are_rejected() {
 
 #[test]
 fn bad_eval_parameters_are_rejected() {
-    let d = tmp("evalbad");
+    let (_dir, d) = tmp("evalbad");
     let j = d.join("e.json");
     for (flag, value) in [
         ("--n", "0"),
@@ -186,7 +186,7 @@ fn missing_runtime_dir_prints_no_loader_errors() {
 
 #[test]
 fn cull_needs_two_frames() {
-    let d = tmp("cullbad");
+    let (_dir, d) = tmp("cullbad");
     let j = d.join("c.json");
     for frames in ["0", "1"] {
         let (ok, _, err) =
@@ -202,7 +202,7 @@ fn cull_needs_two_frames() {
 /// forward baselines only at m = 1), same scene, frames and reference; `multisample` in JSON.
 #[test]
 fn eval_multisample_rows_are_ours_only() {
-    let d = tmp("evalms");
+    let (_dir, d) = tmp("evalms");
     let j = d.join("e.json");
     let (ok, out, err) = eval_small(&["--multisample", "1,2"], &j);
     assert!(ok, "{err}");
@@ -224,7 +224,7 @@ fn eval_multisample_rows_are_ours_only() {
 
 #[test]
 fn render_writes_every_buffer() {
-    let d = tmp("render");
+    let (_dir, d) = tmp("render");
     let (ok, out, err) = zwarp(&[
         "render",
         "--scene",
@@ -259,7 +259,7 @@ fn render_writes_every_buffer() {
 
 #[test]
 fn eval_writes_the_documented_fields() {
-    let d = tmp("eval");
+    let (_dir, d) = tmp("eval");
     let j = d.join("e.json");
     let (ok, _, err) = eval_small(&[], &j);
     assert!(ok, "{err}");
@@ -320,7 +320,8 @@ fn cull_small(scene: &str, extra: &[&str], json: &std::path::Path) -> (bool, Str
 
 #[test]
 fn cull_reference_and_nocull_are_exact() {
-    let j = tmp("cull").join("c.json");
+    let (_dir, d) = tmp("cull");
+    let j = d.join("c.json");
     let (ok, err) = cull_small("cb", &["--method", "nocull,vfc,woc,ref"], &j);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
@@ -347,7 +348,7 @@ fn cull_reference_and_nocull_are_exact() {
 /// GPU backend are rejected with one line.
 #[test]
 fn cull_repeat_keeps_the_decisions() {
-    let d = tmp("cullrepeat");
+    let (_dir, d) = tmp("cullrepeat");
     let run = |repeat: &str, name: &str| {
         let j = d.join(name);
         let (ok, err) = cull_small("bl", &["--method", "vfc,twophase,woc", "--no-psnr", "--repeat", repeat], &j);
@@ -373,7 +374,7 @@ fn cull_repeat_keeps_the_decisions() {
 
 #[test]
 fn shadows_writes_the_documented_fields() {
-    let d = tmp("shadows");
+    let (_dir, d) = tmp("shadows");
     let j = d.join("s.json");
     let (ok, _, err) = zwarp(&[
         "shadows",
@@ -418,7 +419,7 @@ fn eval_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("evalgpu");
+    let (_dir, d) = tmp("evalgpu");
     for (m, extra) in [("1", &[][..]), ("2", &["--multisample", "2", "--holes", "background"][..])] {
         let mut ssim = Vec::new();
         for backend in ["cpu", "gpu"] {
@@ -445,7 +446,7 @@ fn render_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("rendergpu");
+    let (_dir, d) = tmp("rendergpu");
     let mut rows = Vec::new();
     for backend in ["cpu", "gpu"] {
         let out = d.join(backend);
@@ -507,7 +508,7 @@ fn cull_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("cullgpu");
+    let (_dir, d) = tmp("cullgpu");
     let mut all = Vec::new();
     for backend in ["cpu", "gpu"] {
         let j = d.join(format!("{backend}.json"));
@@ -560,7 +561,7 @@ fn cull_gpu_backend_matches_cpu() {
 /// wgpu at a backend this build lacks).
 #[test]
 fn gpu_backend_without_adapter_is_one_clear_line() {
-    let d = tmp("noadapter");
+    let (_dir, d) = tmp("noadapter");
     let j = d.join("c.json");
     let args = [
         "cull",
@@ -592,7 +593,7 @@ fn shadows_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("shadowsgpu");
+    let (_dir, d) = tmp("shadowsgpu");
     let mut runs = Vec::new();
     for backend in ["cpu", "gpu"] {
         let j = d.join(format!("{backend}.json"));
@@ -674,7 +675,7 @@ fn color_rows(json: &std::path::Path, methods: usize) -> Vec<serde_json::Value> 
 
 #[test]
 fn upsample_writes_the_documented_fields() {
-    let d = tmp("upsample");
+    let (_dir, d) = tmp("upsample");
     let j = d.join("u.json");
     let img = d.join("img");
     let (ok, out, err) = zwarp(&[
@@ -728,7 +729,7 @@ fn upsample_writes_the_documented_fields() {
 
 #[test]
 fn stereo_and_blur_write_the_documented_fields() {
-    let d = tmp("stereo");
+    let (_dir, d) = tmp("stereo");
     let j = d.join("s.json");
     let img = d.join("img");
     let (ok, _, err) = zwarp(&[
@@ -795,7 +796,7 @@ fn stereo_and_blur_write_the_documented_fields() {
 
 #[test]
 fn colour_commands_reject_bad_input_in_one_line() {
-    let d = tmp("colorbad");
+    let (_dir, d) = tmp("colorbad");
     let j = d.join("x.json");
     let js = j.to_str().unwrap();
     let sky = d.join("sky.json");
@@ -827,7 +828,7 @@ fn colour_commands_gpu_backend_matches_cpu() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("colorgpu");
+    let (_dir, d) = tmp("colorgpu");
     let run = |backend: &str| {
         let j = d.join(format!("{backend}.json"));
         let (ok, _, err) = zwarp_env(
@@ -897,7 +898,7 @@ const VR_FIELDS: [&str; 24] = [
 
 #[test]
 fn vr_writes_the_documented_fields() {
-    let d = tmp("vr");
+    let (_dir, d) = tmp("vr");
     let j = d.join("vr.json");
     let img = d.join("img");
     let (ok, out, err) = vr_small(
@@ -975,7 +976,7 @@ fn vr_on_the_gpu_matches_the_cpu_rows() {
     if !gpu_available() {
         return;
     }
-    let d = tmp("vrgpu");
+    let (_dir, d) = tmp("vrgpu");
     let mut rows = Vec::new();
     for backend in ["cpu", "gpu"] {
         let j = d.join(format!("{backend}.json"));
@@ -1010,7 +1011,7 @@ fn vr_on_the_gpu_matches_the_cpu_rows() {
 
 #[test]
 fn vr_rejects_bad_input_in_one_line() {
-    let d = tmp("vrbad");
+    let (_dir, d) = tmp("vrbad");
     let j = d.join("x.json");
     let js = j.to_str().unwrap();
     let small = ["--scale", "0.01", "--width", "64", "--height", "48", "--frames", "1", "--reps", "1"];
@@ -1092,7 +1093,7 @@ fn glass_pane_scene(dir: &std::path::Path) -> (std::path::PathBuf, std::path::Pa
 
 #[test]
 fn vr_puts_the_files_blend_materials_in_the_a_buffer() {
-    let d = tmp("vrblend");
+    let (_dir, d) = tmp("vrblend");
     let (scene, path) = glass_pane_scene(&d);
     let j = d.join("vr.json");
     let (ok, out, err) = zwarp(&[
@@ -1130,7 +1131,7 @@ fn vr_puts_the_files_blend_materials_in_the_a_buffer() {
 
 #[test]
 fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
-    let d = tmp("vrglass");
+    let (_dir, d) = tmp("vrglass");
     let j = d.join("vr.json");
     let (ok, out, err) =
         vr_small(&["--method", "grid", "--holes", "lowpass", "--strategy", "cyclops", "--transparent", "0.5"], &j);

@@ -17,17 +17,22 @@ fn zwarp(args: &[&str]) -> (bool, String, String) {
     )
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zwarp-report-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+/// A path `name` that does not exist yet, in a fresh temp dir removed when the guard drops (also
+/// when the test fails).
+fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let guard = tempfile::Builder::new().prefix("zwarp-report-test-").tempdir().unwrap();
+    let d = guard.path().join(name);
+    (guard, d)
 }
 
-/// One smoke report shared by the tests (it takes a few seconds).
+/// One smoke report shared by the tests (it takes a few seconds), in cargo's scratch folder
+/// for integration tests, replaced by the next run (a static is never dropped: a temp dir
+/// would outlive every run).
 fn smoke() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = tmp("smoke");
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("zwarp-report-smoke");
+        let _ = std::fs::remove_dir_all(&dir);
         let (ok, out, err) = zwarp(&["report", "--smoke", "--scenes", "cb", "--out", dir.to_str().unwrap()]);
         assert!(ok, "report failed:\n{out}\n{err}");
         dir
@@ -86,7 +91,7 @@ fn every_section_runs_and_is_on_the_page() {
 
 #[test]
 fn an_interrupted_run_keeps_its_rows_and_the_page_says_what_is_missing() {
-    let dir = tmp("partial");
+    let (_dir, dir) = tmp("partial");
     std::fs::create_dir_all(&dir).unwrap();
     let mut r = results(smoke());
     // As the report leaves it when stopped after its first job.
@@ -106,7 +111,7 @@ fn an_interrupted_run_keeps_its_rows_and_the_page_says_what_is_missing() {
 
 #[test]
 fn one_section_runs_again_into_an_earlier_report() {
-    let dir = tmp("rerun");
+    let (_dir, dir) = tmp("rerun");
     std::fs::create_dir_all(&dir).unwrap();
     let before = results(smoke());
     std::fs::write(dir.join("results.json"), serde_json::to_string(&before).unwrap()).unwrap();
@@ -128,16 +133,17 @@ fn one_section_runs_again_into_an_earlier_report() {
 
 #[test]
 fn bad_input_gets_one_line() {
-    let file = tmp("file");
+    let (_dir, file) = tmp("file");
+    let (_out, out) = tmp("out");
     std::fs::write(&file, "not a folder").unwrap();
     let under_file = file.join("out");
     for (args, expect) in [
         (vec!["report", "--smoke", "--out", under_file.to_str().unwrap()], "cannot create the folder"),
         (
-            vec!["report", "--smoke", "--sections", "bogus", "--out", tmp("bad-section").to_str().unwrap()],
+            vec!["report", "--smoke", "--sections", "bogus", "--out", out.join("bad-section").to_str().unwrap()],
             "unknown section 'bogus'",
         ),
-        (vec!["report", "--page-only", "--out", tmp("empty").to_str().unwrap()], "run the report first"),
+        (vec!["report", "--page-only", "--out", out.join("empty").to_str().unwrap()], "run the report first"),
         (
             vec![
                 "report",
@@ -147,7 +153,7 @@ fn bad_input_gets_one_line() {
                 "--sections",
                 "shadows",
                 "--out",
-                tmp("none").to_str().unwrap(),
+                out.join("none").to_str().unwrap(),
             ],
             "no job to run",
         ),
@@ -158,7 +164,7 @@ fn bad_input_gets_one_line() {
         assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
     }
     // A failing job is reported by name, the others still run, and the exit is non-zero.
-    let dir = tmp("failing");
+    let (_dir, dir) = tmp("failing");
     let (ok, _, err) = zwarp(&[
         "report",
         "--smoke",
@@ -234,7 +240,7 @@ fn the_page_renders_in_a_real_browser() {
     let check = dir.join("check.html");
     std::fs::write(&check, checked).unwrap();
     let url = format!("file://{}", check.canonicalize().unwrap().display());
-    let profile = tmp("chromium-profile");
+    let (_profile_dir, profile) = tmp("chromium-profile");
     let out = headless(&browser, &profile)
         .args(["--virtual-time-budget=10000", "--dump-dom", &url])
         .output()

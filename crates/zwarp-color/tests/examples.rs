@@ -5,7 +5,8 @@ mod frame_upsample;
 
 #[test]
 fn frame_upsample_predicts_the_in_between_frame_better_than_repeating_the_last() {
-    let out = std::env::temp_dir().join(format!("zwarp-color-example-{}", std::process::id()));
+    let guard = tempfile::Builder::new().prefix("zwarp-color-example-").tempdir().unwrap();
+    let out = guard.path().to_path_buf();
     let r = frame_upsample::run(160, 96, &out).unwrap();
     for f in ["source.png", "heuristic.png", "robust.png", "reference.png", "confidence.png"] {
         let img = zwarp_viz::read_png(out.join(f)).unwrap();
@@ -15,5 +16,4 @@ fn frame_upsample_predicts_the_in_between_frame_better_than_repeating_the_last()
     // are close to the render.
     assert!(r.heuristic > r.repeat + 1.5 && r.robust > r.repeat + 1.5, "{:?}", (r.repeat, r.heuristic, r.robust));
     assert!(r.heuristic > 25.0 && r.robust > 25.0, "{:?}", (r.heuristic, r.robust));
-    let _ = std::fs::remove_dir_all(&out);
 }

@@ -5,7 +5,8 @@ mod cull_with_warp;
 
 #[test]
 fn cull_with_warp_example_culls_more_than_vfc_and_draws_the_same_image() {
-    let out = std::env::temp_dir().join(format!("zwarp-example-cull-{}", std::process::id()));
+    let guard = tempfile::Builder::new().prefix("zwarp-example-cull-").tempdir().unwrap();
+    let out = guard.path().to_path_buf();
     let f = cull_with_warp::run(0.02, 192, 108, &out).unwrap();
     let img = zwarp_viz::read_png(out.join("cull_with_warp.png")).unwrap();
     assert_eq!(img.width(), 4 * 192 + 3 * zwarp_viz::GAP);
@@ -20,5 +21,4 @@ fn cull_with_warp_example_culls_more_than_vfc_and_draws_the_same_image() {
         f.vfc,
         f.objects
     );
-    std::fs::remove_dir_all(&out).unwrap();
 }

@@ -560,8 +560,8 @@ mod tests {
 
     #[test]
     fn json_file_errors_name_the_file() {
-        let dir = std::env::temp_dir().join(format!("zwarp-scene-path-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let guard = tempfile::Builder::new().prefix("zwarp-scene-path-").tempdir().unwrap();
+        let dir = guard.path();
         let f = dir.join("bad_path.json");
         std::fs::write(
             &f,
@@ -575,7 +575,6 @@ mod tests {
         let good = dir.join("good_path.json");
         line_path().write_json_file(&good).unwrap();
         assert_eq!(CameraPath::from_json_file(&good).unwrap(), line_path());
-        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

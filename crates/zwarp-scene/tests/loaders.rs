@@ -15,12 +15,11 @@ fn opts(split: SplitMode) -> SceneOptions {
     SceneOptions { split, ..Default::default() }
 }
 
-/// A fresh temp dir per test (pid + name keep parallel tests and runs apart).
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("zwarp-scene-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh temp dir per test, removed when the guard drops (also when the test fails).
+fn temp_dir(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let guard = tempfile::Builder::new().prefix(&format!("zwarp-scene-{name}-")).tempdir().unwrap();
+    let d = guard.path().to_path_buf();
+    (guard, d)
 }
 
 fn err_of(spec: &str) -> String {
@@ -141,7 +140,7 @@ fn mesh_folder_is_one_object_per_file_recursively() {
 fn missing_file_and_unknown_extension() {
     let (path, msg) = parse_err_file("/nonexistent/zwarp/scene.obj");
     assert!(path.ends_with("scene.obj") && msg.contains("no such file"), "{msg}");
-    let d = temp_dir("ext");
+    let (_dir, d) = temp_dir("ext");
     let f = d.join("model.stl");
     std::fs::write(&f, "solid x\nendsolid x\n").unwrap();
     let msg = err_of(f.to_str().unwrap());
@@ -150,7 +149,7 @@ fn missing_file_and_unknown_extension() {
 
 #[test]
 fn malformed_ply_files_are_reported() {
-    let d = temp_dir("ply");
+    let (_dir, d) = temp_dir("ply");
     let good = std::fs::read(fixture("tri_binary.ply")).unwrap();
     let f = d.join("truncated.ply");
     std::fs::write(&f, &good[..good.len() - 5]).unwrap();
@@ -177,7 +176,7 @@ fn malformed_ply_files_are_reported() {
 
 #[test]
 fn malformed_obj_files_are_reported() {
-    let d = temp_dir("obj");
+    let (_dir, d) = temp_dir("obj");
     let f = d.join("nan.obj");
     std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n").unwrap();
     let msg = err_of(f.to_str().unwrap());
@@ -202,7 +201,7 @@ fn malformed_obj_files_are_reported() {
 
 #[test]
 fn malformed_gltf_files_are_reported() {
-    let d = temp_dir("gltf");
+    let (_dir, d) = temp_dir("gltf");
     let f = d.join("broken.gltf");
     std::fs::write(&f, "{\"asset\": {\"version\": \"2.0\"}, \"nodes\": [").unwrap();
     let msg = err_of(f.to_str().unwrap());
@@ -252,7 +251,7 @@ fn malformed_gltf_files_are_reported() {
 
 #[test]
 fn malformed_soups_and_empty_folders_are_reported() {
-    let d = temp_dir("soup");
+    let (_dir, d) = temp_dir("soup");
     let v = std::fs::read(fixture("soup/VertexBuffer.bin")).unwrap();
     let i = std::fs::read(fixture("soup/IndexBuffer.bin")).unwrap();
     std::fs::write(d.join("VertexBuffer.bin"), &v[..v.len() - 4]).unwrap();
@@ -272,7 +271,7 @@ fn malformed_soups_and_empty_folders_are_reported() {
     let msg = err_of(d.to_str().unwrap());
     assert!(msg.contains("vertex 0 is not finite"), "{msg}");
 
-    let e = temp_dir("empty");
+    let (_dir, e) = temp_dir("empty");
     std::fs::write(e.join("notes.txt"), "nothing here").unwrap();
     let msg = err_of(e.to_str().unwrap());
     assert!(msg.contains("empty") && msg.contains("zwarp-scene"), "{msg}");
@@ -429,7 +428,7 @@ fn textured_quad_gltf(image: serde_json::Value, uv_count: usize) -> String {
 
 #[test]
 fn gltf_normals_uvs_and_embedded_png_texture() {
-    let d = temp_dir("gltf-tex");
+    let (_dir, d) = temp_dir("gltf-tex");
     let uri = format!("data:image/png;base64,{}", encode_b64(&test_png()));
     let f = d.join("panel.gltf");
     std::fs::write(&f, textured_quad_gltf(serde_json::json!({ "uri": uri }), 4)).unwrap();
@@ -464,7 +463,7 @@ fn gltf_normals_uvs_and_embedded_png_texture() {
 
 #[test]
 fn gltf_blend_materials_are_translucent() {
-    let d = temp_dir("gltf-blend");
+    let (_dir, d) = temp_dir("gltf-blend");
     let uri = format!("data:image/png;base64,{}", encode_b64(&test_png()));
     let mut json: serde_json::Value =
         serde_json::from_str(&textured_quad_gltf(serde_json::json!({ "uri": uri }), 4)).unwrap();
@@ -492,7 +491,7 @@ fn gltf_blend_materials_are_translucent() {
 
 #[test]
 fn obj_with_mtl_map_kd_relative_to_the_mtl() {
-    let d = temp_dir("obj-tex");
+    let (_dir, d) = temp_dir("obj-tex");
     std::fs::create_dir_all(d.join("mat/tex")).unwrap();
     std::fs::write(d.join("mat/tex/checker.png"), test_png()).unwrap();
     std::fs::write(d.join("mat/looks.mtl"), "newmtl painted\nKd 1 1 0.5\nmap_Kd tex/checker.png\n").unwrap();
@@ -522,7 +521,7 @@ fn obj_with_mtl_map_kd_relative_to_the_mtl() {
 
 #[test]
 fn ply_vertex_normals_are_read() {
-    let d = temp_dir("ply-normals");
+    let (_dir, d) = temp_dir("ply-normals");
     let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
                   property float nx\nproperty float ny\nproperty float nz\nelement face 1\n\
                   property list uchar int vertex_indices\nend_header\n";

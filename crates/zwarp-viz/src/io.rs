@@ -192,14 +192,15 @@ mod tests {
     use super::*;
     use glam::Vec2;
 
-    fn tmp(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("zwarp-viz-test-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        dir.join(name)
+    /// A fresh temp dir, removed when it drops (also when the test fails).
+    fn scratch() -> tempfile::TempDir {
+        tempfile::Builder::new().prefix("zwarp-viz-test-").tempdir().unwrap()
     }
 
     #[test]
     fn png_round_trip() {
+        let dir = scratch();
+        let tmp = |name: &str| dir.path().join(name);
         let img = Image::from_fn(7, 5, |x, y| [(x * 30) as u8, (y * 50) as u8, (x * y) as u8]);
         let p = tmp("rgb.png");
         write_png(&p, &img).unwrap();
@@ -212,6 +213,8 @@ mod tests {
 
     #[test]
     fn exr_round_trips_are_bit_exact() {
+        let dir = scratch();
+        let tmp = |name: &str| dir.path().join(name);
         let depth = Image::from_fn(9, 6, |x, y| 0.9 + (x as f32 * 0.013 + y as f32 * 0.0007).sin() * 0.05);
         let p = tmp("depth.exr");
         write_exr_f32(&p, &depth, "Z").unwrap();
@@ -239,6 +242,8 @@ mod tests {
 
     #[test]
     fn errors_name_the_file() {
+        let dir = scratch();
+        let tmp = |name: &str| dir.path().join(name);
         let missing = tmp("does-not-exist.exr");
         let e = read_exr_f32(&missing, "Z").unwrap_err();
         assert!(e.to_string().contains("does-not-exist.exr"), "{e}");

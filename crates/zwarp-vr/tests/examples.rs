@@ -5,7 +5,8 @@ mod stereo_warp;
 
 #[test]
 fn stereo_warp_writes_both_eyes_close_to_their_renders() {
-    let out = std::env::temp_dir().join(format!("zwarp-vr-example-{}", std::process::id()));
+    let guard = tempfile::Builder::new().prefix("zwarp-vr-example-").tempdir().unwrap();
+    let out = guard.path().to_path_buf();
     let r = stereo_warp::run(160, 96, 0.3, &out).unwrap();
     for f in ["centre.png", "left.png", "right.png", "anaglyph.png", "reference_left.png", "grid.png"] {
         let img = zwarp_viz::read_png(out.join(f)).unwrap();
@@ -18,5 +19,4 @@ fn stereo_warp_writes_both_eyes_close_to_their_renders() {
     let centre = zwarp_viz::read_png(out.join("centre.png")).unwrap();
     let left = zwarp_viz::read_png(out.join("left.png")).unwrap();
     assert_ne!(centre.data(), left.data());
-    let _ = std::fs::remove_dir_all(&out);
 }

@@ -5,7 +5,8 @@ mod predict_depth;
 
 #[test]
 fn predict_depth_writes_its_images_and_matches_the_render() {
-    let out = std::env::temp_dir().join(format!("zwarp-example-predict-depth-{}", std::process::id()));
+    let guard = tempfile::Builder::new().prefix("zwarp-example-predict-depth-").tempdir().unwrap();
+    let out = guard.path().to_path_buf();
     let r = predict_depth::run(zwarp::Backend::Cpu, 160, 90, &out).unwrap();
     for name in ["source", "predicted", "reference", "error"] {
         let img = zwarp_viz::read_png(out.join(format!("{name}.png"))).unwrap();
@@ -18,13 +19,13 @@ fn predict_depth_writes_its_images_and_matches_the_render() {
     let src = zwarp_viz::read_png(out.join("source.png")).unwrap();
     let pred = zwarp_viz::read_png(out.join("predicted.png")).unwrap();
     assert_ne!(src, pred);
-    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]
 fn predict_depth_on_the_gpu_matches_the_cpu() {
     let Some(ctx) = zwarp::gpu::test_context() else { return };
-    let dir = |b: &str| std::env::temp_dir().join(format!("zwarp-example-{b}-{}", std::process::id()));
+    let guard = tempfile::Builder::new().prefix("zwarp-example-").tempdir().unwrap();
+    let dir = |b: &str| guard.path().join(b);
     let c = predict_depth::run(zwarp::Backend::Cpu, 160, 90, &dir("cpu")).unwrap();
     let g = predict_depth::run(zwarp::Backend::Gpu(ctx), 160, 90, &dir("gpu")).unwrap();
     assert!(
@@ -35,7 +36,4 @@ fn predict_depth_on_the_gpu_matches_the_cpu() {
         g.psnr,
         g.ssim
     );
-    for b in ["cpu", "gpu"] {
-        std::fs::remove_dir_all(dir(b)).unwrap();
-    }
 }
