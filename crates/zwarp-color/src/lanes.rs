@@ -5,25 +5,18 @@
 //! is bit-identical (no FMA; `min`/`max`/comparisons with the semantics of glam's). Chosen at
 //! run time where the CPU has AVX2 ([`set_simd`] switches it off for tests and timing).
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use zwarp_core::Avx2Switch;
 
-static SIMD: AtomicBool = AtomicBool::new(true);
+static AVX2: Avx2Switch = Avx2Switch::new();
 
-/// Enables (default) or disables the AVX2 lanes of the heuristic warp (results are identical).
+/// Enables (default) or disables the AVX2 lanes of the colour warps (results are identical).
 pub fn set_simd(enabled: bool) {
-    SIMD.store(enabled, Ordering::Relaxed);
+    AVX2.set(enabled);
 }
 
 /// `true` if the AVX2 lanes run: switched on and the CPU has AVX2.
 pub fn simd_enabled() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        SIMD.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    AVX2.active()
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -375,7 +368,7 @@ pub(crate) mod avx2 {
         let hix = _mm256_max_ps(_mm256_max_ps(v[0].x, v[1].x), _mm256_max_ps(v[2].x, v[3].x));
         let hiy = _mm256_max_ps(_mm256_max_ps(v[0].y, v[1].y), _mm256_max_ps(v[2].y, v[3].y));
         let d = _mm256_max_ps(_mm256_sub_ps(hix, lox), _mm256_sub_ps(hiy, loy));
-        _mm256_cmp_ps::<_CMP_LT_OQ>(d, _mm256_set1_ps(zwarp_warp::search::CONTINUITY_PX))
+        _mm256_cmp_ps::<_CMP_LT_OQ>(d, _mm256_set1_ps(zwarp_warp::sampling::CONTINUITY_PX))
     }
 
     /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image).

@@ -20,6 +20,7 @@ pub mod image;
 pub mod material;
 pub mod motion;
 pub mod scene;
+pub mod simd;
 
 pub use camera::{Camera, Projection};
 pub use error::{Error, Result};
@@ -28,6 +29,7 @@ pub use image::Image;
 pub use material::{linear_to_srgb, srgb_to_linear, ColorMap, Material, MeshPart, Texture, Wrap, DEFAULT_MATERIAL};
 pub use motion::{check_motion_inputs, motion_field, motion_field_with, Motion};
 pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
+pub use simd::Avx2Switch;
 
 /// Depth value that means "no surface here" (the far plane).
 pub const EMPTY_DEPTH: f32 = 1.0;

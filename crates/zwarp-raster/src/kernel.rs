@@ -7,7 +7,8 @@
 use rayon::prelude::*;
 use zwarp_core::{Image, NO_ITEM};
 
-use crate::setup::{Binned, Tri, TILE_H, TILE_W};
+use crate::setup::{clamp_depth, Binned, Tri, TILE_H, TILE_W};
+use crate::simd::has_avx2;
 
 const TILE_PIX: usize = TILE_W * TILE_H;
 /// Triangles rasterized between two refreshes of a tile's conservative max depth.
@@ -149,18 +150,6 @@ fn all_negative<const AVX2: bool>(ee: &[i32; 8]) -> bool {
 /// Lane offsets as f32 (exact small integers: `xbf + LANE[k]` equals `(xb + k) as f32`).
 const LANE: [f32; 8] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
 
-/// Clamps an interpolated depth at 0 (rounding can dip a hair below the near plane). Written as a
-/// compare + select (not `f32::max`, whose NaN handling costs extra instructions per lane); the
-/// same function is used by [`Tri::depth_at`] so every evaluation agrees bit for bit.
-#[inline(always)]
-pub(crate) fn clamp_depth(z: f32) -> f32 {
-    if z > 0.0 {
-        z
-    } else {
-        0.0
-    }
-}
-
 /// Bin entries between a prefetch and its use.
 const PREFETCH_AHEAD: usize = 4;
 
@@ -257,28 +246,6 @@ fn raster_tile_generic<const IDS: bool, const PEEL: bool, const COUNT: bool>(
     buf: &mut TileBuf,
 ) {
     raster_tile_impl::<IDS, PEEL, COUNT, false>(binned, handles, tile, tx0, ty0, buf)
-}
-
-/// Run-time switch for the AVX2 builds (on by default where the CPU has AVX2). Both builds
-/// compute bit-identical results (no FMA, same operation order); the switch exists so tests can
-/// prove it and for timing the portable build.
-static SIMD_ENABLED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(true);
-
-/// Enables or disables the AVX2 builds of the set-up and tile kernels (for tests/benchmarks).
-pub(crate) fn set_simd(enabled: bool) {
-    SIMD_ENABLED.store(enabled, std::sync::atomic::Ordering::Relaxed);
-}
-
-#[inline]
-pub(crate) fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        SIMD_ENABLED.load(std::sync::atomic::Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 fn raster_tile_dispatch<const IDS: bool, const PEEL: bool, const COUNT: bool>(

@@ -43,6 +43,7 @@ mod peel;
 pub mod scenes;
 mod setup;
 mod shade;
+mod simd;
 
 use glam::Vec3;
 use zwarp_core::{Camera, Error, Image, Motion, Result, Scene, NO_ITEM};
@@ -211,7 +212,7 @@ pub fn any_fragment_visible(depth: &Image<f32>, cam: &Camera, triangles: &[[Vec3
 /// portable build.
 #[doc(hidden)]
 pub fn set_simd(enabled: bool) {
-    kernel::set_simd(enabled)
+    simd::set_simd(enabled)
 }
 
 /// Diagnostic: `(source triangles after instance culling, set-up triangles that cover at least

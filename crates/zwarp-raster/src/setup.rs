@@ -57,6 +57,18 @@ pub(crate) struct Tri {
     pub inst: u32,
 }
 
+/// Clamps an interpolated depth at 0 (rounding can dip a hair below the near plane). Written as a
+/// compare + select (not `f32::max`, whose NaN handling costs extra instructions per lane); the
+/// tile kernel and [`Tri::depth_at`] both use it, so every evaluation agrees bit for bit.
+#[inline(always)]
+pub(crate) fn clamp_depth(z: f32) -> f32 {
+    if z > 0.0 {
+        z
+    } else {
+        0.0
+    }
+}
+
 impl Tri {
     /// Depth of this triangle at pixel `(x, y)`, computed exactly as the tile kernel does
     /// (row value at the tile's left edge in f64, then one f32 multiply-add), so that the same
@@ -65,7 +77,7 @@ impl Tri {
     pub fn depth_at(&self, x: u32, y: u32) -> f32 {
         let tx = x - x % TILE_W as u32;
         let row = self.row_depth(tx, y);
-        crate::kernel::clamp_depth(row + self.zx as f32 * (x - tx) as f32)
+        clamp_depth(row + self.zx as f32 * (x - tx) as f32)
     }
     /// Depth at the left edge `tx` of a tile row (f64 plane rounded once to f32).
     #[inline]
@@ -625,7 +637,7 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
     // Triangle set-up and binning, in parallel over fixed-size triangle chunks.
     let n_chunks = total_tris.div_ceil(CHUNK_TRIS);
     let ctx = ChunkCtx { scene, draws: &draws, clip: &clip, vp, color: params.color, total_tris };
-    let avx2 = crate::kernel::has_avx2();
+    let avx2 = crate::simd::has_avx2();
     let chunks: Vec<Chunk> = (0..n_chunks)
         .into_par_iter()
         .map(|ci| {

@@ -1,27 +1,43 @@
-//! Run-time choice of the AVX2 builds of the warp's kernels (x86-64 only). Every AVX2 build
-//! computes bit-identical results to the portable one (no FMA, same operation order); the
-//! switch exists so tests can prove it and benchmarks can time the portable build.
+//! Run-time choice of the AVX2 builds of the warp's kernels (x86-64 only), and the scalar
+//! operations that keep them bit-identical to the portable builds (no FMA, same operation
+//! order, min / max as compare-selects); the switch exists so tests can prove it and benchmarks
+//! can time the portable build.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use zwarp_core::Avx2Switch;
 
-static SIMD_ENABLED: AtomicBool = AtomicBool::new(true);
+static AVX2: Avx2Switch = Avx2Switch::new();
 
 /// Enables or disables the AVX2 builds of the warp's kernels (tests and benchmarks; on by
 /// default where the CPU has AVX2).
 pub fn set_simd(enabled: bool) {
-    SIMD_ENABLED.store(enabled, Ordering::Relaxed);
+    AVX2.set(enabled);
 }
 
 /// `true` if the AVX2 builds run: the switch is on and the CPU reports AVX2.
 #[inline]
 pub fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        SIMD_ENABLED.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
+    AVX2.active()
+}
+
+/// `min` as a compare-select (`a < b ? a : b`): what `minps` computes, so loops of it vectorize
+/// and the AVX2 builds stay bit-identical to the portable ones. No NaN may reach it (the layer
+/// preparation rejects NaN input; empty texels are `+inf`).
+#[inline(always)]
+pub(crate) fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+}
+
+/// `max` as a compare-select (`a > b ? a : b`), as `maxps` computes it (see [`fmin`]).
+#[inline(always)]
+pub(crate) fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
     }
 }
 
