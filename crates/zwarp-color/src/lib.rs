@@ -5,7 +5,7 @@
 //! - [`field`]: the warp fields of Sec. 3.1 (temporal `t M`, second-order `t M + t^2/2 A`,
 //!   spatial eq. 4, combinations) as a per-frame [`WarpBasis`] evaluated at `(t, u, v)`.
 //! - [`sampler`]: bilinear sampling on surfaces, nearest across discontinuities (Sec. 3.4,
-//!   Fig. 4); the [`ColorSampler`] is a `zwarp_warp::search::MotionSource`, so every warp here
+//!   Fig. 4); the [`ColorSampler`] is a `zwarp_warp::sampling::MotionSource`, so every warp here
 //!   runs the project's one fixed-point search.
 //! - [`heuristic`]: the heuristic variant (Sec. 3.3, 4): one seed (pixel, fixed offset,
 //!   upstream), 3 iterations, the orbit at disocclusions picks the background.

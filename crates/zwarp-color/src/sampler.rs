@@ -4,17 +4,17 @@
 //! "bilinear colour sampling on surfaces, nearest across discontinuities".
 //!
 //! The condition is tested in one of two ways ([`Continuity`]): the heuristic warp uses the
-//! cheap local proxy of the shared search (`zwarp_warp::search::CONTINUITY_PX`: the four motions
+//! cheap local proxy of the shared search (`zwarp_warp::sampling::CONTINUITY_PX`: the four motions
 //! differ by less than a pixel per component), the robust warp the convergence term `rho` of the
 //! cell (Appendix A, [`crate::robust::rho_cells`]).
 //!
-//! [`ColorSampler`] implements `zwarp_warp::search::MotionSource`, so every colour warp runs
+//! [`ColorSampler`] implements `zwarp_warp::sampling::MotionSource`, so every colour warp runs
 //! the one fixed-point search of the project (`zwarp_warp::search::fixed_point_search`).
 
 use std::cell::Cell;
 
 use glam::Vec2;
-use zwarp_warp::search::{MotionSource, Sample, CONTINUITY_PX};
+use zwarp_warp::sampling::{MotionSource, Sample, CONTINUITY_PX};
 
 use crate::field::Field;
 

@@ -28,8 +28,8 @@ use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
-use crate::prepare::{fmax, fmin};
-use crate::search::Sampling;
+use crate::sampling::Sampling;
+use crate::simd::{fmax, fmin};
 
 /// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
 /// motion (see the module docs on which samples contribute).
@@ -210,7 +210,7 @@ pub struct MotionPyramid {
 /// per entry by the larger of the cell's two differences along its axis (the bilinear
 /// derivative lies between them): `[|dvx/dq|^2, |dvy/dq|^2]`. `+inf` where the depths alone
 /// stop the fetch from interpolating (an empty texel or a depth step,
-/// [`crate::search::continuous_cell`]). The motion part of that test depends on the motion
+/// [`crate::sampling::continuous_cell`]). The motion part of that test depends on the motion
 /// scale, and a small gradient implies it ([`MotionPyramid::unique_solution`]).
 #[inline(always)]
 pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32; 2] {
@@ -222,7 +222,7 @@ pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32
     }
     let z_lo = fmin(fmin(a[2], b[2]), fmin(c[2], d[2]));
     let z_hi = fmax(fmax(a[2], b[2]), fmax(c[2], d[2]));
-    if (z_hi - z_lo) < crate::search::DEPTH_CONTINUITY * (1.0 - z_hi) {
+    if (z_hi - z_lo) < crate::sampling::DEPTH_CONTINUITY * (1.0 - z_hi) {
         g
     } else {
         [f32::INFINITY; 2]
@@ -323,7 +323,7 @@ unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f
         let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
         let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
             _mm256_sub_ps(z_hi, z_lo),
-            _mm256_mul_ps(_mm256_set1_ps(crate::search::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
+            _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
         );
         let row = |[a, b, c, d]: [__m256; 4]| {
             let abs = |v: __m256| _mm256_andnot_ps(sign, v);
@@ -405,7 +405,7 @@ impl MotionPyramid {
             },
         );
         let mut grad = vec![[0f32; 2]; lw as usize * lh as usize];
-        let planes = crate::search::SamplePlanes::from_motion(samples);
+        let planes = crate::sampling::SamplePlanes::from_motion(samples);
         gradient_level1(w, h, (&planes.vx, &planes.vy, &planes.z), &mut grad);
         Self::from_level1(w, h, frame, data, zmin, grad)
     }
@@ -648,7 +648,7 @@ impl MotionPyramid {
     /// motion there lies in `b`): Banach's theorem leaves exactly one fixed point, and N seeds
     /// would all find the surface that one seed finds (seed 000 Sec. 3.2's seeds exist for
     /// regions with several solutions). It also keeps every cell's motion range below
-    /// [`crate::search::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
+    /// [`crate::sampling::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
     /// component), so the adaptive fetch interpolates them all.
     pub fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, b: &Bound, scale: Vec2) -> bool {
         let (c_lo, c_hi) = self.frame_box(p_lo, p_hi);

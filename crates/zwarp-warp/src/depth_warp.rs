@@ -25,7 +25,7 @@ use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 use crate::holes::{fill_holes, FillRule, HolePolicy};
 use crate::kernel::{Kernel, TileBounds, TILE};
 pub use crate::prepare::{PreparedLayer, SurfaceMotion};
-use crate::search::LayerSampler;
+use crate::sampling::LayerSampler;
 use crate::{PixelState, SourcePos, WarpOutput, WarpParams, MAX_SEEDS};
 
 /// One peeled source layer: its depth buffer (`1.0` = empty) and motion buffer (motion to the
@@ -245,8 +245,8 @@ mod tests {
     use super::*;
     use crate::kernel::StackSampler;
     use crate::prepare::validated_samples;
-    use crate::search::MotionSource;
-    use crate::search::SamplePlanes;
+    use crate::sampling::MotionSource;
+    use crate::sampling::SamplePlanes;
     use crate::BoundKind;
     use crate::MotionPyramid;
 

@@ -5,7 +5,8 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
-use crate::search::{fixed_point_search, MotionSource, Sample, SearchParams};
+use crate::sampling::{MotionSource, Sample};
+use crate::search::{fixed_point_search, SearchParams};
 use crate::{PixelState, WarpLayer, WarpOutput};
 
 /// What the warp writes where no search converged. Selectable per call.
@@ -157,7 +158,7 @@ pub const BRACKET_SPAN_RATIO: f32 = 4.0;
 
 /// [`FillRule::Background`] averages the far sides that lie within this relative step of the
 /// farthest one, `(z_far - z) <= FAR_SIDE_SPREAD (1 - z_far)`: within a factor 1.25 in linear
-/// depth (the step form of [`crate::search::DEPTH_CONTINUITY`]), i.e. on the uncovered surface.
+/// depth (the step form of [`crate::sampling::DEPTH_CONTINUITY`]), i.e. on the uncovered surface.
 pub const FAR_SIDE_SPREAD: f32 = 0.25;
 
 /// The four probe directions of [`fill_holes`] (each probed both ways): horizontal, vertical and

@@ -20,10 +20,8 @@ use zwarp_core::EMPTY_DEPTH;
 use crate::bounds::{Bound, BoundFrame, TightBound};
 use crate::holes::{awoc_depth, HolePolicy};
 use crate::prepare::PreparedLayer;
-use crate::search::{
-    effective_seeds, fixed_point_search_closest, seed_key, stratified_seeds, Candidate, LayerSampler, MotionSource,
-    Sample, SeedStrategy,
-};
+use crate::sampling::{LayerSampler, MotionSource, Sample};
+use crate::search::{effective_seeds, fixed_point_search_closest, seed_key, stratified_seeds, Candidate, SeedStrategy};
 use crate::{BoundKind, PixelState, SourcePos, WarpParams, MAX_SEEDS};
 
 /// The states of four pixels from four converged bits: `Converged` where set, `Hole` elsewhere.
@@ -959,7 +957,7 @@ impl<'a> Kernel<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::search::{SamplePlanes, Sampling};
+    use crate::sampling::{SamplePlanes, Sampling};
     use zwarp_core::Motion;
 
     #[test]

@@ -15,6 +15,8 @@
 //!
 //! Modules (one idea each):
 //! - [`bounds`]: min-max motion mipmap, iterative bound tightening (Fig. 5), PCA-oriented bounds.
+//! - [`sampling`]: how the search samples a layer's motion (adaptive bilinear / nearest, Bowles
+//!   Fig. 4) and the interface of every source it searches.
 //! - [`search`]: THE fixed-point search kernel (Fig. 3), shared by every backward warp.
 //! - [`depth_warp`]: single- and multi-layer depth warping with cross-layer seeding (Fig. 6).
 //! - [`holes`]: hole policies (far depth, dilation of Fig. 8, AWOC of Sec. 5.3).
@@ -35,6 +37,7 @@ pub mod holes;
 mod kernel;
 mod pages;
 mod prepare;
+pub mod sampling;
 pub mod search;
 pub mod simd;
 mod simd_warp;
@@ -48,9 +51,9 @@ pub use depth_warp::{
     SurfaceMotion, WarpLayer,
 };
 pub use holes::{dilate_holes, fill_holes, hole_fill, FillRule, HolePolicy, FILL_DIRECTIONS};
+pub use sampling::{LayerSampler, MotionSource, Sample, SamplePlanes, Sampling};
 pub use search::{
-    fixed_point_search, fixed_point_search_closest, Approach, Candidate, CandidateChoice, LayerSampler, MotionSource,
-    Sample, SamplePlanes, Sampling, SearchParams, SeedStrategy,
+    fixed_point_search, fixed_point_search_closest, Approach, Candidate, CandidateChoice, SearchParams, SeedStrategy,
 };
 
 use zwarp_core::{Error, Image, Result};

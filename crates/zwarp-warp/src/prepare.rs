@@ -14,7 +14,8 @@ use rayon::prelude::*;
 use zwarp_core::{Error, Motion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid};
-use crate::search::{LayerSampler, SamplePlanes};
+use crate::sampling::{LayerSampler, SamplePlanes};
+use crate::simd::{fmax, fmin};
 use crate::{BoundKind, WarpLayer, WarpParams};
 
 /// What one pair of image rows (one row of level-1 texels) reduces to besides its texels.
@@ -86,26 +87,6 @@ pub(crate) fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowSta
         return unsafe { avx2::row(input, ty, out) };
     }
     row_impl(input, ty, out, 0)
-}
-
-/// `min` / `max` as compare-selects: no NaN reaches them (NaN input is rejected through the
-/// flags; empty texels are `+inf`), and they are what `minps` / `maxps` compute, so loops of
-/// them vectorize and AVX2 builds stay bit-identical.
-#[inline(always)]
-pub(crate) fn fmin(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-#[inline(always)]
-pub(crate) fn fmax(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
 }
 
 /// The portable reduction of columns `xs..w` of level-1 row `ty` (`xs` even): the whole row,

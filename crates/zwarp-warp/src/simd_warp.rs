@@ -120,7 +120,7 @@ pub(crate) unsafe fn splat_bound(b: &Bound) -> [__m256; 4] {
     [splat(b.lo.x), splat(b.lo.y), splat(b.hi.x), splat(b.hi.y)]
 }
 
-/// Eight samples of [`crate::search::LayerSampler`] (adaptive, unit scale): where the lane has
+/// Eight samples of [`crate::sampling::LayerSampler`] (adaptive, unit scale): where the lane has
 /// one, its motion, depth and Jacobian (zero for nearest samples).
 struct Smp8 {
     has: __m256,
@@ -216,16 +216,16 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
     }
 }
 
-/// [`crate::search::continuous_cell`] per lane, from the cell's motion range and its four
+/// [`crate::sampling::continuous_cell`] per lane, from the cell's motion range and its four
 /// target depths (the same min / max chains and IEEE operations).
 #[inline(always)]
 unsafe fn continuous8(rmax: __m256, [z00, z10, z01, z11]: [__m256; 4]) -> __m256 {
     let z_lo = _mm256_min_ps(_mm256_min_ps(z00, z10), _mm256_min_ps(z01, z11));
     let z_hi = _mm256_max_ps(_mm256_max_ps(z00, z10), _mm256_max_ps(z01, z11));
     let step = _mm256_sub_ps(z_hi, z_lo);
-    let limit = _mm256_mul_ps(splat(crate::search::DEPTH_CONTINUITY), _mm256_sub_ps(splat(1.0), z_hi));
+    let limit = _mm256_mul_ps(splat(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(splat(1.0), z_hi));
     _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, splat(crate::search::CONTINUITY_PX)),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, splat(crate::sampling::CONTINUITY_PX)),
         _mm256_cmp_ps::<_CMP_LT_OQ>(step, limit),
     )
 }

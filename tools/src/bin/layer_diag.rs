@@ -268,7 +268,7 @@ fn main() {
     }
     if let Ok(d) = std::env::var("TRACE") {
         // Layer 0's (single-layer) search at pixel TRACE=x,y: global-frame tight bound, seeds, walks.
-        use zwarp_warp::search::{LayerSampler, MotionSource, SamplePlanes, Sampling};
+        use zwarp_warp::sampling::{LayerSampler, MotionSource, SamplePlanes, Sampling};
         let (x, y) = d.split_once(',').expect("TRACE=x,y");
         let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
         let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);

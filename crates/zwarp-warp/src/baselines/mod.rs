@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
 use crate::depth_warp::WarpLayer;
-use crate::search::CONTINUITY_PX;
+use crate::sampling::CONTINUITY_PX;
 
 /// Support expansion of the forward warps, in pixels per side (Sec. 4.1: "by a half-pixel
 /// length to each side").

@@ -65,7 +65,7 @@ const COVER_DEPTH_RATIO: f32 = 1.1;
 // search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
 const STRADDLE_SPAN: f32 = 16.0;
 const STRADDLE_DEPTH_RATIO: f32 = 1.5;
-// zwarp_warp::search::CONTINUITY_PX and DEPTH_CONTINUITY.
+// zwarp_warp::sampling::CONTINUITY_PX and DEPTH_CONTINUITY.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
 // zwarp_warp::bounds::UNIQUE_GRADIENT.
@@ -439,7 +439,7 @@ fn tight_bound_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>, start: vec4<f32>, i
 }
 
 // ---------------------------------------------------------------------------------------
-// Sampling (zwarp_warp::search::LayerSampler::fetch and depth_warp::StackSampler).
+// Sampling (zwarp_warp::sampling::LayerSampler::fetch and depth_warp::StackSampler).
 
 struct Smp {
     ok: bool,
@@ -488,7 +488,7 @@ fn fetch(k: u32, q: vec2<f32>) -> Smp {
             let lo = min(min(s00.xy, s10.xy), min(s01.xy, s11.xy));
             let hi = max(max(s00.xy, s10.xy), max(s01.xy, s11.xy));
             let d = hi - lo;
-            // search::continuous_cell: motions within a pixel, no large relative depth step.
+            // sampling::continuous_cell: motions within a pixel, no large relative depth step.
             let z_lo = min(min(s00.z, s10.z), min(s01.z, s11.z));
             let z_hi = max(max(s00.z, s10.z), max(s01.z, s11.z));
             if (max(d.x, d.y) < CONTINUITY && z_hi - z_lo < DEPTH_CONTINUITY * (1.0 - z_hi)) {
