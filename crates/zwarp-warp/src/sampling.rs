@@ -281,17 +281,9 @@ impl<'a> LayerSampler<'a> {
             let x0 = ix.saturating_sub(1).min(wm);
             let y0 = iy.saturating_sub(1).min(hm);
             let (x1, y1) = (ix.min(wm), iy.min(hm));
-            let (s00, s10, s01, s11) = (sc(at(x0, y0)), sc(at(x1, y0)), sc(at(x0, y1)), sc(at(x1, y1)));
-            // Invalid samples carry depth >= 1 (or < 0). Non-short-circuit `&`: one branch.
-            let valid = |m: &Motion| (m.depth >= 0.0) & (m.depth < 1.0);
-            if valid(&s00) & valid(&s10) & valid(&s01) & valid(&s11) {
-                let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
-                let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
-                let z_lo = s00.depth.min(s10.depth).min(s01.depth.min(s11.depth));
-                let z_hi = s00.depth.max(s10.depth).max(s01.depth.max(s11.depth));
-                if continuous_cell((hi - lo).max_element(), z_lo, z_hi) {
-                    return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
-                }
+            let cell = [sc(at(x0, y0)), sc(at(x1, y0)), sc(at(x0, y1)), sc(at(x1, y1))];
+            if let Some(s) = smooth_cell(&cell, ax, ay, self.tag) {
+                return Some(s);
             }
         } else {
             crate::stats::count(crate::stats::Counter::MotionTexels, 1);
@@ -325,21 +317,31 @@ impl<'a> LayerSampler<'a> {
             let y0 = iy.saturating_sub(1).min(hm);
             let (x1, y1) = (ix.min(wm), iy.min(hm));
             let sc = |m: Motion| Motion { v: self.scale * m.v, depth: m.depth };
-            let (s00, s10, s01, s11) =
-                (sc(self.at(x0, y0)), sc(self.at(x1, y0)), sc(self.at(x0, y1)), sc(self.at(x1, y1)));
-            let valid = |m: &Motion| m.depth >= 0.0 && m.depth < 1.0;
-            if valid(&s00) && valid(&s10) && valid(&s01) && valid(&s11) {
-                let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
-                let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
-                let z_lo = s00.depth.min(s10.depth).min(s01.depth.min(s11.depth));
-                let z_hi = s00.depth.max(s10.depth).max(s01.depth.max(s11.depth));
-                if continuous_cell((hi - lo).max_element(), z_lo, z_hi) {
-                    return Some(bilinear(&s00, &s10, &s01, &s11, ax, ay, self.tag));
-                }
+            let cell = [sc(self.at(x0, y0)), sc(self.at(x1, y0)), sc(self.at(x0, y1)), sc(self.at(x1, y1))];
+            if let Some(s) = smooth_cell(&cell, ax, ay, self.tag) {
+                return Some(s);
             }
         }
         self.nearest(self.at(xn, yn))
     }
+}
+
+/// The bilinear sample of the cell `[s00, s10, s01, s11]` at fractions `(ax, ay)` if its four
+/// texels are valid (invalid ones carry a depth outside `[0, 1)`) and one surface
+/// ([`continuous_cell`]), else `None` (the fetch falls back to the nearest texel).
+#[inline(always)]
+fn smooth_cell(cell: &[Motion; 4], ax: f32, ay: f32, tag: u32) -> Option<Sample> {
+    let [s00, s10, s01, s11] = cell;
+    // Non-short-circuit `&`: one branch.
+    let valid = |m: &Motion| (m.depth >= 0.0) & (m.depth < 1.0);
+    if !(valid(s00) & valid(s10) & valid(s01) & valid(s11)) {
+        return None;
+    }
+    let lo = s00.v.min(s10.v).min(s01.v.min(s11.v));
+    let hi = s00.v.max(s10.v).max(s01.v.max(s11.v));
+    let z_lo = s00.depth.min(s10.depth).min(s01.depth.min(s11.depth));
+    let z_hi = s00.depth.max(s10.depth).max(s01.depth.max(s11.depth));
+    continuous_cell((hi - lo).max_element(), z_lo, z_hi).then(|| bilinear(s00, s10, s01, s11, ax, ay, tag))
 }
 
 /// Bilinear sample of four valid, continuous texels at fractions `(ax, ay)` (Bowles Fig. 4),
