@@ -270,8 +270,16 @@ pub(crate) mod avx2 {
     /// Eight pixels' channel vectors stored as eight RGB triples at `p` (the SoA -> AoS
     /// transpose).
     #[inline(always)]
-    unsafe fn store_rgb8(p: *mut f32, [r, g, b]: [__m256; 3]) {
-        let o = [
+    unsafe fn store_rgb8(p: *mut f32, rgb: [__m256; 3]) {
+        for (k, v) in interleave_rgb8(rgb).into_iter().enumerate() {
+            _mm256_storeu_ps(p.add(8 * k), v);
+        }
+    }
+
+    /// Eight pixels' channel vectors as the three vectors of their 24 interleaved RGB floats.
+    #[inline(always)]
+    unsafe fn interleave_rgb8([r, g, b]: [__m256; 3]) -> [__m256; 3] {
+        [
             merge3::<0b1001_0010, 0b0010_0100>(
                 (r, [0, 0, 0, 1, 0, 0, 2, 0]),
                 (g, [0, 0, 0, 0, 1, 0, 0, 2]),
@@ -287,10 +295,14 @@ pub(crate) mod avx2 {
                 (g, [5, 0, 0, 6, 0, 0, 7, 0]),
                 (b, [0, 5, 0, 0, 6, 0, 0, 7]),
             ),
-        ];
-        for (k, v) in o.into_iter().enumerate() {
-            _mm256_storeu_ps(p.add(8 * k), v);
-        }
+        ]
+    }
+
+    /// A lane mask spread over the three vectors of [`interleave_rgb8`] (lane k covers floats
+    /// 3k..3k + 3).
+    #[inline(always)]
+    unsafe fn spread_mask3(m: __m256) -> [__m256; 3] {
+        [pick(m, [0, 0, 0, 1, 1, 1, 2, 2]), pick(m, [2, 3, 3, 3, 4, 4, 4, 5]), pick(m, [5, 5, 6, 6, 6, 7, 7, 7])]
     }
 
     /// The colour texels of each lane's cell (per channel the four texels) for the `live`
@@ -547,20 +559,19 @@ pub(crate) mod avx2 {
         pub foot: [f32; 4],
     }
 
-    /// Result of one group of eight pixels of [`robust_row`]: per lane, accepted (converged
-    /// inside the quad), depth, colour, residual.
-    pub(crate) struct Hits {
-        pub accepted: u32,
-        pub depth: [f32; 8],
-        pub color: [[f32; 3]; 8],
-        pub residual: [f32; 8],
+    /// The target row [`robust_row`] writes into (whole rows of the output buffers).
+    pub(crate) struct RowOut<'a> {
+        pub depth: &'a mut [f32],
+        pub color: &'a mut [[f32; 3]],
+        pub residual: &'a mut [f32],
     }
 
     /// The robust warp's search for pixels `px0..px1` of row `py` from quad `q`, eight at a
     /// time: the interpolated seed, the shared search's walk (Newton steps with `accelerate`),
-    /// the footprint test and the colour at `p - V(q)` — the portable loop's arithmetic. Each
-    /// group with an accepted lane goes to `emit(first pixel, hits)`; the set-up (planes, sizes)
-    /// is done once per row.
+    /// the footprint test and the colour at `p - V(q)` — the portable loop's arithmetic. An
+    /// accepted lane nearer than what `out` holds at its pixel replaces depth, colour and
+    /// residual there (the portable loop's depth test, eight pixels per masked store); the
+    /// set-up (planes, sizes) is done once per row.
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
     pub(crate) unsafe fn robust_row(
@@ -572,7 +583,7 @@ pub(crate) mod avx2 {
         iterations: u32,
         threshold: f32,
         accelerate: bool,
-        mut emit: impl FnMut(i32, &Hits),
+        out: RowOut<'_>,
     ) {
         let (w, h) = f.size();
         let pl = Planes::of(f);
@@ -676,13 +687,12 @@ pub(crate) mod avx2 {
                 ),
             );
             let acc = _mm256_and_ps(conv, foot);
-            let mut hits = Hits {
-                accepted: _mm256_movemask_ps(acc) as u32,
-                depth: [0.0; 8],
-                color: [[0.0; 3]; 8],
-                residual: [0.0; 8],
-            };
-            if hits.accepted == 0 {
+            // Accepted and nearer than what the row holds (`<`: the portable depth test).
+            let x = px as usize;
+            let whole = x + 8 <= out.depth.len();
+            let old_z = if whole { _mm256_loadu_ps(out.depth.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
+            let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(cz, old_z));
+            if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
                 px += 8;
                 continue;
             }
@@ -703,10 +713,30 @@ pub(crate) mod avx2 {
                 let bot = mix(c[2], c[3], l.ax);
                 *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
             }
-            store_rgb8(hits.color.as_mut_ptr() as *mut f32, rgb);
-            _mm256_storeu_ps(hits.depth.as_mut_ptr(), cz);
-            _mm256_storeu_ps(hits.residual.as_mut_ptr(), res);
-            emit(px, &hits);
+            if whole {
+                _mm256_storeu_ps(out.depth.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
+                let rp = out.residual.as_mut_ptr().add(x);
+                _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
+                let cp = out.color.as_mut_ptr().add(x) as *mut f32;
+                for ((k, v), m) in interleave_rgb8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
+                    let q = cp.add(8 * k);
+                    _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
+                }
+            } else {
+                // The row's last pixels: lane by lane.
+                let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
+                _mm256_storeu_ps(z8.as_mut_ptr(), cz);
+                _mm256_storeu_ps(r8.as_mut_ptr(), res);
+                store_rgb8(c8.as_mut_ptr() as *mut f32, rgb);
+                let mut m = _mm256_movemask_ps(acc) as u32;
+                while m != 0 {
+                    let k = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if z8[k] < out.depth[x + k] {
+                        (out.depth[x + k], out.color[x + k], out.residual[x + k]) = (z8[k], c8[k], r8[k]);
+                    }
+                }
+            }
             px += 8;
         }
     }

@@ -531,18 +531,10 @@ pub fn robust_warp_with(
                                 params.iterations,
                                 params.threshold,
                                 params.accelerate,
-                                |px, hits| {
-                                    let mut m = hits.accepted;
-                                    while m != 0 {
-                                        let k = m.trailing_zeros() as usize;
-                                        m &= m - 1;
-                                        let i = row + px as usize + k;
-                                        if hits.depth[k] < db[i] {
-                                            db[i] = hits.depth[k];
-                                            cb[i] = hits.color[k];
-                                            rb[i] = hits.residual[k];
-                                        }
-                                    }
+                                crate::lanes::avx2::RowOut {
+                                    depth: &mut db[row..row + wu],
+                                    color: &mut cb[row..row + wu],
+                                    residual: &mut rb[row..row + wu],
                                 },
                             )
                         };
