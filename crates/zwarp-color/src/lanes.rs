@@ -559,31 +559,41 @@ pub(crate) mod avx2 {
         pub foot: [f32; 4],
     }
 
-    /// The target row [`robust_row`] writes into (whole rows of the output buffers).
-    pub(crate) struct RowOut<'a> {
+    /// The target rows [`robust_rows`] writes into: a band of whole rows of the output
+    /// buffers, `width` pixels each, the first one image row `y0`.
+    pub(crate) struct BandOut<'a> {
         pub depth: &'a mut [f32],
         pub color: &'a mut [[f32; 3]],
         pub residual: &'a mut [f32],
+        pub width: usize,
+        pub y0: i32,
     }
 
-    /// The robust warp's search for pixels `px0..px1` of row `py` from quad `q`, eight at a
-    /// time: the interpolated seed, the shared search's walk (Newton steps with `accelerate`),
-    /// the footprint test and the colour at `p - V(q)` — the portable loop's arithmetic. An
-    /// accepted lane nearer than what `out` holds at its pixel replaces depth, colour and
-    /// residual there (the portable loop's depth test, eight pixels per masked store); the
-    /// set-up (planes, sizes) is done once per row.
+    /// One row of a [`BandOut`].
+    struct RowOut<'a> {
+        depth: &'a mut [f32],
+        color: &'a mut [[f32; 3]],
+        residual: &'a mut [f32],
+    }
+
+    /// The robust warp's search for pixels `px0..px1` of rows `py0..py1` from quad `q`, eight
+    /// at a time: the interpolated seed, the shared search's walk (Newton steps with
+    /// `accelerate`), the footprint test and the colour at `p - V(q)` — the portable loop's
+    /// arithmetic. An accepted lane nearer than what `band` holds at its pixel replaces depth,
+    /// colour and residual there (the portable loop's depth test, eight pixels per masked
+    /// store); the set-up (planes, sizes) is done once per quad.
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
-    pub(crate) unsafe fn robust_row(
+    pub(crate) unsafe fn robust_rows(
         f: &Field<'_>,
         rho: &[f32],
         color: &[[f32; 3]],
         q: &Quad,
-        (px0, px1, py): (i32, i32, i32),
+        (px0, px1, py0, py1): (i32, i32, i32, i32),
         iterations: u32,
         threshold: f32,
         accelerate: bool,
-        out: RowOut<'_>,
+        band: BandOut<'_>,
     ) {
         let (w, h) = f.size();
         let pl = Planes::of(f);
@@ -596,148 +606,164 @@ pub(crate) mod avx2 {
         let zero = _mm256_setzero_ps();
         let sign = _mm256_set1_ps(-0.0);
         let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        let mut px = px0;
-        while px < px1 {
-            let n = ((px1 - px) as usize).min(8);
-            let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
-            let ppx =
-                _mm256_add_ps(_mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)), _mm256_set1_ps(0.5));
-            let ppy = _mm256_set1_ps(py as f32 + 0.5);
-            // Seed (Warped::seed).
-            let relx = if q.dst_ext[0] > 1e-6 {
-                _mm256_div_ps(_mm256_sub_ps(ppx, _mm256_set1_ps(q.dst_lo[0])), _mm256_set1_ps(q.dst_ext[0]))
-            } else {
-                _mm256_set1_ps(0.5)
+        let bw = band.width;
+        for py in py0..py1 {
+            let row = (py - band.y0) as usize * bw;
+            let out = RowOut {
+                depth: &mut band.depth[row..row + bw],
+                color: &mut band.color[row..row + bw],
+                residual: &mut band.residual[row..row + bw],
             };
-            let rely = if q.dst_ext[1] > 1e-6 {
-                _mm256_div_ps(_mm256_sub_ps(ppy, _mm256_set1_ps(q.dst_lo[1])), _mm256_set1_ps(q.dst_ext[1]))
-            } else {
-                _mm256_set1_ps(0.5)
-            };
-            let sx = _mm256_add_ps(_mm256_set1_ps(q.src_lo[0]), _mm256_mul_ps(relx, _mm256_set1_ps(q.src_ext[0])));
-            let sy = _mm256_add_ps(_mm256_set1_ps(q.src_lo[1]), _mm256_mul_ps(rely, _mm256_set1_ps(q.src_ext[1])));
-            let lox = q.src_lo[0] - 0.5;
-            let loy = q.src_lo[1] - 0.5;
-            let hix = (q.src_lo[0] + q.src_ext[0]) + 0.499;
-            let hiy = (q.src_lo[1] + q.src_ext[1]) + 0.499;
-            let mut qx = _mm256_min_ps(_mm256_max_ps(sx, _mm256_set1_ps(lox)), _mm256_set1_ps(hix));
-            let mut qy = _mm256_min_ps(_mm256_max_ps(sy, _mm256_set1_ps(loy)), _mm256_set1_ps(hiy));
-            let thr2 = _mm256_set1_ps(threshold * threshold);
-            let mut active = valid;
-            let mut conv = zero;
-            let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
-            let one = _mm256_set1_ps(1.0);
-            for _ in 0..iterations {
-                let (sx, sy);
-                (active, sx, sy) = in_image(qx, qy, wf, hf, active);
-                if _mm256_movemask_ps(active) == 0 {
-                    break;
+            let mut px = px0;
+            while px < px1 {
+                let n = ((px1 - px) as usize).min(8);
+                let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
+                let ppx = _mm256_add_ps(
+                    _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)),
+                    _mm256_set1_ps(0.5),
+                );
+                let ppy = _mm256_set1_ps(py as f32 + 0.5);
+                // Seed (Warped::seed).
+                let relx = if q.dst_ext[0] > 1e-6 {
+                    _mm256_div_ps(_mm256_sub_ps(ppx, _mm256_set1_ps(q.dst_lo[0])), _mm256_set1_ps(q.dst_ext[0]))
+                } else {
+                    _mm256_set1_ps(0.5)
+                };
+                let rely = if q.dst_ext[1] > 1e-6 {
+                    _mm256_div_ps(_mm256_sub_ps(ppy, _mm256_set1_ps(q.dst_lo[1])), _mm256_set1_ps(q.dst_ext[1]))
+                } else {
+                    _mm256_set1_ps(0.5)
+                };
+                let sx = _mm256_add_ps(_mm256_set1_ps(q.src_lo[0]), _mm256_mul_ps(relx, _mm256_set1_ps(q.src_ext[0])));
+                let sy = _mm256_add_ps(_mm256_set1_ps(q.src_lo[1]), _mm256_mul_ps(rely, _mm256_set1_ps(q.src_ext[1])));
+                let lox = q.src_lo[0] - 0.5;
+                let loy = q.src_lo[1] - 0.5;
+                let hix = (q.src_lo[0] + q.src_ext[0]) + 0.499;
+                let hiy = (q.src_lo[1] + q.src_ext[1]) + 0.499;
+                let mut qx = _mm256_min_ps(_mm256_max_ps(sx, _mm256_set1_ps(lox)), _mm256_set1_ps(hix));
+                let mut qy = _mm256_min_ps(_mm256_max_ps(sy, _mm256_set1_ps(loy)), _mm256_set1_ps(hiy));
+                let thr2 = _mm256_set1_ps(threshold * threshold);
+                let mut active = valid;
+                let mut conv = zero;
+                let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
+                let one = _mm256_set1_ps(1.0);
+                for _ in 0..iterations {
+                    let (sx, sy);
+                    (active, sx, sy) = in_image(qx, qy, wf, hf, active);
+                    if _mm256_movemask_ps(active) == 0 {
+                        break;
+                    }
+                    let l = locate(sx, sy, wi, wm, hm);
+                    let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
+                    let sm = smooth_rho(&l, rp);
+                    let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
+                    let wx = _mm256_sub_ps(ppx, vx);
+                    let wy = _mm256_sub_ps(ppy, vy);
+                    let stx = _mm256_sub_ps(wx, qx);
+                    let sty = _mm256_sub_ps(wy, qy);
+                    let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+                    let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+                    cqx = _mm256_blendv_ps(cqx, qx, now);
+                    cqy = _mm256_blendv_ps(cqy, qy, now);
+                    cvx = _mm256_blendv_ps(cvx, vx, now);
+                    cvy = _mm256_blendv_ps(cvy, vy, now);
+                    cz = _mm256_blendv_ps(cz, z, now);
+                    conv = _mm256_or_ps(conv, now);
+                    active = _mm256_andnot_ps(now, active);
+                    let (mut nx, mut ny) = (wx, wy);
+                    if accelerate {
+                        // newton_step with the bilinear Jacobian (zero for nearest samples).
+                        let dxx = _mm256_and_ps(
+                            sm,
+                            lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay),
+                        );
+                        let dxy = _mm256_and_ps(
+                            sm,
+                            lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay),
+                        );
+                        let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
+                        let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
+                        let m00 = _mm256_add_ps(one, dxx);
+                        let m01 = dyx;
+                        let m10 = dxy;
+                        let m11 = _mm256_add_ps(one, dyy);
+                        let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
+                        let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_andnot_ps(sign, det), _mm256_set1_ps(0.05));
+                        let ddx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
+                        let ddy = _mm256_div_ps(
+                            _mm256_add_ps(_mm256_mul_ps(_mm256_xor_ps(m10, sign), stx), _mm256_mul_ps(m00, sty)),
+                            det,
+                        );
+                        nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, ddx), ok);
+                        ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, ddy), ok);
+                    }
+                    qx = _mm256_blendv_ps(qx, nx, active);
+                    qy = _mm256_blendv_ps(qy, ny, active);
                 }
-                let l = locate(sx, sy, wi, wm, hm);
-                let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
+                let foot = _mm256_and_ps(
+                    _mm256_and_ps(
+                        _mm256_cmp_ps::<_CMP_GE_OQ>(cqx, _mm256_set1_ps(q.foot[0])),
+                        _mm256_cmp_ps::<_CMP_LT_OQ>(cqx, _mm256_set1_ps(q.foot[1])),
+                    ),
+                    _mm256_and_ps(
+                        _mm256_cmp_ps::<_CMP_GE_OQ>(cqy, _mm256_set1_ps(q.foot[2])),
+                        _mm256_cmp_ps::<_CMP_LT_OQ>(cqy, _mm256_set1_ps(q.foot[3])),
+                    ),
+                );
+                let acc = _mm256_and_ps(conv, foot);
+                // Accepted and nearer than what the row holds (`<`: the portable depth test).
+                let x = px as usize;
+                let whole = x + 8 <= out.depth.len();
+                let old_z =
+                    if whole { _mm256_loadu_ps(out.depth.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
+                let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(cz, old_z));
+                if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
+                    px += 8;
+                    continue;
+                }
+                let ex = _mm256_sub_ps(_mm256_add_ps(cqx, cvx), ppx);
+                let ey = _mm256_sub_ps(_mm256_add_ps(cqy, cvy), ppy);
+                let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
+                // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
+                let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, cvx), acc);
+                let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, cvy), acc);
+                let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
+                let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
+                let l = locate(qx, qy, wi, wm, hm);
                 let sm = smooth_rho(&l, rp);
-                let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
-                let wx = _mm256_sub_ps(ppx, vx);
-                let wy = _mm256_sub_ps(ppy, vy);
-                let stx = _mm256_sub_ps(wx, qx);
-                let sty = _mm256_sub_ps(wy, qy);
-                let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
-                let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
-                cqx = _mm256_blendv_ps(cqx, qx, now);
-                cqy = _mm256_blendv_ps(cqy, qy, now);
-                cvx = _mm256_blendv_ps(cvx, vx, now);
-                cvy = _mm256_blendv_ps(cvy, vy, now);
-                cz = _mm256_blendv_ps(cz, z, now);
-                conv = _mm256_or_ps(conv, now);
-                active = _mm256_andnot_ps(now, active);
-                let (mut nx, mut ny) = (wx, wy);
-                if accelerate {
-                    // newton_step with the bilinear Jacobian (zero for nearest samples).
-                    let dxx =
-                        _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay));
-                    let dxy =
-                        _mm256_and_ps(sm, lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay));
-                    let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
-                    let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
-                    let m00 = _mm256_add_ps(one, dxx);
-                    let m01 = dyx;
-                    let m10 = dxy;
-                    let m11 = _mm256_add_ps(one, dyy);
-                    let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
-                    let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_andnot_ps(sign, det), _mm256_set1_ps(0.05));
-                    let ddx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
-                    let ddy = _mm256_div_ps(
-                        _mm256_add_ps(_mm256_mul_ps(_mm256_xor_ps(m10, sign), stx), _mm256_mul_ps(m00, sty)),
-                        det,
-                    );
-                    nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, ddx), ok);
-                    ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, ddy), ok);
+                let cells = cell_rgb(color, &l, acc, wi, len);
+                let mut rgb = [zero; 3];
+                for (o, c) in rgb.iter_mut().zip(cells) {
+                    let top = mix(c[0], c[1], l.ax);
+                    let bot = mix(c[2], c[3], l.ax);
+                    *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
                 }
-                qx = _mm256_blendv_ps(qx, nx, active);
-                qy = _mm256_blendv_ps(qy, ny, active);
-            }
-            let foot = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(cqx, _mm256_set1_ps(q.foot[0])),
-                    _mm256_cmp_ps::<_CMP_LT_OQ>(cqx, _mm256_set1_ps(q.foot[1])),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(cqy, _mm256_set1_ps(q.foot[2])),
-                    _mm256_cmp_ps::<_CMP_LT_OQ>(cqy, _mm256_set1_ps(q.foot[3])),
-                ),
-            );
-            let acc = _mm256_and_ps(conv, foot);
-            // Accepted and nearer than what the row holds (`<`: the portable depth test).
-            let x = px as usize;
-            let whole = x + 8 <= out.depth.len();
-            let old_z = if whole { _mm256_loadu_ps(out.depth.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
-            let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(cz, old_z));
-            if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
-                px += 8;
-                continue;
-            }
-            let ex = _mm256_sub_ps(_mm256_add_ps(cqx, cvx), ppx);
-            let ey = _mm256_sub_ps(_mm256_add_ps(cqy, cvy), ppy);
-            let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
-            // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
-            let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, cvx), acc);
-            let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, cvy), acc);
-            let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
-            let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
-            let l = locate(qx, qy, wi, wm, hm);
-            let sm = smooth_rho(&l, rp);
-            let cells = cell_rgb(color, &l, acc, wi, len);
-            let mut rgb = [zero; 3];
-            for (o, c) in rgb.iter_mut().zip(cells) {
-                let top = mix(c[0], c[1], l.ax);
-                let bot = mix(c[2], c[3], l.ax);
-                *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
-            }
-            if whole {
-                _mm256_storeu_ps(out.depth.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
-                let rp = out.residual.as_mut_ptr().add(x);
-                _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
-                let cp = out.color.as_mut_ptr().add(x) as *mut f32;
-                for ((k, v), m) in interleave_rgb8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
-                    let q = cp.add(8 * k);
-                    _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
-                }
-            } else {
-                // The row's last pixels: lane by lane.
-                let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
-                _mm256_storeu_ps(z8.as_mut_ptr(), cz);
-                _mm256_storeu_ps(r8.as_mut_ptr(), res);
-                store_rgb8(c8.as_mut_ptr() as *mut f32, rgb);
-                let mut m = _mm256_movemask_ps(acc) as u32;
-                while m != 0 {
-                    let k = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if z8[k] < out.depth[x + k] {
-                        (out.depth[x + k], out.color[x + k], out.residual[x + k]) = (z8[k], c8[k], r8[k]);
+                if whole {
+                    _mm256_storeu_ps(out.depth.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
+                    let rp = out.residual.as_mut_ptr().add(x);
+                    _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
+                    let cp = out.color.as_mut_ptr().add(x) as *mut f32;
+                    for ((k, v), m) in interleave_rgb8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
+                        let q = cp.add(8 * k);
+                        _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
+                    }
+                } else {
+                    // The row's last pixels: lane by lane.
+                    let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
+                    _mm256_storeu_ps(z8.as_mut_ptr(), cz);
+                    _mm256_storeu_ps(r8.as_mut_ptr(), res);
+                    store_rgb8(c8.as_mut_ptr() as *mut f32, rgb);
+                    let mut m = _mm256_movemask_ps(acc) as u32;
+                    while m != 0 {
+                        let k = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        if z8[k] < out.depth[x + k] {
+                            (out.depth[x + k], out.color[x + k], out.residual[x + k]) = (z8[k], c8[k], r8[k]);
+                        }
                     }
                 }
+                px += 8;
             }
-            px += 8;
         }
     }
 

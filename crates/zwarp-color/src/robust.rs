@@ -517,28 +517,28 @@ pub fn robust_warp_with(
                         src_ext: q.src_ext.to_array(),
                         foot: [fx0, fx1, fy0, fy1],
                     };
-                    for py in q.py0.max(y0)..q.py1.min(y1) {
-                        let row = (py - y0) as usize * wu;
-                        searches += (q.px1 - q.px0) as u64;
-                        // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
-                        unsafe {
-                            crate::lanes::avx2::robust_row(
-                                field,
-                                &sub.rho,
-                                src,
-                                &quad,
-                                (q.px0, q.px1, py),
-                                params.iterations,
-                                params.threshold,
-                                params.accelerate,
-                                crate::lanes::avx2::RowOut {
-                                    depth: &mut db[row..row + wu],
-                                    color: &mut cb[row..row + wu],
-                                    residual: &mut rb[row..row + wu],
-                                },
-                            )
-                        };
-                    }
+                    let (ra, rb_) = (q.py0.max(y0), q.py1.min(y1));
+                    searches += (rb_ - ra).max(0) as u64 * (q.px1 - q.px0) as u64;
+                    // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
+                    unsafe {
+                        crate::lanes::avx2::robust_rows(
+                            field,
+                            &sub.rho,
+                            src,
+                            &quad,
+                            (q.px0, q.px1, ra, rb_),
+                            params.iterations,
+                            params.threshold,
+                            params.accelerate,
+                            crate::lanes::avx2::BandOut {
+                                depth: &mut *db,
+                                color: &mut *cb,
+                                residual: &mut *rb,
+                                width: wu,
+                                y0,
+                            },
+                        )
+                    };
                     continue;
                 }
                 for py in q.py0.max(y0)..q.py1.min(y1) {
