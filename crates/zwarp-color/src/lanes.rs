@@ -73,6 +73,55 @@ pub(crate) mod avx2 {
         (active, _mm256_blendv_ps(half, qx, active), _mm256_blendv_ps(half, qy, active))
     }
 
+    /// What both walks read the field through: its planes and the image's size as the lanes
+    /// need it.
+    struct Grid {
+        pl: Planes,
+        wi: i32,
+        len: usize,
+        /// Largest texel column / row.
+        wm: __m256i,
+        hm: __m256i,
+        /// Image width / height.
+        wf: __m256,
+        hf: __m256,
+        /// Largest colour look-up position (just inside the image).
+        cx: __m256,
+        cy: __m256,
+    }
+
+    impl Grid {
+        #[inline(always)]
+        unsafe fn of(f: &Field<'_>) -> Self {
+            let (w, h) = f.size();
+            Grid {
+                pl: Planes::of(f),
+                wi: w as i32,
+                len: w as usize * h as usize,
+                wm: _mm256_set1_epi32(w as i32 - 1),
+                hm: _mm256_set1_epi32(h as i32 - 1),
+                wf: _mm256_set1_ps(w as f32),
+                hf: _mm256_set1_ps(h as f32),
+                cx: _mm256_set1_ps(w as f32 - 1.0e-3),
+                cy: _mm256_set1_ps(h as f32 - 1.0e-3),
+            }
+        }
+
+        /// One iterate of a walk: the `active` lanes left in the image (updated in place) and, if
+        /// any, their cells and the cells' texels (motion, depth).
+        #[inline(always)]
+        unsafe fn fetch(&self, qx: __m256, qy: __m256, active: &mut __m256) -> Option<(Loc, [V2; 4], [__m256; 4])> {
+            let (sx, sy);
+            (*active, sx, sy) = in_image(qx, qy, self.wf, self.hf, *active);
+            if _mm256_movemask_ps(*active) == 0 {
+                return None;
+            }
+            let l = locate(sx, sy, self.wi, self.wm, self.hm);
+            let (v4, z4) = cell_texels(&self.pl, &l, *active, self.wi, self.len);
+            Some((l, v4, z4))
+        }
+    }
+
     /// The field sample of each lane's cell: bilinear where `sm`, the nearest texel elsewhere —
     /// `(vx, vy, depth)` and the bilinear rows `[top.x, top.y, bottom.x, bottom.y]` (the
     /// Jacobian's finite differences).
@@ -418,13 +467,8 @@ pub(crate) mod avx2 {
         od: &mut [f32],
         or: &mut [f32],
     ) {
-        let (w, h) = f.size();
-        let pl = Planes::of(f);
-        let wi = w as i32;
-        let len = w as usize * h as usize;
-        let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
-        let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
-        let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
+        let g = Grid::of(f);
+        let (pl, w) = (&g.pl, f.size().0);
         let zero = _mm256_setzero_ps();
         let lane = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
         let px = _mm256_add_ps(_mm256_set1_ps(x0 as f32 + 0.5), lane);
@@ -449,8 +493,8 @@ pub(crate) mod avx2 {
             }
         };
         // Clamp into the image (glam: max then min).
-        qx = _mm256_min_ps(_mm256_max_ps(qx, zero), cx);
-        qy = _mm256_min_ps(_mm256_max_ps(qy, zero), cy);
+        qx = _mm256_min_ps(_mm256_max_ps(qx, zero), g.cx);
+        qy = _mm256_min_ps(_mm256_max_ps(qy, zero), g.cy);
         let thr2 = _mm256_set1_ps(params.threshold * params.threshold);
         let all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
         let mut active = all;
@@ -464,13 +508,7 @@ pub(crate) mod avx2 {
         let mut bz = _mm256_set1_ps(f32::NEG_INFINITY);
         let mut visited = zero;
         for _ in 0..params.iterations {
-            let (sx, sy);
-            (active, sx, sy) = in_image(qx, qy, wf, hf, active);
-            if _mm256_movemask_ps(active) == 0 {
-                break;
-            }
-            let l = locate(sx, sy, wi, wm, hm);
-            let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
+            let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
             let sm = smooth(&v4);
             let (vx, vy, z, _) = sample_cell(&l, &v4, &z4, sm);
             // Record the visit (the orbit's farthest sample).
@@ -515,9 +553,9 @@ pub(crate) mod avx2 {
         let outz = _mm256_blendv_ps(bz, cz, conv);
         let outr = _mm256_blendv_ps(bres, cr, conv);
         // Colour at (colx, coly), clamped (ColorSampler::color).
-        let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
-        let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
-        let l = locate(qx, qy, wi, wm, hm);
+        let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
+        let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
+        let l = locate(qx, qy, g.wi, g.wm, g.hm);
         // The continuity of a cell depends only on its texels: where every lane's colour cell
         // is the cell it converged in, the mask is known (the common case: q and p - V(q)
         // less than the threshold apart).
@@ -525,10 +563,10 @@ pub(crate) mod avx2 {
         let sm = if _mm256_movemask_epi8(same) == -1 {
             csm
         } else {
-            let v4 = [v_at(&pl, l.i[0]), v_at(&pl, l.i[1]), v_at(&pl, l.i[2]), v_at(&pl, l.i[3])];
+            let v4 = [v_at(pl, l.i[0]), v_at(pl, l.i[1]), v_at(pl, l.i[2]), v_at(pl, l.i[3])];
             smooth(&v4)
         };
-        let cells = cell_rgb(color, &l, all, wi, len);
+        let cells = cell_rgb(color, &l, all, g.wi, g.len);
         let mut rgb = [zero; 3];
         for (o, c) in rgb.iter_mut().zip(cells) {
             let top = mix(c[0], c[1], l.ax);
@@ -569,13 +607,6 @@ pub(crate) mod avx2 {
         pub y0: i32,
     }
 
-    /// One row of a [`BandOut`].
-    struct RowOut<'a> {
-        depth: &'a mut [f32],
-        color: &'a mut [[f32; 3]],
-        residual: &'a mut [f32],
-    }
-
     /// The robust warp's search for pixels `px0..px1` of rows `py0..py1` from quad `q`, eight
     /// at a time: the interpolated seed, the shared search's walk (Newton steps with
     /// `accelerate`), the footprint test and the colour at `p - V(q)` — the portable loop's
@@ -595,25 +626,34 @@ pub(crate) mod avx2 {
         accelerate: bool,
         band: BandOut<'_>,
     ) {
-        let (w, h) = f.size();
-        let pl = Planes::of(f);
+        let g = Grid::of(f);
         let rp = rho.as_ptr();
-        let wi = w as i32;
-        let len = w as usize * h as usize;
-        let (wm, hm) = (_mm256_set1_epi32(wi - 1), _mm256_set1_epi32(h as i32 - 1));
-        let (wf, hf) = (_mm256_set1_ps(w as f32), _mm256_set1_ps(h as f32));
-        let (cx, cy) = (_mm256_set1_ps(w as f32 - 1.0e-3), _mm256_set1_ps(h as f32 - 1.0e-3));
         let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
         let sign = _mm256_set1_ps(-0.0);
         let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let thr2 = _mm256_set1_ps(threshold * threshold);
+        // The seed (Warped::seed): the pixel's relative position in the warped box mapped into
+        // the source box, clamped to the footprint.
+        let rel = |p: __m256, k: usize| {
+            if q.dst_ext[k] > 1e-6 {
+                _mm256_div_ps(_mm256_sub_ps(p, _mm256_set1_ps(q.dst_lo[k])), _mm256_set1_ps(q.dst_ext[k]))
+            } else {
+                _mm256_set1_ps(0.5)
+            }
+        };
+        let seed = |rel: __m256, k: usize| {
+            let s = _mm256_add_ps(_mm256_set1_ps(q.src_lo[k]), _mm256_mul_ps(rel, _mm256_set1_ps(q.src_ext[k])));
+            let (lo, hi) = (q.src_lo[k] - 0.5, (q.src_lo[k] + q.src_ext[k]) + 0.499);
+            _mm256_min_ps(_mm256_max_ps(s, _mm256_set1_ps(lo)), _mm256_set1_ps(hi))
+        };
         let bw = band.width;
         for py in py0..py1 {
             let row = (py - band.y0) as usize * bw;
-            let out = RowOut {
-                depth: &mut band.depth[row..row + bw],
-                color: &mut band.color[row..row + bw],
-                residual: &mut band.residual[row..row + bw],
-            };
+            let (od, oc, or) =
+                (&mut band.depth[row..row + bw], &mut band.color[row..row + bw], &mut band.residual[row..row + bw]);
+            let ppy = _mm256_set1_ps(py as f32 + 0.5);
+            let sy = seed(rel(ppy, 1), 1);
             let mut px = px0;
             while px < px1 {
                 let n = ((px1 - px) as usize).min(8);
@@ -622,39 +662,12 @@ pub(crate) mod avx2 {
                     _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)),
                     _mm256_set1_ps(0.5),
                 );
-                let ppy = _mm256_set1_ps(py as f32 + 0.5);
-                // Seed (Warped::seed).
-                let relx = if q.dst_ext[0] > 1e-6 {
-                    _mm256_div_ps(_mm256_sub_ps(ppx, _mm256_set1_ps(q.dst_lo[0])), _mm256_set1_ps(q.dst_ext[0]))
-                } else {
-                    _mm256_set1_ps(0.5)
-                };
-                let rely = if q.dst_ext[1] > 1e-6 {
-                    _mm256_div_ps(_mm256_sub_ps(ppy, _mm256_set1_ps(q.dst_lo[1])), _mm256_set1_ps(q.dst_ext[1]))
-                } else {
-                    _mm256_set1_ps(0.5)
-                };
-                let sx = _mm256_add_ps(_mm256_set1_ps(q.src_lo[0]), _mm256_mul_ps(relx, _mm256_set1_ps(q.src_ext[0])));
-                let sy = _mm256_add_ps(_mm256_set1_ps(q.src_lo[1]), _mm256_mul_ps(rely, _mm256_set1_ps(q.src_ext[1])));
-                let lox = q.src_lo[0] - 0.5;
-                let loy = q.src_lo[1] - 0.5;
-                let hix = (q.src_lo[0] + q.src_ext[0]) + 0.499;
-                let hiy = (q.src_lo[1] + q.src_ext[1]) + 0.499;
-                let mut qx = _mm256_min_ps(_mm256_max_ps(sx, _mm256_set1_ps(lox)), _mm256_set1_ps(hix));
-                let mut qy = _mm256_min_ps(_mm256_max_ps(sy, _mm256_set1_ps(loy)), _mm256_set1_ps(hiy));
-                let thr2 = _mm256_set1_ps(threshold * threshold);
+                let (mut qx, mut qy) = (seed(rel(ppx, 0), 0), sy);
                 let mut active = valid;
                 let mut conv = zero;
                 let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
-                let one = _mm256_set1_ps(1.0);
                 for _ in 0..iterations {
-                    let (sx, sy);
-                    (active, sx, sy) = in_image(qx, qy, wf, hf, active);
-                    if _mm256_movemask_ps(active) == 0 {
-                        break;
-                    }
-                    let l = locate(sx, sy, wi, wm, hm);
-                    let (v4, z4) = cell_texels(&pl, &l, active, wi, len);
+                    let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
                     let sm = smooth_rho(&l, rp);
                     let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
                     let wx = _mm256_sub_ps(ppx, vx);
@@ -713,9 +726,8 @@ pub(crate) mod avx2 {
                 let acc = _mm256_and_ps(conv, foot);
                 // Accepted and nearer than what the row holds (`<`: the portable depth test).
                 let x = px as usize;
-                let whole = x + 8 <= out.depth.len();
-                let old_z =
-                    if whole { _mm256_loadu_ps(out.depth.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
+                let whole = x + 8 <= bw;
+                let old_z = if whole { _mm256_loadu_ps(od.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
                 let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(cz, old_z));
                 if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
                     px += 8;
@@ -727,11 +739,11 @@ pub(crate) mod avx2 {
                 // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
                 let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, cvx), acc);
                 let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, cvy), acc);
-                let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), cx);
-                let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), cy);
-                let l = locate(qx, qy, wi, wm, hm);
+                let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
+                let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
+                let l = locate(qx, qy, g.wi, g.wm, g.hm);
                 let sm = smooth_rho(&l, rp);
-                let cells = cell_rgb(color, &l, acc, wi, len);
+                let cells = cell_rgb(color, &l, acc, g.wi, g.len);
                 let mut rgb = [zero; 3];
                 for (o, c) in rgb.iter_mut().zip(cells) {
                     let top = mix(c[0], c[1], l.ax);
@@ -739,10 +751,10 @@ pub(crate) mod avx2 {
                     *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
                 }
                 if whole {
-                    _mm256_storeu_ps(out.depth.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
-                    let rp = out.residual.as_mut_ptr().add(x);
+                    _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
+                    let rp = or.as_mut_ptr().add(x);
                     _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
-                    let cp = out.color.as_mut_ptr().add(x) as *mut f32;
+                    let cp = oc.as_mut_ptr().add(x) as *mut f32;
                     for ((k, v), m) in interleave_rgb8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
                         let q = cp.add(8 * k);
                         _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
@@ -757,8 +769,8 @@ pub(crate) mod avx2 {
                     while m != 0 {
                         let k = m.trailing_zeros() as usize;
                         m &= m - 1;
-                        if z8[k] < out.depth[x + k] {
-                            (out.depth[x + k], out.color[x + k], out.residual[x + k]) = (z8[k], c8[k], r8[k]);
+                        if z8[k] < od[x + k] {
+                            (od[x + k], oc[x + k], or[x + k]) = (z8[k], c8[k], r8[k]);
                         }
                     }
                 }
