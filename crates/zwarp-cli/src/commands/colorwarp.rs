@@ -214,8 +214,6 @@ pub fn quality_cells(q: &Quality, convergence: bool) -> Vec<String> {
     c
 }
 
-/// The timing cells of [`columns`]: the method's time and its floor (`time_decimals`), the ratio
-/// of the two, the same-run render and the speedup over it.
 /// The speed figures of a colour-warp row, measured in the same run (JSON fields of the row).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct WarpSpeed {
@@ -257,6 +255,8 @@ impl WarpSpeed {
     }
 }
 
+/// The timing cells of [`columns`]: the method's time and its floor (`time_decimals`), the ratio
+/// of the two, the same-run render and the speedup over it.
 pub fn speed_cells(
     ms: f64,
     floor_ms: f64,
