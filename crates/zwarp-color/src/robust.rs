@@ -517,8 +517,8 @@ pub fn robust_warp_with(
                         src_ext: q.src_ext.to_array(),
                         foot: [fx0, fx1, fy0, fy1],
                     };
-                    let (ra, rb_) = (q.py0.max(y0), q.py1.min(y1));
-                    searches += (rb_ - ra).max(0) as u64 * (q.px1 - q.px0) as u64;
+                    let (row0, row1) = (q.py0.max(y0), q.py1.min(y1));
+                    searches += (row1 - row0).max(0) as u64 * (q.px1 - q.px0) as u64;
                     // SAFETY: AVX2 checked; the field has w, h >= 2 and rho its cells.
                     unsafe {
                         crate::lanes::avx2::robust_rows(
@@ -526,7 +526,7 @@ pub fn robust_warp_with(
                             &sub.rho,
                             src,
                             &quad,
-                            (q.px0, q.px1, ra, rb_),
+                            (q.px0, q.px1, row0, row1),
                             params.iterations,
                             params.threshold,
                             params.accelerate,
