@@ -122,6 +122,23 @@ pub(crate) mod avx2 {
         }
     }
 
+    /// The fixed-point step of each lane at iterate `q` with sample `v` for target `p`: the next
+    /// iterate `w = p - v`, the step `w - q`, and the `active` lanes that converged
+    /// (`|w - q|^2 < thr2`).
+    #[inline(always)]
+    unsafe fn fixed_point_step(
+        (px, py): (__m256, __m256),
+        (vx, vy): (__m256, __m256),
+        (qx, qy): (__m256, __m256),
+        active: __m256,
+        thr2: __m256,
+    ) -> (__m256, __m256, __m256, __m256, __m256) {
+        let (wx, wy) = (_mm256_sub_ps(px, vx), _mm256_sub_ps(py, vy));
+        let (stx, sty) = (_mm256_sub_ps(wx, qx), _mm256_sub_ps(wy, qy));
+        let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
+        (wx, wy, stx, sty, _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2)))
+    }
+
     /// The field sample of each lane's cell: bilinear where `sm`, the nearest texel elsewhere —
     /// `(vx, vy, depth)` and the bilinear rows `[top.x, top.y, bottom.x, bottom.y]` (the
     /// Jacobian's finite differences).
@@ -520,13 +537,7 @@ pub(crate) mod avx2 {
             bvy = _mm256_blendv_ps(bvy, vy, better);
             bz = _mm256_blendv_ps(bz, z, better);
             visited = _mm256_or_ps(visited, active);
-            // The fixed-point step.
-            let wx = _mm256_sub_ps(px, vx);
-            let wy = _mm256_sub_ps(py, vy);
-            let stx = _mm256_sub_ps(wx, qx);
-            let sty = _mm256_sub_ps(wy, qy);
-            let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
-            let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+            let (wx, wy, _, _, now) = fixed_point_step((px, py), (vx, vy), (qx, qy), active, thr2);
             // Residual |q + v - p| and the colour position p - v.
             let ex = _mm256_sub_ps(_mm256_add_ps(qx, vx), px);
             let ey = _mm256_sub_ps(_mm256_add_ps(qy, vy), py);
@@ -670,12 +681,7 @@ pub(crate) mod avx2 {
                     let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
                     let sm = smooth_rho(&l, rp);
                     let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
-                    let wx = _mm256_sub_ps(ppx, vx);
-                    let wy = _mm256_sub_ps(ppy, vy);
-                    let stx = _mm256_sub_ps(wx, qx);
-                    let sty = _mm256_sub_ps(wy, qy);
-                    let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
-                    let now = _mm256_and_ps(active, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, thr2));
+                    let (wx, wy, stx, sty, now) = fixed_point_step((ppx, ppy), (vx, vy), (qx, qy), active, thr2);
                     cqx = _mm256_blendv_ps(cqx, qx, now);
                     cqy = _mm256_blendv_ps(cqy, qy, now);
                     cvx = _mm256_blendv_ps(cvx, vx, now);
