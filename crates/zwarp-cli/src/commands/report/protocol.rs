@@ -394,8 +394,12 @@ pub fn jobs(level: Level, scenes: &[SceneSpec]) -> Vec<Job> {
         let a = vr_args("grid,quads,points,didyk,fpi", &["--filter", "bilinear,adaptive", "--holes", HOLES]);
         out.push(job(format!("vr_{}", sc.label), Section::Vr, sc, "vr", a, true));
     }
-    // Table 1 (the grid against Didyk et al.: primitives and PSNR) on every other scene.
+    // On every other scene: frame-rate upsampling (seed 001's quality target holds per scene)
+    // and Table 1 (the grid against Didyk et al.: primitives and PSNR).
     for sc in scenes.iter().copied().filter(|sc| colour_scene.is_none_or(|c| c.label != sc.label)) {
+        let mut a = size(s.colour);
+        a.extend(strings(&["--frames", &(s.frames + 1).to_string(), "--reps", &reps, "--factor", "2"]));
+        out.push(job(format!("upsample_{}", sc.label), Section::Colour, sc, "upsample", a, false));
         let a = vr_args("grid,didyk", &["--filter", "bilinear,adaptive", "--holes", "lowpass"]);
         out.push(job(format!("vr_grid_{}", sc.label), Section::Vr, sc, "vr", a, false));
     }
@@ -423,6 +427,8 @@ mod tests {
         assert!(has("vr_sponza") && !has("vr_city"), "{ids:?}");
         // The grid against Didyk et al. on every other scene.
         assert!(has("vr_grid_cb") && has("vr_grid_city") && !has("vr_grid_sponza"), "{ids:?}");
+        // Upsampling on every scene: with images on the colour scene, rows only on the others.
+        assert!(has("upsample_sponza") && has("upsample_cb") && has("upsample_city"), "{ids:?}");
         let procedural: Vec<SceneSpec> = ["yr", "cb"].iter().map(|s| SceneSpec::new(s)).collect();
         let ids: Vec<String> = jobs(Level::Quick, &procedural).into_iter().map(|j| j.id).collect();
         assert_eq!(
