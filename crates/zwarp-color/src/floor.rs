@@ -47,13 +47,15 @@ pub fn floor_pass(field: &Field<'_>, color: &Image<[f32; 3]>, out: &mut Image<[f
     Ok(())
 }
 
-/// Median, min and max (ms) of `reps` timed [`floor_pass`]es after one warm-up, into a buffer
-/// allocated once: the `floor_ms` of the colour-warp commands.
+/// Median, min and max (ms) of `reps` (at least `zwarp_warp::floor::FLOOR_MIN_REPS`, for the
+/// reason given there) timed [`floor_pass`]es after one warm-up, into a buffer allocated once:
+/// the `floor_ms` of the colour-warp commands.
 pub fn floor_ms(field: &Field<'_>, color: &Image<[f32; 3]>, reps: usize) -> Result<(f64, f64, f64)> {
     let mut out = Image::new(0, 0, [0.0f32; 3]);
     floor_pass(field, color, &mut out)?;
-    let mut t = Vec::with_capacity(reps.max(1));
-    for _ in 0..reps.max(1) {
+    let reps = reps.max(zwarp_warp::floor::FLOOR_MIN_REPS);
+    let mut t = Vec::with_capacity(reps);
+    for _ in 0..reps {
         let t0 = std::time::Instant::now();
         floor_pass(field, color, &mut out)?;
         t.push(t0.elapsed().as_secs_f64() * 1e3);

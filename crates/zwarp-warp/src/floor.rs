@@ -76,16 +76,25 @@ fn rows_impl(depths: &[&[f32]], motions: &[&[Motion]], y0: usize, w: usize, m: u
     }
 }
 
-/// The median and spread (min, max) of `reps` timed floor passes (ms) after one warm-up, into a
-/// buffer allocated once: the figure `zwarp eval` reports as `floor_ms`.
+/// Timed passes a floor measurement takes at the least, whatever the caller's `reps`: a pass of
+/// a few milliseconds on a shared 2-core machine settles only after thread wake-ups and clock
+/// ramps, and the median of three scatters by up to 2x between runs (colour floor at 1280x720:
+/// 0.99-2.23 ms over three passes, 0.69-0.80 ms over fifteen), which would flatter every
+/// `floor_ratio`. Passes are cheap next to the warps they are the yardstick of.
+pub const FLOOR_MIN_REPS: usize = 15;
+
+/// The median and spread (min, max) of `reps` (at least [`FLOOR_MIN_REPS`]) timed floor passes
+/// (ms) after one warm-up, into a buffer allocated once: the figure `zwarp eval` reports as
+/// `floor_ms`.
 pub fn floor_ms(layers: &[WarpLayer<'_>], m: u32, reps: usize) -> Result<(f64, f64, f64)> {
     let first = layers.first().ok_or_else(|| Error::invalid("the floor pass needs at least one layer"))?;
     let (sw, sh) = first.depth.size();
     let (w, h) = crate::target_size(sw, sh, m)?;
     let mut out = vec![0.0f32; w as usize * h as usize];
     floor_pass(layers, m, w, &mut out)?;
-    let mut t = Vec::with_capacity(reps.max(1));
-    for _ in 0..reps.max(1) {
+    let reps = reps.max(FLOOR_MIN_REPS);
+    let mut t = Vec::with_capacity(reps);
+    for _ in 0..reps {
         let t0 = std::time::Instant::now();
         floor_pass(layers, m, w, &mut out)?;
         t.push(t0.elapsed().as_secs_f64() * 1e3);
