@@ -138,10 +138,10 @@ fn main() {
     println!("\nsummary: 1920x1080, {threads} rayon thread(s); median [min, max] of 5 warm runs");
     for l in [1usize, 3] {
         let ls = layers(&case, l);
-        // The streaming floor of the same inputs (one read of every layer, one write): the
-        // ratios below are kernel time over it.
-        let mut floor_out = vec![0.0f32; 1920 * 1080];
-        let (floor, flo, fhi) = median_ms(5, || zwarp_warp::floor::floor_pass(&ls, 1, 1920, &mut floor_out).unwrap());
+        // The streaming floor of the same inputs (one read of every layer, one write; settled
+        // over `floor::FLOOR_MIN_REPS` passes, as `zwarp eval` measures it): the ratios below
+        // are kernel time over it.
+        let (floor, flo, fhi) = zwarp_warp::floor::floor_ms(&ls, 1, 5).unwrap();
         println!("L={l} floor: {floor:.2} ms [{flo:.2}, {fhi:.2}]");
         let (t, lo, hi) = median_ms(5, || {
             std::hint::black_box(PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap());
