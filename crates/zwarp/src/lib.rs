@@ -78,6 +78,13 @@
 //! # Ok::<(), zwarp::Error>(())
 //! ```
 //!
+//! Colour frames are predicted the same way by a [`FrameWarper`] (seed 001, Iterative Image
+//! Warping): [`FrameWarper::prepare`] with a rendered frame's colour, depth and item buffers,
+//! [`FrameWarper::warp_to`] with the new camera, and the heuristic or robust warp
+//! ([`ColorMethod`]) gives the predicted colour with a per-pixel confidence
+//! ([`ColorWarpOutput::residual`]) — an in-between frame for frame-rate upsampling, a late view,
+//! the other eye. Its example is on [`FrameWarper`].
+//!
 //! Occlusion culling by warping (seed 000 Sec. 5, WOC) takes the engine's objects as plain
 //! boxes ([`BoxObject`]: object-space box, previous and current transform; its index is the id
 //! the item buffer stores) and last frame's depth and item buffers ([`PrevFrame`]), and returns
@@ -113,6 +120,14 @@ pub use zwarp_core::{Aabb, Camera, Error, Image, Motion, Result};
 pub use zwarp_cull::{woc_objects, BoxObject, CullResult, PrevFrame, WocParams};
 pub use zwarp_warp::gpu::GpuImage;
 pub use zwarp_warp::{HolePolicy, PixelState, WarpParams};
+
+mod frames;
+pub use frames::{ColorMethod, FrameWarper};
+pub use zwarp_color::{ColorWarpOutput, HeuristicParams, RobustParams};
+
+/// Colour warping stage by stage (seed 001): warp fields, the heuristic and robust warps,
+/// their baselines and GPU twins.
+pub use zwarp_color as color;
 
 /// The building blocks: depth buffers, cameras, motion fields.
 pub use zwarp_core as core;
