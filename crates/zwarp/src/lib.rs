@@ -128,6 +128,12 @@ pub use zwarp_color::{ColorWarpOutput, HeuristicParams, RobustParams};
 /// Colour warping stage by stage (seed 001): warp fields, the heuristic and robust warps,
 /// their baselines and GPU twins.
 pub use zwarp_color as color;
+/// Soft shadows from warped shadow maps (seed 000 Sec. 6): area lights, the reference, zwarp's
+/// lazily synthesized maps, PCSS.
+pub use zwarp_shadows as shadows;
+/// Both eyes of a stereo / VR frame from one rendered view (seed 003): the surface-estimation
+/// quadtree, the adaptive grid warp, depth-aware hole filling, A-buffer ray casting.
+pub use zwarp_vr as vr;
 
 /// The building blocks: depth buffers, cameras, motion fields.
 pub use zwarp_core as core;
