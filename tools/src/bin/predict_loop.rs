@@ -3,7 +3,7 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1] [sampling=adaptive|nearest]`
 //!
 //! `bi` is `WarpParams::bound_iterations`; `render=0` leaves the depth render out of the loop (to
 //! profile the prediction alone).
@@ -25,7 +25,9 @@ fn stats(mut t: Vec<f64>) -> (f64, f64, f64) {
 }
 
 fn main() {
-    let args = zwarp_tools::common::KeyArgs::from_env("scene, w, h, l, n, reps, frame, speed, part, bi, path, render");
+    let args = zwarp_tools::common::KeyArgs::from_env(
+        "scene, w, h, l, n, reps, frame, speed, part, bi, path, render, sampling",
+    );
     let get = |k: &str, d: &str| args.get(k, d);
     let name = get("scene", "cb");
     let (w, h): (u32, u32) = (get("w", "1920").parse().unwrap(), get("h", "1080").parse().unwrap());
@@ -68,7 +70,12 @@ fn main() {
     };
     let layers: Vec<WarpLayer> = bufs.iter().map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
     let bi: u32 = get("bi", "6").parse().unwrap();
-    let params = WarpParams { n_seeds: n, bound_iterations: bi, holes: HolePolicy::PAPER, ..Default::default() };
+    let sampling = match get("sampling", "adaptive").as_str() {
+        "nearest" => Sampling::Nearest,
+        _ => Sampling::Adaptive,
+    };
+    let params =
+        WarpParams { n_seeds: n, bound_iterations: bi, holes: HolePolicy::PAPER, sampling, ..Default::default() };
     let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
     let mut out = WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
     let mut rec = predict_into(&layers, &params, Vec::new(), &mut out).unwrap();
