@@ -43,8 +43,10 @@ pub struct RobustParams {
     pub threshold: f32,
     /// Side of the initial coarse quads in texels (a power of two, 1..=[`MAX_TILE`]).
     pub tile: u32,
-    /// Expansion of each warped quad's bounding box, in pixels per side (half a texel of
-    /// footprint beyond the corner texels' centres plus half a pixel of coverage).
+    /// Largest expansion of each warped quad's bounding box, in pixels per side: the box holds
+    /// the warped footprint of the quad (half a texel beyond its corner texels' centres through
+    /// the quad's Jacobian, at least half a pixel), capped at this (also taken whole by quads one
+    /// texel wide or high, and by magnifying ones).
     pub margin: f32,
     /// Newton steps where the field is smooth (`SearchParams::accelerate`; on by default: plain
     /// iteration contracts only by `rho` per step, so a magnifying quad needs many iterations
@@ -383,20 +385,36 @@ struct Warped {
     src_ext: Vec2,
 }
 
+/// The expansion (pixels per side, per axis) of a leaf's warped box that holds the warped
+/// footprint of its corner texels: half a texel beyond their centres, mapped by the quad's
+/// Jacobian `I + DV`, whose x half-extent is at most `0.5 + (|dVx/dx| + |dVx/dy|) / 2` (triangle
+/// inequality); `DV` is estimated from the corners' warped positions `warped` (`[x0 y0, x1 y0,
+/// x0 y1, x1 y1]`) over the quad's texel extent `ext`, the larger of its two edges. Capped at
+/// `cap` (the footprint plus the convergence threshold of a translating quad), which quads one
+/// texel wide or high (no difference to estimate from) take whole. The pixels this leaves out
+/// of a smooth quad's box could only take an approximate solution from it (residual at least
+/// their distance to its footprint's image); a neighbouring quad or the fallback search covers
+/// them.
+pub(crate) fn footprint_margin(warped: [Vec2; 4], ext: Vec2, cap: f32) -> Vec2 {
+    if ext.x < 1.0 || ext.y < 1.0 {
+        return Vec2::splat(cap);
+    }
+    let [p00, p10, p01, p11] = warped;
+    let dx = ((p10 - p00) / ext.x - Vec2::X).abs().max(((p11 - p01) / ext.x - Vec2::X).abs());
+    let dy = ((p01 - p00) / ext.y - Vec2::Y).abs().max(((p11 - p10) / ext.y - Vec2::Y).abs());
+    (Vec2::splat(0.5) + 0.5 * (dx + dy)).min(Vec2::splat(cap))
+}
+
 fn warp_leaf(field: &Field<'_>, leaf: &Leaf, margin: f32, size: (u32, u32)) -> Warped {
     let w = size.0 as usize;
     let corners = [(leaf.x0, leaf.y0), (leaf.x1 - 1, leaf.y0), (leaf.x0, leaf.y1 - 1), (leaf.x1 - 1, leaf.y1 - 1)];
-    let mut lo = Vec2::splat(f32::INFINITY);
-    let mut hi = Vec2::splat(f32::NEG_INFINITY);
-    for (x, y) in corners {
-        let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-        let p = c + field.v(y as usize * w + x as usize);
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
+    let warped = corners.map(|(x, y)| Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + field.v(y as usize * w + x as usize));
+    let lo = warped.into_iter().fold(Vec2::splat(f32::INFINITY), Vec2::min);
+    let hi = warped.into_iter().fold(Vec2::splat(f32::NEG_INFINITY), Vec2::max);
     let src_lo = Vec2::new(leaf.x0 as f32 + 0.5, leaf.y0 as f32 + 0.5);
     let src_ext = Vec2::new((leaf.x1 - leaf.x0 - 1) as f32, (leaf.y1 - leaf.y0 - 1) as f32);
-    let (elo, ehi) = (lo - Vec2::splat(margin), hi + Vec2::splat(margin));
+    let m = footprint_margin(warped, src_ext, margin);
+    let (elo, ehi) = (lo - m, hi + m);
     // Pixel centres x + 0.5 in [elo, ehi]; far-off quads (behind the eye: 1e9) are empty.
     let clampi = |v: f32, m: u32| v.clamp(-1.0, m as f32 + 1.0) as i32;
     Warped {

@@ -127,6 +127,63 @@ fn magnification_stalls_plain_iteration_and_the_robust_warp_still_covers() {
     }
 }
 
+/// A quad's box margin holds the warped half-texel footprint of its corner texels: half a pixel
+/// for a translation, more along a shear, the cap where the quad magnifies 2x or more or is one
+/// texel wide (no difference to estimate the Jacobian from).
+#[test]
+fn quad_margin_follows_the_quads_jacobian() {
+    let corners = |map: &dyn Fn(Vec2) -> Vec2| {
+        [Vec2::new(0.5, 0.5), Vec2::new(8.5, 0.5), Vec2::new(0.5, 8.5), Vec2::new(8.5, 8.5)].map(map)
+    };
+    let ext = Vec2::splat(8.0);
+    let m = |map: &dyn Fn(Vec2) -> Vec2, cap| robust::footprint_margin(corners(map), ext, cap);
+    assert_eq!(m(&|q| q + Vec2::new(3.25, -7.5), 1.0), Vec2::splat(0.5));
+    assert_eq!(m(&|q| q + Vec2::new(0.25 * q.y, 0.0), 1.0), Vec2::new(0.625, 0.5));
+    assert_eq!(m(&|q| 0.5 * q, 1.0), Vec2::splat(0.75));
+    assert_eq!(m(&|q| 2.0 * q, 8.0), Vec2::splat(1.0));
+    assert_eq!(m(&|q| 3.0 * q, 1.0), Vec2::splat(1.0));
+    let one_wide = [Vec2::ZERO; 4];
+    assert_eq!(robust::footprint_margin(one_wide, Vec2::new(0.0, 8.0), 0.9), Vec2::splat(0.9));
+}
+
+/// A 0.6x minification about the centre, `V(q) = -0.4 (q - c)`: the quads' boxes shrink to their
+/// Jacobian margin, and still every pixel whose preimage lies among the texel centres converges
+/// in a quad on the exact colour of the affine ramp (the pixels left out of a box were not its
+/// solutions).
+#[test]
+fn minification_loses_no_pixel_to_the_quad_margin() {
+    let (w, h) = (64, 64);
+    let c = Vec2::splat(32.0);
+    let color = ramp(w, h);
+    let b = basis(Image::new(w, h, 0.5), |x, y| -0.4 * (Vec2::new(x as f32 + 0.5, y as f32 + 0.5) - c));
+    let f = b.field(FieldParams::temporal(1.0)).unwrap();
+    // A fallback that cannot solve a minification (one plain step from the pixel): every
+    // converged pixel is a quad's.
+    let quads_only = RobustParams {
+        fallback: HeuristicParams { seed: Seed::Pixel, iterations: 1, ..HeuristicParams::default() },
+        ..RobustParams::default()
+    };
+    let (rob, _) = robust_warp(&f, &color, &quads_only).unwrap();
+    let mut inside = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let q = c + (p - c) / 0.6;
+            if q.min_element() < 0.75 || q.max_element() > w as f32 - 0.75 {
+                continue;
+            }
+            inside += 1;
+            assert!(rob.converged(x, y), "({x}, {y}) q {q}");
+            let got = rob.color.get(x, y);
+            assert!(
+                (got[0] - q.x / w as f32).abs() < 2e-3 && (got[1] - q.y / h as f32).abs() < 2e-3,
+                "({x}, {y}) {got:?}"
+            );
+        }
+    }
+    assert!(inside > 1400, "{inside}");
+}
+
 /// Background static at depth 0.8 with a red ramp, a green foreground strip `x in [20, 30)` at
 /// depth 0.3 moving +6 px. In the target the strip covers `[26, 36)` and uncovers `[20, 26)`.
 fn strip_scene() -> (WarpBasis, Image<[f32; 3]>) {

@@ -342,10 +342,21 @@ fn clampi(v: f32, m: u32) -> i32 {
     return i32(clamp(v, -1.0, f32(m) + 1.0));
 }
 
+// robust.rs footprint_margin.
+fn footprint_margin(p: array<vec2<f32>, 4>, ext: vec2<f32>, cap: f32) -> vec2<f32> {
+    if ext.x < 1.0 || ext.y < 1.0 {
+        return vec2<f32>(cap, cap);
+    }
+    let dx = max(abs((p[1] - p[0]) / ext.x - vec2<f32>(1.0, 0.0)), abs((p[3] - p[2]) / ext.x - vec2<f32>(1.0, 0.0)));
+    let dy = max(abs((p[2] - p[0]) / ext.y - vec2<f32>(0.0, 1.0)), abs((p[3] - p[1]) / ext.y - vec2<f32>(0.0, 1.0)));
+    return min(vec2<f32>(0.5, 0.5) + 0.5 * (dx + dy), vec2<f32>(cap, cap));
+}
+
 // robust.rs warp_leaf.
 fn warp_leaf(l: vec4<u32>) -> Warped {
     var lo = vec2<f32>(bitcast<f32>(0x7f800000u), bitcast<f32>(0x7f800000u));
     var hi = -lo;
+    var corners: array<vec2<f32>, 4>;
     for (var k = 0u; k < 4u; k++) {
         var x = l.x;
         var y = l.y;
@@ -357,14 +368,16 @@ fn warp_leaf(l: vec4<u32>) -> Warped {
         }
         let c = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
         let p = c + field_v(y * P.width + x);
+        corners[k] = p;
         lo = min(lo, p);
         hi = max(hi, p);
     }
     var o: Warped;
     o.src_lo = vec2<f32>(f32(l.x) + 0.5, f32(l.y) + 0.5);
     o.src_ext = vec2<f32>(f32(l.z - l.x - 1u), f32(l.w - l.y - 1u));
-    let elo = lo - vec2<f32>(P.margin, P.margin);
-    let ehi = hi + vec2<f32>(P.margin, P.margin);
+    let m = footprint_margin(corners, o.src_ext, P.margin);
+    let elo = lo - m;
+    let ehi = hi + m;
     o.px0 = max(clampi(ceil(elo.x - 0.5), P.width), 0);
     o.py0 = max(clampi(ceil(elo.y - 0.5), P.height), 0);
     o.px1 = min(clampi(floor(ehi.x - 0.5), P.width) + 1, i32(P.width));
