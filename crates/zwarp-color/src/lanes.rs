@@ -122,6 +122,36 @@ pub(crate) mod avx2 {
         }
     }
 
+    /// One recorded iterate per lane: position `q`, the field sample `v` there and its depth (the
+    /// heuristic walk's farthest visit, the robust walk's converged iterate).
+    #[derive(Clone, Copy)]
+    struct Visit {
+        qx: __m256,
+        qy: __m256,
+        vx: __m256,
+        vy: __m256,
+        z: __m256,
+    }
+
+    impl Visit {
+        /// Nothing recorded yet: zeros and depth `z`.
+        #[inline(always)]
+        unsafe fn empty(z: f32) -> Self {
+            let zero = _mm256_setzero_ps();
+            Visit { qx: zero, qy: zero, vx: zero, vy: zero, z: _mm256_set1_ps(z) }
+        }
+
+        /// Takes `(q, v, z)` in the lanes of `mask`.
+        #[inline(always)]
+        unsafe fn keep(&mut self, mask: __m256, (qx, qy): (__m256, __m256), (vx, vy): (__m256, __m256), z: __m256) {
+            self.qx = _mm256_blendv_ps(self.qx, qx, mask);
+            self.qy = _mm256_blendv_ps(self.qy, qy, mask);
+            self.vx = _mm256_blendv_ps(self.vx, vx, mask);
+            self.vy = _mm256_blendv_ps(self.vy, vy, mask);
+            self.z = _mm256_blendv_ps(self.z, z, mask);
+        }
+    }
+
     /// The fixed-point step of each lane at iterate `q` with sample `v` for target `p`: the next
     /// iterate `w = p - v`, the step `w - q`, and the `active` lanes that converged
     /// (`|w - q|^2 < thr2`).
@@ -521,21 +551,18 @@ pub(crate) mod avx2 {
         // The converged iteration's cell (first and last texel) and its continuity.
         let (mut ci0, mut ci3, mut csm) = (_mm256_set1_epi32(-1), _mm256_set1_epi32(-1), zero);
         // Orbit: the farthest visit (ties: the later one).
-        let (mut bqx, mut bqy, mut bvx, mut bvy) = (zero, zero, zero, zero);
-        let mut bz = _mm256_set1_ps(f32::NEG_INFINITY);
+        let mut far = Visit::empty(f32::NEG_INFINITY);
         let mut visited = zero;
         for _ in 0..params.iterations {
             let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
             let sm = smooth(&v4);
             let (vx, vy, z, _) = sample_cell(&l, &v4, &z4, sm);
             // Record the visit (the orbit's farthest sample).
-            let better =
-                _mm256_and_ps(active, _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, bz), _mm256_andnot_ps(visited, all)));
-            bqx = _mm256_blendv_ps(bqx, qx, better);
-            bqy = _mm256_blendv_ps(bqy, qy, better);
-            bvx = _mm256_blendv_ps(bvx, vx, better);
-            bvy = _mm256_blendv_ps(bvy, vy, better);
-            bz = _mm256_blendv_ps(bz, z, better);
+            let better = _mm256_and_ps(
+                active,
+                _mm256_or_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, far.z), _mm256_andnot_ps(visited, all)),
+            );
+            far.keep(better, (qx, qy), (vx, vy), z);
             visited = _mm256_or_ps(visited, active);
             let (wx, wy, _, _, now) = fixed_point_step((px, py), (vx, vy), (qx, qy), active, thr2);
             // Residual |q + v - p| and the colour position p - v.
@@ -556,12 +583,12 @@ pub(crate) mod avx2 {
             qy = _mm256_blendv_ps(qy, wy, active);
         }
         // Not converged: the farthest visit (every lane visited its clamped seed).
-        let bex = _mm256_sub_ps(_mm256_add_ps(bqx, bvx), px);
-        let bey = _mm256_sub_ps(_mm256_add_ps(bqy, bvy), py);
+        let bex = _mm256_sub_ps(_mm256_add_ps(far.qx, far.vx), px);
+        let bey = _mm256_sub_ps(_mm256_add_ps(far.qy, far.vy), py);
         let bres = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(bex, bex), _mm256_mul_ps(bey, bey)));
-        let colx = _mm256_blendv_ps(bqx, cqx, conv);
-        let coly = _mm256_blendv_ps(bqy, cqy, conv);
-        let outz = _mm256_blendv_ps(bz, cz, conv);
+        let colx = _mm256_blendv_ps(far.qx, cqx, conv);
+        let coly = _mm256_blendv_ps(far.qy, cqy, conv);
+        let outz = _mm256_blendv_ps(far.z, cz, conv);
         let outr = _mm256_blendv_ps(bres, cr, conv);
         // Colour at (colx, coly), clamped (ColorSampler::color).
         let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
@@ -676,17 +703,13 @@ pub(crate) mod avx2 {
                 let (mut qx, mut qy) = (seed(rel(ppx, 0), 0), sy);
                 let mut active = valid;
                 let mut conv = zero;
-                let (mut cqx, mut cqy, mut cvx, mut cvy, mut cz) = (zero, zero, zero, zero, zero);
+                let mut c = Visit::empty(0.0);
                 for _ in 0..iterations {
                     let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
                     let sm = smooth_rho(&l, rp);
                     let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
                     let (wx, wy, stx, sty, now) = fixed_point_step((ppx, ppy), (vx, vy), (qx, qy), active, thr2);
-                    cqx = _mm256_blendv_ps(cqx, qx, now);
-                    cqy = _mm256_blendv_ps(cqy, qy, now);
-                    cvx = _mm256_blendv_ps(cvx, vx, now);
-                    cvy = _mm256_blendv_ps(cvy, vy, now);
-                    cz = _mm256_blendv_ps(cz, z, now);
+                    c.keep(now, (qx, qy), (vx, vy), z);
                     conv = _mm256_or_ps(conv, now);
                     active = _mm256_andnot_ps(now, active);
                     let (mut nx, mut ny) = (wx, wy);
@@ -721,12 +744,12 @@ pub(crate) mod avx2 {
                 }
                 let foot = _mm256_and_ps(
                     _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_GE_OQ>(cqx, _mm256_set1_ps(q.foot[0])),
-                        _mm256_cmp_ps::<_CMP_LT_OQ>(cqx, _mm256_set1_ps(q.foot[1])),
+                        _mm256_cmp_ps::<_CMP_GE_OQ>(c.qx, _mm256_set1_ps(q.foot[0])),
+                        _mm256_cmp_ps::<_CMP_LT_OQ>(c.qx, _mm256_set1_ps(q.foot[1])),
                     ),
                     _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_GE_OQ>(cqy, _mm256_set1_ps(q.foot[2])),
-                        _mm256_cmp_ps::<_CMP_LT_OQ>(cqy, _mm256_set1_ps(q.foot[3])),
+                        _mm256_cmp_ps::<_CMP_GE_OQ>(c.qy, _mm256_set1_ps(q.foot[2])),
+                        _mm256_cmp_ps::<_CMP_LT_OQ>(c.qy, _mm256_set1_ps(q.foot[3])),
                     ),
                 );
                 let acc = _mm256_and_ps(conv, foot);
@@ -734,17 +757,17 @@ pub(crate) mod avx2 {
                 let x = px as usize;
                 let whole = x + 8 <= bw;
                 let old_z = if whole { _mm256_loadu_ps(od.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
-                let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(cz, old_z));
+                let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(c.z, old_z));
                 if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
                     px += 8;
                     continue;
                 }
-                let ex = _mm256_sub_ps(_mm256_add_ps(cqx, cvx), ppx);
-                let ey = _mm256_sub_ps(_mm256_add_ps(cqy, cvy), ppy);
+                let ex = _mm256_sub_ps(_mm256_add_ps(c.qx, c.vx), ppx);
+                let ey = _mm256_sub_ps(_mm256_add_ps(c.qy, c.vy), ppy);
                 let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
                 // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
-                let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, cvx), acc);
-                let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, cvy), acc);
+                let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, c.vx), acc);
+                let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, c.vy), acc);
                 let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
                 let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
                 let l = locate(qx, qy, g.wi, g.wm, g.hm);
@@ -757,7 +780,7 @@ pub(crate) mod avx2 {
                     *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
                 }
                 if whole {
-                    _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, cz, win));
+                    _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, c.z, win));
                     let rp = or.as_mut_ptr().add(x);
                     _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
                     let cp = oc.as_mut_ptr().add(x) as *mut f32;
@@ -768,7 +791,7 @@ pub(crate) mod avx2 {
                 } else {
                     // The row's last pixels: lane by lane.
                     let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
-                    _mm256_storeu_ps(z8.as_mut_ptr(), cz);
+                    _mm256_storeu_ps(z8.as_mut_ptr(), c.z);
                     _mm256_storeu_ps(r8.as_mut_ptr(), res);
                     store_rgb8(c8.as_mut_ptr() as *mut f32, rgb);
                     let mut m = _mm256_movemask_ps(acc) as u32;
