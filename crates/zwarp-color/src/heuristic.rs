@@ -12,24 +12,12 @@
 use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Result};
-use zwarp_warp::search::{fixed_point_search, CandidateChoice, SearchParams};
+use zwarp_warp::search::{fixed_point_search, SearchParams};
 
 use crate::field::Field;
-use crate::sampler::{ColorSampler, Continuity, Recorder, MAX_RECORDED};
+use crate::params::{HeuristicParams, Seed};
+use crate::sampler::{ColorSampler, Continuity, Recorder};
 use crate::ColorWarpOutput;
-
-/// Where the heuristic warp starts its iteration (seed 001 Sec. 3.3).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Seed {
-    /// `x_0 = x_w`: the target pixel itself (Fig. 2b: misses overlapping foreground).
-    Pixel,
-    /// `x_0 = x_w - s V(x_w)`: upstream in the flow by `s` times the source motion at the
-    /// target pixel ("an additional frame up-stream in the visual flow", temporal warps).
-    Upstream(f32),
-    /// `x_0 = x_w + delta`: a fixed offset in pixels (Fig. 2c, stereo: towards the side the
-    /// foreground comes from).
-    Offset(Vec2),
-}
 
 /// The fixed seed offset of Sec. 3.3 ("a simple fixed offset worked well", [`Seed::Offset`]) for
 /// the warp `field`: minus the field at the texel of the 2nd-percentile depth, i.e. towards where
@@ -47,58 +35,6 @@ pub fn fixed_offset(field: &Field<'_>) -> Vec2 {
         v
     } else {
         Vec2::ZERO
-    }
-}
-
-/// Parameters of the heuristic warp.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HeuristicParams {
-    /// Seed strategy.
-    pub seed: Seed,
-    /// Fixed-point iterations T (Sec. 4: 3, unrolled); at most 16.
-    pub iterations: u32,
-    /// Convergence threshold in pixels: a pixel is converged where its residual
-    /// `|q + V(q) - p|` is below it (the output's confidence).
-    pub threshold: f32,
-}
-
-impl Default for HeuristicParams {
-    fn default() -> Self {
-        HeuristicParams { seed: Seed::Upstream(1.0), iterations: 3, threshold: 0.5 }
-    }
-}
-
-impl HeuristicParams {
-    /// Errors on a zero or too large iteration count, a non-positive threshold or a non-finite
-    /// seed parameter.
-    pub fn validate(&self) -> Result<()> {
-        if self.iterations == 0 || self.iterations as usize > MAX_RECORDED {
-            return Err(Error::invalid(format!(
-                "heuristic warp: iterations must be 1..={MAX_RECORDED}, got {}",
-                self.iterations
-            )));
-        }
-        if !(self.threshold.is_finite() && self.threshold > 0.0) {
-            return Err(Error::invalid(format!("heuristic warp: threshold must be positive, got {}", self.threshold)));
-        }
-        let ok = match self.seed {
-            Seed::Pixel => true,
-            Seed::Upstream(s) => s.is_finite(),
-            Seed::Offset(d) => d.is_finite(),
-        };
-        if !ok {
-            return Err(Error::invalid(format!("heuristic warp: seed {:?} is not finite", self.seed)));
-        }
-        Ok(())
-    }
-
-    pub(crate) fn search(&self) -> SearchParams {
-        SearchParams {
-            iterations: self.iterations,
-            threshold: self.threshold,
-            choice: CandidateChoice::FirstConverged,
-            accelerate: false,
-        }
     }
 }
 

@@ -24,7 +24,7 @@ pub(crate) mod avx2 {
     use std::arch::x86_64::*;
 
     use crate::field::Field;
-    use crate::heuristic::{HeuristicParams, Seed};
+    use crate::params::{HeuristicParams, Seed};
 
     /// Planes of the field as raw pointers (at most three terms).
     struct Planes {

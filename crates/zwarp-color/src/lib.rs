@@ -7,6 +7,7 @@
 //! - [`sampler`]: bilinear sampling on surfaces, nearest across discontinuities (Sec. 3.4,
 //!   Fig. 4); the [`ColorSampler`] is a `zwarp_warp::sampling::MotionSource`, so every warp here
 //!   runs the project's one fixed-point search.
+//! - [`params`]: the heuristic warp's seed strategy, iterations and threshold.
 //! - [`heuristic`]: the heuristic variant (Sec. 3.3, 4): one seed (pixel, fixed offset,
 //!   upstream), 3 iterations, the orbit at disocclusions picks the background.
 //! - [`robust`]: the robust variant (Sec. 3.4, Appendix A, Algorithm 1): convergence term
@@ -37,14 +38,16 @@ pub mod floor;
 pub mod gpu;
 pub mod heuristic;
 pub mod lanes;
+pub mod params;
 pub mod robust;
 pub mod sampler;
 
 pub use baselines::{mesh_warp, push_pull, repeat, reproject, scatter_warp, source_visibility};
 pub use combine::{combine_interpolated, confidence_weights};
 pub use field::{Field, FieldParams, Planes, Term, WarpBasis};
-pub use heuristic::{fixed_offset, heuristic_warp, heuristic_warp_into, HeuristicParams, Seed};
+pub use heuristic::{fixed_offset, heuristic_warp, heuristic_warp_into};
 pub use lanes::{set_simd, simd_enabled};
+pub use params::{HeuristicParams, Seed};
 pub use robust::{
     rho_cells, rho_cells_max, robust_warp, robust_warp_with, spectral_radius, HoleFill, Leaf, RobustParams,
     RobustStats, Subdivision,

@@ -27,7 +27,8 @@ use zwarp_core::{Error, Image, Result};
 use zwarp_warp::search::{fixed_point_search, CandidateChoice, SearchParams};
 
 use crate::field::Field;
-use crate::heuristic::{check_color, heuristic_pixel, HeuristicParams};
+use crate::heuristic::{check_color, heuristic_pixel};
+use crate::params::HeuristicParams;
 use crate::sampler::{ColorSampler, Continuity, Recorder};
 use crate::ColorWarpOutput;
 
