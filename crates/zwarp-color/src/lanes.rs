@@ -24,6 +24,8 @@ pub(crate) mod avx2 {
     use std::arch::x86_64::*;
 
     use crate::field::Field;
+    use zwarp_core::simd::avx2::{interleave3x8, load3x8, pick, store3x8};
+
     use crate::params::{HeuristicParams, Seed};
 
     /// Planes of the field as raw pointers (at most three terms).
@@ -321,80 +323,7 @@ pub(crate) mod avx2 {
         )
     }
 
-    /// Lanes of `v` picked by the constant indices `i`.
-    #[inline(always)]
-    unsafe fn pick(v: __m256, i: [i32; 8]) -> __m256 {
-        _mm256_permutevar8x32_ps(v, _mm256_setr_epi32(i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]))
-    }
-
-    /// Lanes picked from three vectors by constant indices and merged by the immediate masks
-    /// (`MB`: lanes from `b`, `MC`: lanes from `c`, the rest from `a`): one lane shuffle of the
-    /// RGB transposes.
-    #[inline(always)]
-    unsafe fn merge3<const MB: i32, const MC: i32>(
-        (a, ia): (__m256, [i32; 8]),
-        (b, ib): (__m256, [i32; 8]),
-        (c, ic): (__m256, [i32; 8]),
-    ) -> __m256 {
-        _mm256_blend_ps::<MC>(_mm256_blend_ps::<MB>(pick(a, ia), pick(b, ib)), pick(c, ic))
-    }
-
-    /// Eight RGB texels at `p` (24 floats) as three channel vectors: the AoS -> SoA transpose.
-    #[inline(always)]
-    unsafe fn rgb8(p: *const f32) -> [__m256; 3] {
-        // a = r0 g0 b0 r1 g1 b1 r2 g2 | b = b2 r3 g3 b3 r4 g4 b4 r5 | c = g5 b5 r6 g6 b6 r7 g7 b7
-        let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
-        [
-            merge3::<0b0011_1000, 0b1100_0000>(
-                (a, [0, 3, 6, 0, 0, 0, 0, 0]),
-                (b, [0, 0, 0, 1, 4, 7, 0, 0]),
-                (c, [0, 0, 0, 0, 0, 0, 2, 5]),
-            ),
-            merge3::<0b0001_1000, 0b1110_0000>(
-                (a, [1, 4, 7, 0, 0, 0, 0, 0]),
-                (b, [0, 0, 0, 2, 5, 0, 0, 0]),
-                (c, [0, 0, 0, 0, 0, 0, 3, 6]),
-            ),
-            merge3::<0b0001_1100, 0b1110_0000>(
-                (a, [2, 5, 0, 0, 0, 0, 0, 0]),
-                (b, [0, 0, 0, 3, 6, 0, 0, 0]),
-                (c, [0, 0, 0, 0, 0, 1, 4, 7]),
-            ),
-        ]
-    }
-
-    /// Eight pixels' channel vectors stored as eight RGB triples at `p` (the SoA -> AoS
-    /// transpose).
-    #[inline(always)]
-    unsafe fn store_rgb8(p: *mut f32, rgb: [__m256; 3]) {
-        for (k, v) in interleave_rgb8(rgb).into_iter().enumerate() {
-            _mm256_storeu_ps(p.add(8 * k), v);
-        }
-    }
-
-    /// Eight pixels' channel vectors as the three vectors of their 24 interleaved RGB floats.
-    #[inline(always)]
-    unsafe fn interleave_rgb8([r, g, b]: [__m256; 3]) -> [__m256; 3] {
-        [
-            merge3::<0b1001_0010, 0b0010_0100>(
-                (r, [0, 0, 0, 1, 0, 0, 2, 0]),
-                (g, [0, 0, 0, 0, 1, 0, 0, 2]),
-                (b, [0, 0, 0, 0, 0, 1, 0, 0]),
-            ),
-            merge3::<0b0010_0100, 0b0100_1001>(
-                (r, [0, 3, 0, 0, 4, 0, 0, 5]),
-                (g, [0, 0, 3, 0, 0, 4, 0, 0]),
-                (b, [2, 0, 0, 3, 0, 0, 4, 0]),
-            ),
-            merge3::<0b0100_1001, 0b1001_0010>(
-                (r, [0, 0, 6, 0, 0, 7, 0, 0]),
-                (g, [5, 0, 0, 6, 0, 0, 7, 0]),
-                (b, [0, 5, 0, 0, 6, 0, 0, 7]),
-            ),
-        ]
-    }
-
-    /// A lane mask spread over the three vectors of [`interleave_rgb8`] (lane k covers floats
+    /// A lane mask spread over the three vectors of `interleave3x8` (lane k covers floats
     /// 3k..3k + 3).
     #[inline(always)]
     unsafe fn spread_mask3(m: __m256) -> [__m256; 3] {
@@ -422,10 +351,10 @@ pub(crate) mod avx2 {
                     _mm_prefetch::<_MM_HINT_T0>(n.add(107));
                 }
                 let rows = [
-                    rgb8(base.add(3 * m)),
-                    rgb8(base.add(3 * (m + 1))),
-                    rgb8(base.add(3 * (m + wu))),
-                    rgb8(base.add(3 * (m + wu + 1))),
+                    load3x8(base.add(3 * m)),
+                    load3x8(base.add(3 * (m + 1))),
+                    load3x8(base.add(3 * (m + wu))),
+                    load3x8(base.add(3 * (m + wu + 1))),
                 ];
                 for (ch, o) in out.iter_mut().enumerate() {
                     *o = [
@@ -612,7 +541,7 @@ pub(crate) mod avx2 {
             *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
         }
         debug_assert!(oc.len() == 8);
-        store_rgb8(oc.as_mut_ptr() as *mut f32, rgb);
+        store3x8(oc.as_mut_ptr() as *mut f32, rgb);
         _mm256_storeu_ps(od.as_mut_ptr(), outz);
         _mm256_storeu_ps(or.as_mut_ptr(), outr);
     }
@@ -784,7 +713,7 @@ pub(crate) mod avx2 {
                     let rp = or.as_mut_ptr().add(x);
                     _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
                     let cp = oc.as_mut_ptr().add(x) as *mut f32;
-                    for ((k, v), m) in interleave_rgb8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
+                    for ((k, v), m) in interleave3x8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
                         let q = cp.add(8 * k);
                         _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
                     }
@@ -793,7 +722,7 @@ pub(crate) mod avx2 {
                     let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
                     _mm256_storeu_ps(z8.as_mut_ptr(), c.z);
                     _mm256_storeu_ps(r8.as_mut_ptr(), res);
-                    store_rgb8(c8.as_mut_ptr() as *mut f32, rgb);
+                    store3x8(c8.as_mut_ptr() as *mut f32, rgb);
                     let mut m = _mm256_movemask_ps(acc) as u32;
                     while m != 0 {
                         let k = m.trailing_zeros() as usize;

@@ -37,6 +37,15 @@ pub fn reproject_pixel(inv_a: &Mat4, m: &Mat4, a: (u32, u32), b: (u32, u32), x: 
     }
 }
 
+/// The AVX2 build of the motion field (on by default where the CPU has it); [`set_simd`]
+/// turns it off for tests and timing.
+static AVX2: crate::Avx2Switch = crate::Avx2Switch::new();
+
+/// Turns the AVX2 build of [`motion_field`] on (default) or off; both give the same bits.
+pub fn set_simd(enabled: bool) {
+    AVX2.set(enabled);
+}
+
 /// Validates the inputs of a motion-field computation (shared by the CPU function and its GPU
 /// twin): a non-empty, finite depth buffer of the source camera's size and a matching item buffer.
 pub fn check_motion_inputs(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a: &Camera) -> Result<()> {
@@ -53,7 +62,9 @@ pub fn check_motion_inputs(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a
             cam_a.height
         )));
     }
-    if depth.data().iter().any(|d| !d.is_finite()) {
+    // A fold without early exit, so the scan vectorizes.
+    let non_finite = depth.data().par_chunks(1 << 16).any(|c| c.iter().fold(false, |a, d| a | !d.is_finite()));
+    if non_finite {
         return Err(crate::Error::invalid("depth buffer holds NaN or infinite values"));
     }
     Ok(())
@@ -63,7 +74,8 @@ pub fn check_motion_inputs(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a
 ///
 /// `object_deltas[id]` is the world-space motion `M(t_b) * M(t_a)^-1` of object `id` (see
 /// [`crate::Scene::object_deltas`]); pass an empty slice for a static scene. Pixels with
-/// [`NO_ITEM`] or ids beyond the slice move with the camera only.
+/// [`NO_ITEM`] or ids beyond the slice move with the camera only, as do objects whose delta is
+/// the identity (skipped: a static scene's deltas cost nothing).
 pub fn motion_field(
     depth: &Image<f32>,
     items: Option<&Image<u32>>,
@@ -71,8 +83,26 @@ pub fn motion_field(
     cam_b: &Camera,
     object_deltas: &[Mat4],
 ) -> Result<Image<Motion>> {
+    let mut out = Image::new(0, 0, Motion::default());
+    motion_field_into(depth, items, cam_a, cam_b, object_deltas, &mut out)?;
+    Ok(out)
+}
+
+/// [`motion_field`] into `out`, reusing its allocation when it has the depth buffer's size
+/// (an engine's steady state: no fresh pages to fault in every frame).
+pub fn motion_field_into(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    object_deltas: &[Mat4],
+    out: &mut Image<Motion>,
+) -> Result<()> {
     let n = object_deltas.len();
-    motion_field_with(depth, items, cam_a, cam_b, |id| (id as usize) < n, |id| object_deltas[id as usize])
+    let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
+    // Without a moving object the item buffer is not read at all.
+    let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
+    motion_field_with_into(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize], out)
 }
 
 /// [`motion_field`] with each object's motion given by functions: `moving(id)` says whether
@@ -89,6 +119,26 @@ pub fn motion_field_with(
     moving: impl Fn(u32) -> bool + Sync,
     delta: impl Fn(u32) -> Mat4 + Sync,
 ) -> Result<Image<Motion>> {
+    let mut out = Image::new(0, 0, Motion::default());
+    motion_field_with_into(depth, items, cam_a, cam_b, moving, delta, &mut out)?;
+    Ok(out)
+}
+
+/// [`motion_field_with`] into `out` (its allocation reused when it has the right size).
+///
+/// Per row, runs of eight pixels that move with one matrix (the camera's, or one object's) take
+/// the AVX2 build (the same operations in the same order as [`reproject_pixel`], no FMA: the
+/// same bits), the others [`reproject_pixel`] each (consecutive pixels of one object share one
+/// look-up).
+pub fn motion_field_with_into(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    moving: impl Fn(u32) -> bool + Sync,
+    delta: impl Fn(u32) -> Mat4 + Sync,
+    out: &mut Image<Motion>,
+) -> Result<()> {
     check_motion_inputs(depth, items, cam_a)?;
     let (w, h) = depth.size();
     let wu = w as usize;
@@ -100,12 +150,17 @@ pub fn motion_field_with(
             .par_chunks(wu)
             .zip(depth.data().par_chunks(wu))
             .flat_map_iter(|(ir, dr)| {
-                let mut last = NO_ITEM;
+                // `moving` asked once per run of one id; NO_ITEM never moves.
+                let (mut last, mut last_moving, mut pushed) = (NO_ITEM, false, NO_ITEM);
                 let mut seen = Vec::new();
                 for (&id, &d) in ir.iter().zip(dr) {
-                    if id != last && d < 1.0 && moving(id) {
-                        seen.push(id);
+                    if id != last {
                         last = id;
+                        last_moving = id != NO_ITEM && moving(id);
+                    }
+                    if last_moving && d < 1.0 && id != pushed {
+                        seen.push(id);
+                        pushed = id;
                     }
                 }
                 seen
@@ -118,19 +173,123 @@ pub fn motion_field_with(
     let vp_b = cam_b.view_proj();
     let mats: Vec<Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
     let inv_a = cam_a.view_proj().inverse();
-    let mut out = Image::new(w, h, Motion::default());
+    if out.size() != (w, h) {
+        *out = Image::new(w, h, Motion::default());
+    }
+    let (a, b) = ((w, h), (cam_b.width, cam_b.height));
+    let simd = AVX2.active();
+    let items = items.filter(|_| !ids.is_empty());
     out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            let i = y * wu + x;
-            let d = depth.data()[i];
-            let m = match (d < 1.0 && !ids.is_empty(), items) {
-                (true, Some(items)) => ids.binary_search(&items.data()[i]).map_or(&vp_b, |k| &mats[k]),
+        let dr = &depth.data()[y * wu..(y + 1) * wu];
+        let ir = items.map(|i| &i.data()[y * wu..(y + 1) * wu]);
+        // The matrix of pixel x: its object's where it is a surface of a moving object.
+        let (mut last, mut last_m) = (NO_ITEM, &vp_b);
+        let mut matrix = |x: usize| -> &Mat4 {
+            match ir {
+                Some(ir) if dr[x] < 1.0 => {
+                    if ir[x] != last {
+                        last = ir[x];
+                        last_m = ids.binary_search(&last).map_or(&vp_b, |k| &mats[k]);
+                    }
+                    last_m
+                }
                 _ => &vp_b,
-            };
-            *o = reproject_pixel(&inv_a, m, (w, h), (cam_b.width, cam_b.height), x as u32, y as u32, d);
+            }
+        };
+        let mut x = 0;
+        while x < wu {
+            #[cfg(target_arch = "x86_64")]
+            if simd && x + 8 <= wu {
+                let m = matrix(x);
+                if (x + 1..x + 8).all(|i| std::ptr::eq(matrix(i), m)) {
+                    // SAFETY: `simd` says the CPU has AVX2; the slices hold eight elements from x.
+                    unsafe { avx2::eight(&inv_a, m, a, b, x as u32, y as u32, &dr[x..x + 8], &mut row[x..x + 8]) };
+                    x += 8;
+                    continue;
+                }
+            }
+            row[x] = reproject_pixel(&inv_a, matrix(x), a, b, x as u32, y as u32, dr[x]);
+            x += 1;
         }
     });
-    Ok(out)
+    Ok(())
+}
+
+/// The AVX2 build of [`reproject_pixel`] for eight pixels of one row.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use glam::Mat4;
+
+    use super::Motion;
+
+    /// `m * (v0, v1, v2, v3)` per lane as glam's `Mat4 * Vec4` computes it: the columns scaled
+    /// and summed in order, `((c0 v0 + c1 v1) + c2 v2) + c3 v3`, no FMA.
+    /// (No closures inside: a closure is a function of its own without the caller's AVX2, and
+    /// the intrinsics in it would not inline.)
+    #[inline(always)]
+    unsafe fn mat_vec(m: &Mat4, v: [__m256; 4]) -> [__m256; 4] {
+        let c = m.to_cols_array_2d();
+        let mut r = [_mm256_setzero_ps(); 4];
+        for (i, r) in r.iter_mut().enumerate() {
+            let t0 = _mm256_mul_ps(_mm256_set1_ps(c[0][i]), v[0]);
+            let t1 = _mm256_mul_ps(_mm256_set1_ps(c[1][i]), v[1]);
+            let t2 = _mm256_mul_ps(_mm256_set1_ps(c[2][i]), v[2]);
+            let t3 = _mm256_mul_ps(_mm256_set1_ps(c[3][i]), v[3]);
+            *r = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(t0, t1), t2), t3);
+        }
+        r
+    }
+
+    /// [`super::reproject_pixel`] of pixels `x..x + 8` of row `y`, all moving with matrix `m`
+    /// (the target's view-projection, times an object's motion): `unproject_with`,
+    /// `project_with` and the motion sample, operation for operation.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2; `d` and `out` hold eight elements.
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn eight(
+        inv_a: &Mat4,
+        m: &Mat4,
+        a: (u32, u32),
+        b: (u32, u32),
+        x: u32,
+        y: u32,
+        d: &[f32],
+        out: &mut [Motion],
+    ) {
+        let (one, two, half) = (_mm256_set1_ps(1.0), _mm256_set1_ps(2.0), _mm256_set1_ps(0.5));
+        let px = _mm256_add_ps(
+            _mm256_cvtepi32_ps(_mm256_add_epi32(
+                _mm256_set1_epi32(x as i32),
+                _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+            )),
+            half,
+        );
+        let py = _mm256_set1_ps(y as f32 + 0.5);
+        let dv = _mm256_loadu_ps(d.as_ptr());
+        // unproject_with(inv_a, a, px, py, d.min(1.0))
+        let nx = _mm256_sub_ps(_mm256_mul_ps(_mm256_div_ps(px, _mm256_set1_ps(a.0 as f32)), two), one);
+        let ny = _mm256_sub_ps(one, _mm256_mul_ps(_mm256_div_ps(py, _mm256_set1_ps(a.1 as f32)), two));
+        let p = mat_vec(inv_a, [nx, ny, _mm256_min_ps(dv, one), one]);
+        let world = [_mm256_div_ps(p[0], p[3]), _mm256_div_ps(p[1], p[3]), _mm256_div_ps(p[2], p[3])];
+        // project_with(m, b, world)
+        let c = mat_vec(m, [world[0], world[1], world[2], one]);
+        let behind = _mm256_cmp_ps::<_CMP_LE_OQ>(c[3], _mm256_setzero_ps());
+        let inv_w = _mm256_div_ps(one, c[3]);
+        let (sx, sy, sz) = (_mm256_mul_ps(c[0], inv_w), _mm256_mul_ps(c[1], inv_w), _mm256_mul_ps(c[2], inv_w));
+        let sx = _mm256_mul_ps(_mm256_mul_ps(_mm256_add_ps(sx, one), half), _mm256_set1_ps(b.0 as f32));
+        let sy = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(one, sy), half), _mm256_set1_ps(b.1 as f32));
+        // The sample: behind the target eye far off-screen, empty pixels at depth 1.
+        let far = _mm256_set1_ps(1.0e9);
+        let vx = _mm256_blendv_ps(_mm256_sub_ps(sx, px), far, behind);
+        let vy = _mm256_blendv_ps(_mm256_sub_ps(sy, py), far, behind);
+        let empty = _mm256_or_ps(behind, _mm256_cmp_ps::<_CMP_GE_OQ>(dv, one));
+        let depth = _mm256_blendv_ps(sz, one, empty);
+        crate::simd::avx2::store3x8(out.as_mut_ptr() as *mut f32, [vx, vy, depth]);
+    }
 }
 
 #[cfg(test)]
@@ -161,6 +320,40 @@ mod tests {
         let still = motion_field(&depth, Some(&items), &a, &b, &[]).unwrap();
         let i = items.data().iter().zip(depth.data()).position(|(&id, &d)| id == 1 && d < 1.0).unwrap();
         assert_ne!(by_id.data()[i], still.data()[i]);
+    }
+
+    /// The AVX2 build gives the portable field bit for bit: runs of one moving object, of the
+    /// camera, NO_ITEM, empty pixels, points behind the target eye, a row that is no multiple of
+    /// eight; identity deltas are the static field.
+    #[test]
+    fn the_avx2_field_is_the_portable_field() {
+        let (w, h) = (45, 13);
+        let a = Camera::perspective(Vec3::new(0.0, 0.5, 6.0), Vec3::ZERO, Vec3::Y, 1.0, 0.1, 50.0, w, h).unwrap();
+        // Its eye 3.5 m ahead of a's: the nearest points are behind it.
+        let b = Camera::perspective(Vec3::new(0.3, 0.6, 2.5), Vec3::X * 0.2, Vec3::Y, 1.1, 0.1, 50.0, w, h).unwrap();
+        let depth =
+            Image::from_fn(w, h, |x, y| if (x + 3 * y) % 11 == 0 { 1.0 } else { 0.02 * y as f32 + 0.02 * x as f32 });
+        let items = Image::from_fn(w, h, |x, y| match (x / 9 + y) % 4 {
+            3 => NO_ITEM,
+            k => k,
+        });
+        let deltas = [Mat4::IDENTITY, Mat4::from_translation(Vec3::new(0.2, 0.0, -0.1)), Mat4::from_rotation_y(0.05)];
+        let bits =
+            |m: &Image<Motion>| m.data().iter().map(|s| [s.v.x, s.v.y, s.depth].map(f32::to_bits)).collect::<Vec<_>>();
+        let field = |simd: bool, d: &[Mat4]| {
+            set_simd(simd);
+            let f = motion_field(&depth, Some(&items), &a, &b, d).unwrap();
+            set_simd(true);
+            f
+        };
+        let portable = field(false, &deltas);
+        assert!(portable.data().iter().any(|s| s.v.x == 1.0e9), "no point behind the target eye");
+        assert_eq!(bits(&field(true, &deltas)), bits(&portable));
+        assert_eq!(bits(&field(true, &[Mat4::IDENTITY; 3])), bits(&field(false, &[])));
+        // Into a buffer of another size: resized, same field.
+        let mut out = Image::new(3, 2, Motion::default());
+        motion_field_into(&depth, Some(&items), &a, &b, &deltas, &mut out).unwrap();
+        assert_eq!(bits(&out), bits(&portable));
     }
 
     #[test]

@@ -40,9 +40,132 @@ impl Default for Avx2Switch {
     }
 }
 
+/// AVX2 building blocks shared by the crates' AVX2 builds: the transposes between eight
+/// three-float records (`Motion`'s `(x, y, depth)`, an RGB texel) and three lane vectors.
+///
+/// The functions are `#[inline(always)]` without a `target_feature` of their own, so they take
+/// the caller's: call them only from `#[target_feature(enable = "avx2")]` functions (the
+/// caller's CPU check covers them).
+#[cfg(target_arch = "x86_64")]
+pub mod avx2 {
+    use std::arch::x86_64::*;
+
+    /// Lanes of `v` picked by the constant indices `i`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    pub unsafe fn pick(v: __m256, i: [i32; 8]) -> __m256 {
+        _mm256_permutevar8x32_ps(v, _mm256_setr_epi32(i[0], i[1], i[2], i[3], i[4], i[5], i[6], i[7]))
+    }
+
+    /// Lanes picked from three vectors by constant indices and merged by the immediate masks
+    /// (`MB`: lanes from `b`, `MC`: lanes from `c`, the rest from `a`): one lane shuffle of the
+    /// three-float transposes.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    pub unsafe fn merge3<const MB: i32, const MC: i32>(
+        (a, ia): (__m256, [i32; 8]),
+        (b, ib): (__m256, [i32; 8]),
+        (c, ic): (__m256, [i32; 8]),
+    ) -> __m256 {
+        _mm256_blend_ps::<MC>(_mm256_blend_ps::<MB>(pick(a, ia), pick(b, ib)), pick(c, ic))
+    }
+
+    /// Eight three-float records at `p` (24 floats) as three component vectors: the AoS -> SoA
+    /// transpose.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2; `p` must be valid for reading 24 floats.
+    #[inline(always)]
+    pub unsafe fn load3x8(p: *const f32) -> [__m256; 3] {
+        // a = x0 y0 z0 x1 y1 z1 x2 y2 | b = z2 x3 y3 z3 x4 y4 z4 x5 | c = y5 z5 x6 y6 z6 x7 y7 z7
+        let (a, b, c) = (_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8)), _mm256_loadu_ps(p.add(16)));
+        [
+            merge3::<0b0011_1000, 0b1100_0000>(
+                (a, [0, 3, 6, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 1, 4, 7, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 0, 2, 5]),
+            ),
+            merge3::<0b0001_1000, 0b1110_0000>(
+                (a, [1, 4, 7, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 2, 5, 0, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 0, 3, 6]),
+            ),
+            merge3::<0b0001_1100, 0b1110_0000>(
+                (a, [2, 5, 0, 0, 0, 0, 0, 0]),
+                (b, [0, 0, 0, 3, 6, 0, 0, 0]),
+                (c, [0, 0, 0, 0, 0, 1, 4, 7]),
+            ),
+        ]
+    }
+
+    /// Three component vectors of eight records as the three vectors of their 24 interleaved
+    /// floats: the SoA -> AoS transpose, inverse of [`load3x8`].
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    pub unsafe fn interleave3x8([x, y, z]: [__m256; 3]) -> [__m256; 3] {
+        [
+            merge3::<0b1001_0010, 0b0010_0100>(
+                (x, [0, 0, 0, 1, 0, 0, 2, 0]),
+                (y, [0, 0, 0, 0, 1, 0, 0, 2]),
+                (z, [0, 0, 0, 0, 0, 1, 0, 0]),
+            ),
+            merge3::<0b0010_0100, 0b0100_1001>(
+                (x, [0, 3, 0, 0, 4, 0, 0, 5]),
+                (y, [0, 0, 3, 0, 0, 4, 0, 0]),
+                (z, [2, 0, 0, 3, 0, 0, 4, 0]),
+            ),
+            merge3::<0b0100_1001, 0b1001_0010>(
+                (x, [0, 0, 6, 0, 0, 7, 0, 0]),
+                (y, [5, 0, 0, 6, 0, 0, 7, 0]),
+                (z, [0, 5, 0, 0, 6, 0, 0, 7]),
+            ),
+        ]
+    }
+
+    /// Eight records' component vectors stored as 24 interleaved floats at `p`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2; `p` must be valid for writing 24 floats.
+    #[inline(always)]
+    pub unsafe fn store3x8(p: *mut f32, v: [__m256; 3]) {
+        for (k, v) in interleave3x8(v).into_iter().enumerate() {
+            _mm256_storeu_ps(p.add(8 * k), v);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The transposes are each other's inverse and put record k's components in lane k.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_three_float_transposes_round_trip() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        #[target_feature(enable = "avx2")]
+        unsafe fn run(src: &[f32; 24]) -> ([[f32; 8]; 3], [f32; 24]) {
+            let v = avx2::load3x8(src.as_ptr());
+            let mut back = [0.0f32; 24];
+            avx2::store3x8(back.as_mut_ptr(), v);
+            (v.map(|l| std::mem::transmute::<std::arch::x86_64::__m256, [f32; 8]>(l)), back)
+        }
+        let src: [f32; 24] = std::array::from_fn(|i| i as f32);
+        // SAFETY: AVX2 checked above.
+        let (lanes, back) = unsafe { run(&src) };
+        for (c, lane) in lanes.iter().enumerate() {
+            assert_eq!(*lane, std::array::from_fn(|k| (3 * k + c) as f32));
+        }
+        assert_eq!(back, src);
+    }
 
     #[test]
     fn a_switch_turned_off_is_never_active() {

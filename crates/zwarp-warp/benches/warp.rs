@@ -1,7 +1,8 @@
 //! Depth-warp benchmark (seed 000 Table 1/3 style) on a synthetic 1920x1080 city: ground plus
 //! 6x6 boxes ray cast analytically, peeled into 3 layers (the last = ground only), camera
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
-//! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), and the
+//! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), the
+//! motion field itself (AVX2 and portable builds), the
 //! VFW / AFW forward baselines side by side, and the streaming floor of the same inputs
 //! (`floor::floor_pass`: one read of every layer, one write of the output).
 //!
@@ -17,14 +18,16 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion};
 use glam::{Vec2, Vec3};
-use zwarp_core::{motion_field, Camera, Image, Motion};
+use zwarp_core::{motion_field, motion_field_into, Camera, Image, Motion};
 use zwarp_warp::search::{effective_seeds, seed_key, stratified_seeds};
 use zwarp_warp::synth::SynthScene;
 use zwarp_warp::*;
 
 struct Case {
     depth: Vec<Image<f32>>,
+    items: Vec<Image<u32>>,
     motion: Vec<Image<Motion>>,
+    cams: (Camera, Camera),
 }
 
 fn build_case() -> Case {
@@ -36,7 +39,7 @@ fn build_case() -> Case {
     let src = scene.render(&a, 0.0, 3, true);
     let motion =
         src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &[]).unwrap()).collect();
-    Case { depth: src.depth, motion }
+    Case { depth: src.depth, items: src.items, motion, cams: (a, b) }
 }
 
 fn layers(case: &Case, l: usize) -> Vec<WarpLayer<'_>> {
@@ -128,6 +131,16 @@ fn main() {
             g.bench_with_input(BenchmarkId::new("vfw", l), &l, |b, _| b.iter(|| vfw_layers(&ls).unwrap()));
             g.bench_with_input(BenchmarkId::new("afw", l), &l, |b, _| b.iter(|| afw_layers(&ls).unwrap()));
         }
+        // The motion of layer 0 (Sec. 3.1) into a reused buffer: the AVX2 build and the portable one.
+        let mut out = Image::new(0, 0, Motion::default());
+        let (a, b) = &case.cams;
+        for (name, simd) in [("motion_field", true), ("motion_field_portable", false)] {
+            g.bench_function(name, |bch| {
+                zwarp_core::motion::set_simd(simd);
+                bch.iter(|| motion_field_into(&case.depth[0], Some(&case.items[0]), a, b, &[], &mut out).unwrap());
+                zwarp_core::motion::set_simd(true);
+            });
+        }
         g.finish();
     }
     c.final_summary();
@@ -136,6 +149,22 @@ fn main() {
     let threads = rayon::current_num_threads();
     let px = 1920.0 * 1080.0;
     println!("\nsummary: 1920x1080, {threads} rayon thread(s); median [min, max] of 5 warm runs");
+    {
+        let mut out = Image::new(0, 0, Motion::default());
+        let (a, b) = &case.cams;
+        let mut motion = |simd: bool| {
+            zwarp_core::motion::set_simd(simd);
+            let r =
+                median_ms(5, || motion_field_into(&case.depth[0], Some(&case.items[0]), a, b, &[], &mut out).unwrap());
+            zwarp_core::motion::set_simd(true);
+            r
+        };
+        let ((t, lo, hi), (tp, plo, phi)) = (motion(true), motion(false));
+        println!(
+            "motion field (layer 0): {t:.2} ms [{lo:.2}, {hi:.2}]; portable build {tp:.2} ms [{plo:.2}, {phi:.2}] ({:.1}x)",
+            tp / t
+        );
+    }
     for l in [1usize, 3] {
         let ls = layers(&case, l);
         // The streaming floor of the same inputs (one read of every layer, one write; settled

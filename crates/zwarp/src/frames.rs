@@ -9,7 +9,7 @@ use zwarp_color::{
     heuristic_warp_into, robust_warp_with, ColorWarpOutput, FieldParams, HeuristicParams, RobustParams, Subdivision,
     WarpBasis,
 };
-use zwarp_core::{Camera, Error, Image, Result};
+use zwarp_core::{Camera, Error, Image, Motion, Result};
 
 use crate::{check_target, Backend};
 
@@ -94,6 +94,8 @@ pub struct FrameWarper {
     method: ColorMethod,
     gpu: Option<ColorWarpKernel>,
     source: Option<FrameSource>,
+    /// The motion towards the last target, reused by the next call.
+    motion: Image<Motion>,
     output: ColorWarpOutput,
 }
 
@@ -106,7 +108,13 @@ impl FrameWarper {
             Backend::Cpu => None,
             Backend::Gpu(ctx) => Some(ColorWarpKernel::new(&ctx)?),
         };
-        Ok(FrameWarper { method, gpu, source: None, output: ColorWarpOutput::empty() })
+        Ok(FrameWarper {
+            method,
+            gpu,
+            source: None,
+            motion: Image::new(0, 0, Motion::default()),
+            output: ColorWarpOutput::empty(),
+        })
     }
 
     /// The colour warp this warper runs.
@@ -170,9 +178,10 @@ impl FrameWarper {
             return Err(Error::invalid("warp_to before prepare: no source frame"));
         };
         check_target(&src.camera, camera)?;
-        let motion = zwarp_core::motion_field(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas)?;
+        let motion = &mut self.motion;
+        zwarp_core::motion_field_into(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas, motion)?;
         // The field towards the target itself: t = 1 of the exact motion (eq. 2).
-        let basis = WarpBasis::temporal(&src.depth, &motion)?;
+        let basis = WarpBasis::temporal(&src.depth, motion)?;
         let field = basis.field(FieldParams::temporal(1.0))?;
         match (&self.gpu, &self.method) {
             (Some(k), ColorMethod::Heuristic(p)) => self.output = k.heuristic(&field, &src.color, p)?,

@@ -283,6 +283,8 @@ pub struct Warper {
     gpu: Option<GpuKernels>,
     source: Option<Source>,
     recycled: Vec<PreparedLayer>,
+    /// The CPU path's motion buffers, one per layer, reused by the next prediction.
+    motions: Vec<Image<Motion>>,
     prediction: Option<Prediction>,
     gpu_prediction: Option<GpuPrediction>,
 }
@@ -312,7 +314,15 @@ impl Warper {
                 })
             }
         };
-        Ok(Warper { params, gpu, source: None, recycled: Vec::new(), prediction: None, gpu_prediction: None })
+        Ok(Warper {
+            params,
+            gpu,
+            source: None,
+            recycled: Vec::new(),
+            motions: Vec::new(),
+            prediction: None,
+            gpu_prediction: None,
+        })
     }
 
     /// The parameters of this warper.
@@ -456,13 +466,12 @@ impl Warper {
         let (src_camera, src_depth, src_items) = src;
         check_target(src_camera, camera)?;
         let (cam_a, cam_b) = sampled_cameras(src_camera, camera, self.params.multisample)?;
-        let motions: Vec<Image<Motion>> = src_depth
-            .iter()
-            .enumerate()
-            .map(|(k, d)| zwarp_core::motion_field(d, src_items.as_ref().map(|i| &i[k]), &cam_a, &cam_b, object_deltas))
-            .collect::<Result<_>>()?;
+        self.motions.resize_with(src_depth.len(), || Image::new(0, 0, Motion::default()));
+        for (k, (d, m)) in src_depth.iter().zip(self.motions.iter_mut()).enumerate() {
+            zwarp_core::motion_field_into(d, src_items.as_ref().map(|i| &i[k]), &cam_a, &cam_b, object_deltas, m)?;
+        }
         let layers: Vec<WarpLayer<'_>> =
-            src_depth.iter().zip(&motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
+            src_depth.iter().zip(&self.motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let out = match &self.gpu {
             Some(k) => zwarp_warp::gpu::predict(&k.warp, &k.fill, &layers, &self.params)?,
             None => {
