@@ -21,11 +21,27 @@ pub struct Planes {
     pub y: Vec<f32>,
 }
 
+/// Texels per parallel task of the per-texel passes.
+const CHUNK: usize = 1 << 14;
+
 impl Planes {
+    /// The planes of `f` over texels `0..n`: both written in one parallel pass.
     fn from_fn(n: usize, f: impl Fn(usize) -> Vec2 + Sync + Send) -> Self {
-        let v: Vec<Vec2> = (0..n).into_par_iter().map(f).collect();
-        Planes { x: v.iter().map(|p| p.x).collect(), y: v.iter().map(|p| p.y).collect() }
+        let mut p = Planes { x: vec![0.0; n], y: vec![0.0; n] };
+        p.x.par_chunks_mut(CHUNK).zip(p.y.par_chunks_mut(CHUNK)).enumerate().for_each(|(c, (xs, ys))| {
+            for (k, (x, y)) in xs.iter_mut().zip(ys).enumerate() {
+                let v = f(c * CHUNK + k);
+                (*x, *y) = (v.x, v.y);
+            }
+        });
+        p
     }
+}
+
+/// `true` if `pred` holds for some element of `v` (a parallel fold without early exit, so
+/// each task's scan vectorizes).
+fn any_par<T: Sync>(v: &[T], pred: impl Fn(&T) -> bool + Sync) -> bool {
+    v.par_chunks(CHUNK).any(|c| c.iter().fold(false, |a, t| a | pred(t)))
 }
 
 /// Parameters at which a [`WarpBasis`] is evaluated (seed 001 Sec. 3.1): time offset `t` in
@@ -78,7 +94,7 @@ pub struct WarpBasis {
 fn check_motion(depth: &Image<f32>, m: &Image<Motion>, what: &str) -> Result<()> {
     depth.check_nonempty("warp basis depth")?;
     depth.check_same_size(m, what)?;
-    if m.data().iter().any(|s| s.v.is_nan()) {
+    if any_par(m.data(), |s| s.v.is_nan()) {
         return Err(Error::invalid(format!("{what}: motion holds NaN")));
     }
     Ok(())
@@ -99,13 +115,13 @@ impl WarpBasis {
     /// empty or non-finite depth buffer.
     pub fn new(depth: &Image<f32>) -> Result<Self> {
         depth.check_nonempty("warp basis depth")?;
-        if depth.data().iter().any(|d| !d.is_finite()) {
+        if any_par(depth.data(), |d| !d.is_finite()) {
             return Err(Error::invalid("warp basis: depth buffer holds NaN or infinite values"));
         }
         Ok(WarpBasis {
             width: depth.width(),
             height: depth.height(),
-            depth: depth.data().iter().map(|d| d.clamp(0.0, 1.0)).collect(),
+            depth: depth.data().par_iter().map(|d| d.clamp(0.0, 1.0)).collect(),
             motion: None,
             accel: None,
             spatial: None,
@@ -374,6 +390,32 @@ mod tests {
         }
         assert!(basis.field(FieldParams::temporal(1.0)).is_err());
         assert!(basis.field(FieldParams { t: 0.0, u: f32::NAN, v: 0.0 }).is_err());
+    }
+
+    /// The planes hold every texel's motion across the parallel chunks (an image of several
+    /// chunks), the "behind the target eye" marker finite, the depth clamped to `[0, 1]`.
+    #[test]
+    fn temporal_planes_are_the_motion_of_every_texel() {
+        let (w, h) = (203u32, 181u32);
+        assert!((w * h) as usize > 2 * CHUNK);
+        let depth = Image::from_fn(w, h, |x, y| if (x + y) % 5 == 0 { 1.0 } else { 0.001 * x as f32 });
+        let m = Image::from_fn(w, h, |x, y| {
+            let i = (y * w + x) as f32;
+            let v = if (x * y) % 97 == 1 { Vec2::splat(f32::INFINITY) } else { Vec2::new(i, -0.5 * i) };
+            Motion { v, depth: 0.5 }
+        });
+        let b = WarpBasis::temporal(&depth, &m).unwrap();
+        let f = b.field(FieldParams::temporal(1.0)).unwrap();
+        for (i, s) in m.data().iter().enumerate() {
+            let want = if s.v.is_finite() { s.v } else { Vec2::splat(1.0e9) };
+            assert_eq!(f.v(i), want, "texel {i}");
+            assert_eq!(f.depth()[i], depth.data()[i]);
+        }
+        let nan = Image::from_fn(w, h, |x, y| Motion {
+            v: Vec2::splat(if x * y == 30_000 { f32::NAN } else { 0.0 }),
+            depth: 0.5,
+        });
+        assert!(WarpBasis::temporal(&depth, &nan).is_err());
     }
 
     #[test]

@@ -1,0 +1,61 @@
+//! Times the facade's colour frame generation (`zwarp::FrameWarper::warp_to`, seed 001: motion,
+//! warp field, heuristic or robust warp) on one frame of a scene, warm, buffers reused, beside
+//! the heuristic / robust warp alone on the same field: the loop to profile the facade with.
+//!
+//! `frame_loop SCENE PATH.json|- W H reps`
+use std::time::Instant;
+
+use zwarp::{Backend, ColorMethod, FrameWarper};
+use zwarp_color::{heuristic_warp_into, ColorWarpOutput, FieldParams, HeuristicParams, WarpBasis};
+use zwarp_core::motion_field;
+use zwarp_raster::{render_frame, FrameOptions};
+use zwarp_scene::{load_scene, CameraPath, SceneOptions};
+
+fn med(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    (v[v.len() / 2], v[0], v[v.len() - 1])
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    if a.len() != 6 {
+        eprintln!("usage: frame_loop SCENE PATH.json|- W H reps");
+        std::process::exit(1);
+    }
+    let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
+    let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap();
+    let path = if a[2] == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(&a[2]).unwrap() };
+    let (t0, t1) = (path.time_of_frame(0, 1.0), path.time_of_frame(1, 1.0));
+    let (c0, c1) = (path.camera_at(t0, w, h).unwrap(), path.camera_at(t1, w, h).unwrap());
+    let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions { color: true, objects: None }).unwrap();
+    let color = f.color.as_ref().unwrap();
+    let deltas = loaded.scene.object_deltas(t0, t1);
+    let time = |g: &mut dyn FnMut()| {
+        g();
+        med((0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                g();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .collect())
+    };
+    for (name, method) in [("heuristic", ColorMethod::heuristic()), ("robust", ColorMethod::robust())] {
+        let mut fw = FrameWarper::new(Backend::Cpu, method).unwrap();
+        fw.prepare(&c0, &f.depth, color, Some(&f.items)).unwrap();
+        let (t, lo, hi) = time(&mut || {
+            std::hint::black_box(fw.warp_to(&c1, &deltas).unwrap());
+        });
+        println!("FrameWarper {name}: {t:.2} ms [{lo:.2}, {hi:.2}]");
+    }
+    let m = motion_field(&f.depth, Some(&f.items), &c0, &c1, &deltas).unwrap();
+    let (t, lo, hi) = time(&mut || {
+        std::hint::black_box(WarpBasis::temporal(&f.depth, &m).unwrap());
+    });
+    println!("WarpBasis::temporal: {t:.2} ms [{lo:.2}, {hi:.2}]");
+    let basis = WarpBasis::temporal(&f.depth, &m).unwrap();
+    let field = basis.field(FieldParams::temporal(1.0)).unwrap();
+    let mut out = ColorWarpOutput::empty();
+    let (t, lo, hi) = time(&mut || heuristic_warp_into(&field, color, &HeuristicParams::default(), &mut out).unwrap());
+    println!("heuristic warp alone: {t:.2} ms [{lo:.2}, {hi:.2}]");
+}
