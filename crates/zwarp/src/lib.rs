@@ -338,7 +338,8 @@ impl Warper {
     /// Sets the source view: its camera, its peeled depth layers (nearest first, `1.0` =
     /// empty; a last layer may hold the ground alone, Sec. 3.4, with `WarpParams::ground_layer`
     /// set) and optionally the item (object id) buffer of each layer, which moving objects need
-    /// (see [`Warper::warp_to`]).
+    /// (see [`Warper::warp_to`]). The buffers are copied into the warper's own (reused while
+    /// the layers keep their number and size).
     pub fn prepare(&mut self, camera: &Camera, layers: &[Image<f32>], items: Option<&[Image<u32>]>) -> Result<()> {
         let Some(first) = layers.first() else {
             return Err(Error::invalid("prepare needs at least one depth layer"));
@@ -361,7 +362,30 @@ impl Warper {
                 return Err(Error::invalid("item buffers must match the depth layers in number and size"));
             }
         }
-        self.source = Some(Source::Cpu { camera: *camera, depth: layers.to_vec(), items: items.map(|i| i.to_vec()) });
+        // Into the previous source's buffers where the layers keep their number and size (an
+        // engine's steady state: a copy, no fresh pages every frame).
+        match &mut self.source {
+            Some(Source::Cpu { camera: c, depth, items: it })
+                if depth.len() == layers.len() && depth[0].size() == first.size() =>
+            {
+                *c = *camera;
+                for (d, l) in depth.iter_mut().zip(layers) {
+                    d.data_mut().copy_from_slice(l.data());
+                }
+                match (it, items) {
+                    (Some(mine), Some(theirs)) => {
+                        for (d, l) in mine.iter_mut().zip(theirs) {
+                            d.data_mut().copy_from_slice(l.data());
+                        }
+                    }
+                    (mine, theirs) => *mine = theirs.map(|i| i.to_vec()),
+                }
+            }
+            _ => {
+                self.source =
+                    Some(Source::Cpu { camera: *camera, depth: layers.to_vec(), items: items.map(|i| i.to_vec()) })
+            }
+        }
         Ok(())
     }
 

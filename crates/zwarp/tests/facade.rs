@@ -45,6 +45,9 @@ fn cpu_prediction_is_the_eval_pipeline_by_hand() {
     let direct = scene.render(&b, 0.25, 1, false).depth.remove(0);
     let differ = back.depth.data().iter().zip(direct.data()).filter(|(x, y)| (**x - **y).abs() > 1e-5).count();
     assert_eq!(differ, 0, "zero motion returns the source");
+    // The first source again, copied into the buffers of the second (items back): its answer.
+    warper.prepare(&a, &src.depth, Some(&src.items)).unwrap();
+    assert_eq!(warper.warp_to(&b, &deltas).unwrap(), &got);
 }
 
 #[test]

@@ -1,11 +1,13 @@
-//! Times the facade's colour frame generation (`zwarp::FrameWarper::warp_to`, seed 001: motion,
-//! warp field, heuristic or robust warp) on one frame of a scene, warm, buffers reused, beside
-//! the heuristic / robust warp alone on the same field: the loop to profile the facade with.
+//! Times the facade as an engine calls it, frame after frame on one frame pair of a scene, warm,
+//! buffers reused: the depth prediction (`zwarp::Warper::prepare` and `warp_to`: motion,
+//! preparation, search, holes) beside a depth render of the target view, and colour frame
+//! generation (`zwarp::FrameWarper::warp_to`, seed 001: motion, warp field, heuristic or robust
+//! warp) beside the heuristic warp alone on the same field: the loop to profile the facade with.
 //!
-//! `frame_loop SCENE PATH.json|- W H reps`
+//! `facade_loop SCENE PATH.json|- W H reps`
 use std::time::Instant;
 
-use zwarp::{Backend, ColorMethod, FrameWarper};
+use zwarp::{Backend, ColorMethod, FrameWarper, Warper};
 use zwarp_color::{heuristic_warp_into, ColorWarpOutput, FieldParams, HeuristicParams, WarpBasis};
 use zwarp_core::motion_field;
 use zwarp_raster::{render_frame, FrameOptions};
@@ -19,7 +21,7 @@ fn med(mut v: Vec<f64>) -> (f64, f64, f64) {
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     if a.len() != 6 {
-        eprintln!("usage: frame_loop SCENE PATH.json|- W H reps");
+        eprintln!("usage: facade_loop SCENE PATH.json|- W H reps");
         std::process::exit(1);
     }
     let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
@@ -40,6 +42,25 @@ fn main() {
             })
             .collect())
     };
+    // Depth: prepare + warp_to, and the render it replaces, interleaved.
+    let mut wp = Warper::new(Backend::Cpu, Warper::default_params()).unwrap();
+    let (mut tp, mut tw, mut tr) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..reps + 1 {
+        let t = Instant::now();
+        wp.prepare(&c0, std::slice::from_ref(&f.depth), Some(std::slice::from_ref(&f.items))).unwrap();
+        tp.push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        std::hint::black_box(wp.warp_to(&c1, &deltas).unwrap());
+        tw.push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        std::hint::black_box(zwarp_raster::render_depth(&loaded.scene, &c1, t1).unwrap());
+        tr.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let [(p, plo, phi), (wt, wlo, whi), (r, rlo, rhi)] = [tp, tw, tr].map(|v| med(v[1..].to_vec()));
+    println!(
+        "Warper (L = 1): prepare {p:.2} ms [{plo:.2}, {phi:.2}]  warp_to {wt:.2} ms [{wlo:.2}, {whi:.2}]  depth render {r:.2} ms [{rlo:.2}, {rhi:.2}]  render / (prepare + warp_to) {:.2}",
+        r / (p + wt)
+    );
     for (name, method) in [("heuristic", ColorMethod::heuristic()), ("robust", ColorMethod::robust())] {
         let mut fw = FrameWarper::new(Backend::Cpu, method).unwrap();
         fw.prepare(&c0, &f.depth, color, Some(&f.items)).unwrap();
