@@ -96,3 +96,62 @@ impl KeyArgs {
         self.0.get(key).map(String::as_str)
     }
 }
+
+/// The positional arguments `SCENE PATH.json|- W H reps` of the loop tools (`robust_loop`,
+/// `motion_loop`, `facade_loop`): the loaded scene, its camera path (`-`: the scene's own) and
+/// the image size and repetitions. Wrong arguments: the usage line and exit code 1.
+pub struct LoopArgs {
+    /// The scene (and its own path, if any).
+    pub loaded: zwarp_scene::LoadedScene,
+    /// The camera path.
+    pub path: zwarp_scene::CameraPath,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Timed repetitions.
+    pub reps: usize,
+}
+
+impl LoopArgs {
+    /// Reads the process arguments of tool `name`.
+    pub fn from_env(name: &str) -> Self {
+        let a: Vec<String> = std::env::args().collect();
+        let usage = || -> ! {
+            eprintln!("usage: {name} SCENE PATH.json|- W H reps");
+            std::process::exit(1)
+        };
+        if a.len() != 6 {
+            usage();
+        }
+        let (Ok(width), Ok(height), Ok(reps)) = (a[3].parse(), a[4].parse(), a[5].parse::<usize>()) else { usage() };
+        let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap_or_else(|e| {
+            eprintln!("error: {e}");
+            std::process::exit(1)
+        });
+        let path = if a[2] == "-" {
+            loaded.path_or_default()
+        } else {
+            zwarp_scene::CameraPath::from_json_file(&a[2]).unwrap_or_else(|e| {
+                eprintln!("error: {e}");
+                std::process::exit(1)
+            })
+        };
+        LoopArgs { loaded, path, width, height, reps: reps.max(1) }
+    }
+
+    /// Frames `k` and `k + 1` of the path at 1x speed: their times and cameras.
+    pub fn pair(&self, k: usize) -> ((f32, Camera), (f32, Camera)) {
+        let at = |k: usize| {
+            let t = self.path.time_of_frame(k, 1.0);
+            (t, self.path.camera_at(t, self.width, self.height).expect("a camera of the path"))
+        };
+        (at(k), at(k + 1))
+    }
+}
+
+/// Median, min and max of `v` (not empty).
+pub fn median_min_max(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    (v[v.len() / 2], v[0], v[v.len() - 1])
+}

@@ -11,24 +11,12 @@ use zwarp::{Backend, ColorMethod, FrameWarper, Warper};
 use zwarp_color::{heuristic_warp_into, ColorWarpOutput, FieldParams, HeuristicParams, WarpBasis};
 use zwarp_core::motion_field;
 use zwarp_raster::{render_frame, FrameOptions};
-use zwarp_scene::{load_scene, CameraPath, SceneOptions};
-
-fn med(mut v: Vec<f64>) -> (f64, f64, f64) {
-    v.sort_by(f64::total_cmp);
-    (v[v.len() / 2], v[0], v[v.len() - 1])
-}
+use zwarp_tools::common::median_min_max as med;
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
-    if a.len() != 6 {
-        eprintln!("usage: facade_loop SCENE PATH.json|- W H reps");
-        std::process::exit(1);
-    }
-    let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
-    let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap();
-    let path = if a[2] == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(&a[2]).unwrap() };
-    let (t0, t1) = (path.time_of_frame(0, 1.0), path.time_of_frame(1, 1.0));
-    let (c0, c1) = (path.camera_at(t0, w, h).unwrap(), path.camera_at(t1, w, h).unwrap());
+    let args = zwarp_tools::common::LoopArgs::from_env("facade_loop");
+    let (reps, loaded) = (args.reps, &args.loaded);
+    let ((t0, c0), (t1, c1)) = args.pair(0);
     let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions { color: true, objects: None }).unwrap();
     let color = f.color.as_ref().unwrap();
     let deltas = loaded.scene.object_deltas(t0, t1);

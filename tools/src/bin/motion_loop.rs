@@ -6,25 +6,17 @@
 use std::time::Instant;
 use zwarp_core::{motion_field, motion_field_into, Image, Motion};
 use zwarp_raster::{render_frame, FrameOptions};
-use zwarp_scene::{load_scene, CameraPath, SceneOptions};
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
-    if a.len() != 6 {
-        eprintln!("usage: motion_loop SCENE PATH.json|- W H reps");
-        std::process::exit(1);
-    }
-    let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
-    let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap();
-    let path = if a[2] == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(&a[2]).unwrap() };
-    let (t0, t1) = (path.time_of_frame(0, 1.0), path.time_of_frame(1, 1.0));
-    let (c0, c1) = (path.camera_at(t0, w, h).unwrap(), path.camera_at(t1, w, h).unwrap());
-    let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions::default()).unwrap();
-    let deltas = loaded.scene.object_deltas(t0, t1);
+    let args = zwarp_tools::common::LoopArgs::from_env("motion_loop");
+    let (reps, scene) = (args.reps, &args.loaded.scene);
+    let ((t0, c0), (t1, c1)) = args.pair(0);
+    let f = render_frame(scene, &c0, t0, &FrameOptions::default()).unwrap();
+    let deltas = scene.object_deltas(t0, t1);
     // Into one buffer reused across calls (an engine's steady state).
     let time = |d: &[glam::Mat4]| {
         let mut out = Image::new(0, 0, Motion::default());
-        let mut v: Vec<f64> = (0..reps + 1)
+        let v: Vec<f64> = (0..reps + 1)
             .map(|_| {
                 let t = Instant::now();
                 motion_field_into(&f.depth, Some(&f.items), &c0, &c1, d, &mut out).unwrap();
@@ -33,8 +25,7 @@ fn main() {
             })
             .skip(1)
             .collect();
-        v.sort_by(f64::total_cmp);
-        (v[v.len() / 2], v[0], v[v.len() - 1])
+        zwarp_tools::common::median_min_max(v)
     };
     let fp = |d: &[glam::Mat4]| {
         let m = motion_field(&f.depth, Some(&f.items), &c0, &c1, d).unwrap();

@@ -9,20 +9,11 @@ use zwarp_color::{
 };
 use zwarp_core::motion_field;
 use zwarp_raster::{render_frame, FrameOptions};
-use zwarp_scene::{load_scene, CameraPath, SceneOptions};
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
-    if a.len() != 6 {
-        eprintln!("usage: robust_loop SCENE PATH.json|- W H reps");
-        std::process::exit(1);
-    }
-    let (w, h, reps): (u32, u32, usize) = (a[3].parse().unwrap(), a[4].parse().unwrap(), a[5].parse().unwrap());
-    let loaded = load_scene(&a[1], &SceneOptions::default()).unwrap();
-    let path = if a[2] == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(&a[2]).unwrap() };
-    let k = path.frame_count_at(1.0) / 3;
-    let (t0, t1) = (path.time_of_frame(k, 1.0), path.time_of_frame(k + 1, 1.0));
-    let (c0, c1) = (path.camera_at(t0, w, h).unwrap(), path.camera_at(t1, w, h).unwrap());
+    let args = zwarp_tools::common::LoopArgs::from_env("robust_loop");
+    let (reps, loaded) = (args.reps, &args.loaded);
+    let ((t0, c0), (t1, c1)) = args.pair(args.path.frame_count_at(1.0) / 3);
     let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions { color: true, objects: None }).unwrap();
     let color = f.color.as_ref().unwrap();
     let m = motion_field(&f.depth, Some(&f.items), &c0, &c1, &loaded.scene.object_deltas(t0, t1)).unwrap();
@@ -31,10 +22,7 @@ fn main() {
     let hp = HeuristicParams { seed: Seed::Upstream(1.0), ..HeuristicParams::default() };
     let rp = RobustParams { fallback: hp, ..RobustParams::default() };
     let mut out = ColorWarpOutput::empty();
-    let med = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        (v[v.len() / 2], v[0], v[v.len() - 1])
-    };
+    let med = zwarp_tools::common::median_min_max;
     let time = |f: &mut dyn FnMut()| {
         f();
         med((0..reps)
