@@ -155,3 +155,17 @@ pub fn median_min_max(mut v: Vec<f64>) -> (f64, f64, f64) {
     v.sort_by(f64::total_cmp);
     (v[v.len() / 2], v[0], v[v.len() - 1])
 }
+
+/// Median, min and max wall milliseconds of `reps` runs of `f` after one untimed warm-up run.
+pub fn time_ms(reps: usize, f: &mut dyn FnMut()) -> (f64, f64, f64) {
+    f();
+    median_min_max(
+        (0..reps.max(1))
+            .map(|_| {
+                let t = std::time::Instant::now();
+                f();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .collect(),
+    )
+}

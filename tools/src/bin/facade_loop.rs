@@ -20,16 +20,7 @@ fn main() {
     let f = render_frame(&loaded.scene, &c0, t0, &FrameOptions { color: true, objects: None }).unwrap();
     let color = f.color.as_ref().unwrap();
     let deltas = loaded.scene.object_deltas(t0, t1);
-    let time = |g: &mut dyn FnMut()| {
-        g();
-        med((0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                g();
-                t.elapsed().as_secs_f64() * 1e3
-            })
-            .collect())
-    };
+    let time = |f: &mut dyn FnMut()| zwarp_tools::common::time_ms(reps, f);
     // Depth: prepare + warp_to, and the render it replaces, interleaved.
     let mut wp = Warper::new(Backend::Cpu, Warper::default_params()).unwrap();
     let (mut tp, mut tw, mut tr) = (Vec::new(), Vec::new(), Vec::new());

@@ -2,7 +2,6 @@
 //! warp on one frame of a scene (`zwarp upsample --factor 2`'s temporal field at t = 0.5).
 //!
 //! `robust_loop SCENE [PATH.json|-] W H reps`
-use std::time::Instant;
 use zwarp_color::{
     heuristic_warp_into, robust_warp_with, ColorWarpOutput, FieldParams, HeuristicParams, RobustParams, Seed,
     Subdivision, WarpBasis,
@@ -22,17 +21,7 @@ fn main() {
     let hp = HeuristicParams { seed: Seed::Upstream(1.0), ..HeuristicParams::default() };
     let rp = RobustParams { fallback: hp, ..RobustParams::default() };
     let mut out = ColorWarpOutput::empty();
-    let med = zwarp_tools::common::median_min_max;
-    let time = |f: &mut dyn FnMut()| {
-        f();
-        med((0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                f();
-                t.elapsed().as_secs_f64() * 1e3
-            })
-            .collect())
-    };
+    let time = |f: &mut dyn FnMut()| zwarp_tools::common::time_ms(reps, f);
     let th = time(&mut || {
         heuristic_warp_into(&field, color, &hp, &mut out).unwrap();
     });
