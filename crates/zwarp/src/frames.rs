@@ -149,10 +149,10 @@ impl FrameWarper {
         match &mut self.source {
             Some(s) if s.depth.size() == size => {
                 s.camera = *camera;
-                s.depth.data_mut().copy_from_slice(depth.data());
-                s.color.data_mut().copy_from_slice(color.data());
+                s.depth.copy_from(depth);
+                s.color.copy_from(color);
                 match (&mut s.items, items) {
-                    (Some(mine), Some(theirs)) => mine.data_mut().copy_from_slice(theirs.data()),
+                    (Some(mine), Some(theirs)) => mine.copy_from(theirs),
                     (mine, theirs) => *mine = theirs.cloned(),
                 }
             }

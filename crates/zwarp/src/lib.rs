@@ -370,12 +370,12 @@ impl Warper {
             {
                 *c = *camera;
                 for (d, l) in depth.iter_mut().zip(layers) {
-                    d.data_mut().copy_from_slice(l.data());
+                    d.copy_from(l);
                 }
                 match (it, items) {
                     (Some(mine), Some(theirs)) => {
                         for (d, l) in mine.iter_mut().zip(theirs) {
-                            d.data_mut().copy_from_slice(l.data());
+                            d.copy_from(l);
                         }
                     }
                     (mine, theirs) => *mine = theirs.map(|i| i.to_vec()),
