@@ -100,7 +100,10 @@ pub fn motion_field_into(
 ) -> Result<()> {
     let n = object_deltas.len();
     let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
-    // Without a moving object the item buffer is not read at all.
+    // Without a moving object the item buffer is not read at all (its size is still checked).
+    if let Some(it) = items {
+        depth.check_same_size(it, "depth vs item buffer")?;
+    }
     let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
     motion_field_with_into(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize], out)
 }
@@ -350,6 +353,10 @@ mod tests {
         assert!(portable.data().iter().any(|s| s.v.x == 1.0e9), "no point behind the target eye");
         assert_eq!(bits(&field(true, &deltas)), bits(&portable));
         assert_eq!(bits(&field(true, &[Mat4::IDENTITY; 3])), bits(&field(false, &[])));
+        // A wrong-size item buffer is an error even when nothing moves.
+        let small = Image::new(w - 1, h, 0u32);
+        assert!(motion_field(&depth, Some(&small), &a, &b, &[]).is_err());
+        assert!(motion_field(&depth, Some(&small), &a, &b, &[Mat4::IDENTITY; 3]).is_err());
         // Into a buffer of another size: resized, same field.
         let mut out = Image::new(3, 2, Motion::default());
         motion_field_into(&depth, Some(&items), &a, &b, &deltas, &mut out).unwrap();
