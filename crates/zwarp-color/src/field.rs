@@ -115,7 +115,7 @@ impl WarpBasis {
     /// empty or non-finite depth buffer.
     pub fn new(depth: &Image<f32>) -> Result<Self> {
         depth.check_nonempty("warp basis depth")?;
-        if any_par(depth.data(), |d| !d.is_finite()) {
+        if !depth.all_finite() {
             return Err(Error::invalid("warp basis: depth buffer holds NaN or infinite values"));
         }
         Ok(WarpBasis {

@@ -62,9 +62,7 @@ pub fn check_motion_inputs(depth: &Image<f32>, items: Option<&Image<u32>>, cam_a
             cam_a.height
         )));
     }
-    // A fold without early exit, so the scan vectorizes.
-    let non_finite = depth.data().par_chunks(1 << 16).any(|c| c.iter().fold(false, |a, d| a | !d.is_finite()));
-    if non_finite {
+    if !depth.all_finite() {
         return Err(crate::Error::invalid("depth buffer holds NaN or infinite values"));
     }
     Ok(())

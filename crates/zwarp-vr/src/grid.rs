@@ -213,7 +213,7 @@ impl Source<'_> {
                 self.cam.height
             )));
         }
-        if self.depth.data().iter().any(|d| !d.is_finite()) {
+        if !self.depth.all_finite() {
             return Err(Error::invalid("warp source depth holds NaN or infinite values"));
         }
         Ok(())

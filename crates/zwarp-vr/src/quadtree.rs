@@ -397,7 +397,7 @@ impl QuadTree {
     pub fn build(depth: &Image<f32>, reduction: Reduction, c: &Collinearity) -> Result<Self> {
         depth.check_nonempty("quadtree depth")?;
         c.check()?;
-        if depth.data().iter().any(|d| !d.is_finite()) {
+        if !depth.all_finite() {
             return Err(Error::invalid("quadtree: depth buffer holds NaN or infinite values"));
         }
         let (w, h) = depth.size();

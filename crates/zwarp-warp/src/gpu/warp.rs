@@ -562,7 +562,7 @@ impl WarpKernel {
                 let (lw, lh) = l.depth.size();
                 return Err(Error::invalid(format!("layer {k} is {lw}x{lh} but layer 0 is {w}x{h}")));
             }
-            if l.depth.data().iter().any(|d| !d.is_finite()) {
+            if !l.depth.all_finite() {
                 return Err(Error::invalid("layer depth holds NaN or infinite values"));
             }
             if l.motion.data().iter().any(|m| m.v.is_nan() || m.depth.is_nan()) {
