@@ -224,24 +224,7 @@ mod avx2 {
     use glam::Mat4;
 
     use super::Motion;
-
-    /// `m * (v0, v1, v2, v3)` per lane as glam's `Mat4 * Vec4` computes it: the columns scaled
-    /// and summed in order, `((c0 v0 + c1 v1) + c2 v2) + c3 v3`, no FMA.
-    /// (No closures inside: a closure is a function of its own without the caller's AVX2, and
-    /// the intrinsics in it would not inline.)
-    #[inline(always)]
-    unsafe fn mat_vec(m: &Mat4, v: [__m256; 4]) -> [__m256; 4] {
-        let c = m.to_cols_array_2d();
-        let mut r = [_mm256_setzero_ps(); 4];
-        for (i, r) in r.iter_mut().enumerate() {
-            let t0 = _mm256_mul_ps(_mm256_set1_ps(c[0][i]), v[0]);
-            let t1 = _mm256_mul_ps(_mm256_set1_ps(c[1][i]), v[1]);
-            let t2 = _mm256_mul_ps(_mm256_set1_ps(c[2][i]), v[2]);
-            let t3 = _mm256_mul_ps(_mm256_set1_ps(c[3][i]), v[3]);
-            *r = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(t0, t1), t2), t3);
-        }
-        r
-    }
+    use crate::simd::avx2::{mat4_mul8, store3x8};
 
     /// [`super::reproject_pixel`] of pixels `x..x + 8` of row `y`, all moving with matrix `m`
     /// (the target's view-projection, times an object's motion): `unproject_with`,
@@ -274,10 +257,10 @@ mod avx2 {
         // unproject_with(inv_a, a, px, py, d.min(1.0))
         let nx = _mm256_sub_ps(_mm256_mul_ps(_mm256_div_ps(px, _mm256_set1_ps(a.0 as f32)), two), one);
         let ny = _mm256_sub_ps(one, _mm256_mul_ps(_mm256_div_ps(py, _mm256_set1_ps(a.1 as f32)), two));
-        let p = mat_vec(inv_a, [nx, ny, _mm256_min_ps(dv, one), one]);
+        let p = mat4_mul8(inv_a, [nx, ny, _mm256_min_ps(dv, one), one]);
         let world = [_mm256_div_ps(p[0], p[3]), _mm256_div_ps(p[1], p[3]), _mm256_div_ps(p[2], p[3])];
         // project_with(m, b, world)
-        let c = mat_vec(m, [world[0], world[1], world[2], one]);
+        let c = mat4_mul8(m, [world[0], world[1], world[2], one]);
         let behind = _mm256_cmp_ps::<_CMP_LE_OQ>(c[3], _mm256_setzero_ps());
         let inv_w = _mm256_div_ps(one, c[3]);
         let (sx, sy, sz) = (_mm256_mul_ps(c[0], inv_w), _mm256_mul_ps(c[1], inv_w), _mm256_mul_ps(c[2], inv_w));
@@ -289,7 +272,7 @@ mod avx2 {
         let vy = _mm256_blendv_ps(_mm256_sub_ps(sy, py), far, behind);
         let empty = _mm256_or_ps(behind, _mm256_cmp_ps::<_CMP_GE_OQ>(dv, one));
         let depth = _mm256_blendv_ps(sz, one, empty);
-        crate::simd::avx2::store3x8(out.as_mut_ptr() as *mut f32, [vx, vy, depth]);
+        store3x8(out.as_mut_ptr() as *mut f32, [vx, vy, depth]);
     }
 }
 

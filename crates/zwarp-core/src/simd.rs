@@ -40,8 +40,9 @@ impl Default for Avx2Switch {
     }
 }
 
-/// AVX2 building blocks shared by the crates' AVX2 builds: the transposes between eight
-/// three-float records (`Motion`'s `(x, y, depth)`, an RGB texel) and three lane vectors.
+/// AVX2 building blocks shared by the crates' AVX2 builds: glam's matrix-vector product on eight
+/// lanes, and the transposes between eight three-float records (`Motion`'s `(x, y, depth)`, an
+/// RGB texel) and three lane vectors.
 ///
 /// The functions are `#[inline(always)]` without a `target_feature` of their own, so they take
 /// the caller's: call them only from `#[target_feature(enable = "avx2")]` functions (the
@@ -49,6 +50,26 @@ impl Default for Avx2Switch {
 #[cfg(target_arch = "x86_64")]
 pub mod avx2 {
     use std::arch::x86_64::*;
+
+    /// `m * (v0, v1, v2, v3)` per lane, bit for bit as glam's `Mat4 * Vec4` computes it: the
+    /// columns scaled and summed in order, `((c0 v0 + c1 v1) + c2 v2) + c3 v3`, no FMA (no
+    /// closure inside: one would not take the caller's AVX2 and its intrinsics would not inline).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline(always)]
+    pub unsafe fn mat4_mul8(m: &glam::Mat4, v: [__m256; 4]) -> [__m256; 4] {
+        let c = m.to_cols_array_2d();
+        let mut r = [_mm256_setzero_ps(); 4];
+        for (i, r) in r.iter_mut().enumerate() {
+            let t0 = _mm256_mul_ps(_mm256_set1_ps(c[0][i]), v[0]);
+            let t1 = _mm256_mul_ps(_mm256_set1_ps(c[1][i]), v[1]);
+            let t2 = _mm256_mul_ps(_mm256_set1_ps(c[2][i]), v[2]);
+            let t3 = _mm256_mul_ps(_mm256_set1_ps(c[3][i]), v[3]);
+            *r = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(t0, t1), t2), t3);
+        }
+        r
+    }
 
     /// Lanes of `v` picked by the constant indices `i`.
     ///
@@ -165,6 +186,32 @@ mod tests {
             assert_eq!(*lane, std::array::from_fn(|k| (3 * k + c) as f32));
         }
         assert_eq!(back, src);
+    }
+
+    /// Eight lanes of `mat4_mul8` are glam's `Mat4 * Vec4` bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_lane_matrix_product_is_glams() {
+        use glam::{Mat4, Vec3, Vec4};
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        #[target_feature(enable = "avx2")]
+        unsafe fn run(m: &Mat4, v: &[[f32; 8]; 4]) -> [[f32; 8]; 4] {
+            use std::arch::x86_64::_mm256_loadu_ps;
+            let r = avx2::mat4_mul8(m, v.map(|l| _mm256_loadu_ps(l.as_ptr())));
+            r.map(|l| std::mem::transmute::<std::arch::x86_64::__m256, [f32; 8]>(l))
+        }
+        let m = Mat4::perspective_rh(1.1, 1.7, 0.1, 90.0)
+            * Mat4::look_at_rh(Vec3::new(0.3, 1.7, 4.1), Vec3::new(-0.2, 0.1, 0.0), Vec3::Y);
+        let v: [[f32; 8]; 4] = std::array::from_fn(|c| std::array::from_fn(|k| (c as f32 - 1.3) * (k as f32 + 0.37)));
+        // SAFETY: AVX2 checked above.
+        let lanes = unsafe { run(&m, &v) };
+        for k in 0..8 {
+            let want = m * Vec4::new(v[0][k], v[1][k], v[2][k], v[3][k]);
+            let got = Vec4::new(lanes[0][k], lanes[1][k], lanes[2][k], lanes[3][k]);
+            assert_eq!(got.to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "lane {k}");
+        }
     }
 
     #[test]

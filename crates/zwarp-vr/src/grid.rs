@@ -1228,7 +1228,6 @@ fn disparity_row_from(m: &WarpMatrix, y: usize, drow: &[f32], row: &mut [[f32; 4
 #[target_feature(enable = "avx2")]
 unsafe fn disparity_row_avx2(m: &WarpMatrix, y: usize, drow: &[f32], row: &mut [[f32; 4]]) -> usize {
     use std::arch::x86_64::*;
-    let c = m.0.to_cols_array_2d();
     let n8 = row.len().min(drow.len()) / 8 * 8;
     let (half, one) = (_mm256_set1_ps(0.5), _mm256_set1_ps(1.0));
     let py = _mm256_set1_ps(y as f32 + 0.5);
@@ -1239,15 +1238,7 @@ unsafe fn disparity_row_avx2(m: &WarpMatrix, y: usize, drow: &[f32], row: &mut [
         // `x as f32 + 0.5` per pixel: the integer column is exact, so adding the lane first is too.
         let px = _mm256_add_ps(_mm256_add_ps(_mm256_set1_ps(x as f32), lane), half);
         let d = _mm256_loadu_ps(drow.as_ptr().add(x));
-        let v = [px, py, d, one];
-        let mut hc = [_mm256_setzero_ps(); 4];
-        for (i, o) in hc.iter_mut().enumerate() {
-            let t0 = _mm256_mul_ps(_mm256_set1_ps(c[0][i]), v[0]);
-            let t1 = _mm256_mul_ps(_mm256_set1_ps(c[1][i]), v[1]);
-            let t2 = _mm256_mul_ps(_mm256_set1_ps(c[2][i]), v[2]);
-            let t3 = _mm256_mul_ps(_mm256_set1_ps(c[3][i]), v[3]);
-            *o = _mm256_add_ps(_mm256_add_ps(_mm256_add_ps(t0, t1), t2), t3);
-        }
+        let hc = zwarp_core::simd::avx2::mat4_mul8(&m.0, [px, py, d, one]);
         let valid = _mm256_cmp_ps::<_CMP_GT_OQ>(hc[3], eps);
         _mm256_storeu_ps(dx.as_mut_ptr(), _mm256_sub_ps(_mm256_div_ps(hc[0], hc[3]), px));
         _mm256_storeu_ps(dy.as_mut_ptr(), _mm256_sub_ps(_mm256_div_ps(hc[1], hc[3]), py));
