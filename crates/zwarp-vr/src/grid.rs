@@ -1149,7 +1149,7 @@ fn points(src: &Source<'_>, dst: &Camera, m: &WarpMatrix) -> Result<WarpOutput> 
 pub type DisparityPyramid = Vec<(u32, u32, Vec<[f32; 4]>)>;
 
 /// The disparity min-max pyramid of the warp `m` (Didyk et al.'s split criterion): level 1 folded
-/// straight from each pair of rows of per-pixel disparities ([`disparity_row`]), the coarser
+/// straight from each pair of rows of per-pixel disparities (`disparity_row`), the coarser
 /// levels from it.
 pub fn disparity_pyramid(src: &Source<'_>, m: &WarpMatrix) -> DisparityPyramid {
     let (w, h) = src.depth.size();
