@@ -202,12 +202,19 @@ pub fn motion_field_with_into(
             #[cfg(target_arch = "x86_64")]
             if simd && x + 8 <= wu {
                 let m = matrix(x);
-                if (x + 1..x + 8).all(|i| std::ptr::eq(matrix(i), m)) {
+                // The run of pixels from x that share m: eight take the AVX2 build, a shorter
+                // one is done here (each pixel's matrix is looked up once).
+                let end = (x + 1..x + 8).find(|&i| !std::ptr::eq(matrix(i), m)).unwrap_or(x + 8);
+                if end == x + 8 {
                     // SAFETY: `simd` says the CPU has AVX2; the slices hold eight elements from x.
                     unsafe { avx2::eight(&inv_a, m, a, b, x as u32, y as u32, &dr[x..x + 8], &mut row[x..x + 8]) };
-                    x += 8;
-                    continue;
+                } else {
+                    for i in x..end {
+                        row[i] = reproject_pixel(&inv_a, m, a, b, i as u32, y as u32, dr[i]);
+                    }
                 }
+                x = end;
+                continue;
             }
             row[x] = reproject_pixel(&inv_a, matrix(x), a, b, x as u32, y as u32, dr[x]);
             x += 1;
