@@ -49,40 +49,84 @@ pub fn opening_rim_dirs(
     depth.check_same_size(items, "depth vs item buffer")?;
     depth.check_same_size(motion, "depth vs motion buffer")?;
     let (w, h) = depth.size();
-    let (wi, hi) = (w as i64, h as i64);
     let (dd, it, mv) = (depth.data(), items.data(), motion.data());
+    let wu = w as usize;
     let mut out = vec![0u8; dd.len()];
-    out.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        let y = y as i64;
-        for (x, o) in row.iter_mut().enumerate() {
-            let x = x as i64;
-            let i = (y * wi + x) as usize;
-            let (d, id) = (dd[i], it[i]);
-            if d >= EMPTY_DEPTH || id == NO_ITEM {
-                continue;
+    out.par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
+        let interior_row = y > 0 && y + 1 < h as usize;
+        let mut x = 0;
+        // Most texels lie inside an object: eight at a time, a group whose texels all have
+        // their item on every side (which no rim direction can take) is skipped whole; the
+        // compares have no early exit, so they vectorise.
+        if interior_row && wu > 9 {
+            let (up, mid, down) =
+                (&it[(y - 1) * wu..y * wu], &it[y * wu..(y + 1) * wu], &it[(y + 1) * wu..(y + 2) * wu]);
+            x = 1;
+            while x + 8 < wu {
+                let mut other = false;
+                for l in x..x + 8 {
+                    let id = mid[l];
+                    other |= (up[l - 1] != id)
+                        | (up[l] != id)
+                        | (up[l + 1] != id)
+                        | (mid[l - 1] != id)
+                        | (mid[l + 1] != id)
+                        | (down[l - 1] != id)
+                        | (down[l] != id)
+                        | (down[l + 1] != id);
+                }
+                if other {
+                    for (l, o) in row.iter_mut().enumerate().skip(x).take(8) {
+                        *o = rim_mask(dd, it, mv, (w, h), (l, y), min_separation);
+                    }
+                }
+                x += 8;
             }
-            let v = mv[i].v;
-            let mut mask = 0u8;
-            for (k, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
-                let (xx, yy) = (x + dx as i64, y + dy as i64);
-                if !(0..wi).contains(&xx) || !(0..hi).contains(&yy) {
-                    continue;
-                }
-                let j = (yy * wi + xx) as usize;
-                let (dn, idn) = (dd[j], it[j]);
-                if idn == NO_ITEM || idn == id || dn >= EMPTY_DEPTH || dn <= d {
-                    continue;
-                }
-                // c - c' = (-dx, -dy): positive when c moves away from c' relative to it.
-                let rel = v - mv[j].v;
-                if -(rel.x * dx as f32 + rel.y * dy as f32) > min_separation {
-                    mask |= 1 << k;
-                }
-            }
-            *o = mask;
+            row[0] = rim_mask(dd, it, mv, (w, h), (0, y), min_separation);
+        }
+        for (l, o) in row.iter_mut().enumerate().skip(x) {
+            *o = rim_mask(dd, it, mv, (w, h), (l, y), min_separation);
         }
     });
     Image::from_vec(w, h, out)
+}
+
+/// The opening-rim directions of texel `(x, y)` ([`opening_rim_dirs`]).
+#[inline]
+pub(super) fn rim_mask(
+    dd: &[f32],
+    it: &[u32],
+    mv: &[zwarp_core::Motion],
+    (w, h): (u32, u32),
+    (x, y): (usize, usize),
+    min_separation: f32,
+) -> u8 {
+    let (wi, hi) = (w as i64, h as i64);
+    let (x, y) = (x as i64, y as i64);
+    let i = (y * wi + x) as usize;
+    let (d, id) = (dd[i], it[i]);
+    if d >= EMPTY_DEPTH || id == NO_ITEM {
+        return 0;
+    }
+    let v = mv[i].v;
+    let mut mask = 0u8;
+    for (k, &(dx, dy)) in NEIGHBOURS.iter().enumerate() {
+        let (xx, yy) = (x + dx as i64, y + dy as i64);
+        if !(0..wi).contains(&xx) || !(0..hi).contains(&yy) {
+            continue;
+        }
+        let j = (yy * wi + xx) as usize;
+        let (dn, idn) = (dd[j], it[j]);
+        if idn == NO_ITEM || idn == id || dn >= EMPTY_DEPTH || dn <= d {
+            continue;
+        }
+        // c - c' = (-dx, -dy): positive when c moves away from c' relative to it.
+        let rel = v - mv[j].v;
+        if -(rel.x * dx as f32 + rel.y * dy as f32) > min_separation {
+            mask |= 1 << k;
+        }
+    }
+    mask
 }
 
 /// `depth` with every texel that has an opening-rim direction set to [`EMPTY_DEPTH`].
@@ -135,29 +179,32 @@ pub fn open_rims_in_target(
     let (sw, sh) = motion.size();
     let unit: [Vec2; 8] = NEIGHBOURS.map(|(dx, dy)| Vec2::new(dx as f32, dy as f32).normalize());
     let (src, st, mv, dm) = (source.data(), state.data(), motion.data(), dirs.data());
+    let wu = w as usize;
+    let (swf, shf) = (sw as f32, sh as f32);
     let opened: usize = predicted
         .data_mut()
-        .par_chunks_mut(w as usize)
+        .par_chunks_mut(wu)
+        .zip(src.par_chunks(wu).zip(st.par_chunks(wu)))
         .enumerate()
-        .map(|(y, row)| {
+        .map(|(y, (row, (src_row, st_row)))| {
             let mut n = 0;
-            for (x, d) in row.iter_mut().enumerate() {
-                let i = y * w as usize + x;
-                if st[i] != PixelState::Converged || *d >= EMPTY_DEPTH {
+            for (x, ((d, s), state)) in row.iter_mut().zip(src_row).zip(st_row).enumerate() {
+                let q = s.q;
+                // The texel holding q (truncation is the floor on the image).
+                if *state != PixelState::Converged
+                    || *d >= EMPTY_DEPTH
+                    || !(q.x >= 0.0 && q.y >= 0.0 && q.x < swf && q.y < shf)
+                {
                     continue;
                 }
-                let q = src[i].q;
-                let (cx, cy) = (q.x.floor(), q.y.floor());
-                if !(cx >= 0.0 && cy >= 0.0 && cx < sw as f32 && cy < sh as f32) {
-                    continue;
-                }
+                let (cx, cy) = (q.x as u32, q.y as u32);
                 let c = cy as usize * sw as usize + cx as usize;
                 let mask = dm[c];
                 if mask == 0 {
                     continue;
                 }
                 let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let local = p - mv[c].v - Vec2::new(cx + 0.5, cy + 0.5);
+                let local = p - mv[c].v - Vec2::new(cx as f32 + 0.5, cy as f32 + 0.5);
                 if (0..8).any(|k| mask & (1 << k) != 0 && local.dot(unit[k]) >= -RIM_MARGIN) {
                     *d = EMPTY_DEPTH;
                     n += 1;
