@@ -1022,6 +1022,8 @@ fn vr_rejects_bad_input_in_one_line() {
         (vec!["--transparent", "1.5"], "--transparent"),
         (vec!["--transparent", "-0.1"], "--transparent"),
         (vec!["--transparent", "NaN"], "--transparent"),
+        // Every object glass: no opaque surface to warp, and the error says why.
+        (vec!["--transparent", "1"], "only transparent surfaces"),
         (vec!["--method", "splat"], "splat"),
         (vec!["--holes", "inpaint"], "inpaint"),
         (vec!["--strategy", "mono"], "mono"),

@@ -389,6 +389,15 @@ fn evaluate(args: &VrArgs, loaded: &crate::args::Loaded, p: &Plan, device: &Devi
         let (t, tp, c, cp) = (frame.t, before.t, frame.cam, before.cam);
         let centre = r.view(&c, t)?;
         if centre.depth.data().iter().all(|&d| d >= 1.0) {
+            // Glass over sky has no opaque surface to carry the warp either.
+            if centre.abuf.as_ref().is_some_and(|a| !a.is_empty()) {
+                bail!(
+                    "frame {} of the camera path shows only transparent surfaces ({} of {} objects are glass): no opaque surface to warp; lower --transparent",
+                    frame.k,
+                    r.transparent_count(),
+                    loaded.scene.instances.len()
+                );
+            }
             bail!(
                 "frame {} of the camera path shows no surface of the scene (only sky): nothing to warp; check --path",
                 frame.k
