@@ -502,8 +502,8 @@ proptest! {
 }
 
 /// `warp_pixels` is `warp_prepared` restricted to the listed pixels, bit for bit: random
-/// subsets (unsorted, with repeats), single and multi layer, several N, bounds and hole
-/// policies, image sizes that are not multiples of the 4x4 tile.
+/// subsets (unsorted, or tile by tile, with repeats), single and multi layer, several N, bounds
+/// and hole policies, image sizes that are not multiples of the 4x4 tile.
 #[test]
 fn warp_pixels_equals_warp_prepared_at_random_subsets() {
     use rand::{RngExt, SeedableRng};
@@ -520,8 +520,13 @@ fn warp_pixels_equals_warp_prepared_at_random_subsets() {
         let prepared = PreparedLayer::prepare_stack(&layers[..l], bound).unwrap();
         let params = WarpParams { n_seeds: n, bound, holes, ..Default::default() };
         let full = warp_prepared(&prepared, &params).unwrap();
-        for count in [1usize, 37, 600, (w * h) as usize] {
-            let pixels: Vec<u32> = (0..count).map(|_| rng.random_range(0..w * h)).collect();
+        for count in [1usize, 37, 600, (w * h) as usize, 2 * (w * h) as usize] {
+            let mut pixels: Vec<u32> = (0..count).map(|_| rng.random_range(0..w * h)).collect();
+            if count >= (w * h) as usize {
+                // Tile by tile, as the soft shadows list their look-ups (consecutive pixels of
+                // one 4x4 tile share its tile stage; repeats included).
+                pixels.sort_by_key(|&i| ((i / w / 4, i % w / 4), i / w, i % w));
+            }
             let got = warp_pixels(&prepared, &params, &pixels).unwrap();
             assert_eq!(got.len(), pixels.len());
             for (&i, &(z, st)) in pixels.iter().zip(&got) {
