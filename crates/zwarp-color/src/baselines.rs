@@ -147,10 +147,10 @@ fn raster_triangle(buf: &[AtomicU64], w: u32, h: u32, p: [Vec2; 3], z: [f32; 3],
     if !(lo.is_finite() && hi.is_finite()) || hi.x < 0.0 || hi.y < 0.0 || lo.x > w as f32 || lo.y > h as f32 {
         return;
     }
-    let x0 = ((lo.x - 0.5).ceil().max(0.0)) as u32;
-    let y0 = ((lo.y - 0.5).ceil().max(0.0)) as u32;
-    let x1 = ((hi.x - 0.5).floor().min(w as f32 - 1.0)) as i64;
-    let y1 = ((hi.y - 0.5).floor().min(h as f32 - 1.0)) as i64;
+    let x0 = (zwarp_core::round::ceil(lo.x - 0.5).max(0.0)) as u32;
+    let y0 = (zwarp_core::round::ceil(lo.y - 0.5).max(0.0)) as u32;
+    let x1 = (zwarp_core::round::floor(hi.x - 0.5).min(w as f32 - 1.0)) as i64;
+    let y1 = (zwarp_core::round::floor(hi.y - 0.5).min(h as f32 - 1.0)) as i64;
     let e = |a: Vec2, b: Vec2, c: Vec2| (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     let area = e(p[0], p[1], p[2]);
     if area.abs() < 1e-12 {
@@ -188,10 +188,10 @@ pub fn scatter_warp(field: &Field<'_>, color: &Image<[f32; 3]>) -> Result<ColorW
                 continue;
             }
             // Centres c with p - hs < c < p + hs.
-            let xa = ((p.x - hs - 0.5).floor() + 1.0).max(0.0);
-            let xb = ((p.x + hs - 0.5).ceil() - 1.0).min(w as f32 - 1.0);
-            let ya = ((p.y - hs - 0.5).floor() + 1.0).max(0.0);
-            let yb = ((p.y + hs - 0.5).ceil() - 1.0).min(h as f32 - 1.0);
+            let xa = (zwarp_core::round::floor(p.x - hs - 0.5) + 1.0).max(0.0);
+            let xb = (zwarp_core::round::ceil(p.x + hs - 0.5) - 1.0).min(w as f32 - 1.0);
+            let ya = (zwarp_core::round::floor(p.y - hs - 0.5) + 1.0).max(0.0);
+            let yb = (zwarp_core::round::ceil(p.y + hs - 0.5) - 1.0).min(h as f32 - 1.0);
             if xa > xb || ya > yb {
                 continue;
             }

@@ -419,10 +419,10 @@ fn warp_leaf(field: &Field<'_>, leaf: &Leaf, margin: f32, size: (u32, u32)) -> W
     // Pixel centres x + 0.5 in [elo, ehi]; far-off quads (behind the eye: 1e9) are empty.
     let clampi = |v: f32, m: u32| v.clamp(-1.0, m as f32 + 1.0) as i32;
     Warped {
-        px0: clampi((elo.x - 0.5).ceil(), size.0).max(0),
-        py0: clampi((elo.y - 0.5).ceil(), size.1).max(0),
-        px1: (clampi((ehi.x - 0.5).floor(), size.0) + 1).min(size.0 as i32),
-        py1: (clampi((ehi.y - 0.5).floor(), size.1) + 1).min(size.1 as i32),
+        px0: clampi(zwarp_core::round::ceil(elo.x - 0.5), size.0).max(0),
+        py0: clampi(zwarp_core::round::ceil(elo.y - 0.5), size.1).max(0),
+        px1: (clampi(zwarp_core::round::floor(ehi.x - 0.5), size.0) + 1).min(size.0 as i32),
+        py1: (clampi(zwarp_core::round::floor(ehi.y - 0.5), size.1) + 1).min(size.1 as i32),
         dst_lo: lo,
         dst_ext: hi - lo,
         src_lo,

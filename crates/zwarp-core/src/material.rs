@@ -136,7 +136,7 @@ impl Texture {
         let (w, h) = (self.image.width() as i32, self.image.height() as i32);
         let x = uv.x * w as f32 - 0.5;
         let y = uv.y * h as f32 - 0.5;
-        let (fx, fy) = (x.floor(), y.floor());
+        let (fx, fy) = (crate::round::floor(x), crate::round::floor(y));
         let (ax, ay) = (x - fx, y - fy);
         let (x0, y0) = (fx as i32, fy as i32);
         let xs = [self.wrap[0].index(x0, w), self.wrap[0].index(x0.saturating_add(1), w)];

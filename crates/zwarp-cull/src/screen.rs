@@ -4,6 +4,7 @@
 //! proxy corners exceeds the maximum of the screen-space depth, we can safely cull").
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
+use zwarp_core::round::{ceil, floor};
 use zwarp_core::{Aabb, Camera, Error, Result};
 
 /// A non-empty, half-open pixel rectangle `[x0, x1) x [y0, y1)` (row 0 at the top).
@@ -148,29 +149,6 @@ pub fn project_corners(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -
     project_corner_lanes(aabb, view_proj, width, height).map(|l| l.points())
 }
 
-/// `v.floor()` for `|v| < 2^31` without a libm call (the default x86-64 target has no SSE4.1
-/// `roundps`, so `f32::floor` is a function call in the per-object loops).
-#[inline(always)]
-pub(crate) fn ffloor(v: f32) -> f32 {
-    let t = v as i32 as f32;
-    if t > v {
-        t - 1.0
-    } else {
-        t
-    }
-}
-
-/// `v.ceil()` for `|v| < 2^31`, see [`ffloor`].
-#[inline(always)]
-pub(crate) fn fceil(v: f32) -> f32 {
-    let t = v as i32 as f32;
-    if t < v {
-        t + 1.0
-    } else {
-        t
-    }
-}
-
 /// Hot-loop form of [`screen_rect`] with a precomputed view-projection matrix.
 pub fn screen_rect_with(aabb: &Aabb, view_proj: &Mat4, width: u32, height: u32) -> ScreenRect {
     if aabb.min.is_nan() || aabb.max.is_nan() || !aabb.min.is_finite() && !aabb.is_empty() {
@@ -199,11 +177,11 @@ pub fn rect_of_corners(c: &CornerLanes, width: u32, height: u32) -> ScreenRect {
     let (w, h) = (width as f32, height as f32);
     // Pixel x covers [x, x + 1): the box touches columns floor(lo) ..= ceil(hi) - 1. Clamping
     // to the image before rounding gives the same bounds as rounding first (the clamp limits
-    // are integers) and keeps the fast rounding in its exact range.
-    let x0 = ffloor((lo_x - PIXEL_SLACK).clamp(0.0, w));
-    let y0 = ffloor((lo_y - PIXEL_SLACK).clamp(0.0, h));
-    let x1 = fceil((hi_x + PIXEL_SLACK).clamp(0.0, w));
-    let y1 = fceil((hi_y + PIXEL_SLACK).clamp(0.0, h));
+    // are integers).
+    let x0 = floor((lo_x - PIXEL_SLACK).clamp(0.0, w));
+    let y0 = floor((lo_y - PIXEL_SLACK).clamp(0.0, h));
+    let x1 = ceil((hi_x + PIXEL_SLACK).clamp(0.0, w));
+    let y1 = ceil((hi_y + PIXEL_SLACK).clamp(0.0, h));
     if x0 >= x1 || y0 >= y1 {
         return ScreenRect::Outside;
     }
@@ -386,14 +364,6 @@ mod tests {
             }
         }
         assert!(some > 1000 && none > 200, "{some} {none}");
-    }
-
-    #[test]
-    fn fast_rounding_matches_floor_and_ceil() {
-        for v in [-3.5f32, -3.0, -0.5, -0.0, 0.0, 0.25, 1.0, 1.5, 959.999, 960.0, 1e6 + 0.5, -1e6 - 0.5] {
-            assert_eq!(ffloor(v), v.floor(), "{v}");
-            assert_eq!(fceil(v), v.ceil(), "{v}");
-        }
     }
 
     #[test]

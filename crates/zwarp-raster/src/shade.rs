@@ -61,7 +61,7 @@ pub mod shading {
     /// the smoothstep `t^2 (3 - 2 t)` (continuous, C1).
     #[inline]
     pub fn value_noise(q: Vec2, seed: u32) -> f32 {
-        let (fx, fy) = (q.x.floor(), q.y.floor());
+        let (fx, fy) = (zwarp_core::round::floor(q.x), zwarp_core::round::floor(q.y));
         let (x0, y0) = (fx as i32 as u32, fy as i32 as u32);
         let (tx, ty) = (q.x - fx, q.y - fy);
         let sx = tx * tx * (3.0 - 2.0 * tx);
@@ -77,7 +77,7 @@ pub mod shading {
     #[inline]
     pub fn stripe(q: Vec2, dir: Vec2, freq: f32) -> f32 {
         let t = (q.x * dir.x + q.y * dir.y) * freq;
-        let f = t - t.floor();
+        let f = t - zwarp_core::round::floor(t);
         let tri = (2.0 * f - 1.0).abs();
         tri * tri * (3.0 - 2.0 * tri)
     }

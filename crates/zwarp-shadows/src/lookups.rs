@@ -552,9 +552,10 @@ impl ReceiverGroups {
             }
             // Saturating casts: far-away cells share the extreme keys (their boxes are then
             // large and tested receiver by receiver, still exact).
-            let cx = ((r.p_c.x * inv_cell).floor() as i32).clamp(-(1 << 15), (1 << 15) - 1) + (1 << 15);
-            let cy = ((r.p_c.y * inv_cell).floor() as i32).clamp(-(1 << 15), (1 << 15) - 1) + (1 << 15);
-            let gb = ((r.g * inv_dg).floor() as i64).clamp(i32::MIN as i64, i32::MAX as i64) - i32::MIN as i64;
+            let cx = (zwarp_core::round::floor(r.p_c.x * inv_cell) as i32).clamp(-(1 << 15), (1 << 15) - 1) + (1 << 15);
+            let cy = (zwarp_core::round::floor(r.p_c.y * inv_cell) as i32).clamp(-(1 << 15), (1 << 15) - 1) + (1 << 15);
+            let gb = (zwarp_core::round::floor(r.g * inv_dg) as i64).clamp(i32::MIN as i64, i32::MAX as i64)
+                - i32::MIN as i64;
             let key = ((cy as u64) << 48) | ((cx as u64) << 32) | gb as u64;
             keyed.push((key, ordered_bits(r.threshold), k as u32));
         }

@@ -96,7 +96,7 @@ pub fn pcss_visibility(recv: &Receivers, rig: &LightRig, map: &Image<f32>, param
     let (mw, mh) = map.size();
     let data = map.data();
     let fetch = |p: Vec2| -> Option<f32> {
-        let (fx, fy) = (p.x.floor(), p.y.floor());
+        let (fx, fy) = (zwarp_core::round::floor(p.x), zwarp_core::round::floor(p.y));
         if fx < 0.0 || fy < 0.0 || fx >= mw as f32 || fy >= mh as f32 {
             None
         } else {

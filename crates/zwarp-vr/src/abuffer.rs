@@ -368,7 +368,7 @@ pub fn ray_cast(
             let dz = e[2] - a[2];
             let t = if dz.abs() > 1e-12 { ((z - a[2]) / dz).clamp(0.0, 1.0) } else { 0.0 };
             let (gx, gy) = (a[0] + (e[0] - a[0]) * t - 0.5, a[1] + (e[1] - a[1]) * t - 0.5);
-            let (fx, fy) = (gx.floor(), gy.floor());
+            let (fx, fy) = (zwarp_core::round::floor(gx), zwarp_core::round::floor(gy));
             let (ax, ay) = (gx - fx, gy - fy);
             // The pixel a target position lies in (clamped into the image).
             let pixel = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);

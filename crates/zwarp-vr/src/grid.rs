@@ -625,10 +625,10 @@ fn make_tri(v: [(Vec4, Vec2); 3], clamp: [f32; 4], tw: u32, th: u32) -> Option<T
     let lo = p[0].min(p[1]).min(p[2]) - Vec2::splat(EDGE_TOL_PX);
     let hi = p[0].max(p[1]).max(p[2]) + Vec2::splat(EDGE_TOL_PX);
     let bb = [
-        ((lo.x - 0.5).ceil() as i32).max(0),
-        ((lo.y - 0.5).ceil() as i32).max(0),
-        ((hi.x - 0.5).floor() as i32).min(tw as i32 - 1),
-        ((hi.y - 0.5).floor() as i32).min(th as i32 - 1),
+        (zwarp_core::round::ceil(lo.x - 0.5) as i32).max(0),
+        (zwarp_core::round::ceil(lo.y - 0.5) as i32).max(0),
+        (zwarp_core::round::floor(hi.x - 0.5) as i32).min(tw as i32 - 1),
+        (zwarp_core::round::floor(hi.y - 0.5) as i32).min(th as i32 - 1),
     ];
     if bb[0] > bb[2] || bb[1] > bb[3] {
         return None;
@@ -885,13 +885,13 @@ enum Filter<'a> {
 #[inline(always)]
 fn sample(color: &Image<[f32; 3]>, uv: Vec2, filter: Filter<'_>) -> [f32; 3] {
     let (w, h) = (color.width() as i32, color.height() as i32);
-    let nx = (uv.x.floor() as i32).clamp(0, w - 1);
-    let ny = (uv.y.floor() as i32).clamp(0, h - 1);
+    let nx = (zwarp_core::round::floor(uv.x) as i32).clamp(0, w - 1);
+    let ny = (zwarp_core::round::floor(uv.y) as i32).clamp(0, h - 1);
     if let Filter::Nearest = filter {
         return *color.get(nx as u32, ny as u32);
     }
     let (fx, fy) = (uv.x - 0.5, uv.y - 0.5);
-    let (x0, y0) = (fx.floor() as i32, fy.floor() as i32);
+    let (x0, y0) = (zwarp_core::round::floor(fx) as i32, zwarp_core::round::floor(fy) as i32);
     let (ax, ay) = (fx - x0 as f32, fy - y0 as f32);
     let mut acc = [0.0f32; 3];
     let mut wsum = 0.0f32;
@@ -947,8 +947,10 @@ fn resolve_row_from(src: &Source<'_>, m: &WarpMatrix, filter: Filter<'_>, row: R
             continue;
         }
         let q = row.uv[i];
-        let (nx, ny) =
-            ((q.x.floor() as i32).clamp(0, sw as i32 - 1) as u32, (q.y.floor() as i32).clamp(0, sh as i32 - 1) as u32);
+        let (nx, ny) = (
+            (zwarp_core::round::floor(q.x) as i32).clamp(0, sw as i32 - 1) as u32,
+            (zwarp_core::round::floor(q.y) as i32).clamp(0, sh as i32 - 1) as u32,
+        );
         row.depth[i] = match m.project(nx as f32 + 0.5, ny as f32 + 0.5, *src.depth.get(nx, ny)) {
             Some((_, _, z)) if z.is_finite() => z.clamp(0.0, 1.0),
             _ => z.clamp(0.0, 1.0),

@@ -142,7 +142,7 @@ pub fn lowpass_pyramid(color: &Image<[f32; 3]>, depth: &Image<f32>, hole: &Image
 /// does not bleed in). `None` if no texel is valid.
 fn read_level(l: &PyramidLevel, scale: f32, p: Vec2) -> Option<Vec4> {
     let q = p / scale - Vec2::splat(0.5);
-    let (x0, y0) = (q.x.floor() as i32, q.y.floor() as i32);
+    let (x0, y0) = (zwarp_core::round::floor(q.x) as i32, zwarp_core::round::floor(q.y) as i32);
     let (ax, ay) = (q.x - x0 as f32, q.y - y0 as f32);
     let mut taps = [(Vec4::ZERO, 0.0f32); 4];
     let mut n = 0;
@@ -188,7 +188,7 @@ fn border_exp(hole: &Image<bool>, depth: &Image<f32>, p: Vec2, dir: Vec2) -> Opt
             // bound (log2 s more reads).
             let (mut lo, mut hi) = (s * 0.5, s);
             while hi - lo > 1.0 {
-                let mid = (0.5 * (lo + hi)).floor();
+                let mid = zwarp_core::round::floor(0.5 * (lo + hi));
                 let m = p + dir * mid;
                 if *hole.get(m.x as u32, m.y as u32) {
                     lo = mid;
@@ -254,7 +254,7 @@ impl ForegroundEdge {
         };
         let (sa, r) = (Vec2::new(a.0, a.1), Vec2::new(b.0 - a.0, b.1 - a.1));
         // Leave the texel of `sa` towards `p`'s source position: the ray parameter of the exit.
-        let lo = sa.floor();
+        let lo = sa.map(zwarp_core::round::floor);
         let mut t = f32::INFINITY;
         for k in 0..2 {
             if r[k] > 1e-9 {

@@ -108,7 +108,7 @@ pub(crate) fn hull_hides(
     predicted: &[f32],
     slack: f32,
 ) -> bool {
-    use crate::screen::{fceil, ffloor};
+    use zwarp_core::round::{ceil, floor};
     if rect.area() > HULL_TEST_MAX_AREA {
         return false;
     }
@@ -125,11 +125,11 @@ pub(crate) fn hull_hides(
         else {
             return false;
         };
-        // x - slack <= xb and x + 1 + slack >= xa. Clamped before rounding (integer limits:
-        // same bounds as rounding first, and the fast rounding stays in its exact range).
+        // x - slack <= xb and x + 1 + slack >= xa, clamped before rounding (integer limits:
+        // the same bounds as rounding first).
         let (x0, x1) = (rect.x0 as f32, rect.x1 as f32);
-        let first = fceil((xa - 1.0 - slack).clamp(x0, x1)) as u32;
-        let last = (ffloor((xb + slack).clamp(x0 - 1.0, x1)) + 1.0).min(x1).max(first as f32) as u32;
+        let first = ceil((xa - 1.0 - slack).clamp(x0, x1)) as u32;
+        let last = (floor((xb + slack).clamp(x0 - 1.0, x1)) + 1.0).min(x1).max(first as f32) as u32;
         row[first as usize..last as usize].iter().any(|&p| p >= limit)
     };
     // The silhouette is built only once a row of the rectangle has a pixel that could show
