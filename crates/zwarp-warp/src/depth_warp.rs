@@ -18,15 +18,14 @@
 //! own samples; a later layer's cross-layer borrowing from earlier layers is then skipped too,
 //! which only drops duplicates of what those layers' own searches could find).
 
-use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
 use crate::holes::{fill_holes, FillRule, HolePolicy};
-use crate::kernel::{Kernel, TileBounds, TILE};
+use crate::kernel::{Kernel, TILE};
 pub use crate::prepare::{PreparedLayer, SurfaceMotion};
 use crate::sampling::LayerSampler;
-use crate::{PixelState, SourcePos, WarpOutput, WarpParams, MAX_SEEDS};
+use crate::{PixelState, SourcePos, WarpOutput, WarpParams};
 
 /// One peeled source layer: its depth buffer (`1.0` = empty) and motion buffer (motion to the
 /// target and target depth per pixel, e.g. from `zwarp_core::motion_field`).
@@ -190,26 +189,15 @@ pub fn warp_pixels(layers: &[PreparedLayer], params: &WarpParams, pixels: &[u32]
     }
     let samplers: Vec<LayerSampler<'_>> = layers.iter().enumerate().map(|(i, l)| l.sampler(params, i as u32)).collect();
     let kernel = Kernel::new(layers, &samplers, params, (w, h), (tw, th));
-    let w = tw;
     // Chunks of a few tiles' worth of pixels: large enough to amortise the tile stage when the
     // list is sorted, small enough to balance sparse, unevenly costly lists.
     const CHUNK: usize = 256;
     Ok(pixels
         .par_chunks(CHUNK)
         .flat_map_iter(|chunk| {
-            let mut memo = TileBounds::new(layers.len());
-            let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
-            chunk
-                .iter()
-                .map(|&i| {
-                    let (x, y) = (i % w, i / w);
-                    if !memo.holds(x, y) {
-                        memo.reset(x / TILE * TILE, y / TILE * TILE);
-                    }
-                    let (z, st, _) = kernel.pixel(x, y, &mut memo, &mut seeds);
-                    (z, st)
-                })
-                .collect::<Vec<_>>()
+            let mut out = Vec::with_capacity(chunk.len());
+            kernel.pixels(chunk, &mut out);
+            out
         })
         .collect())
 }
@@ -249,6 +237,7 @@ mod tests {
     use crate::sampling::SamplePlanes;
     use crate::BoundKind;
     use crate::MotionPyramid;
+    use glam::Vec2;
 
     fn plane_bits(p: &SamplePlanes) -> Vec<(u32, u32, u32)> {
         (0..p.len()).map(|i| (p.vx[i].to_bits(), p.vy[i].to_bits(), p.z[i].to_bits())).collect()

@@ -474,6 +474,126 @@ impl<'a> Kernel<'a> {
         self.pixel_from(x, y, b, seeds, 0, None, None)
     }
 
+    /// The warp of the listed target pixels (row-major indices; any order, repeats allowed)
+    /// appended to `out` in list order: [`Self::pixel`]'s `(depth, state)` for each, bit for
+    /// bit. Consecutive pixels of one tile share its tile stage; with AVX2 the stages of up to
+    /// eight such runs in one row of tiles are computed together ([`Self::stage_runs`]). Sparse
+    /// consumers (the soft shadows' look-ups, about 1.4 per tile) spend most of their time in
+    /// the tile stage.
+    pub fn pixels(&self, list: &[u32], out: &mut Vec<(f32, PixelState)>) {
+        let mut memo = TileBounds::new(self.layers.len());
+        let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::has_avx2() {
+            let views: Option<Vec<_>> = self
+                .layers
+                .iter()
+                .map(|l| {
+                    crate::simd_warp::PyramidView::new(l.pyramid()).map(|v| v.with_scale(self.params.motion_scale))
+                })
+                .collect();
+            if let Some(pvs) = views {
+                let mut i = 0;
+                while i < list.len() {
+                    // SAFETY: AVX2 checked above.
+                    i = unsafe { self.stage_runs(&pvs, list, i, &mut memo, &mut seeds, out) };
+                }
+                return;
+            }
+        }
+        for &i in list {
+            let (x, y) = (i % self.tw, i / self.tw);
+            if !memo.holds(x, y) {
+                memo.reset(x / TILE * TILE, y / TILE * TILE);
+            }
+            let (z, st, _) = self.pixel(x, y, &mut memo, &mut seeds);
+            out.push((z, st));
+        }
+    }
+
+    /// From `list[i]` on, up to eight runs of consecutive pixels in distinct tiles of one row of
+    /// tiles: their tile stages of every layer eight at a time ([`crate::simd_warp::tile_stage8`],
+    /// the dense warp's), then each run's pixels one by one with the stages in the memo.
+    /// Returns the index after the last run.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn stage_runs(
+        &self,
+        pvs: &[crate::simd_warp::PyramidView<'_>],
+        list: &[u32],
+        i: usize,
+        memo: &mut TileBounds,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+        out: &mut Vec<(f32, PixelState)>,
+    ) -> usize {
+        let tile_of = |p: u32| ((p % self.tw) / TILE * TILE, (p / self.tw) / TILE * TILE);
+        let y0 = tile_of(list[i]).1;
+        // (first, end, tile x0) of each run.
+        let mut runs = [(0usize, 0usize, 0u32); 8];
+        let (mut n, mut j) = (0, i);
+        while n < 8 && j < list.len() {
+            let (x0, ty) = tile_of(list[j]);
+            if ty != y0 {
+                break;
+            }
+            let first = j;
+            while j < list.len() && tile_of(list[j]) == (x0, y0) {
+                j += 1;
+            }
+            runs[n] = (first, j, x0);
+            n += 1;
+        }
+        let y1 = (y0 + TILE).min(self.th) - 1;
+        let (mut lx, mut hx) = ([0f32; 8], [0f32; 8]);
+        for (r, &(_, _, x0)) in runs[..n].iter().enumerate() {
+            lx[r] = self.target_pos(x0, y0).x;
+            hx[r] = self.target_pos((x0 + TILE).min(self.tw) - 1, y0).x;
+        }
+        let (ly, hy) = (self.target_pos(0, y0).y, self.target_pos(0, y1).y);
+        let active = ((1u16 << n) - 1) as u8;
+        let nl = self.layers.len();
+        // stages[r * nl + k]: run r's tile, layer k (as Self::start gives it).
+        let mut stages = vec![None; n * nl];
+        for k in 0..nl {
+            let start = self.layers[k].pyramid().global().scaled(self.params.motion_scale);
+            let st = crate::simd_warp::tile_stage8(
+                &pvs[k],
+                &lx,
+                &hx,
+                ly,
+                hy,
+                active,
+                &start,
+                self.bound_iterations(),
+                self.params.sampling.footprint(),
+                k > 0,
+            );
+            for (r, s) in st.into_iter().take(n).enumerate() {
+                let x0 = runs[r].2;
+                stages[r * nl + k] = s.map(|(motion, z)| {
+                    let x1 = (x0 + TILE).min(self.tw) - 1;
+                    let unique =
+                        k == 0 && self.unique_solution(self.target_pos(x0, y0), self.target_pos(x1, y1), &motion);
+                    StageBound { motion, min_depth: if k > 0 { z } else { f32::NEG_INFINITY }, unique }
+                });
+            }
+        }
+        for (r, &(first, end, x0)) in runs[..n].iter().enumerate() {
+            memo.reset(x0, y0);
+            for (m, s) in memo.memo.iter_mut().zip(&stages[r * nl..(r + 1) * nl]) {
+                *m = Some(*s);
+            }
+            for &p in &list[first..end] {
+                let (z, st, _) = self.pixel(p % self.tw, p / self.tw, memo, seeds);
+                out.push((z, st));
+            }
+        }
+        j
+    }
+
     /// `true` if resolved tiles of layer 0 can take the AVX2 single-seed search
     /// ([`crate::simd_warp`]): the CPU has AVX2 and the warp uses what that build implements
     /// (stratified seeds, adaptive or nearest sampling, unit motion scale).

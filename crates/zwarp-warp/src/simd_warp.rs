@@ -782,9 +782,17 @@ pub(crate) struct PyramidView<'a> {
     w: u32,
     h: u32,
     frame: BoundFrame,
+    /// `WarpParams::motion_scale` applied to every looked-up bound (`None`: unit).
+    scale: Option<(f32, f32)>,
 }
 
 impl<'a> PyramidView<'a> {
+    /// The view of the mipmap of the motion scaled by `s`: every look-up's bound scaled as
+    /// `Bound::scaled` scales it, as `MotionPyramid::tight_bound_box_scaled` does.
+    pub fn with_scale(self, s: glam::Vec2) -> Self {
+        PyramidView { scale: (s != glam::Vec2::ONE).then_some((s.x, s.y)), ..self }
+    }
+
     /// The view of `pyr`, or `None` if it is too deep or too large for 32-bit gathers.
     pub fn new(pyr: &'a crate::bounds::MotionPyramid) -> Option<Self> {
         let (data, zmin, levels) = pyr.raw();
@@ -800,7 +808,18 @@ impl<'a> PyramidView<'a> {
         // SAFETY: [f32; 4] is four f32s without padding.
         let data = unsafe { std::slice::from_raw_parts(data.as_ptr() as *const f32, data.len() * 4) };
         let (w, h) = pyr.size();
-        Some(PyramidView { data, zmin, wm, hm, off, top: pyr.top_level() as i32, w, h, frame: pyr.frame() })
+        Some(PyramidView {
+            data,
+            zmin,
+            wm,
+            hm,
+            off,
+            top: pyr.top_level() as i32,
+            w,
+            h,
+            frame: pyr.frame(),
+            scale: None,
+        })
     }
 }
 
@@ -927,12 +946,38 @@ unsafe fn lookup8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> [__m
     let t1 = _mm256_unpackhi_ps(r0, r1);
     let t2 = _mm256_unpacklo_ps(r2, r3);
     let t3 = _mm256_unpackhi_ps(r2, r3);
-    [
+    let b = [
         _mm256_shuffle_ps::<0x44>(t0, t2),
         _mm256_shuffle_ps::<0xEE>(t0, t2),
         _mm256_shuffle_ps::<0x44>(t1, t3),
         _mm256_shuffle_ps::<0xEE>(t1, t3),
-    ]
+    ];
+    match pv.scale {
+        None => b,
+        Some((sx, sy)) => {
+            // Bound::scaled: lo and hi times the factor, swapped where it is negative; an empty
+            // bound (`!(lo <= hi)` on an axis) stays EMPTY (no `0 * inf` NaN).
+            let nonempty =
+                _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(b[0], b[2]), _mm256_cmp_ps::<_CMP_LE_OQ>(b[1], b[3]));
+            let axis = |lo: __m256, hi: __m256, s: f32| {
+                let (a, c) = (_mm256_mul_ps(splat(s), lo), _mm256_mul_ps(splat(s), hi));
+                if s < 0.0 {
+                    (c, a)
+                } else {
+                    (a, c)
+                }
+            };
+            let (lx, hx) = axis(b[0], b[2], sx);
+            let (ly, hy) = axis(b[1], b[3], sy);
+            let (inf, ninf) = (splat(f32::INFINITY), splat(f32::NEG_INFINITY));
+            [
+                _mm256_blendv_ps(inf, lx, nonempty),
+                _mm256_blendv_ps(inf, ly, nonempty),
+                _mm256_blendv_ps(ninf, hx, nonempty),
+                _mm256_blendv_ps(ninf, hy, nonempty),
+            ]
+        }
+    }
 }
 
 /// `MotionPyramid::lookup_min_depth` per lane.
@@ -1047,7 +1092,7 @@ pub(crate) unsafe fn tighten8(
 }
 
 /// The tile stage of eight 4x4 tiles (`Kernel::start`): Fig. 5 over the union of each tile's
-/// search regions from `start` (the scaled global bound, unit scale here), with the tiles'
+/// search regions from `start` (the global bound scaled as the view's look-ups), with the tiles'
 /// corner target positions `p_lo = (lx[i], ly)`, `p_hi = (hx[i], hy)`; for layers after the first
 /// (`with_depth`) also the min target depth over the final region.
 ///

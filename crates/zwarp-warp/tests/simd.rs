@@ -145,6 +145,39 @@ fn avx2_warp_equals_the_portable_warp_with_nearest_sampling() {
     }
 }
 
+/// The sparse warp (`warp_pixels`, the soft shadows' look-ups listed tile by tile) takes its
+/// tile stages eight at a time with AVX2, also under a `WarpParams::motion_scale` (the mipmap's
+/// bounds scaled as `Bound::scaled` scales them: negative, zero and mixed factors): the same
+/// depths and states as the portable stages, one tile at a time.
+#[test]
+fn avx2_sparse_warp_equals_the_portable_one_with_a_motion_scale() {
+    let (w, h) = (97, 61);
+    let (depth, motion) = city(w, h, 3, 1);
+    let mut tiled: Vec<u32> = (0..w * h).filter(|i| i % 3 != 1).collect();
+    tiled.sort_by_key(|&i| ((i / w / 4, i % w / 4), i / w, i % w));
+    for l in [1usize, 3] {
+        let layers: Vec<WarpLayer> =
+            depth.iter().zip(&motion).take(l).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+        for s in [Vec2::ONE, Vec2::new(0.5, 1.7), Vec2::new(-1.0, 0.3), Vec2::new(0.0, -0.8)] {
+            for bound in [BoundKind::Tight, BoundKind::Global] {
+                let params = WarpParams { n_seeds: 4, bound, motion_scale: s, ..WarpParams::default() };
+                let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
+                let sparse = |simd: bool| {
+                    simd::set_simd(simd);
+                    let prepared = PreparedLayer::prepare_stack(&layers, params.bound).unwrap();
+                    let r = warp_pixels(&prepared, &params, &tiled).unwrap();
+                    r.iter().map(|(z, st)| (z.to_bits(), *st as u8)).collect::<Vec<_>>()
+                };
+                let (fast, portable) = (sparse(true), sparse(false));
+                simd::set_simd(true);
+                assert!(fast == portable, "L={l} s={s} {bound:?}");
+                let converged = fast.iter().filter(|p| p.1 == PixelState::Converged as u8).count();
+                assert!(converged > tiled.len() / 4, "L={l} s={s} {bound:?}: too few converged to test anything");
+            }
+        }
+    }
+}
+
 #[test]
 fn avx2_warp_equals_the_portable_warp_on_multisampled_sources() {
     let (w, h) = (45, 29);
