@@ -62,13 +62,69 @@ unsafe fn valid8(d: __m256, vx: __m256, vy: __m256, mz: __m256) -> __m256 {
     )
 }
 
-/// The eight samples of layer `l` (width `w`) starting at `(x, y)`, all inside the image.
-#[inline(always)]
-unsafe fn load(l: &WarpLayer<'_>, w: usize, x: usize, y: usize) -> Samples {
-    let i = y * w + x;
-    let d = _mm256_loadu_ps(l.depth.data().as_ptr().add(i));
-    let (vx, vy, z) = load_motion8(l.motion.data().as_ptr().add(i));
-    Samples { vx, vy, z, ok: valid8(d, vx, vy, z) }
+/// One source row of a layer in planes (motion x, y, target depth and the validity mask), so the
+/// 3 x 3 neighbourhoods of VFW's quads are plain loads at any column, not a deinterleave of the
+/// motion per neighbour.
+#[derive(Default)]
+struct RowPlanes {
+    /// `(layer, row)` held, if any.
+    tag: Option<(usize, usize)>,
+    vx: Vec<f32>,
+    vy: Vec<f32>,
+    z: Vec<f32>,
+    /// [`valid8`] / `super::valid` per sample: all bits set or clear.
+    ok: Vec<f32>,
+}
+
+/// A band task's last three source rows in planes ([`RowPlanes`], row `y` in slot `y % 3`): the
+/// band visits a layer's rows in order, so each row is converted once per band instead of once
+/// per neighbour that reads it.
+#[derive(Default)]
+pub(super) struct RowCache {
+    rows: [RowPlanes; 3],
+}
+
+impl RowCache {
+    /// Makes sure the slot of row `y` of layer `k` (`l`, width `w`) holds it.
+    #[target_feature(enable = "avx2")]
+    unsafe fn fill(&mut self, l: &WarpLayer<'_>, k: usize, w: usize, y: usize) {
+        let r = &mut self.rows[y % 3];
+        if r.tag == Some((k, y)) {
+            return;
+        }
+        r.tag = Some((k, y));
+        for v in [&mut r.vx, &mut r.vy, &mut r.z, &mut r.ok] {
+            v.resize(w, 0.0);
+        }
+        let (d, m) = (&l.depth.data()[y * w..(y + 1) * w], &l.motion.data()[y * w..(y + 1) * w]);
+        let w8 = w & !7;
+        for x in (0..w8).step_by(8) {
+            let dv = _mm256_loadu_ps(d.as_ptr().add(x));
+            let (vx, vy, z) = load_motion8(m.as_ptr().add(x));
+            _mm256_storeu_ps(r.vx.as_mut_ptr().add(x), vx);
+            _mm256_storeu_ps(r.vy.as_mut_ptr().add(x), vy);
+            _mm256_storeu_ps(r.z.as_mut_ptr().add(x), z);
+            _mm256_storeu_ps(r.ok.as_mut_ptr().add(x), valid8(dv, vx, vy, z));
+        }
+        for x in w8..w {
+            let s = &m[x];
+            (r.vx[x], r.vy[x], r.z[x]) = (s.v.x, s.v.y, s.depth);
+            r.ok[x] = if super::valid(d[x], s) { f32::from_bits(!0) } else { 0.0 };
+        }
+    }
+
+    /// The eight samples of row `y` (filled) starting at column `x`, all inside the row.
+    #[inline(always)]
+    unsafe fn load(&self, x: usize, y: usize) -> Samples {
+        let r = &self.rows[y % 3];
+        debug_assert!(r.tag.is_some_and(|t| t.1 == y) && x + 8 <= r.vx.len());
+        Samples {
+            vx: _mm256_loadu_ps(r.vx.as_ptr().add(x)),
+            vy: _mm256_loadu_ps(r.vy.as_ptr().add(x)),
+            z: _mm256_loadu_ps(r.z.as_ptr().add(x)),
+            ok: _mm256_loadu_ps(r.ok.as_ptr().add(x)),
+        }
+    }
 }
 
 /// `super::vfw_quad`'s corner: at pixel corner `c`, the mean motion of the neighbours (in the
@@ -222,10 +278,20 @@ unsafe fn drawn(a: &WindowTests, b: &WindowTests, dx: usize, dy: usize, z: __m25
     _mm256_blendv_ps(ps(EMPTY_DEPTH), z, _mm256_or_ps(a.covers(dx, dy), b.covers(dx, dy)))
 }
 
-/// The VFW quads of source row `y` into the band of target rows starting at `y0` (see
-/// [`super::vfw_row`]).
+/// The VFW quads of source row `y` of layer `k` (`l`) into the band of target rows starting at
+/// `y0` (see [`super::vfw_row`]), its neighbour rows read through the band task's `rows`.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32], y0: usize, y: usize) {
+#[allow(clippy::too_many_arguments)]
+pub(super) unsafe fn vfw_row(
+    l: &WarpLayer<'_>,
+    k: usize,
+    w: u32,
+    h: u32,
+    band: &mut [f32],
+    y0: usize,
+    y: usize,
+    rows: &mut RowCache,
+) {
     let wu = w as usize;
     let mut band = Band::new(band, w, h, y0);
     let clip = band.clip();
@@ -245,8 +311,14 @@ pub(super) unsafe fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32]
     let lanes = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
     let cy = ps(y as f32 + 0.5);
     let wv = _mm256_set1_epi32(wu as i32);
+    if gx0 < gx1 {
+        for r in y - 1..=y + 1 {
+            rows.fill(l, k, wu, r);
+        }
+    }
+    let rows = &*rows;
     for x in (gx0..gx1).step_by(8) {
-        let own = load(l, wu, x, y);
+        let own = rows.load(x, y);
         // Quads that cannot reach the band are skipped (`vfw_pixel`'s test), whole groups first.
         let c = _mm256_add_ps(cy, own.vy);
         let far = _mm256_or_ps(
@@ -258,9 +330,9 @@ pub(super) unsafe fn vfw_row(l: &WarpLayer<'_>, w: u32, h: u32, band: &mut [f32]
             continue;
         }
         let nb = [
-            [load(l, wu, x - 1, y - 1), load(l, wu, x, y - 1), load(l, wu, x + 1, y - 1)],
-            [load(l, wu, x - 1, y), own, load(l, wu, x + 1, y)],
-            [load(l, wu, x - 1, y + 1), load(l, wu, x, y + 1), load(l, wu, x + 1, y + 1)],
+            [rows.load(x - 1, y - 1), rows.load(x, y - 1), rows.load(x + 1, y - 1)],
+            [rows.load(x - 1, y), own, rows.load(x + 1, y)],
+            [rows.load(x - 1, y + 1), rows.load(x, y + 1), rows.load(x + 1, y + 1)],
         ];
         let px = _mm256_add_ps(ps(x as f32), lanes);
         let px1 = _mm256_add_ps(px, ps(1.0));

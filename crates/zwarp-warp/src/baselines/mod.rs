@@ -118,17 +118,18 @@ fn row_check(d: &[f32], m: &[Motion]) -> (u8, f32, f32) {
 /// the same pixel and no atomics are needed (the depth test is a min: order does not matter).
 const BAND: usize = 32;
 
-/// Runs `splat(band_rows, y0, layer, source_row)` for every band of `BAND` target rows and every
+/// Runs `splat(scratch, band_rows, y0, layer, source_row)` for every band of `BAND` target rows and every
 /// source row of every layer whose target rows (widened by `margin`) reach it, in parallel over
 /// bands, into `target` (recycled: resized to `w x h`, every pixel reset to far depth by the band
-/// that owns it, while it is in cache).
-fn forward(
+/// that owns it, while it is in cache). `scratch` is a task's own state, carried from one source
+/// row to the next (rows come in order, per layer).
+fn forward<S: Default + Send>(
     w: u32,
     h: u32,
     reach: &[RowReach],
     margin: f32,
     target: &mut Image<f32>,
-    splat: impl Fn(&mut [f32], usize, usize, usize) + Sync,
+    splat: impl Fn(&mut S, &mut [f32], usize, usize, usize) + Sync,
 ) -> Result<()> {
     let n = w as usize * h as usize;
     let mut buf = std::mem::replace(target, Image::new(0, 0, EMPTY_DEPTH)).into_vec();
@@ -137,7 +138,7 @@ fn forward(
     } else {
         buf.resize(n, EMPTY_DEPTH);
     }
-    buf.par_chunks_mut(BAND * w as usize).enumerate().for_each(|(b, band)| {
+    buf.par_chunks_mut(BAND * w as usize).enumerate().for_each_init(S::default, |scratch, (b, band)| {
         band.fill(EMPTY_DEPTH);
         let y0 = b * BAND;
         let y1 = y0 + band.len() / w as usize;
@@ -146,7 +147,7 @@ fn forward(
             for (y, range) in r.rows.iter().enumerate() {
                 if let Some((a, c)) = range {
                     if *c >= lo && *a <= hi {
-                        splat(band, y0, k, y);
+                        splat(scratch, band, y0, k, y);
                     }
                 }
             }
@@ -167,7 +168,7 @@ pub fn afw_layers(layers: &[WarpLayer<'_>]) -> Result<Image<f32>> {
 /// buffers from frame to frame); the result is the same.
 pub fn afw_layers_into(layers: &[WarpLayer<'_>], out: &mut Image<f32>) -> Result<()> {
     let (w, h, reach) = check_layers(layers)?;
-    forward(w, h, &reach, AFW_HALF_SIZE + 1.0, out, |band, y0, k, y| {
+    forward(w, h, &reach, AFW_HALF_SIZE + 1.0, out, |_: &mut (), band, y0, k, y| {
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
@@ -271,11 +272,11 @@ pub fn vfw_layers_into(layers: &[WarpLayer<'_>], out: &mut Image<f32>) -> Result
     let (w, h, reach) = check_layers(layers)?;
     // A corner moves within CONTINUITY_PX of its quad's pixel; corners lie one pixel apart,
     // pushed out by the expansion.
-    forward(w, h, &reach, VFW_ROW_REACH, out, |band, y0, k, y| {
+    forward(w, h, &reach, VFW_ROW_REACH, out, |rows: &mut RowCache, band, y0, k, y| {
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
-            unsafe { avx2::vfw_row(&layers[k], w, h, band, y0, y) };
+            unsafe { avx2::vfw_row(&layers[k], k, w, h, band, y0, y, rows) };
             return;
         }
         vfw_row(&layers[k], w, h, band, y0, y)
@@ -358,6 +359,11 @@ const VFW_ROW_REACH: f32 = 1.0 + CONTINUITY_PX + FORWARD_SUPPORT_EXPANSION + 1.0
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+use avx2::RowCache;
+/// No row cache without the AVX2 build (the portable one reads the layer directly).
+#[cfg(not(target_arch = "x86_64"))]
+type RowCache = ();
 
 #[inline]
 fn edge(a: Vec2, b: Vec2, p: Vec2) -> f32 {
@@ -653,5 +659,30 @@ mod tests {
         let z: Image<f32> = Image::new(0, 0, 0.5);
         let mz: Image<Motion> = Image::new(0, 0, Motion::default());
         assert!(matches!(vfw(&z, &mz), Err(Error::Invalid(_))));
+    }
+
+    /// The AVX2 VFW's row cache holds a row of one layer: the same row of another layer read
+    /// right after is converted anew (a cache keyed by the row alone would splat layer 0 again).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_row_cache_tells_layers_apart() {
+        if !crate::simd::has_avx2() {
+            return;
+        }
+        let (w, h) = (27, 5);
+        let d0 = ramp(w, h);
+        let d1 = Image::from_fn(w, h, |x, y| 0.2 + 0.02 * ((x * 3 + y) % 5) as f32);
+        let (m0, m1) = (motion_of(&d0, Vec2::new(0.6, 0.3)), motion_of(&d1, Vec2::new(-1.3, 0.4)));
+        let layers = [WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }];
+        let fresh = || vec![EMPTY_DEPTH; (w * h) as usize];
+        let (mut shared, mut a, mut b, mut c) = (RowCache::default(), fresh(), fresh(), fresh());
+        // SAFETY: AVX2 is reported by the CPU.
+        unsafe {
+            avx2::vfw_row(&layers[0], 0, w, h, &mut a, 0, 2, &mut shared);
+            avx2::vfw_row(&layers[1], 1, w, h, &mut b, 0, 2, &mut shared);
+        }
+        vfw_row(&layers[1], w, h, &mut c, 0, 2);
+        assert_eq!(b, c);
+        assert_ne!(a, c);
     }
 }
