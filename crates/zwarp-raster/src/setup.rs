@@ -612,8 +612,10 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
 
     // Vertex transform, in parallel over fixed-size vertex chunks spanning instances.
     // Vertex transform and projection (once per vertex, shared by its triangles).
-    let mut clip = vec![ScreenVert::default(); total_verts];
-    clip.par_chunks_mut(CHUNK_VERTS).enumerate().for_each(|(ci, out)| {
+    // Every vertex is written below, so the buffer is not cleared first (at VFC's draw counts
+    // the clear was as large a write as the transform's own).
+    let mut clip: Vec<ScreenVert> = Vec::with_capacity(total_verts);
+    clip.spare_capacity_mut()[..total_verts].par_chunks_mut(CHUNK_VERTS).enumerate().for_each(|(ci, out)| {
         let start = ci * CHUNK_VERTS;
         let mut d = draws.partition_point(|d| d.vert_offset <= start) - 1;
         let mut g = start;
@@ -627,12 +629,15 @@ pub(crate) fn bin_scene(scene: &Scene, cam: &Camera, t: f32, params: &SetupParam
             let n = (pos.len() - local).min(out.len() - k);
             let m = draws[d].mvp;
             for (o, p) in out[k..k + n].iter_mut().zip(&pos[local..local + n]) {
-                *o = project_vertex(m * p.as_dvec3().extend(1.0), &vp);
+                o.write(project_vertex(m * p.as_dvec3().extend(1.0), &vp));
             }
             k += n;
             g += n;
         }
     });
+    // SAFETY: the chunks cover `0..total_verts` and every element was written above (the loop
+    // runs until `k == out.len()` for each chunk).
+    unsafe { clip.set_len(total_verts) };
 
     // Triangle set-up and binning, in parallel over fixed-size triangle chunks.
     let n_chunks = total_tris.div_ceil(CHUNK_TRIS);
