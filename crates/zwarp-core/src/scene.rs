@@ -118,6 +118,48 @@ impl Mesh {
         }
         Ok(())
     }
+    /// The mesh made of triangles `triangles` (indices into [`Mesh::indices`], in the order
+    /// given), with only the vertices they use (in order of first use) and every attribute
+    /// carried over: normals, UVs and each triangle's material (runs rebuilt). Splitting a mesh
+    /// into objects for per-object culling (seed 000 Sec. 5) uses it. Panics on an out-of-range
+    /// triangle index (a caller's bug, not input).
+    pub fn subset(&self, triangles: &[u32]) -> Mesh {
+        let mut remap: std::collections::HashMap<u32, u32> = std::collections::HashMap::with_capacity(triangles.len());
+        let mut old = Vec::new();
+        let indices: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|&t| {
+                self.indices[t as usize].map(|v| {
+                    *remap.entry(v).or_insert_with(|| {
+                        old.push(v);
+                        (old.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        fn pick<T: Copy>(a: &[T], old: &[u32]) -> Vec<T> {
+            old.iter().map(|&v| a[v as usize]).collect()
+        }
+        let mut parts: Vec<MeshPart> = Vec::new();
+        let mut last = None;
+        for (k, &t) in triangles.iter().enumerate() {
+            let part = self.part_of(t as usize);
+            if let (Some(p), true) = (part, part != last) {
+                parts.push(MeshPart { first_triangle: k as u32, material: self.parts[p].material.clone() });
+            }
+            last = part;
+        }
+        let mut m = Mesh {
+            positions: pick(&self.positions, &old),
+            indices,
+            bounds: Aabb::EMPTY,
+            normals: self.normals.as_ref().map(|n| pick(n, &old)),
+            uvs: self.uvs.as_ref().map(|u| pick(u, &old)),
+            parts,
+        };
+        m.compute_bounds();
+        m
+    }
     /// Index into [`Mesh::parts`] of the part holding triangle `t` (`None` without parts).
     #[inline]
     pub fn part_of(&self, t: usize) -> Option<usize> {
@@ -406,5 +448,35 @@ mod tests {
         scene.add_instance(tri, Mat4::IDENTITY, Vec3::ONE, Animation::Static, false);
         assert!(scene.check_nonempty().is_ok());
         assert_eq!(scene.triangle_count(), 1);
+    }
+
+    #[test]
+    fn a_subset_keeps_each_triangles_vertices_attributes_and_material() {
+        use crate::material::Material;
+        let positions: Vec<Vec3> = (0..6).map(|i| Vec3::new(i as f32, (i * i) as f32, 0.5)).collect();
+        let indices = vec![[0, 1, 2], [2, 3, 4], [3, 4, 5]];
+        let red = Material { base_color: Vec3::X, ..Material::default() };
+        let m = Mesh::new(positions.clone(), indices.clone())
+            .unwrap()
+            .with_normals((0..6).map(|i| Vec3::new(0.0, 0.0, i as f32 + 1.0)).collect())
+            .unwrap()
+            .with_uvs((0..6).map(|i| Vec2::new(i as f32 * 0.1, 0.0)).collect())
+            .unwrap()
+            .with_parts(vec![
+                MeshPart { first_triangle: 0, material: Material::default() },
+                MeshPart { first_triangle: 2, material: red.clone() },
+            ])
+            .unwrap();
+        let s = m.subset(&[2, 0]);
+        s.validate().unwrap();
+        assert_eq!(s.indices, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(s.positions, [3, 4, 5, 0, 1, 2].map(|i| positions[i]).to_vec());
+        assert_eq!(s.normals.as_ref().unwrap()[0], Vec3::new(0.0, 0.0, 4.0));
+        assert_eq!(s.uvs.as_ref().unwrap()[3], Vec2::ZERO);
+        assert_eq!(s.material_of(0), &red);
+        assert_eq!(s.material_of(1), &Material::default());
+        assert_eq!(s.bounds.max, Vec3::new(5.0, 25.0, 0.5));
+        // Without parts, none are made.
+        assert!(Mesh::new(positions, indices).unwrap().subset(&[1]).parts.is_empty());
     }
 }

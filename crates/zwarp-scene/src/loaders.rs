@@ -60,6 +60,9 @@ pub(crate) struct Part {
     pub transform: Mat4,
     /// The file gives this part's mesh materials (then the instance tint is white).
     pub has_material: bool,
+    /// A piece of the previous part's object, split off for culling ([`split_single`]): it
+    /// keeps that object's tint.
+    pub piece: bool,
 }
 
 /// Meshes + parts of one file.
@@ -163,6 +166,7 @@ pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
             mesh_key: out.meshes.len(),
             transform: Mat4::IDENTITY,
             has_material,
+            piece: false,
         });
         out.meshes.push(mesh);
     }
@@ -317,7 +321,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
             if let Some(slot) = slot {
                 let has_material = mesh.primitives().any(|p| p.material().index().is_some());
                 let name = node.name().or(mesh.name()).unwrap_or("").to_string();
-                out.parts.push(Part { name, mesh_key: slot, transform: world, has_material });
+                out.parts.push(Part { name, mesh_key: slot, transform: world, has_material, piece: false });
             }
         }
         for c in node.children() {
@@ -502,7 +506,7 @@ pub(crate) fn load_file_objects(path: &Path, kind: Kind) -> Result<FileObjects> 
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             Ok(FileObjects {
                 meshes: vec![m],
-                parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material: false }],
+                parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material: false, piece: false }],
             })
         }
     }
@@ -516,7 +520,9 @@ pub(crate) fn add_objects(scene: &mut Scene, file: &Path, objs: FileObjects) {
     for p in objs.parts {
         let id = scene.instances.len() as u32;
         let ground = file_ground || is_ground_name(&p.name);
-        let albedo = if p.has_material {
+        let albedo = if let (true, Some(prev)) = (p.piece, scene.instances.last()) {
+            prev.albedo
+        } else if p.has_material {
             Vec3::ONE
         } else if ground {
             GROUND_ALBEDO
@@ -527,8 +533,46 @@ pub(crate) fn add_objects(scene: &mut Scene, file: &Path, objs: FileObjects) {
     }
 }
 
+/// A file that is one object (an OBJ without `o`/`g` groups, a glTF with one mesh node) split
+/// into objects by `opts.split`, as a soup is ([`soup::split_soup`], connectivity by shared
+/// position, so UV seams and normal creases do not cut a surface): per-object culling has
+/// nothing to cull in a one-object scene. The pieces keep the object's transform, attributes,
+/// materials and tint. Files of several objects keep their author's structure.
+fn split_single(objs: FileObjects, opts: &SceneOptions) -> FileObjects {
+    let [part] = objs.parts.as_slice() else { return objs };
+    let mesh = &objs.meshes[part.mesh_key];
+    // Vertices at the same position (bit for bit) are one for connectivity.
+    let mut first: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
+    let weld: Vec<u32> = (0..mesh.positions.len() as u32)
+        .map(|v| *first.entry(mesh.positions[v as usize].to_array().map(f32::to_bits)).or_insert(v))
+        .collect();
+    let welded: Vec<[u32; 3]> = mesh.indices.iter().map(|t| t.map(|v| weld[v as usize])).collect();
+    let mut groups = soup::split_soup(&mesh.positions, &welded, opts.split);
+    if groups.len() <= 1 {
+        return objs;
+    }
+    let meshes: Vec<Mesh> = groups
+        .par_iter_mut()
+        .map(|g| {
+            // Triangle order kept: a material's triangles stay one run.
+            g.sort_unstable();
+            mesh.subset(g)
+        })
+        .collect();
+    let parts = (0..meshes.len())
+        .map(|k| Part {
+            name: part.name.clone(),
+            mesh_key: k,
+            transform: part.transform,
+            has_material: part.has_material,
+            piece: k > 0,
+        })
+        .collect();
+    FileObjects { meshes, parts }
+}
+
 /// Loads a single mesh file as a scene; a PLY (one soup) is split into objects by
-/// `opts.split`.
+/// `opts.split`, and so is an OBJ or glTF file that holds one object ([`split_single`]).
 pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> Result<Scene> {
     let mut scene = Scene { name: display_name(path), up: up_of(kind), ..Default::default() };
     if kind == Kind::Ply {
@@ -536,7 +580,7 @@ pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> 
         let ground = is_ground_name(&display_name(path));
         add_soup(&mut scene, path, m.positions, m.normals, m.indices, ground, opts)?;
     } else {
-        let objs = load_file_objects(path, kind)?;
+        let objs = split_single(load_file_objects(path, kind)?, opts);
         // Only the file name decides "ground", not the folders above it.
         add_objects(&mut scene, Path::new(&display_name(path)), objs);
     }
@@ -555,33 +599,13 @@ pub(crate) fn add_soup(
     opts: &SceneOptions,
 ) -> Result<()> {
     let groups = soup::split_soup(&positions, &indices, opts.split);
-    let meshes: Vec<Result<Mesh>> = groups
-        .par_iter()
-        .map(|g| {
-            let mut remap: HashMap<u32, u32> = HashMap::with_capacity(g.len() * 2);
-            let mut pos = Vec::new();
-            let mut old = Vec::new();
-            let tris = g
-                .iter()
-                .map(|&t| {
-                    indices[t as usize].map(|v| {
-                        *remap.entry(v).or_insert_with(|| {
-                            pos.push(positions[v as usize]);
-                            old.push(v);
-                            (pos.len() - 1) as u32
-                        })
-                    })
-                })
-                .collect();
-            let mesh = Mesh::new(pos, tris).map_err(at(path))?;
-            match &normals {
-                Some(n) => mesh.with_normals(old.iter().map(|&v| n[v as usize]).collect()).map_err(at(path)),
-                None => Ok(mesh),
-            }
-        })
-        .collect();
+    let mut soup = Mesh::new(positions, indices).map_err(at(path))?;
+    if let Some(n) = normals {
+        soup = soup.with_normals(n).map_err(at(path))?;
+    }
+    let meshes: Vec<Mesh> = groups.par_iter().map(|g| soup.subset(g)).collect();
     for m in meshes {
-        let mesh = scene.add_mesh(m?);
+        let mesh = scene.add_mesh(m);
         let id = scene.instances.len() as u32;
         let albedo = if ground { GROUND_ALBEDO } else { albedo_for_id(id) };
         scene.add_instance(mesh, Mat4::IDENTITY, albedo, Animation::Static, ground);
@@ -682,7 +706,10 @@ fn merge_parts(objs: FileObjects) -> FileObjects {
         parts: if has_material { parts } else { Vec::new() },
     };
     mesh.compute_bounds();
-    FileObjects { meshes: vec![mesh], parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material }] }
+    FileObjects {
+        meshes: vec![mesh],
+        parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material, piece: false }],
+    }
 }
 
 fn collect_mesh_files(dir: &Path, out: &mut Vec<(PathBuf, Kind)>, depth: usize) -> Result<()> {

@@ -554,3 +554,49 @@ fn files_without_materials_get_the_pattern_and_id_colours() {
     assert_eq!(s.meshes[0].material_of(0).map, zwarp_core::ColorMap::Pattern);
     assert_ne!(s.instances[0].albedo, Vec3::ONE);
 }
+
+/// Two unit quads far apart, each with a UV seam (its two triangles use separate vertices at
+/// the same positions), as one OBJ object or as two.
+fn two_quads_obj(groups: bool) -> String {
+    let mut s = String::new();
+    for (k, x) in [0.0f32, 10.0].iter().enumerate() {
+        if groups {
+            s += &format!("o quad{k}\n");
+        }
+        for (px, py) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+            s += &format!("v {} {py} 0\n", x + px);
+        }
+        for (u, v) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.5, 0.5), (0.9, 0.9), (0.5, 0.9)] {
+            s += &format!("vt {u} {v}\n");
+        }
+        let b = 6 * k + 1;
+        s += &format!("f {}/{} {}/{} {}/{}\n", b, b, b + 1, b + 1, b + 2, b + 2);
+        s += &format!("f {}/{} {}/{} {}/{}\n", b + 3, b + 3, b + 4, b + 4, b + 5, b + 5);
+    }
+    s
+}
+
+#[test]
+fn a_one_object_file_is_split_into_connected_objects_for_culling() {
+    let (_g, d) = temp_dir("split");
+    let one = d.join("one.obj");
+    std::fs::write(&one, two_quads_obj(false)).unwrap();
+    let s = load_scene(one.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    // Split by connectivity through positions: the UV seams do not cut a quad.
+    assert_eq!(s.instances.len(), 2);
+    let mut boxes: Vec<_> = s.instances.iter().map(|i| (i.world_aabb.min.x, i.world_aabb.max.x)).collect();
+    boxes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    assert_eq!(boxes, vec![(0.0, 1.0), (10.0, 11.0)]);
+    // One object's pieces keep its tint and its attributes.
+    assert_eq!(s.instances[0].albedo, s.instances[1].albedo);
+    assert!(s.meshes.iter().all(|m| m.triangle_count() == 2 && m.uvs.as_ref().is_some_and(|u| u.len() == 6)));
+    assert_eq!(s.triangle_count(), 4);
+    // Without splitting, and for a file of two objects, the file's structure stays.
+    let none = load_scene(one.to_str().unwrap(), &opts(SplitMode::None)).unwrap().scene;
+    assert_eq!(none.instances.len(), 1);
+    let two = d.join("two.obj");
+    std::fs::write(&two, two_quads_obj(true)).unwrap();
+    let s2 = load_scene(two.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s2.instances.len(), 2);
+    assert_ne!(s2.instances[0].albedo, s2.instances[1].albedo);
+}
