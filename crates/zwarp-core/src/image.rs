@@ -20,6 +20,13 @@ impl<T: Clone> Image<T> {
 }
 
 impl<T: Copy + Send + Sync> Image<T> {
+    /// [`Image::new`] for a per-frame target: filled in parallel, and large buffers advised for
+    /// transparent huge pages before their first write ([`crate::pages`]), so a fresh render
+    /// target costs a few 2 MiB page faults instead of one per 4 KiB.
+    pub fn filled(width: u32, height: u32, value: T) -> Self {
+        Image { width, height, data: crate::pages::filled(width as usize * height as usize, value) }
+    }
+
     /// Makes this image a copy of `src`: in place, in parallel chunks, where the sizes match (an
     /// engine's per-frame source copy: no fresh pages), else as a fresh clone.
     pub fn copy_from(&mut self, src: &Image<T>) {

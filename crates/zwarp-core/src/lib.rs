@@ -19,6 +19,7 @@ pub mod geom;
 pub mod image;
 pub mod material;
 pub mod motion;
+pub mod pages;
 pub mod round;
 pub mod scene;
 pub mod simd;

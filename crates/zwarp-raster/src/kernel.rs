@@ -368,6 +368,23 @@ pub(crate) fn run_pass(binned: &Binned, mode: Mode, targets: Targets) {
                     if mode != Mode::Count {
                         dband[o..o + cols].copy_from_slice(&buf.depth[s..s + cols]);
                     }
+                    if mode != Mode::Count && !load {
+                        // Every pixel takes the tile's value (ids as they are, or no item):
+                        // plain copies, the common case of a fresh render.
+                        if let Some(ib) = iband.as_deref_mut() {
+                            if handles {
+                                for (o, &hnd) in ib[o..o + cols].iter_mut().zip(&buf.ids[s..s + cols]) {
+                                    *o = if hnd != NO_ITEM { binned.meta(hnd).0 } else { NO_ITEM };
+                                }
+                            } else {
+                                ib[o..o + cols].copy_from_slice(&buf.ids[s..s + cols]);
+                            }
+                        }
+                        if let Some(hb) = cband.as_deref_mut() {
+                            hb[o..o + cols].copy_from_slice(&buf.ids[s..s + cols]);
+                        }
+                        continue;
+                    }
                     if let Some(ib) = iband.as_deref_mut() {
                         for c in 0..cols {
                             let hnd = buf.ids[s + c];

@@ -94,7 +94,7 @@ pub fn render_depth(scene: &Scene, cam: &Camera, t: f32) -> Result<Image<f32>> {
     scene.check_nonempty()?;
     check_camera(cam)?;
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: None, color: false })?;
-    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
+    let mut depth = Image::filled(cam.width, cam.height, 1.0f32);
     run_pass(
         &binned,
         Mode::Depth,
@@ -108,9 +108,9 @@ pub fn render_frame(scene: &Scene, cam: &Camera, t: f32, opts: &FrameOptions) ->
     scene.check_nonempty()?;
     check_camera(cam)?;
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: opts.objects, color: opts.color })?;
-    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
-    let mut items = Image::new(cam.width, cam.height, NO_ITEM);
-    let mut handles = opts.color.then(|| Image::new(cam.width, cam.height, NO_ITEM));
+    let mut depth = Image::filled(cam.width, cam.height, 1.0f32);
+    let mut items = Image::filled(cam.width, cam.height, NO_ITEM);
+    let mut handles = opts.color.then(|| Image::filled(cam.width, cam.height, NO_ITEM));
     run_pass(
         &binned,
         Mode::Depth,
@@ -222,7 +222,7 @@ pub fn pipeline_stats(scene: &Scene, cam: &Camera, t: f32) -> Result<(usize, usi
     let t0 = std::time::Instant::now();
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: None, color: false })?;
     let t1 = std::time::Instant::now();
-    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
+    let mut depth = Image::filled(cam.width, cam.height, 1.0f32);
     run_pass(
         &binned,
         Mode::Depth,
@@ -257,8 +257,8 @@ pub fn coverage_counts(cam: &Camera, triangles: &[[Vec3; 3]]) -> Result<Image<u3
     if binned.chunks[0].tris.len() > u16::MAX as usize {
         return Err(Error::invalid("coverage_counts: too many triangles for one chunk"));
     }
-    let mut depth = Image::new(cam.width, cam.height, 1.0f32);
-    let mut counts = Image::new(cam.width, cam.height, 0u32);
+    let mut depth = Image::filled(cam.width, cam.height, 1.0f32);
+    let mut counts = Image::filled(cam.width, cam.height, 0u32);
     run_pass(
         &binned,
         Mode::Count,

@@ -201,10 +201,10 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
     };
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: Some(&peeled), color: false })?;
     let mut layers: Vec<Layer> = Vec::with_capacity(opts.layers + 1);
-    let mut threshold = Image::new(w, h, f32::INFINITY);
+    let mut threshold = Image::filled(w, h, f32::INFINITY);
     for k in 0..opts.layers {
-        let mut depth = Image::new(w, h, 1.0f32);
-        let mut items = Image::new(w, h, NO_ITEM);
+        let mut depth = Image::filled(w, h, 1.0f32);
+        let mut items = Image::filled(w, h, NO_ITEM);
         // Once a layer is empty every later one is: skip their passes.
         let prev_empty = layers.last().is_some_and(|l: &Layer| l.items.data().iter().all(|&i| i == NO_ITEM));
         if !prev_empty {
@@ -227,8 +227,8 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
         layers.push(Layer { depth, items });
     }
     if opts.ground_separate {
-        let mut depth = Image::new(w, h, 1.0f32);
-        let mut items = Image::new(w, h, NO_ITEM);
+        let mut depth = Image::filled(w, h, 1.0f32);
+        let mut items = Image::filled(w, h, NO_ITEM);
         if !ground.is_empty() {
             let gb = bin_scene(scene, cam, t, &SetupParams { objects: Some(&ground), color: false })?;
             run_pass(

@@ -215,7 +215,7 @@ pub(crate) fn resolve(binned: &Binned, scene: &Scene, cam: &Camera, handles: &Im
         .collect();
     let (light, eye, ortho_dir) = light_and_eye(cam, shading::LIGHT_DIR_VIEW);
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut out = Image::new(cam.width, cam.height, shading::SKY_COLOR);
+    let mut out = Image::filled(cam.width, cam.height, shading::SKY_COLOR);
     out.data_mut().par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         let ndc_y = 1.0 - (y as f64 + 0.5) * 2.0 / h as f64;
         // Neighbouring pixels mostly show the same triangle: keep its barycentric set-up.

@@ -116,12 +116,12 @@ pub fn warp_prepared_into(layers: &[PreparedLayer], params: &WarpParams, out: &m
     let mut depth = take(&mut out.depth);
     let mut state = std::mem::replace(&mut out.state, Image::new(0, 0, PixelState::Hole)).into_vec();
     if depth.capacity() < n {
-        depth = crate::pages::filled(n, EMPTY_DEPTH);
+        depth = zwarp_core::pages::filled(n, EMPTY_DEPTH);
     } else {
         depth.resize(n, EMPTY_DEPTH);
     }
     if state.capacity() < n {
-        state = crate::pages::filled(n, PixelState::Hole);
+        state = zwarp_core::pages::filled(n, PixelState::Hole);
     } else {
         state.resize(n, PixelState::Hole);
     }

@@ -35,7 +35,6 @@ pub mod floor;
 pub mod gpu;
 pub mod holes;
 mod kernel;
-mod pages;
 mod prepare;
 pub mod sampling;
 pub mod search;

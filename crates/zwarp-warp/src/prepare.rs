@@ -437,7 +437,7 @@ fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
         v.truncate(n);
         v
     } else {
-        crate::pages::filled(n, fill)
+        zwarp_core::pages::filled(n, fill)
     }
 }
 
@@ -445,7 +445,7 @@ fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
 /// caller), capacity for `all` (every level).
 fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
     if v.capacity() < all {
-        v = crate::pages::uninit(all);
+        v = zwarp_core::pages::uninit(all);
     }
     if v.len() >= n {
         v.truncate(n);

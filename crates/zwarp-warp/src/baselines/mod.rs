@@ -134,7 +134,7 @@ fn forward<S: Default + Send>(
     let n = w as usize * h as usize;
     let mut buf = std::mem::replace(target, Image::new(0, 0, EMPTY_DEPTH)).into_vec();
     if buf.capacity() < n {
-        buf = crate::pages::filled(n, EMPTY_DEPTH);
+        buf = zwarp_core::pages::filled(n, EMPTY_DEPTH);
     } else {
         buf.resize(n, EMPTY_DEPTH);
     }

@@ -1,5 +1,5 @@
-//! Large per-frame buffers with transparent huge pages (a cost of Sec. 3.3's preparation and of
-//! every warp's output, not an algorithm of the paper).
+//! Large per-frame buffers with transparent huge pages (a cost of Sec. 3.3's preparation, of
+//! every warp's output and of every render target, not an algorithm of the paper).
 //!
 //! A 1080p layer allocates ~45 MB per preparation (samples and level-1 mipmaps) and ~10 MB per
 //! warp (depth and state). Freshly mapped memory is faulted in page by page on first write:
@@ -16,7 +16,7 @@ const MIN_BYTES: usize = 4 << 20;
 
 /// A `Vec` of `n` copies of `value`, its memory advised for huge pages before it is written
 /// (written in parallel chunks).
-pub(crate) fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
+pub fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
     let mut v = uninit::<T>(n);
     v.spare_capacity_mut()[..n].par_chunks_mut(1 << 16).for_each(|c| {
         for e in c {
@@ -30,7 +30,7 @@ pub(crate) fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
 
 /// An empty `Vec` with capacity for `n` elements, advised for huge pages; the caller writes the
 /// first `n` elements through `spare_capacity_mut` and then sets the length.
-pub(crate) fn uninit<T>(n: usize) -> Vec<T> {
+pub fn uninit<T>(n: usize) -> Vec<T> {
     let v: Vec<T> = Vec::with_capacity(n);
     advise(v.as_ptr() as *const u8, n * std::mem::size_of::<T>());
     v
