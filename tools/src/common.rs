@@ -30,7 +30,7 @@ pub fn atrium_camera(dx: f32) -> Result<Camera> {
 /// (defaults: `scene`, 0.25, 960, 540, `frames`), and the rest by position.
 pub struct CullArgs {
     args: Vec<String>,
-    /// Scene name or path.
+    /// Scene name or path, optionally `@PATH.json` (see [`CullArgs::load`]).
     pub scene: String,
     /// Procedural scale.
     pub scale: f32,
@@ -55,6 +55,23 @@ impl CullArgs {
             frames: get(4, frames).parse()?,
             args,
         })
+    }
+    /// The scene (procedural at `scale`) and its camera path: `SCENE@PATH.json` takes the path
+    /// from the JSON file (as `zwarp report --scenes` does), else the scene's recorded path or
+    /// one made from its bounds.
+    pub fn load(
+        &self,
+    ) -> std::result::Result<(zwarp_scene::LoadedScene, zwarp_scene::CameraPath), Box<dyn std::error::Error>> {
+        let (spec, path) = match self.scene.rsplit_once('@') {
+            Some((s, p)) if p.ends_with(".json") => (s, Some(p)),
+            _ => (self.scene.as_str(), None),
+        };
+        let loaded = load_scene(spec, &SceneOptions { scale: self.scale, ..SceneOptions::default() })?;
+        let path = match path {
+            Some(p) => zwarp_scene::CameraPath::from_json_file(p)?,
+            None => loaded.path_or_default(),
+        };
+        Ok((loaded, path))
     }
     /// Argument `i` (from 0), or `default`.
     pub fn arg(&self, i: usize, default: &str) -> String {

@@ -2,20 +2,19 @@
 //! diagnostics of [`zwarp_cull::CulledVisible`], along the first frames of a scene's path
 //! (the frames `zwarp cull` uses).
 //!
-//! `cargo run --release -p zwarp-tools --bin cull_diag -- [scene] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample] [speed]`
+//! `cargo run --release -p zwarp-tools --bin cull_diag -- [scene[@path.json]] [scale] [width] [height] [frames] [method] [default|norims|<rim px>] [downsample] [speed]`
 
 use zwarp_cull::{run_sequence, summarize, Method, WocParams};
-use zwarp_scene::{load_scene, SceneOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a = zwarp_tools::common::CullArgs::from_env("bl", "24")?;
     let arg = |i: usize, d: &str| a.arg(i, d);
-    let (scene_name, scale, w, h, n_frames) = (a.scene.clone(), a.scale, a.width, a.height, a.frames);
+    let (w, h, n_frames) = (a.width, a.height, a.frames);
     let method = Method::parse(&arg(5, "woc"))?;
-    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let (loaded, path) = a.load()?;
     // Optional 9th argument: motion-speed factor (default 1).
     let speed: f32 = arg(8, "1").parse()?;
-    let mut frames = loaded.path_or_default().frames(w, h, speed)?;
+    let mut frames = path.frames(w, h, speed)?;
     frames.truncate(n_frames);
     // Optional 7th argument: `norims` (WOC without the opening-rim holes, the old behaviour) or
     // the rim separation threshold in pixels.

@@ -2,18 +2,17 @@
 //! scene's path, one line per culling resolution: a speed-up of the pipeline that must not
 //! change any decision is checked by diffing this output before and after.
 //!
-//! `cargo run --release -p zwarp-tools --bin cull_fingerprint -- [scene] [scale] [width] [height] [frames] [downsample list]`
+//! `cargo run --release -p zwarp-tools --bin cull_fingerprint -- [scene[@path.json]] [scale] [width] [height] [frames] [downsample list]`
 
 use zwarp_cull::{run_sequence, Method, WocParams};
-use zwarp_scene::{load_scene, SceneOptions};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a = zwarp_tools::common::CullArgs::from_env("cb", "8")?;
     let arg = |i: usize, d: &str| a.arg(i, d);
     let (scene_name, scale, w, h, n_frames) = (a.scene.clone(), a.scale, a.width, a.height, a.frames);
     let downs: Vec<u32> = arg(5, "1,2,4").split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
-    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
-    let mut frames = loaded.path_or_default().frames(w, h, 1.0)?;
+    let (loaded, path) = a.load()?;
+    let mut frames = path.frames(w, h, 1.0)?;
     frames.truncate(n_frames);
     for f in downs {
         let p = WocParams { downsample: f, ..WocParams::default() };

@@ -3,7 +3,7 @@
 //! is what a safe method draws) and prints, per variant, the culling ratio vs REF and the visible
 //! objects culled, next to the ideal test and the ideal test against the *eroded* true depth.
 //!
-//! `cargo run --release -p zwarp-tools --bin cull_gap -- [scene] [scale] [width] [height] [frames] [speed]`
+//! `cargo run --release -p zwarp-tools --bin cull_gap -- [scene[@path.json]] [scale] [width] [height] [frames] [speed]`
 
 use zwarp_core::motion_field;
 use zwarp_cull::{
@@ -11,7 +11,6 @@ use zwarp_cull::{
     RimMode, WocParams,
 };
 use zwarp_raster::{render_frame, FrameOptions};
-use zwarp_scene::{load_scene, SceneOptions};
 use zwarp_warp::{warp_depth, WarpLayer};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -19,10 +18,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let arg = |i: usize, d: &str| a.arg(i, d);
     let (scene_name, scale, w, h, n_frames) = (a.scene.clone(), a.scale, a.width, a.height, a.frames);
     let speed: f32 = arg(5, "1").parse()?;
-    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let (loaded, path) = a.load()?;
     let scene = &loaded.scene;
     let n = scene.instances.len();
-    let mut frames = loaded.path_or_default().frames(w, h, speed)?;
+    let mut frames = path.frames(w, h, speed)?;
     frames.truncate(n_frames);
     let d = WocParams::default();
     let variants: Vec<(&str, WocParams)> = vec![

@@ -2,10 +2,9 @@
 //! next to VFC and two-phase in the same run, as `zwarp cull` measures them (cull + draw of the
 //! kept objects; medians over the non-bootstrap frames).
 //!
-//! `cargo run --release -p zwarp-tools --bin cull_profile -- [scene] [scale] [width] [height] [frames] [speed] [downsample list]`
+//! `cargo run --release -p zwarp-tools --bin cull_profile -- [scene[@path.json]] [scale] [width] [height] [frames] [speed] [downsample list]`
 
 use zwarp_cull::{run_sequence, summarize, FrameReport, Method, WocParams};
-use zwarp_scene::{load_scene, SceneOptions};
 
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
@@ -43,9 +42,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     let t0 = std::time::Instant::now();
-    let loaded = load_scene(&scene_name, &SceneOptions { scale, ..SceneOptions::default() })?;
+    let (loaded, path) = a.load()?;
     let scene = &loaded.scene;
-    let mut frames = loaded.path_or_default().frames(w, h, speed)?;
+    let mut frames = path.frames(w, h, speed)?;
     frames.truncate(n_frames);
     println!(
         "{scene_name} scale {scale}: {} objects, {} triangles, {w}x{h}, {} frames, speed {speed}x (load {:.1} s)",
