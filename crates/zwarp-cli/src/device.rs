@@ -100,15 +100,18 @@ impl Device {
         Ok(DeviceScene { scene, gpu })
     }
 
-    /// The depth-only render of `cam` at time `t` (the reference a prediction replaces).
-    pub fn render_depth(&self, s: &DeviceScene<'_>, cam: &Camera, t: f32) -> Result<Image<f32>> {
+    /// The depth-only render of `cam` at time `t` (the reference a prediction replaces) into
+    /// `out`, a target recycled from an earlier render (on the CPU its pages are reused, as the
+    /// warps reuse theirs; the GPU reads back into a new buffer).
+    pub fn render_depth_into(&self, s: &DeviceScene<'_>, cam: &Camera, t: f32, out: &mut Image<f32>) -> Result<()> {
         match (self, &s.gpu) {
             (Device::Gpu(g), Some(up)) => {
                 let r = once(&g.renderer, || zwarp_gpu::Renderer::new(&g.ctx))?;
-                Ok(r.render_depth(up, cam, t)?)
+                *out = r.render_depth(up, cam, t)?;
             }
-            _ => Ok(zwarp_raster::render_depth(s.scene, cam, t)?),
+            _ => zwarp_raster::render_depth_into(s.scene, cam, t, out)?,
         }
+        Ok(())
     }
 
     /// Times of `reps` depth-only renders of `cam` at `t` (ms; on the GPU fenced on the device,
@@ -126,7 +129,13 @@ impl Device {
                 })?
                 .1
             }
-            _ => crate::harness::time_repeated(reps, || Ok(zwarp_raster::render_depth(s.scene, cam, t)?))?.1,
+            _ => {
+                let mut target = Image::new(0, 0, 1.0);
+                crate::harness::time_into(reps, &mut target, |d| {
+                    Ok(zwarp_raster::render_depth_into(s.scene, cam, t, d)?)
+                })?
+                .1
+            }
         };
         Ok(samples)
     }

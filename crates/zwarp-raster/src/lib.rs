@@ -91,16 +91,23 @@ fn check_camera(cam: &Camera) -> Result<()> {
 /// Renders the depth buffer of `scene` at time `t` seen by `cam` (depth only: the fast,
 /// benchmarked path). Errors on an empty scene or an unusable camera.
 pub fn render_depth(scene: &Scene, cam: &Camera, t: f32) -> Result<Image<f32>> {
+    let mut depth = Image::new(0, 0, 1.0f32);
+    render_depth_into(scene, cam, t, &mut depth)?;
+    Ok(depth)
+}
+
+/// [`render_depth`] into `depth`, an earlier target recycled as an engine keeps its depth
+/// buffer from frame to frame (replaced when its size differs from the camera's); every pixel
+/// is written, so the result is the same. What it saves is faulting in a fresh target.
+pub fn render_depth_into(scene: &Scene, cam: &Camera, t: f32, depth: &mut Image<f32>) -> Result<()> {
     scene.check_nonempty()?;
     check_camera(cam)?;
     let binned = bin_scene(scene, cam, t, &SetupParams { objects: None, color: false })?;
-    let mut depth = Image::filled(cam.width, cam.height, 1.0f32);
-    run_pass(
-        &binned,
-        Mode::Depth,
-        Targets { depth: &mut depth, items: None, handles: None, threshold: None, load: false },
-    );
-    Ok(depth)
+    if depth.size() != (cam.width, cam.height) {
+        *depth = Image::filled(cam.width, cam.height, 1.0f32);
+    }
+    run_pass(&binned, Mode::Depth, Targets { depth, items: None, handles: None, threshold: None, load: false });
+    Ok(())
 }
 
 /// Renders depth, item ids and (optionally) colour of `scene` at time `t` seen by `cam`.

@@ -702,3 +702,20 @@ proptest! {
         prop_assert!(!any_fragment_visible(&own, &cam, &tris));
     }
 }
+
+/// A recycled depth target gives the fresh render bit for bit: one of another size is replaced,
+/// one of the right size holding an earlier frame is overwritten everywhere.
+#[test]
+fn render_depth_into_a_recycled_target_equals_a_fresh_render() {
+    let (w, h) = (64u32, 48u32);
+    let cam = Camera::perspective(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 0.9, 0.5, 40.0, w, h).unwrap();
+    let (a, b) = (random_triangle_scene(3, 8), random_triangle_scene(4, 8));
+    let fresh = render_depth(&b, &cam, 0.0).unwrap();
+    let mut target = Image::new(7, 5, 0.25f32);
+    render_depth_into(&b, &cam, 0.0, &mut target).unwrap();
+    assert_eq!(target, fresh);
+    render_depth_into(&a, &cam, 0.0, &mut target).unwrap();
+    assert_ne!(target, fresh, "the scenes must differ for the test to mean anything");
+    render_depth_into(&b, &cam, 0.0, &mut target).unwrap();
+    assert_eq!(target, fresh);
+}

@@ -473,9 +473,12 @@ pub fn evaluate(
         let mut ref_samples = Vec::new();
         // Motion-field time per multisampling factor m.
         let mut motion_samples: Vec<(u32, f64)> = Vec::new();
+        let mut ref_target = Image::new(0, 0, 1.0f32);
         for (pi, (fa, fb)) in pairs.iter().enumerate() {
             let (ta, tb, cb) = (fa.t, fb.t, &fb.cam);
-            let (reference, samples) = harness::time_repeated(plan.reps, || device.render_depth(&on_device, cb, tb))?;
+            // The render target is recycled like the warp's buffers (an engine keeps both).
+            let (reference, samples) =
+                harness::time_into(plan.reps, &mut ref_target, |d| device.render_depth_into(&on_device, cb, tb, d))?;
             ref_samples.extend(samples);
             let (plain_a, plain_b) = (fa.cam, fb.cam);
             // Computed once per pair, from the single-sample source when the plan renders it.
