@@ -547,18 +547,12 @@ fn split_single(objs: FileObjects, opts: &SceneOptions) -> FileObjects {
         .map(|v| *first.entry(mesh.positions[v as usize].to_array().map(f32::to_bits)).or_insert(v))
         .collect();
     let welded: Vec<[u32; 3]> = mesh.indices.iter().map(|t| t.map(|v| weld[v as usize])).collect();
-    let mut groups = soup::split_soup(&mesh.positions, &welded, opts.split);
+    let groups = soup::split_soup(&mesh.positions, &welded, opts.split);
     if groups.len() <= 1 {
         return objs;
     }
-    let meshes: Vec<Mesh> = groups
-        .par_iter_mut()
-        .map(|g| {
-            // Triangle order kept: a material's triangles stay one run.
-            g.sort_unstable();
-            mesh.subset(g)
-        })
-        .collect();
+    // Groups list their triangles in ascending order: a material's triangles stay one run.
+    let meshes: Vec<Mesh> = groups.par_iter().map(|g| mesh.subset(g)).collect();
     let parts = (0..meshes.len())
         .map(|k| Part {
             name: part.name.clone(),

@@ -61,7 +61,8 @@ pub fn read_raw_soup(dir: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
 }
 
 /// Splits a soup into objects (see the module docs); each returned group is a list of triangle
-/// indices, groups are sorted by their first triangle so the result is deterministic.
+/// indices in ascending order, groups are sorted by their first triangle so the result is
+/// deterministic.
 pub fn split_soup(positions: &[Vec3], indices: &[[u32; 3]], mode: SplitMode) -> Vec<Vec<u32>> {
     let all: Vec<u32> = (0..indices.len() as u32).collect();
     let centroid = |t: u32| {
