@@ -56,8 +56,7 @@ pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpO
 /// OB) is fixed when a layer is prepared; `params.bound == Global` disables the per-pixel
 /// tightening, any other kind tightens in the prepared frame.
 pub fn warp_prepared(layers: &[PreparedLayer], params: &WarpParams) -> Result<WarpOutput> {
-    let mut out =
-        WarpOutput { depth: Image::new(0, 0, EMPTY_DEPTH), state: Image::new(0, 0, PixelState::Hole), source: None };
+    let mut out = WarpOutput::empty();
     warp_prepared_into(layers, params, &mut out)?;
     Ok(out)
 }
@@ -132,22 +131,31 @@ pub fn warp_prepared_into(layers: &[PreparedLayer], params: &WarpParams, out: &m
     } else {
         Vec::new()
     };
-    // Bands of tile rows: the pixels of a tile share its bound stage.
+    // Bands of tile rows: the pixels of a tile share its bound stage. Each band lists the
+    // pixels its deeper layers revealed (few: disocclusions).
     let band = (w * TILE) as usize;
-    if params.record_source {
+    let revealed: Vec<Vec<u32>> = if params.record_source {
         depth
             .par_chunks_mut(band)
             .zip(state.par_chunks_mut(band))
             .zip(source.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(ty, ((d, s), src))| kernel.band(ty as u32, d, s, Some(src)));
+            .map(|(ty, ((d, s), src))| kernel.band(ty as u32, d, s, Some(src)))
+            .collect()
     } else {
         depth
             .par_chunks_mut(band)
             .zip(state.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(ty, (d, s))| kernel.band(ty as u32, d, s, None));
+            .map(|(ty, (d, s))| kernel.band(ty as u32, d, s, None))
+            .collect()
+    };
+    out.revealed.clear();
+    for r in revealed {
+        out.revealed.extend_from_slice(&r);
     }
+    // Bands come in order; within one the lanes write two rows at a time.
+    out.revealed.sort_unstable();
     out.depth = Image::from_vec(w, h, depth)?;
     out.state = Image::from_vec(w, h, state)?;
     match params.holes {

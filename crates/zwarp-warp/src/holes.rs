@@ -379,8 +379,16 @@ pub fn background_seeds(p: Vec2, back: Vec2, w: u32, h: u32) -> [Vec2; 2] {
 /// callers that have the source layers (`layers`: the depth and motion buffers `out` was warped
 /// from, nearest first; a separately peeled ground counts as a layer; a multisampled source,
 /// [`crate::WarpParams::multisample`] = m, is `m` times `out`'s size on both axes, and the
-/// ratio gives m). Three steps over the [`PixelState::Hole`] pixels of `out`:
+/// ratio gives m). Four steps over the [`PixelState::Hole`] pixels of `out`:
 ///
+/// 0. **Lone revealed pixels** ([`lone_revealed`]): a pixel a deeper layer revealed
+///    ([`WarpOutput::revealed`]) beside a hole, farther than every converged neighbour and on
+///    the surface of none, becomes a hole (and leaves `revealed`). Sec. 3.4 lets a deeper layer
+///    fill what the front layers disocclude; a disocclusion is a region, on a surface that
+///    continues beside it. A lone hit is a seed that found a hidden surface through a gap the
+///    front layers' searches left (a surface split between two peeled layers, neither search
+///    converging on its part); kept, the next step would spread it over the holes around it as
+///    their far side.
 /// 1. **Background seen through**: a hole whose fixed-point search (the one [`fixed_point_search`],
 ///    `search`'s T and threshold; seeds [`background_seeds`]) converges on texels where no
 ///    source layer has a surface shows the empty background the source shows there — sky: it
@@ -432,9 +440,24 @@ pub fn fill_background_with(
     if w as u64 * h as u64 > SKY_MARK as u64 {
         return Err(Error::invalid(format!("fill_background: {w}x{h} is more than 2^31 pixels")));
     }
+    if out.revealed.iter().any(|&i| out.state.data().get(i as usize) != Some(&PixelState::Converged)) {
+        return Err(Error::invalid("fill_background: a revealed pixel is not a converged one"));
+    }
     let mut holes = hole_list(&out.state);
     if holes.is_empty() {
         return Ok(());
+    }
+    // 0. Lone revealed pixels become holes.
+    let lone = lone_revealed(&out.depth, &out.state, &out.revealed);
+    if !lone.is_empty() {
+        let (dd, sd) = (out.depth.data_mut(), out.state.data_mut());
+        for &i in &lone {
+            dd[i as usize] = EMPTY_DEPTH;
+            sd[i as usize] = PixelState::Hole;
+        }
+        out.revealed.retain(|i| lone.binary_search(i).is_err());
+        holes.extend_from_slice(&lone);
+        holes.sort_unstable();
     }
     // 1. Holes that see the source's empty background, marked in the list itself (its entries
     // are pixel indices below 2^31) so that steps 2 and 3 narrow it in place.
@@ -480,6 +503,39 @@ pub fn fill_background_with(
     holes.retain(|&i| state[i as usize] == PixelState::Hole);
     fill_border_listed(&mut out.depth, &mut out.state, &holes, limits.reach);
     Ok(())
+}
+
+/// Step 0 of [`fill_background`]: the `revealed` pixels ([`WarpOutput::revealed`], ascending)
+/// that stand alone beside a hole: an 8-neighbour is a [`PixelState::Hole`], at least one is
+/// converged, and every converged one is nearer by more than [`FAR_SIDE_SPREAD`] (none lies on
+/// the pixel's surface). Ascending. Decided from the unchanged buffers.
+pub fn lone_revealed(depth: &Image<f32>, state: &Image<PixelState>, revealed: &[u32]) -> Vec<u32> {
+    let (w, h) = depth.size();
+    let (dd, sd) = (depth.data(), state.data());
+    revealed
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            let z = dd[i as usize];
+            let (mut hole, mut nearer) = (false, false);
+            for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                    let j = (ny * w + nx) as usize;
+                    if j == i as usize {
+                        continue;
+                    }
+                    match sd[j] {
+                        PixelState::Hole => hole = true,
+                        PixelState::Converged if z - dd[j] <= FAR_SIDE_SPREAD * (1.0 - z) => return false,
+                        PixelState::Converged => nearer = true,
+                        PixelState::Filled => {}
+                    }
+                }
+            }
+            hole && nearer
+        })
+        .collect()
 }
 
 /// The mark of a hole list entry whose pixel sees the source's empty background (step 1 of
@@ -856,6 +912,54 @@ mod tests {
         m_nan.get_mut(3, 2).v.x = f32::NAN;
         let err = fill_background(&[WarpLayer { depth: &d, motion: &m_nan }], &mut out, 4, &search).unwrap_err();
         assert!(err.to_string().contains("non-finite"), "{err}");
+    }
+
+    /// The warped buffer of [`lone_revealed`]'s tests: holes (`.`) beside far pixels (`9`) on
+    /// rows 2, 5 and 8 of a surface at 0.5; the far pixels of rows 2 and 5 are revealed (row 5's
+    /// two lie on one surface), row 8's is a front layer's; and its one source layer (a surface
+    /// everywhere, motion 0..3.6 px, so no sky and a bracket of 4 px).
+    fn lone_revealed_case() -> (WarpOutput, Image<f32>, Image<Motion>) {
+        let (depth, state) = grid(&[
+            "5555555555",
+            "5555555555",
+            "5559...555",
+            "5555555555",
+            "5555555555",
+            "5599...555",
+            "5555555555",
+            "5555555555",
+            "5559...555",
+            "5555555555",
+        ]);
+        let revealed = vec![2 * 10 + 3, 5 * 10 + 2, 5 * 10 + 3];
+        let (d, m) = shifted_layer(10, 10, |x, _| (0.5, 0.4 * x as f32));
+        (WarpOutput { depth, state, source: None, revealed }, d, m)
+    }
+
+    #[test]
+    fn a_lone_revealed_pixel_joins_the_holes() {
+        let (mut out, d, m) = lone_revealed_case();
+        assert_eq!(lone_revealed(&out.depth, &out.state, &out.revealed), vec![23]);
+        let search = SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+        fill_background(&[WarpLayer { depth: &d, motion: &m }], &mut out, 64, &search).unwrap();
+        // Row 2: the lone far pixel became a hole, and the row takes the surface around it.
+        for x in 3..7 {
+            assert_eq!((*out.state.get(x, 2), *out.depth.get(x, 2)), (PixelState::Filled, 0.5), "({x}, 2)");
+        }
+        // Row 5: a revealed surface two pixels wide stays, and is the far side of the holes.
+        assert_eq!(out.revealed, vec![52, 53]);
+        assert_eq!((*out.state.get(3, 5), *out.depth.get(3, 5)), (PixelState::Converged, 0.9));
+        for x in 4..7 {
+            assert_eq!((*out.state.get(x, 5), *out.depth.get(x, 5)), (PixelState::Filled, 0.9), "({x}, 5)");
+        }
+        // Row 8: a front layer's far pixel is not the step's business.
+        assert_eq!((*out.state.get(3, 8), *out.depth.get(3, 8)), (PixelState::Converged, 0.9));
+        assert_eq!(*out.depth.get(5, 8), 0.9);
+        // A revealed pixel must be a converged one.
+        let (mut bad, _, _) = lone_revealed_case();
+        bad.revealed = vec![24];
+        let err = fill_background(&[WarpLayer { depth: &d, motion: &m }], &mut bad, 64, &search).unwrap_err();
+        assert!(err.to_string().contains("not a converged one"), "{err}");
     }
 
     #[test]

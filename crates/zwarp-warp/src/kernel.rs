@@ -139,6 +139,10 @@ pub(crate) struct Rows<'a> {
     pub state: [&'a mut [PixelState]; 2],
     pub source: [Option<&'a mut [SourcePos]>; 2],
     pub two: bool,
+    /// The image row of `depth[0]`.
+    pub y: u32,
+    /// Where the pixels converged on a layer after the first are listed (global indices).
+    pub revealed: &'a mut Vec<u32>,
 }
 
 /// The warp kernel over prepared layers: the bound hierarchy and the per-pixel search.
@@ -604,16 +608,25 @@ impl<'a> Kernel<'a> {
             && self.params.holes != HolePolicy::Awoc
     }
 
-    /// Warps the band of tile rows `ty * TILE ..` (the slices hold those rows).
-    pub fn band(&self, ty: u32, depth: &mut [f32], state: &mut [PixelState], mut source: Option<&mut [SourcePos]>) {
+    /// Warps the band of tile rows `ty * TILE ..` (the slices hold those rows); returns the
+    /// band's pixels that converged on a layer after the first ([`crate::WarpOutput::revealed`],
+    /// global indices, in no particular order).
+    pub fn band(
+        &self,
+        ty: u32,
+        depth: &mut [f32],
+        state: &mut [PixelState],
+        mut source: Option<&mut [SourcePos]>,
+    ) -> Vec<u32> {
+        let mut revealed = Vec::new();
         #[cfg(target_arch = "x86_64")]
         if self.lanes_apply() {
             let views: Option<Vec<_>> =
                 self.layers.iter().map(|l| crate::simd_warp::PyramidView::new(l.pyramid())).collect();
             if let Some(pvs) = views {
                 // SAFETY: `lanes_apply` checked AVX2.
-                unsafe { self.band_lanes(&self.lane_search(), &pvs, ty, depth, state, source) };
-                return;
+                unsafe { self.band_lanes(&self.lane_search(), &pvs, ty, depth, state, source, &mut revealed) };
+                return revealed;
             }
         }
         let w = self.tw as usize;
@@ -631,12 +644,16 @@ impl<'a> Kernel<'a> {
                     let i = (y - y0) as usize * w + x as usize;
                     depth[i] = z;
                     state[i] = st;
+                    if st == PixelState::Converged && src.layer > 0 {
+                        revealed.push(y * self.tw + x);
+                    }
                     if let Some(s) = source.as_deref_mut() {
                         s[i] = src;
                     }
                 }
             }
         }
+        revealed
     }
 
     /// [`Self::band`] with the AVX2 lanes: the tile stage of every tile of the band and layer,
@@ -649,6 +666,7 @@ impl<'a> Kernel<'a> {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
     unsafe fn band_lanes(
         &self,
         ls: &crate::simd_warp::LaneSearch<'_>,
@@ -657,6 +675,7 @@ impl<'a> Kernel<'a> {
         depth: &mut [f32],
         state: &mut [PixelState],
         mut source: Option<&mut [SourcePos]>,
+        revealed: &mut Vec<u32>,
     ) {
         let w = self.tw as usize;
         let rows = (depth.len() / w) as u32;
@@ -677,7 +696,14 @@ impl<'a> Kernel<'a> {
                     None => (None, None),
                 };
                 let two = yy + 1 < y0 + rows;
-                let out = Rows { depth: [d0, d1], state: [s0, s1], source: [src0, src1], two };
+                let out = Rows {
+                    depth: [d0, d1],
+                    state: [s0, s1],
+                    source: [src0, src1],
+                    two,
+                    y: yy,
+                    revealed: &mut *revealed,
+                };
                 match self.fast_lanes(ls, &stages, t, x0, x1, yy, two) {
                     Some((has, z, qx, qy)) => {
                         self.write_lanes(x0, x1, out, has, z, qx, qy, std::arch::x86_64::_mm256_setzero_si256())
@@ -1025,16 +1051,29 @@ impl<'a> Kernel<'a> {
         btag: std::arch::x86_64::__m256i,
     ) {
         use std::arch::x86_64::*;
-        let Rows { depth, state, source, .. } = out;
+        let Rows { depth, state, source, revealed, two, y: y0 } = out;
         // Depth: the candidate's, far where none; state: converged or hole.
         let fz = _mm256_blendv_ps(_mm256_set1_ps(EMPTY_DEPTH), bz, has);
         let hasb = _mm256_movemask_ps(has) as u8;
         let n = (x1 - x0) as usize;
         let x = x0 as usize;
+        // Converged on a deeper layer (lane l: row l / 4, column l % 4).
+        let mut deep = _mm256_movemask_ps(_mm256_and_ps(
+            has,
+            _mm256_castsi256_ps(_mm256_cmpgt_epi32(btag, _mm256_setzero_si256())),
+        )) as u8;
+        while deep != 0 {
+            let l = deep.trailing_zeros();
+            deep &= deep - 1;
+            let (row, col) = (l / 4, l % 4);
+            if (row == 0 || two) && (col as usize) < n {
+                revealed.push((y0 + row) * self.tw + x0 + col);
+            }
+        }
         let mut zs = [0f32; 8];
         _mm256_storeu_ps(zs.as_mut_ptr(), fz);
         for (row, (drow, srow)) in depth.into_iter().zip(state).enumerate() {
-            if row == 1 && !out.two {
+            if row == 1 && !two {
                 break;
             }
             drow[x..x + n].copy_from_slice(&zs[4 * row..4 * row + n]);
@@ -1058,7 +1097,7 @@ impl<'a> Kernel<'a> {
             _mm256_storeu_si256(tag.as_mut_ptr() as *mut __m256i, btag);
             for (row, src) in source.into_iter().enumerate() {
                 let Some(src) = src else { continue };
-                if row == 1 && !out.two {
+                if row == 1 && !two {
                     break;
                 }
                 for i in 0..n {

@@ -293,9 +293,25 @@ pub struct WarpOutput {
     pub state: Image<PixelState>,
     /// Converged source positions, when [`WarpParams::record_source`] was set.
     pub source: Option<Image<SourcePos>>,
+    /// The [`PixelState::Converged`] pixels whose candidate comes from a layer after the first
+    /// (row-major indices, ascending): what the deeper layers revealed where the front layers
+    /// failed (seed 000 Sec. 3.4). The background protocol reads it
+    /// ([`holes::fill_background`] step 0); empty for a single layer.
+    pub revealed: Vec<u32>,
 }
 
 impl WarpOutput {
+    /// An empty output (`0 x 0`), for callers that keep one across frames and hand it to the
+    /// `*_into` warps.
+    pub fn empty() -> Self {
+        WarpOutput {
+            depth: Image::new(0, 0, zwarp_core::EMPTY_DEPTH),
+            state: Image::new(0, 0, PixelState::Hole),
+            source: None,
+            revealed: Vec::new(),
+        }
+    }
+
     /// Counts of `(converged, filled, hole)` pixels.
     pub fn counts(&self) -> (usize, usize, usize) {
         let mut c = [0usize; 3];

@@ -148,11 +148,48 @@ proptest! {
         let src: Vec<WarpLayer> = ds.iter().zip(&ms).take(layers).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
         let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
         let search = zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate };
-        let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 64, &search).unwrap();
+        let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
         let mut cpu = warped.clone();
         zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
-        prop_assert_eq!(&gs, &cpu.state, "{}x{} seed {}", w, h, seed);
-        prop_assert_eq!(&gd, &cpu.depth, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gpu.state, &cpu.state, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gpu.depth, &cpu.depth, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gpu.revealed, &cpu.revealed, "{}x{} seed {}", w, h, seed);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(6))]
+
+    /// Step 0 of fill_background (lone revealed pixels become holes) on the GPU equals the CPU:
+    /// random converged / hole blobs, every other converged pixel listed as revealed (the warp's
+    /// state code 3 on the GPU), one source layer with a surface everywhere; depth, state and
+    /// the revealed list left over agree, and the step acted.
+    #[test]
+    fn lone_revealed_pixels_equal_the_cpu(w in 12u32..60, h in 8u32..40, seed in 0u64..10_000) {
+        let Some(ctx) = test_context() else { return Ok(()) };
+        let k = HoleFillKernel::new(&ctx).unwrap();
+        let (depth, raw) = random_buffers(w, h, seed);
+        // Converged and holes only, as a far-hole warp leaves them.
+        let state = raw.map(|s| if *s == PixelState::Converged { PixelState::Converged } else { PixelState::Hole });
+        let depth = Image::from_fn(w, h, |x, y| {
+            if *state.get(x, y) == PixelState::Converged { *depth.get(x, y) } else { EMPTY_DEPTH }
+        });
+        let revealed: Vec<u32> =
+            (0..w * h).filter(|&i| state.data()[i as usize] == PixelState::Converged && i % 2 == 0).collect();
+        let warped = zwarp_warp::WarpOutput { depth, state, source: None, revealed };
+        let lone = zwarp_warp::holes::lone_revealed(&warped.depth, &warped.state, &warped.revealed);
+        prop_assume!(!lone.is_empty());
+        let d = Image::new(w, h, 0.5f32);
+        let m = Image::from_fn(w, h, |x, _| Motion { v: Vec2::new(0.25 * (x % 5) as f32, 0.0), depth: 0.5 });
+        let src = [WarpLayer { depth: &d, motion: &m }];
+        let search = zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
+        let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
+        let mut cpu = warped.clone();
+        zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
+        prop_assert_eq!(&gpu.state, &cpu.state, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gpu.depth, &cpu.depth, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(&gpu.revealed, &cpu.revealed, "{}x{} seed {}", w, h, seed);
+        prop_assert_eq!(cpu.revealed.len() + lone.len(), warped.revealed.len());
     }
 }
 
@@ -169,7 +206,8 @@ fn background_fill_analytic_pan() {
     let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
     let search =
         zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
-    let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 4, &search).unwrap();
+    let gpu = k.fill_background(&src, &warped, 4, &search).unwrap();
+    let (gd, gs) = (&gpu.depth, &gpu.state);
     for y in 0..12 {
         for x in 0..3 {
             assert_eq!(*gs.get(x, y), PixelState::Filled, "({x},{y})");
@@ -177,9 +215,9 @@ fn background_fill_analytic_pan() {
         }
         assert_eq!(*gs.get(10, y), PixelState::Converged);
     }
-    let e = k.fill_background(&src, &warped.depth, &warped.state, 0, &search).unwrap_err().to_string();
+    let e = k.fill_background(&src, &warped, 0, &search).unwrap_err().to_string();
     assert!(e.contains("radius"), "{e}");
-    let e = k.fill_background(&[], &warped.depth, &warped.state, 4, &search).unwrap_err().to_string();
+    let e = k.fill_background(&[], &warped, 4, &search).unwrap_err().to_string();
     assert!(e.contains("at least one source layer"), "{e}");
 }
 
@@ -208,7 +246,8 @@ fn background_fill_of_a_multisampled_source_equals_the_cpu() {
             for accelerate in [false, true] {
                 let search =
                     zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate };
-                let (gd, gs) = k.fill_background(&src, &warped.depth, &warped.state, 64, &search).unwrap();
+                let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
+                let (gd, gs) = (gpu.depth, gpu.state);
                 let mut cpu = warped.clone();
                 zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
                 let what = format!("{w}x{h} seed {seed} L={layers} accelerate {accelerate}");
@@ -235,10 +274,11 @@ fn background_fill_of_a_multisampled_source_equals_the_cpu() {
         depth: Image::new(8, 6, EMPTY_DEPTH),
         state: Image::new(8, 6, PixelState::Hole),
         source: None,
+        revealed: Vec::new(),
     };
     let search =
         zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
-    let gpu = k.fill_background(&src, &out.depth, &out.state, 4, &search).unwrap_err().to_string();
+    let gpu = k.fill_background(&src, &out, 4, &search).unwrap_err().to_string();
     let mut cpu_out = out.clone();
     let cpu = zwarp_warp::holes::fill_background(&src, &mut cpu_out, 4, &search).unwrap_err().to_string();
     assert_eq!(gpu, cpu);

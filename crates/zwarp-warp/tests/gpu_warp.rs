@@ -141,6 +141,7 @@ fn seam_coverage_matches_cpu() {
         let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
         assert_eq!(gpu.state, cpu.state, "sliver {sliver}");
         assert_eq!(gpu.depth, cpu.depth, "sliver {sliver}");
+        assert_eq!(gpu.revealed, cpu.revealed, "sliver {sliver}");
         assert_eq!(*cpu.state.get(10, 1), if sliver { PixelState::Hole } else { PixelState::Converged });
     }
 }
@@ -159,8 +160,11 @@ fn ground_layer_matches_cpu() {
         let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
         assert_eq!(gpu.state, cpu.state, "far {far} ground_layer {ground_layer}");
         assert_eq!(gpu.depth, cpu.depth, "far {far} ground_layer {ground_layer}");
+        assert_eq!(gpu.revealed, cpu.revealed, "far {far} ground_layer {ground_layer}");
         let hidden = ground_layer && far < 0.95;
         assert_eq!(*cpu.state.get(8, 1), if hidden { PixelState::Hole } else { PixelState::Converged });
+        // Where kept, the ground's candidate is one the deeper layer revealed.
+        assert_eq!(cpu.revealed.contains(&(cpu.depth.width() + 8)), !hidden, "far {far} ground_layer {ground_layer}");
     }
 }
 
@@ -449,6 +453,7 @@ fn assert_bits(gpu: &WarpOutput, cpu: &WarpOutput, what: &str) {
             cpu.state.data()[i]
         );
     }
+    assert_eq!(gpu.revealed, cpu.revealed, "{what}: revealed pixels");
 }
 
 /// `WarpParams::multisample` m = 2, 3 (seed 000 Sec. 7): the GPU warp of an m x m-sampled

@@ -210,7 +210,8 @@ impl GpuPrediction {
     }
 
     /// Per pixel, how the depth was obtained ([`PixelState`] as `u32`: 0 converged, 1 filled,
-    /// 2 hole); `STORAGE | COPY_SRC` usage.
+    /// 2 hole, 3 converged on a source layer after the first, i.e. revealed where the front
+    /// layers disocclude); `STORAGE | COPY_SRC` usage.
     pub fn state(&self) -> &wgpu::Buffer {
         &self.out.state
     }
@@ -500,12 +501,8 @@ impl Warper {
             Some(k) => zwarp_warp::gpu::predict(&k.warp, &k.fill, &layers, &self.params)?,
             None => {
                 let mut o = match self.prediction.take() {
-                    Some(p) => WarpOutput { depth: p.depth, state: p.state, source: None },
-                    None => WarpOutput {
-                        depth: Image::new(0, 0, 1.0),
-                        state: Image::new(0, 0, PixelState::Hole),
-                        source: None,
-                    },
+                    Some(p) => WarpOutput { depth: p.depth, state: p.state, source: None, revealed: Vec::new() },
+                    None => WarpOutput::empty(),
                 };
                 self.recycled =
                     zwarp_warp::predict_into(&layers, &self.params, std::mem::take(&mut self.recycled), &mut o)?;

@@ -14,7 +14,7 @@
 use zwarp_core::{motion_field, Image};
 use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
-use zwarp_warp::{predict_into, PixelState, WarpLayer, WarpOutput, WarpParams};
+use zwarp_warp::{predict_into, WarpLayer, WarpOutput, WarpParams};
 
 fn main() {
     let a: Vec<String> = std::env::args().collect();
@@ -85,8 +85,7 @@ fn main() {
             ground_layer: has_ground && l >= 2,
             ..WarpParams::default()
         };
-        let mut o =
-            WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
+        let mut o = WarpOutput::empty();
         predict_into(&prefix(l), &params, Vec::new(), &mut o).unwrap();
         o
     };
@@ -223,6 +222,27 @@ fn main() {
                 })
                 .collect();
             println!("  ({qx},{sy}): {}", row.join(" | "));
+        }
+    }
+    if let Ok(d) = std::env::var("PROBE") {
+        // Where the reference surface of target pixel PROBE=x,y lies in the source view, and what
+        // each source layer holds there.
+        let (x, y) = d.split_once(',').expect("PROBE=x,y");
+        let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
+        let world = cb.unproject(x as f32 + 0.5, y as f32 + 0.5, *reference.get(x, y));
+        let s = ca.project(world);
+        println!("PROBE ({x},{y}) ref {:.3} world {world:?} in source {s:?}", lin(*reference.get(x, y)));
+        if let Some(s) = s {
+            if s.x >= 0.0 && s.y >= 0.0 && (s.x as u32) < w && (s.y as u32) < h {
+                for (j, (dd, _)) in lm.iter().enumerate() {
+                    let z = *dd.get(s.x as u32, s.y as u32);
+                    println!(
+                        "  layer {j}: {:.3} (surface at {:.3})",
+                        if z >= 1.0 { -1.0 } else { ca.linear_depth(z) },
+                        ca.linear_depth(s.z)
+                    );
+                }
+            }
         }
     }
     if std::env::var_os("CMP0").is_some() {

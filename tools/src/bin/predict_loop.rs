@@ -77,7 +77,7 @@ fn main() {
     let params =
         WarpParams { n_seeds: n, bound_iterations: bi, holes: HolePolicy::PAPER, sampling, ..Default::default() };
     let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
-    let mut out = WarpOutput { depth: Image::new(0, 0, 1.0), state: Image::new(0, 0, PixelState::Hole), source: None };
+    let mut out = WarpOutput::empty();
     let mut rec = predict_into(&layers, &params, Vec::new(), &mut out).unwrap();
     let warped = {
         rec = PreparedLayer::prepare_stack_recycling(&layers, far.bound, rec).unwrap();

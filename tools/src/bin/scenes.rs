@@ -129,11 +129,7 @@ fn main() {
                         // `zwarp eval`'s single-layer protocol (`predict_into`: preparation into
                         // recycled buffers, the warp, `holes::fill_background`), whole and by step.
                         let params = WarpParams { n_seeds: n, multisample: ms, ..Default::default() };
-                        let mut o = WarpOutput {
-                            depth: Image::new(0, 0, 1.0),
-                            state: Image::new(0, 0, PixelState::Hole),
-                            source: None,
-                        };
+                        let mut o = WarpOutput::empty();
                         let mut rec = Vec::new();
                         let (_, all, _) = time(reps, || {
                             rec = predict_into(&layers, &params, std::mem::take(&mut rec), &mut o).unwrap();

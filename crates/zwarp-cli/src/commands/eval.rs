@@ -228,7 +228,8 @@ fn baseline(
                 PixelState::Converged
             }
         }));
-        let mut out = zwarp_warp::WarpOutput { depth, state: Image::from_vec(w, h, st)?, source: None };
+        let mut out =
+            zwarp_warp::WarpOutput { depth, state: Image::from_vec(w, h, st)?, source: None, revealed: Vec::new() };
         zwarp_warp::holes::fill_background(layers, &mut out, radius, &WarpParams::default().search())?;
         depth = out.depth;
         *states = out.state;
@@ -566,14 +567,13 @@ pub fn evaluate(
                                                 // The output buffers carry over too (an
                                                 // engine's steady state).
                                                 let mut o = match slot.take() {
-                                                    Some((depth, Some(state))) => {
-                                                        zwarp_warp::WarpOutput { depth, state, source: None }
-                                                    }
-                                                    _ => zwarp_warp::WarpOutput {
-                                                        depth: Image::new(0, 0, 1.0),
-                                                        state: Image::new(0, 0, zwarp_warp::PixelState::Hole),
+                                                    Some((depth, Some(state))) => zwarp_warp::WarpOutput {
+                                                        depth,
+                                                        state,
                                                         source: None,
+                                                        revealed: Vec::new(),
                                                     },
+                                                    _ => zwarp_warp::WarpOutput::empty(),
                                                 };
                                                 device.predict(&layers, &params, &mut recycled, &mut o)?;
                                                 *slot = Some((o.depth, Some(o.state)));

@@ -17,7 +17,7 @@ use zwarp_gpu::GpuContext;
 
 use super::{GpuWarpLayer, GpuWarpOutput};
 use crate::holes::BackgroundLimits;
-use crate::{HolePolicy, PixelState, SearchParams, WarpLayer};
+use crate::{HolePolicy, PixelState, SearchParams, WarpLayer, WarpOutput};
 
 /// Mirror of `Params` in holes.wgsl.
 #[repr(C)]
@@ -50,6 +50,7 @@ pub struct HoleFillKernel {
     fill: wgpu::ComputePipeline,
     fill_measured: wgpu::ComputePipeline,
     sky: wgpu::ComputePipeline,
+    lone: wgpu::ComputePipeline,
     surfaces: wgpu::ComputePipeline,
     limits: wgpu::ComputePipeline,
 }
@@ -68,6 +69,7 @@ impl HoleFillKernel {
             fill: pipelines.pipeline("fill")?,
             fill_measured: pipelines.pipeline("fill_measured")?,
             sky: pipelines.pipeline("sky")?,
+            lone: pipelines.pipeline("lone")?,
             surfaces: pipelines.pipeline("surfaces")?,
             limits: pipelines.pipeline("limits")?,
         })
@@ -184,7 +186,8 @@ impl HoleFillKernel {
     /// [`Motion`](zwarp_core::Motion) buffers, `axis` unused) with
     /// `crate::WarpParams::multisample` = `multisample` (the layers hold `multisample` times
     /// `warped`'s size on both axes), into new buffers: the measurements of the layers
-    /// ([`Self::encode_limits`]), the sky pass (in place on a copy, searching target pixel
+    /// ([`Self::encode_limits`]), the lone revealed pixels made holes (from `warped` into a
+    /// copy, the warp's state code 3 marking [`crate::WarpOutput::revealed`]), the sky pass (in place on a copy, searching target pixel
     /// `(x, y)` at the source position `multisample * (x + 0.5, y + 0.5)` as the CPU does), the
     /// bracketed fill within the measured bracket, the border pass within the measured reach.
     /// Nothing is read back. Errors as [`Self::encode_limits`].
@@ -202,10 +205,7 @@ impl HoleFillKernel {
         let (w, h) = (warped.width, warped.height);
         let limits = self.encode_limits(encoder, layers, w, h, multisample, radius)?;
         let (sw, sh) = limits.source_size;
-        let n = w as u64 * h as u64;
         let (depth, state) = self.output_buffers(w, h)?;
-        encoder.copy_buffer_to_buffer(&warped.depth, 0, &depth, 0, n * 4);
-        encoder.copy_buffer_to_buffer(&warped.state, 0, &state, 0, n * 4);
         let params = Params {
             width: w,
             height: h,
@@ -218,6 +218,14 @@ impl HoleFillKernel {
             ..Params::default()
         };
         let groups = (w.div_ceil(8), h.div_ceil(8));
+        // 0. Lone revealed pixels become holes (into the copy the sky pass then works on in place).
+        self.dispatch(
+            encoder,
+            &self.lone,
+            Params { width: w, height: h, ..Params::default() },
+            &[(1, &warped.depth), (2, &warped.state), (3, &depth), (4, &state)],
+            groups,
+        );
         let (empty, motion) = (&limits.empty, layers[0].motion);
         self.dispatch(encoder, &self.sky, params, &[(3, &depth), (4, &state), (5, empty), (6, motion)], groups);
         let mut current = (depth, state);
@@ -305,20 +313,20 @@ impl HoleFillKernel {
         Ok(GpuBackgroundLimits { empty, limits, source_size: (sw, sh) })
     }
 
-    /// [`crate::holes::fill_background`] on the GPU for CPU buffers: `depth` / `state` of
-    /// a far-hole warp of `layers`, filled and read back: the layers are uploaded and filled by
-    /// [`Self::encode_background_multisampled`]. Like the CPU, source layers that are `m` times
+    /// [`crate::holes::fill_background`] on the GPU for CPU buffers: `warped`, a far-hole warp
+    /// of `layers` (its depth, state and [`crate::WarpOutput::revealed`]), filled and read back:
+    /// the layers are uploaded and filled by [`Self::encode_background_multisampled`]. Like the CPU, source layers that are `m` times
     /// `depth`'s size on both axes are a multisampled source (`crate::WarpParams::multisample`
     /// = m, inferred from the size ratio). Same errors as the CPU function (its checks run
     /// first), plus size mismatches between `depth` and `state`.
     pub fn fill_background(
         &self,
         layers: &[WarpLayer<'_>],
-        depth: &Image<f32>,
-        state: &Image<PixelState>,
+        warped: &WarpOutput,
         radius: u32,
         search: &SearchParams,
-    ) -> Result<(Image<f32>, Image<PixelState>)> {
+    ) -> Result<WarpOutput> {
+        let (depth, state) = (&warped.depth, &warped.state);
         depth.check_nonempty("warped depth")?;
         depth.check_same_size(state, "warped depth vs state")?;
         let (w, h) = depth.size();
@@ -329,16 +337,19 @@ impl HoleFillKernel {
         let buffers = super::warp::upload_layers(&self.ctx, layers)?;
         let views: Vec<GpuWarpLayer<'_>> =
             buffers.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
-        let input = self.upload(depth, state);
+        if warped.revealed.iter().any(|&i| state.data().get(i as usize) != Some(&PixelState::Converged)) {
+            return Err(Error::invalid("fill_background: a revealed pixel is not a converged one"));
+        }
+        let input = self.upload(depth, state, &warped.revealed);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let out = self.encode_background_multisampled(&mut enc, &input, &views, m, radius, search)?;
         self.ctx.queue.submit([enc.finish()]);
-        let r = out.read(&self.ctx)?;
-        Ok((r.depth, r.state))
+        out.read(&self.ctx)
     }
 
-    /// Uploads CPU depth + state buffers as a [`GpuWarpOutput`].
-    fn upload(&self, depth: &Image<f32>, state: &Image<PixelState>) -> GpuWarpOutput {
+    /// Uploads CPU depth + state buffers as a [`GpuWarpOutput`], the `revealed` pixels
+    /// (converged) with the warp's state code 3.
+    fn upload(&self, depth: &Image<f32>, state: &Image<PixelState>, revealed: &[u32]) -> GpuWarpOutput {
         let init = |label, contents: &[u8]| {
             self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -346,7 +357,10 @@ impl HoleFillKernel {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             })
         };
-        let states: Vec<u32> = state.data().iter().map(|s| *s as u32).collect();
+        let mut states: Vec<u32> = state.data().iter().map(|s| *s as u32).collect();
+        for &i in revealed {
+            states[i as usize] = 3;
+        }
         GpuWarpOutput {
             depth: init("zwarp holes depth in", bytemuck::cast_slice(depth.data())),
             state: init("zwarp holes state in", bytemuck::cast_slice(&states)),
@@ -370,7 +384,7 @@ impl HoleFillKernel {
             return Err(Error::invalid("warped depth holds NaN"));
         }
         Self::rule(policy)?;
-        let input = self.upload(depth, state);
+        let input = self.upload(depth, state, &[]);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let out = self.encode(&mut enc, &input, policy)?;
         self.ctx.queue.submit([enc.finish()]);

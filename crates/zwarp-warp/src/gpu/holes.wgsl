@@ -4,7 +4,8 @@
 // zwarp_warp::holes::fill_background: the measurements of the source layers (`surfaces`,
 // `limits`: the empty-background mask and BackgroundLimits), holes that see the source's empty
 // background (`sky`), bracketed holes and strips open to the image border (`fill_measured` with
-// rule 1 and 2, radius and reach from `limits`). Only converged pixels are read by the fills,
+// rule 1 and 2, radius and reach from `limits`), after the lone revealed pixels became holes
+// (`lone`). Only converged pixels are read by the fills,
 // so one pass over a copy gives the CPU's order-independent result; `sky` reads only its own
 // pixel and runs in place. Host code: holes.rs.
 
@@ -53,6 +54,12 @@ struct Params {
 const CONVERGED: u32 = 0u;
 const FILLED: u32 = 1u;
 const HOLE: u32 = 2u;
+// Converged on a layer after the first (zwarp_warp::WarpOutput::revealed), as the warp writes it.
+const REVEALED: u32 = 3u;
+
+fn is_converged(s: u32) -> bool {
+    return s == CONVERGED || s == REVEALED;
+}
 
 // Horizontal, vertical, both diagonals (zwarp_warp::FILL_DIRECTIONS), each probed both ways.
 const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
@@ -69,7 +76,7 @@ fn probe(x: i32, y: i32, dx: i32, dy: i32, radius: u32) -> vec2<f32> {
             return vec2<f32>(0.0, 0.0);
         }
         let i = u32(yy * w + xx);
-        if (in_state[i] == CONVERGED) {
+        if (is_converged(in_state[i])) {
             return vec2<f32>(f32(k), in_depth[i]);
         }
     }
@@ -147,7 +154,7 @@ fn border_fill(x: i32, y: i32, reach_px: u32) -> vec2<f32> {
         }
         var open = true;
         for (var k = 1; k <= to_border; k++) {
-            if (in_state[u32((y + dy * k) * w + x + dx * k)] == CONVERGED) {
+            if (is_converged(in_state[u32((y + dy * k) * w + x + dx * k)])) {
                 open = false;
                 break;
             }
@@ -162,7 +169,7 @@ fn border_fill(x: i32, y: i32, reach_px: u32) -> vec2<f32> {
                 break;
             }
             let n = u32(yy * w + xx);
-            if (in_state[n] == CONVERGED) {
+            if (is_converged(in_state[n])) {
                 let z = in_depth[n];
                 if (best_k == 0 || k < best_k || (k == best_k && z > best_z)) {
                     best_k = k;
@@ -215,6 +222,50 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(8, 8, 1)
 fn fill_measured(@builtin(global_invocation_id) gid: vec3<u32>) {
     fill_at(gid, measured[4], measured[5]);
+}
+
+// Step 0 of fill_background (zwarp_warp::holes::lone_revealed), from a copy: a revealed pixel
+// with a hole among its 8-neighbours, at least one converged neighbour and every converged one
+// nearer by more than FAR_SIDE_SPREAD becomes a hole; every other pixel is copied.
+@compute @workgroup_size(8, 8, 1)
+fn lone(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let w = params.width;
+    let h = params.height;
+    if (gid.x >= w || gid.y >= h) {
+        return;
+    }
+    let i = gid.y * w + gid.x;
+    var d = in_depth[i];
+    var s = in_state[i];
+    if (s == REVEALED) {
+        var hole = false;
+        var nearer = false;
+        var on_surface = false;
+        for (var ny = select(gid.y - 1u, 0u, gid.y == 0u); ny <= min(gid.y + 1u, h - 1u); ny++) {
+            for (var nx = select(gid.x - 1u, 0u, gid.x == 0u); nx <= min(gid.x + 1u, w - 1u); nx++) {
+                let j = ny * w + nx;
+                let t = in_state[j];
+                if (j == i) {
+                    continue;
+                }
+                if (t == HOLE) {
+                    hole = true;
+                } else if (is_converged(t)) {
+                    if (d - in_depth[j] <= FAR_SIDE_SPREAD * (1.0 - d)) {
+                        on_surface = true;
+                    } else {
+                        nearer = true;
+                    }
+                }
+            }
+        }
+        if (hole && nearer && !on_surface) {
+            d = 1.0;
+            s = HOLE;
+        }
+    }
+    out_depth[i] = d;
+    out_state[i] = s;
 }
 
 // Motion of source sample i (the Motion layout: 3 floats per sample).

@@ -114,7 +114,8 @@ pub struct GpuWarpOutput {
     /// Warped depth, `width * height` `f32` (1 = hole under `FarDepth`); `STORAGE | COPY_SRC`.
     /// The size is the target's: the source size divided by `WarpParams::multisample`.
     pub depth: wgpu::Buffer,
-    /// Per-pixel [`PixelState`] as `u32` (0 converged, 1 filled, 2 hole); `STORAGE | COPY_SRC`.
+    /// Per-pixel [`PixelState`] as `u32` (0 converged, 1 filled, 2 hole, 3 converged on a layer
+    /// after the first, listed in [`WarpOutput::revealed`] when read back); `STORAGE | COPY_SRC`.
     pub state: wgpu::Buffer,
     /// Target image width.
     pub width: u32,
@@ -127,10 +128,12 @@ impl GpuWarpOutput {
     pub fn read(&self, ctx: &GpuContext) -> Result<WarpOutput> {
         let n = self.width as usize * self.height as usize;
         let depth = read_buffer::<f32>(ctx, &self.depth, n)?;
-        let state = read_buffer::<u32>(ctx, &self.state, n)?
+        let raw = read_buffer::<u32>(ctx, &self.state, n)?;
+        let revealed = (0..n as u32).filter(|&i| raw[i as usize] == 3).collect();
+        let state = raw
             .into_iter()
             .map(|s| match s {
-                0 => PixelState::Converged,
+                0 | 3 => PixelState::Converged,
                 1 => PixelState::Filled,
                 _ => PixelState::Hole,
             })
@@ -139,6 +142,7 @@ impl GpuWarpOutput {
             depth: Image::from_vec(self.width, self.height, depth)?,
             state: Image::from_vec(self.width, self.height, state)?,
             source: None,
+            revealed,
         })
     }
 }

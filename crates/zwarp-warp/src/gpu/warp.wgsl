@@ -10,8 +10,8 @@
 // - mip / zmin: per layer `level_total` texels, levels 1..=top packed at params.levels[l-1].x;
 //   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin texel = (min target depth,
 //   component-wise largest bounds::cell_gradient of the cells whose top-left texel it covers, 0).
-// - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole),
-//   one per target pixel.
+// - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole,
+//   3 converged on a layer after the first: WarpOutput::revealed), one per target pixel.
 
 struct Params {
     // Source layer size (the space of q, the motion and the mipmaps).
@@ -951,7 +951,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     let i = y * tw + x;
     if (best.ok) {
         out_depth[i] = best.depth;
-        out_state[i] = 0u;
+        // WarpOutput::revealed: converged on a deeper layer.
+        out_state[i] = select(0u, 3u, best.tag > 0u);
         return;
     }
     out_depth[i] = 1.0;
@@ -1043,7 +1044,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                     break;
                 }
                 let j = u32(yy) * w + u32(xx);
-                if (out_state[j] == 0u) {
+                if (out_state[j] == 0u || out_state[j] == 3u) {
                     let d = f32(kk) * step;
                     let z = out_depth[j];
                     if (!(best_ok && (best_d < d || (best_d == d && best_z >= z)))) {
