@@ -7,7 +7,7 @@
 //!
 //! `layer_diag SCENE PATH.json W H N a b which` (`ROW=y` also prints columns 178..216 of row y,
 //! `COLS=a..b` others;
-//! `SPEED=s` takes the frames at `zwarp eval --speed s`, `NOSIMD=1` runs the portable kernels,
+//! `SPEED=s` takes the frames at `zwarp eval --speed s`, `FRAMES=f` as `zwarp eval --frames f`, `NOSIMD=1` runs the portable kernels,
 //! `SQERR=cap` sums the change of the squared depth error per (state, layer) transition over all
 //! pixels, errors capped at `cap` metres, `LISTC0F=1` with it lists the pixels layer 0 solved in
 //! run a that run b filled).
@@ -41,7 +41,9 @@ fn main() {
     let speed: f32 = std::env::var("SPEED").map_or(1.0, |s| s.parse().unwrap());
     let total = path.frame_count_at(speed);
     let last = total - 2;
-    let k = which * last / 3;
+    // `zwarp eval --frames F` (FRAMES=F, default 4) spreads the pairs evenly over the path.
+    let frames: usize = std::env::var("FRAMES").map_or(4, |f| f.parse().unwrap());
+    let k = which * last / (frames - 1).max(1);
     let (ta, tb) = (path.time_of_frame(k, speed), path.time_of_frame(k + 1, speed));
     let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
     let deltas = scene.object_deltas(ta, tb);
