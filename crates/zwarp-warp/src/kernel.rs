@@ -334,7 +334,15 @@ impl<'a> Kernel<'a> {
         }
         // A deeper layer's candidate behind a front surface that covers p is hidden
         // (WarpParams::cover_radius): the pixel goes to the hole policy.
-        if best.is_some_and(|c| crate::hidden_behind(c.depth, cover) || self.covered_at_source(&c, p)) {
+        if best.is_some_and(|c| crate::hidden_behind(c.depth, cover)) {
+            best = None;
+        }
+        if let Some(c) = best {
+            if let Some(f) = self.retry_front(x, y, p, &c, farthest, |k| self.start(b, k), seeds) {
+                best = Some(f);
+            }
+        }
+        if best.is_some_and(|c| self.covered_at_source(&c, p)) {
             best = None;
         }
         // A ground layer's candidate behind the far side of the front layers' failed walks.
@@ -361,6 +369,45 @@ impl<'a> Kernel<'a> {
             }
         }
         (EMPTY_DEPTH, PixelState::Hole, SourcePos { q: Vec2::ZERO, layer: u32::MAX })
+    }
+
+    /// A deeper candidate `c` that lies [`crate::hidden_behind`] `farthest` (the far side of the
+    /// failed walks of the layers in front of it) is the surface behind a disocclusion only if
+    /// the front layers really have nothing at `p`: they search again, from their tightened
+    /// bound under their tile stage (`stage(k)`, [`Self::start`]) with [`crate::RETRY_SEED_FACTOR`]
+    /// times N seeds (at most [`MAX_SEEDS`]), and the nearest front candidate found replaces
+    /// `c`. Rare (disocclusion pixels behind a far side); `None` when nothing was searched or
+    /// found.
+    #[allow(clippy::too_many_arguments)]
+    pub fn retry_front(
+        &self,
+        x: u32,
+        y: u32,
+        p: Vec2,
+        c: &Candidate,
+        farthest: f32,
+        mut stage: impl FnMut(usize) -> Option<StageBound>,
+        seeds: &mut [Vec2; MAX_SEEDS as usize],
+    ) -> Option<Candidate> {
+        if c.tag == 0 || !(farthest > f32::NEG_INFINITY && crate::hidden_behind(c.depth, farthest)) {
+            return None;
+        }
+        let n = (self.params.n_seeds * crate::RETRY_SEED_FACTOR).min(MAX_SEEDS);
+        let (expand, scale) = (self.params.sampling.footprint(), self.params.motion_scale);
+        let mut found: Option<Candidate> = None;
+        for k in 0..(c.tag as usize).min(self.layers.len()) {
+            let Some(s) = stage(k) else { continue };
+            let pyr = self.layers[k].pyramid();
+            let Some(tb) = pyr.tight_bound_box_scaled(p, p, s.motion, self.bound_iterations(), expand, scale) else {
+                continue;
+            };
+            if let (Some(f), _) = self.search_layer(k, x, y, p, &tb, None, n, seeds) {
+                if found.is_none_or(|g| f.depth < g.depth) {
+                    found = Some(f);
+                }
+            }
+        }
+        found
     }
 
     /// `true` if `c` comes from the ground layer of [`crate::WarpParams::ground_layer`] and lies
@@ -1023,12 +1070,22 @@ impl<'a> Kernel<'a> {
             _mm256_storeu_ps(pxs.as_mut_ptr(), px);
             _mm256_storeu_ps(pys.as_mut_ptr(), py);
             let mut hidden = 0u8;
+            let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
             for i in (0..8).filter(|i| deep >> i & 1 != 0) {
-                let c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
+                let mut c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
                 let p = Vec2::new(pxs[i], pys[i]);
+                let (lx, ly) = (x0 + i as u32 % 4, y + i as u32 / 4);
+                if let Some(f) = self.retry_front(lx, ly, p, &c, far[i], |k| stages[k][t], &mut seeds) {
+                    c = f;
+                    (qx[i], qy[i], z[i], tags[i]) = (f.q.x, f.q.y, f.depth, f.tag as i32);
+                }
                 hidden |= ((self.covered_at_source(&c, p) || self.behind_ground_disocclusion(&c, far[i])) as u8) << i;
             }
             has = _mm256_andnot_ps(sw::lane_mask(hidden), has);
+            bqx = _mm256_loadu_ps(qx.as_ptr());
+            bqy = _mm256_loadu_ps(qy.as_ptr());
+            bz = _mm256_loadu_ps(z.as_ptr());
+            btag = _mm256_loadu_si256(tags.as_ptr() as *const __m256i);
         }
         self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
     }

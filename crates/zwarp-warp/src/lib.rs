@@ -108,6 +108,12 @@ pub struct SourcePos {
 /// a deeper layer's candidate must be to count as hidden behind it.
 pub const COVER_DEPTH_RATIO: f32 = 1.1;
 
+/// How many times N seeds a front layer gets when it searches again behind a deeper layer's
+/// candidate that lies [`hidden_behind`] the far side of its failed walks: a disocclusion is
+/// only accepted from a deeper layer once the front layers failed with this many seeds too
+/// (seed 000 Sec. 3.4: a deeper layer fills what the front layers disocclude).
+pub const RETRY_SEED_FACTOR: u32 = 4;
+
 /// `true` if a candidate at target depth `z` lies behind a covering surface at depth `cover`
 /// by more than [`COVER_DEPTH_RATIO`] in linear depth: for a perspective depth buffer `1 - z`
 /// is inversely proportional to linear depth where the far plane is far beyond the point, so

@@ -778,9 +778,11 @@ fn deeper_layers_do_not_show_through_a_near_wall() {
 }
 
 /// [`synth::seam_layers`]: a far layer converging through the seam between three layers'
-/// views of a wall. The coverage test follows the wall one fixed-point step from the far
-/// candidate's source position to layer 1's sliver and hides the candidate: the pixel goes to
-/// the hole policy, as with the three front layers alone.
+/// views of a wall. The far candidate lies behind the far side of the front layers' failed
+/// walks, so they search again with `RETRY_SEED_FACTOR` times N seeds; where that finds the
+/// wall's sliver in layer 1 the wall wins, elsewhere the coverage test follows the wall one
+/// fixed-point step from the far candidate's source position to the sliver and hides the
+/// candidate (the hole policy, as with the three front layers alone).
 #[test]
 fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hidden() {
     let warp = |ls: &[(Image<f32>, Image<Motion>)]| {
@@ -796,7 +798,12 @@ fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hi
     let open = warp(&synth::seam_layers(false));
     for y in 0..4 {
         assert_eq!(*three.state.get(10, y), PixelState::Hole, "three layers, row {y}");
-        assert_eq!(*four.state.get(10, y), PixelState::Hole, "four layers, row {y}");
+        // The far layer never shows: the wall or the hole policy.
+        let (st, z) = (*four.state.get(10, y), *four.depth.get(10, y));
+        assert!(
+            st == PixelState::Hole || (st == PixelState::Converged && z == 0.8),
+            "four layers, row {y}: {st:?} {z}"
+        );
         assert_eq!(*open.state.get(10, y), PixelState::Converged, "no sliver, row {y}");
         assert_eq!(*open.depth.get(10, y), 0.95f32 + 0.02);
         // The wall on both sides of the seam.
@@ -805,6 +812,8 @@ fn a_deeper_layer_seen_through_the_seam_between_two_layers_views_of_a_wall_is_hi
             assert_eq!(*four.depth.get(x, y), 0.8, "({x},{y})");
         }
     }
+    // The second search found the wall on some rows.
+    assert!((0..4).any(|y| *four.state.get(10, y) == PixelState::Converged));
 }
 
 /// [`synth::ground_gap_layers`]: the ground layer (peeled without the objects) converges in the

@@ -60,6 +60,9 @@ const FLAG_AWOC: u32 = 128u;
 // WarpParams::ground_layer: the last layer is the ground peeled alone.
 const FLAG_GROUND: u32 = 256u;
 const EMPTY_Z: f32 = 2.0;
+// zwarp_warp::RETRY_SEED_FACTOR and zwarp_warp::MAX_SEEDS.
+const RETRY_SEED_FACTOR: u32 = 4u;
+const MAX_SEEDS: u32 = 64u;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
 // search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
@@ -897,6 +900,34 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     // zwarp_warp::hidden_behind: a deeper layer's candidate behind a covering front surface.
     if (best.ok && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - cover) {
         best.ok = false;
+    }
+    // depth_warp::Kernel::retry_front: a deeper candidate behind the far side of the front
+    // layers' failed walks; the front layers search again with RETRY_SEED_FACTOR times N seeds
+    // from their tightened bound, and the nearest front candidate found replaces it.
+    if (best.ok && best.tag > 0u && farthest > params.inf.y
+        && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - farthest) {
+        let n_retry = min(params.n_seeds * RETRY_SEED_FACTOR, MAX_SEEDS);
+        var front = Cand(false, vec2<f32>(0.0), 0.0, 0u);
+        for (var k = 0u; k < min(best.tag, params.layers); k++) {
+            if (tile_ok[k * 4u + tile_index] == 0u) {
+                continue;
+            }
+            let tb = tight_bound_box(k, p, p, tile_motion[k * 4u + tile_index], iters, expand);
+            if (!tb.ok) {
+                continue;
+            }
+            var ns = 1u;
+            if ((params.flags & (FLAG_SEED_PIXEL | FLAG_SEED_OFFSET)) == 0u) {
+                ns = effective_seeds(n_retry, tb.region.zw - tb.region.xy);
+            }
+            let sr = search_seeds(k, x, y, p, tb.region, ns, ns, false, prev_q, max_q, thr2);
+            if (sr.found.ok && (!front.ok || sr.found.depth < front.depth)) {
+                front = sr.found;
+            }
+        }
+        if (front.ok) {
+            best = front;
+        }
     }
     // depth_warp::Kernel::covered_at_source: a front layer's surface at the candidate's own
     // source position lands within the coverage radius of p, or does one fixed-point step from
