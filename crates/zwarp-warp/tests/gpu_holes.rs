@@ -131,6 +131,24 @@ fn background_scene(w: u32, h: u32, seed: u64, pan: Vec2) -> (Vec<Image<f32>>, V
     (vec![d0, d1], vec![m0, m1])
 }
 
+/// `zwarp_warp::holes::fill_background` of `warped` (radius 64) on the GPU equals the CPU's:
+/// depth, state and the revealed pixels left over. Returns the CPU's result.
+fn fill_background_agrees(
+    k: &HoleFillKernel,
+    src: &[WarpLayer<'_>],
+    warped: &zwarp_warp::WarpOutput,
+    search: &zwarp_warp::SearchParams,
+    what: &str,
+) -> zwarp_warp::WarpOutput {
+    let gpu = k.fill_background(src, warped, 64, search).unwrap();
+    let mut cpu = warped.clone();
+    zwarp_warp::holes::fill_background(src, &mut cpu, 64, search).unwrap();
+    assert_eq!(gpu.state, cpu.state, "{what}");
+    assert_eq!(gpu.depth, cpu.depth, "{what}");
+    assert_eq!(gpu.revealed, cpu.revealed, "{what}");
+    cpu
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(8))]
 
@@ -148,12 +166,7 @@ proptest! {
         let src: Vec<WarpLayer> = ds.iter().zip(&ms).take(layers).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
         let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
         let search = zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate };
-        let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
-        let mut cpu = warped.clone();
-        zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
-        prop_assert_eq!(&gpu.state, &cpu.state, "{}x{} seed {}", w, h, seed);
-        prop_assert_eq!(&gpu.depth, &cpu.depth, "{}x{} seed {}", w, h, seed);
-        prop_assert_eq!(&gpu.revealed, &cpu.revealed, "{}x{} seed {}", w, h, seed);
+        fill_background_agrees(&k, &src, &warped, &search, &format!("{w}x{h} seed {seed}"));
     }
 }
 
@@ -183,12 +196,7 @@ proptest! {
         let m = Image::from_fn(w, h, |x, _| Motion { v: Vec2::new(0.25 * (x % 5) as f32, 0.0), depth: 0.5 });
         let src = [WarpLayer { depth: &d, motion: &m }];
         let search = zwarp_warp::SearchParams { iterations: 3, threshold: 0.5, choice: Default::default(), accelerate: true };
-        let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
-        let mut cpu = warped.clone();
-        zwarp_warp::holes::fill_background(&src, &mut cpu, 64, &search).unwrap();
-        prop_assert_eq!(&gpu.state, &cpu.state, "{}x{} seed {}", w, h, seed);
-        prop_assert_eq!(&gpu.depth, &cpu.depth, "{}x{} seed {}", w, h, seed);
-        prop_assert_eq!(&gpu.revealed, &cpu.revealed, "{}x{} seed {}", w, h, seed);
+        let cpu = fill_background_agrees(&k, &src, &warped, &search, &format!("{w}x{h} seed {seed}"));
         prop_assert_eq!(cpu.revealed.len() + lone.len(), warped.revealed.len());
     }
 }
