@@ -227,17 +227,28 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
         layers.push(Layer { depth, items });
     }
     if opts.ground_separate {
-        let mut depth = Image::filled(w, h, 1.0f32);
-        let mut items = Image::filled(w, h, NO_ITEM);
-        if !ground.is_empty() {
-            let gb = bin_scene(scene, cam, t, &SetupParams { objects: Some(&ground), color: false })?;
-            run_pass(
-                &gb,
-                Mode::Depth,
-                Targets { depth: &mut depth, items: Some(&mut items), handles: None, threshold: None, load: false },
-            );
-        }
-        layers.push(Layer { depth, items });
+        layers.push(render_objects(scene, cam, t, &ground)?);
     }
     Ok(layers)
+}
+
+/// The ground instances (`Instance::is_ground`) of `scene` alone, as the separate last layer
+/// of seed 000 Sec. 3.4 / 4 ("the last layer was peeled without foreground objects"), for
+/// callers that peel the whole scene (ground included) into the layers before it; empty
+/// (depth 1, [`NO_ITEM`]) where no ground is seen, and everywhere without ground instances.
+pub fn render_ground_layer(scene: &Scene, cam: &Camera, t: f32) -> Result<Layer> {
+    scene.check_nonempty()?;
+    let ground: Vec<u32> =
+        (0..scene.instances.len() as u32).filter(|&i| scene.instances[i as usize].is_ground).collect();
+    render_objects(scene, cam, t, &ground)
+}
+
+/// Depth and item ids of the listed instances alone (nothing listed: an empty layer).
+fn render_objects(scene: &Scene, cam: &Camera, t: f32, objects: &[u32]) -> Result<Layer> {
+    if objects.is_empty() {
+        let (w, h) = (cam.width, cam.height);
+        return Ok(Layer { depth: Image::filled(w, h, 1.0f32), items: Image::filled(w, h, NO_ITEM) });
+    }
+    let f = crate::render_frame(scene, cam, t, &crate::FrameOptions { color: false, objects: Some(objects) })?;
+    Ok(Layer { depth: f.depth, items: f.items })
 }

@@ -400,6 +400,10 @@ fn peeling_ground_layer_is_separate() {
     // The ground layer equals rendering the ground alone.
     let alone = render_frame(&s, &cam, 0.0, &FrameOptions { color: false, objects: Some(&[1]) }).unwrap();
     assert_eq!(g.depth, alone.depth);
+    // ... and render_ground_layer, for callers that peel the whole scene before it.
+    assert_eq!(&crate::render_ground_layer(&s, &cam, 0.0).unwrap(), g);
+    let no_ground = scene_of(vec![(cube(Vec3::splat(-1.0), Vec3::splat(1.0)), Animation::Static, false)]);
+    assert!(crate::render_ground_layer(&no_ground, &cam, 0.0).unwrap().depth.data().iter().all(|&d| d == 1.0));
     // Box back faces are layer 1 where the box covers the centre.
     assert_eq!(*layers[1].items.get(20, 15), 0);
 }

@@ -54,10 +54,14 @@ fn main() {
     let maxl = la.max(lb);
     let peel = PeelOptions {
         layers: if has_ground { maxl.max(2) - 1 } else { maxl },
-        ground_separate: has_ground,
+        ground_separate: false,
         umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
     };
-    let layers = render_layers(scene, &ca, ta, &peel).unwrap();
+    // zwarp eval's protocol: the ground alone as the last layer.
+    let mut layers = render_layers(scene, &ca, ta, &peel).unwrap();
+    if has_ground {
+        layers.push(zwarp_raster::render_ground_layer(scene, &ca, ta).unwrap());
+    }
     let lm: Vec<(Image<f32>, Image<zwarp_core::Motion>)> = layers
         .iter()
         .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb, &deltas).unwrap()))

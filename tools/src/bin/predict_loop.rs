@@ -56,11 +56,15 @@ fn main() {
         let e = (cb.eye() - ca.eye()).length() * 1.5;
         let peel = PeelOptions {
             layers: if has_ground { l - 1 } else { l },
-            ground_separate: has_ground,
+            ground_separate: false,
             umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
         };
-        render_layers(&scene, &ca, ta, &peel)
-            .unwrap()
+        // zwarp eval's protocol: the ground alone as the last layer.
+        let mut peeled = render_layers(&scene, &ca, ta, &peel).unwrap();
+        if has_ground {
+            peeled.push(zwarp_raster::render_ground_layer(&scene, &ca, ta).unwrap());
+        }
+        peeled
             .into_iter()
             .map(|p| {
                 let m = motion_field(&p.depth, Some(&p.items), &ca, &cb, &deltas).unwrap();

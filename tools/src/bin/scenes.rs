@@ -97,10 +97,14 @@ fn main() {
             let e = (cb.eye() - ca.eye()).length() * 1.5;
             let peel = PeelOptions {
                 layers: if has_ground { max_l.saturating_sub(1).max(1) } else { max_l },
-                ground_separate: has_ground,
+                ground_separate: false,
                 umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
             };
-            let peeled = if max_l > 1 { render_layers(&scene, &ca, ta, &peel).unwrap() } else { Vec::new() };
+            // zwarp eval's protocol: the ground alone as the last layer.
+            let mut peeled = if max_l > 1 { render_layers(&scene, &ca, ta, &peel).unwrap() } else { Vec::new() };
+            if has_ground && max_l > 1 {
+                peeled.push(zwarp_raster::render_ground_layer(&scene, &ca, ta).unwrap());
+            }
             let single =
                 (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb_src, &deltas).unwrap());
             let mut bufs: Vec<(Image<f32>, Image<Motion>)> = peeled
