@@ -48,7 +48,9 @@ mod simd;
 use glam::Vec3;
 use zwarp_core::{Camera, Error, Image, Motion, Result, Scene, NO_ITEM};
 
-pub use peel::{render_ground_layer, render_layers, Layer, PeelOptions, UmbraPeeling, ViewRegion};
+pub use peel::{
+    render_ground_layer, render_layers, render_source_layers, Layer, PeelOptions, UmbraPeeling, ViewRegion,
+};
 pub use shade::shading;
 
 use kernel::{run_pass, Mode, Targets};

@@ -232,6 +232,27 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
     Ok(layers)
 }
 
+/// The `layers` source layers of seed 000 Sec. 4's measurements ("when a terrain or ground is
+/// available, the last layer was peeled without foreground objects"): without ground
+/// instances, or for one layer, `layers` layers peeled from the scene; with them, `layers - 1`
+/// layers peeled from the whole scene (ground included, so layer 0 is the ordinary frame) and
+/// the ground alone as the last ([`render_ground_layer`]). Errors as [`render_layers`].
+pub fn render_source_layers(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    layers: usize,
+    umbra: Option<UmbraPeeling>,
+) -> Result<Vec<Layer>> {
+    let ground = layers >= 2 && scene.instances.iter().any(|i| i.is_ground);
+    let peel = PeelOptions { layers: layers - ground as usize, ground_separate: false, umbra };
+    let mut out = render_layers(scene, cam, t, &peel)?;
+    if ground {
+        out.push(render_ground_layer(scene, cam, t)?);
+    }
+    Ok(out)
+}
+
 /// The ground instances (`Instance::is_ground`) of `scene` alone, as the separate last layer
 /// of seed 000 Sec. 3.4 / 4 ("the last layer was peeled without foreground objects"), for
 /// callers that peel the whole scene (ground included) into the layers before it; empty

@@ -404,6 +404,14 @@ fn peeling_ground_layer_is_separate() {
     assert_eq!(&crate::render_ground_layer(&s, &cam, 0.0).unwrap(), g);
     let no_ground = scene_of(vec![(cube(Vec3::splat(-1.0), Vec3::splat(1.0)), Animation::Static, false)]);
     assert!(crate::render_ground_layer(&no_ground, &cam, 0.0).unwrap().depth.data().iter().all(|&d| d == 1.0));
+    // render_source_layers: the whole scene peeled, then the ground alone; one layer: the frame.
+    let src = crate::render_source_layers(&s, &cam, 0.0, 3, None).unwrap();
+    let whole = render_layers(&s, &cam, 0.0, &PeelOptions { layers: 2, ground_separate: false, umbra: None }).unwrap();
+    assert_eq!((&src[..2], &src[2]), (&whole[..], g));
+    assert_eq!(
+        crate::render_source_layers(&s, &cam, 0.0, 1, None).unwrap()[0].depth,
+        render_frame(&s, &cam, 0.0, &FrameOptions { color: false, objects: None }).unwrap().depth
+    );
     // Box back faces are layer 1 where the box covers the centre.
     assert_eq!(*layers[1].items.get(20, 15), 0);
 }

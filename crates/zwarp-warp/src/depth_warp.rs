@@ -134,25 +134,24 @@ pub fn warp_prepared_into(layers: &[PreparedLayer], params: &WarpParams, out: &m
     // Bands of tile rows: the pixels of a tile share its bound stage. Each band lists the
     // pixels its deeper layers revealed (few: disocclusions).
     let band = (w * TILE) as usize;
-    let revealed: Vec<Vec<u32>> = if params.record_source {
-        depth
-            .par_chunks_mut(band)
-            .zip(state.par_chunks_mut(band))
-            .zip(source.par_chunks_mut(band))
-            .enumerate()
-            .map(|(ty, ((d, s), src))| kernel.band(ty as u32, d, s, Some(src)))
-            .collect()
-    } else {
-        depth
-            .par_chunks_mut(band)
-            .zip(state.par_chunks_mut(band))
-            .enumerate()
-            .map(|(ty, (d, s))| kernel.band(ty as u32, d, s, None))
-            .collect()
-    };
     out.revealed.clear();
-    for r in revealed {
-        out.revealed.extend_from_slice(&r);
+    if params.record_source {
+        out.revealed.par_extend(
+            depth
+                .par_chunks_mut(band)
+                .zip(state.par_chunks_mut(band))
+                .zip(source.par_chunks_mut(band))
+                .enumerate()
+                .flat_map_iter(|(ty, ((d, s), src))| kernel.band(ty as u32, d, s, Some(src))),
+        );
+    } else {
+        out.revealed.par_extend(
+            depth
+                .par_chunks_mut(band)
+                .zip(state.par_chunks_mut(band))
+                .enumerate()
+                .flat_map_iter(|(ty, (d, s))| kernel.band(ty as u32, d, s, None)),
+        );
     }
     // Bands come in order; within one the lanes write two rows at a time.
     out.revealed.sort_unstable();

@@ -440,9 +440,7 @@ pub fn fill_background_with(
     if w as u64 * h as u64 > SKY_MARK as u64 {
         return Err(Error::invalid(format!("fill_background: {w}x{h} is more than 2^31 pixels")));
     }
-    if out.revealed.iter().any(|&i| out.state.data().get(i as usize) != Some(&PixelState::Converged)) {
-        return Err(Error::invalid("fill_background: a revealed pixel is not a converged one"));
-    }
+    check_revealed(&out.state, &out.revealed)?;
     let mut holes = hole_list(&out.state);
     if holes.is_empty() {
         return Ok(());
@@ -502,6 +500,15 @@ pub fn fill_background_with(
     let state = out.state.data();
     holes.retain(|&i| state[i as usize] == PixelState::Hole);
     fill_border_listed(&mut out.depth, &mut out.state, &holes, limits.reach);
+    Ok(())
+}
+
+/// Errors unless every `revealed` pixel ([`WarpOutput::revealed`]) is a converged one of
+/// `state` ([`fill_background`] and its WGSL twin check alike).
+pub(crate) fn check_revealed(state: &Image<PixelState>, revealed: &[u32]) -> Result<()> {
+    if revealed.iter().any(|&i| state.data().get(i as usize) != Some(&PixelState::Converged)) {
+        return Err(Error::invalid("fill_background: a revealed pixel is not a converged one"));
+    }
     Ok(())
 }
 

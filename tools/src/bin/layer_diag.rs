@@ -12,7 +12,7 @@
 //! pixels, errors capped at `cap` metres, `LISTC0F=1` with it lists the pixels layer 0 solved in
 //! run a that run b filled).
 use zwarp_core::{motion_field, Image};
-use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_raster::{render_frame, render_source_layers, FrameOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::{load_scene, CameraPath, SceneOptions};
 use zwarp_warp::{predict_into, WarpLayer, WarpOutput, WarpParams};
 
@@ -52,16 +52,9 @@ fn main() {
     let e = (cb.eye() - ca.eye()).length() * 1.5;
     let has_ground = scene.instances.iter().any(|i| i.is_ground);
     let maxl = la.max(lb);
-    let peel = PeelOptions {
-        layers: if has_ground { maxl.max(2) - 1 } else { maxl },
-        ground_separate: false,
-        umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
-    };
     // zwarp eval's protocol: the ground alone as the last layer.
-    let mut layers = render_layers(scene, &ca, ta, &peel).unwrap();
-    if has_ground {
-        layers.push(zwarp_raster::render_ground_layer(scene, &ca, ta).unwrap());
-    }
+    let umbra = Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } });
+    let layers = render_source_layers(scene, &ca, ta, maxl.max(2), umbra).unwrap();
     let lm: Vec<(Image<f32>, Image<zwarp_core::Motion>)> = layers
         .iter()
         .map(|l| (l.depth.clone(), motion_field(&l.depth, Some(&l.items), &ca, &cb, &deltas).unwrap()))

@@ -15,7 +15,7 @@
 use std::time::Instant;
 
 use zwarp_core::{motion_field, Image, Motion};
-use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_raster::{render_frame, render_source_layers, FrameOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::SceneOptions;
 use zwarp_warp::*;
 
@@ -47,24 +47,16 @@ fn main() {
     let (ta, tb) = (path.time_of_frame(frame, speed), path.time_of_frame(frame + 1, speed));
     let (ca, cb) = (path.camera_at(ta, w, h).unwrap(), path.camera_at(tb, w, h).unwrap());
     let deltas = scene.object_deltas(ta, tb);
-    let has_ground = scene.instances.iter().any(|i| i.is_ground);
     let bufs: Vec<(Image<f32>, Image<Motion>)> = if l == 1 {
         let f = render_frame(&scene, &ca, ta, &FrameOptions::default()).unwrap();
         let m = motion_field(&f.depth, Some(&f.items), &ca, &cb, &deltas).unwrap();
         vec![(f.depth, m)]
     } else {
         let e = (cb.eye() - ca.eye()).length() * 1.5;
-        let peel = PeelOptions {
-            layers: if has_ground { l - 1 } else { l },
-            ground_separate: false,
-            umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
-        };
         // zwarp eval's protocol: the ground alone as the last layer.
-        let mut peeled = render_layers(&scene, &ca, ta, &peel).unwrap();
-        if has_ground {
-            peeled.push(zwarp_raster::render_ground_layer(&scene, &ca, ta).unwrap());
-        }
-        peeled
+        let umbra = Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } });
+        render_source_layers(&scene, &ca, ta, l, umbra)
+            .unwrap()
             .into_iter()
             .map(|p| {
                 let m = motion_field(&p.depth, Some(&p.items), &ca, &cb, &deltas).unwrap();

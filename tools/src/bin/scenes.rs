@@ -21,7 +21,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use zwarp_core::{motion_field, Image, Motion};
-use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_raster::{render_depth, render_frame, render_source_layers, FrameOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::SceneOptions;
 use zwarp_warp::*;
 
@@ -95,16 +95,10 @@ fn main() {
             let has_ground = scene.instances.iter().any(|i| i.is_ground);
             let frame = render_frame(&scene, &ca, ta, &FrameOptions::default()).unwrap();
             let e = (cb.eye() - ca.eye()).length() * 1.5;
-            let peel = PeelOptions {
-                layers: if has_ground { max_l.saturating_sub(1).max(1) } else { max_l },
-                ground_separate: false,
-                umbra: Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
-            };
             // zwarp eval's protocol: the ground alone as the last layer.
-            let mut peeled = if max_l > 1 { render_layers(&scene, &ca, ta, &peel).unwrap() } else { Vec::new() };
-            if has_ground && max_l > 1 {
-                peeled.push(zwarp_raster::render_ground_layer(&scene, &ca, ta).unwrap());
-            }
+            let umbra = Some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } });
+            let peeled =
+                if max_l > 1 { render_source_layers(&scene, &ca, ta, max_l, umbra).unwrap() } else { Vec::new() };
             let single =
                 (frame.depth.clone(), motion_field(&frame.depth, Some(&frame.items), &ca, &cb_src, &deltas).unwrap());
             let mut bufs: Vec<(Image<f32>, Image<Motion>)> = peeled

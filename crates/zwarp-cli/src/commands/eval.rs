@@ -12,7 +12,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde::Serialize;
 use zwarp_core::{motion_field, Camera, Image, Motion, Scene};
-use zwarp_raster::{render_frame, render_layers, FrameOptions, PeelOptions, UmbraPeeling, ViewRegion};
+use zwarp_raster::{render_frame, render_source_layers, FrameOptions, UmbraPeeling, ViewRegion};
 use zwarp_scene::CameraPath;
 use zwarp_warp::{BoundKind, HolePolicy, WarpLayer, WarpParams};
 
@@ -385,17 +385,8 @@ fn source_buffers(
     // Umbra culling serves every viewpoint within the eye displacement to the target (with a
     // margin for the path's curvature); object motion is covered by the motion field, not here.
     let e = (cb.eye() - ca.eye()).length() * 1.5;
-    // Seed 000 Sec. 4: with ground, L - 1 layers peeled from the whole scene and the ground
-    // alone as the last layer (layer 0 is then the single-layer warp's frame).
-    let peel = PeelOptions {
-        layers: if has_ground { max_l.saturating_sub(1).max(1) } else { max_l },
-        ground_separate: false,
-        umbra: umbra.then_some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } }),
-    };
-    let mut layers = if max_l > 1 { render_layers(scene, ca, ta, &peel)? } else { Vec::new() };
-    if has_ground && max_l > 1 {
-        layers.push(zwarp_raster::render_ground_layer(scene, ca, ta)?);
-    }
+    let umbra = umbra.then_some(UmbraPeeling { region: ViewRegion::Disc { e, c: 0.0 } });
+    let layers = if max_l > 1 { render_source_layers(scene, ca, ta, max_l, umbra)? } else { Vec::new() };
     let t0 = std::time::Instant::now();
     let single_motion = motion_field(&frame.depth, Some(&frame.items), ca, cb, &deltas)?;
     let mut with_motion = Vec::with_capacity(layers.len());

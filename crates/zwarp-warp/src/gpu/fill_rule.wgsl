@@ -1,6 +1,12 @@
 // The FillRule::Background decision (zwarp_warp::holes::hole_fill), shared by warp.wgsl's dilate
 // pass and holes.wgsl's fills: both shaders are compiled with this file in front of them.
 
+// A converged pixel in the warp's state buffers: PixelState::Converged (0), or 3, converged on a
+// layer after the first (WarpOutput::revealed).
+fn is_converged(s: u32) -> bool {
+    return s == 0u || s == 3u;
+}
+
 // zwarp_warp::holes::BRACKET_SPAN_RATIO.
 const BRACKET_SPAN_RATIO: f32 = 4.0;
 // zwarp_warp::holes::FAR_SIDE_SPREAD.

@@ -337,9 +337,7 @@ impl HoleFillKernel {
         let buffers = super::warp::upload_layers(&self.ctx, layers)?;
         let views: Vec<GpuWarpLayer<'_>> =
             buffers.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
-        if warped.revealed.iter().any(|&i| state.data().get(i as usize) != Some(&PixelState::Converged)) {
-            return Err(Error::invalid("fill_background: a revealed pixel is not a converged one"));
-        }
+        crate::holes::check_revealed(state, &warped.revealed)?;
         let input = self.upload(depth, state, &warped.revealed);
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         let out = self.encode_background_multisampled(&mut enc, &input, &views, m, radius, search)?;

@@ -54,12 +54,9 @@ struct Params {
 const CONVERGED: u32 = 0u;
 const FILLED: u32 = 1u;
 const HOLE: u32 = 2u;
-// Converged on a layer after the first (zwarp_warp::WarpOutput::revealed), as the warp writes it.
+// Converged on a layer after the first (zwarp_warp::WarpOutput::revealed), as the warp writes it
+// (fill_rule.wgsl's is_converged takes both).
 const REVEALED: u32 = 3u;
-
-fn is_converged(s: u32) -> bool {
-    return s == CONVERGED || s == REVEALED;
-}
 
 // Horizontal, vertical, both diagonals (zwarp_warp::FILL_DIRECTIONS), each probed both ways.
 const DIRS = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));

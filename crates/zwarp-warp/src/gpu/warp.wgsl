@@ -1075,7 +1075,7 @@ fn dilate(@builtin(global_invocation_id) gid: vec3<u32>) {
                     break;
                 }
                 let j = u32(yy) * w + u32(xx);
-                if (out_state[j] == 0u || out_state[j] == 3u) {
+                if (is_converged(out_state[j])) {
                     let d = f32(kk) * step;
                     let z = out_depth[j];
                     if (!(best_ok && (best_d < d || (best_d == d && best_z >= z)))) {
