@@ -3,7 +3,7 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1] [sampling=adaptive|nearest]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1] [sampling=adaptive|nearest] [bound=oriented|tight|global]`
 //!
 //! `bi` is `WarpParams::bound_iterations`; `render=0` leaves the depth render out of the loop (to
 //! profile the prediction alone).
@@ -26,7 +26,7 @@ fn stats(mut t: Vec<f64>) -> (f64, f64, f64) {
 
 fn main() {
     let args = zwarp_tools::common::KeyArgs::from_env(
-        "scene, w, h, l, n, reps, frame, speed, part, bi, path, render, sampling",
+        "scene, w, h, l, n, reps, frame, speed, part, bi, path, render, sampling, bound",
     );
     let get = |k: &str, d: &str| args.get(k, d);
     let name = get("scene", "cb");
@@ -70,8 +70,19 @@ fn main() {
         "nearest" => Sampling::Nearest,
         _ => Sampling::Adaptive,
     };
-    let params =
-        WarpParams { n_seeds: n, bound_iterations: bi, holes: HolePolicy::PAPER, sampling, ..Default::default() };
+    let bound = match get("bound", "oriented").as_str() {
+        "global" => BoundKind::Global,
+        "tight" => BoundKind::Tight,
+        _ => BoundKind::Oriented,
+    };
+    let params = WarpParams {
+        n_seeds: n,
+        bound_iterations: bi,
+        holes: HolePolicy::PAPER,
+        sampling,
+        bound,
+        ..Default::default()
+    };
     let far = WarpParams { holes: HolePolicy::FarDepth, ..params };
     let mut out = WarpOutput::empty();
     let mut rec = predict_into(&layers, &params, Vec::new(), &mut out).unwrap();
