@@ -285,10 +285,17 @@ fn eval_writes_the_documented_fields() {
             "speedup",
             "floor_ms",
             "floor_ratio",
+            "floor_gbps",
             "frames_detail",
         ] {
             assert!(!r[k].is_null(), "field {k} missing in {r}");
         }
+        // The floor's bandwidth: L layers of f32 depth + 12-byte motion read, one f32 per pixel
+        // written, over floor_ms.
+        let (w, h, l) = (r["width"].as_f64().unwrap(), r["height"].as_f64().unwrap(), r["l"].as_f64().unwrap());
+        let bytes = l * w * h * 16.0 + w * h * 4.0;
+        let gbps = bytes / (r["floor_ms"].as_f64().unwrap() * 1e6);
+        assert!((r["floor_gbps"].as_f64().unwrap() - gbps).abs() < 1e-6 * gbps, "{r}");
         // The floor ratio is the warp's time over the floor's; one detail per frame pair, whose
         // mean is the row's PSNR.
         let fr = r["warp_ms"].as_f64().unwrap() / r["floor_ms"].as_f64().unwrap();

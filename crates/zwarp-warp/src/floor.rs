@@ -76,6 +76,17 @@ fn rows_impl(depths: &[&[f32]], motions: &[&[Motion]], y0: usize, w: usize, m: u
     }
 }
 
+/// The bytes one [`floor_pass`] over `layers` with `m x m` samples per output pixel moves: every
+/// layer's f32 depth and [`Motion`] read once, one f32 per output pixel written. Over
+/// [`floor_ms`] it is the streaming bandwidth the machine gave in that run, which is what a
+/// `floor_ratio` is relative to.
+pub fn floor_bytes(layers: &[WarpLayer<'_>], m: u32) -> u64 {
+    let per_sample = (std::mem::size_of::<f32>() + std::mem::size_of::<Motion>()) as u64;
+    let read: u64 = layers.iter().map(|l| l.depth.len() as u64 * per_sample).sum();
+    let out = layers.first().map_or(0, |l| l.depth.len() as u64 / (m.max(1) as u64 * m.max(1) as u64));
+    read + out * std::mem::size_of::<f32>() as u64
+}
+
 /// Timed passes a floor measurement takes at the least, whatever the caller's `reps`: a pass of
 /// a few milliseconds on a shared 2-core machine settles only after thread wake-ups and clock
 /// ramps, and the median of three scatters by up to 2x between runs (colour floor at 1280x720:
@@ -132,5 +143,8 @@ mod tests {
         assert!(floor_pass(&layers, 2, 4, &mut out).is_err());
         assert!(floor_pass(&[], 1, 6, &mut out).is_err());
         assert!(floor_ms(&layers, 1, 2).unwrap().0 >= 0.0);
+        // Two layers of 24 samples (4 + 12 bytes each) read, 24 (m = 1) or 6 (m = 2) f32 written.
+        assert_eq!(floor_bytes(&layers, 1), 2 * 24 * 16 + 24 * 4);
+        assert_eq!(floor_bytes(&layers, 2), 2 * 24 * 16 + 6 * 4);
     }
 }

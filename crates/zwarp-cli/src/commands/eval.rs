@@ -150,6 +150,10 @@ pub struct EvalRow {
     pub floor_ms: f64,
     /// `warp_ms / floor_ms`: how far the prediction is from the speed of memory.
     pub floor_ratio: f64,
+    /// Bandwidth of the floor pass in this run (GB/s: `zwarp_warp::floor::floor_bytes` over
+    /// `floor_ms`). A shared machine's streaming speed changes between runs, and `floor_ratio`
+    /// with it; rows of different runs compare only at equal `floor_gbps`.
+    pub floor_gbps: f64,
     /// Per frame pair, in path order: PSNR, SSIM and converged fraction.
     pub frames_detail: Vec<FrameDetail>,
     /// Warp throughput: output pixels per second per core (millions).
@@ -421,6 +425,8 @@ struct Acc {
     quality: Vec<DepthComparison>,
     warp_ms: Vec<f64>,
     floor_ms: Vec<f64>,
+    /// `zwarp_warp::floor::floor_bytes` of the configuration (the same every frame pair).
+    floor_bytes: u64,
     detail: Vec<FrameDetail>,
 }
 
@@ -522,6 +528,7 @@ pub fn evaluate(
                     a.quality.push(q);
                     a.warp_ms.extend(samples);
                     a.floor_ms.push(floor);
+                    a.floor_bytes = zwarp_warp::floor::floor_bytes(layers, key.5);
                     a.detail.push(FrameDetail {
                         pair: pi,
                         psnr: q.psnr,
@@ -639,6 +646,7 @@ pub fn evaluate(
                 motion_ms: motion_t.median,
                 floor_ms: Timing::of(&a.floor_ms).median,
                 floor_ratio: wt.median / Timing::of(&a.floor_ms).median.max(1e-9),
+                floor_gbps: a.floor_bytes as f64 / (Timing::of(&a.floor_ms).median.max(1e-9) * 1e6),
                 frames_detail: a.detail,
                 mpix_per_s_per_core: (plan.width as f64 * plan.height as f64)
                     / (wt.median.max(1e-9) * 1e-3)

@@ -170,7 +170,12 @@ fn headline(report: &Report) -> Vec<Block> {
             q("afw"),
             ours.map_or("-".into(), |r| f(num(r, "speedup"), 2)),
             paper_ratio,
-            ours.map_or("-".into(), |r| format!("{}x", f(num(r, "floor_ratio"), 0))),
+            ours.map_or("-".into(), |r| {
+                // The floor's bandwidth in that run: the ratio is relative to it.
+                let gbps = num(r, "floor_gbps");
+                let at = if gbps.is_finite() { format!(" at {} GB/s", f(gbps, 0)) } else { String::new() };
+                format!("{}x{at}", f(num(r, "floor_ratio"), 0))
+            }),
         ]);
     }
     if t.rows.is_empty() {
