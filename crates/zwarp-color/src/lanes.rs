@@ -5,9 +5,9 @@
 //! is bit-identical (no FMA; `min`/`max`/comparisons with the semantics of glam's). Chosen at
 //! run time where the CPU has AVX2 ([`set_simd`] switches it off for tests and timing).
 
-use zwarp_core::Avx2Switch;
+use zwarp_core::SimdSwitch;
 
-static AVX2: Avx2Switch = Avx2Switch::new();
+static AVX2: SimdSwitch = SimdSwitch::avx2();
 
 /// Enables (default) or disables the AVX2 lanes of the colour warps (results are identical).
 pub fn set_simd(enabled: bool) {

@@ -39,7 +39,7 @@ pub fn reproject_pixel(inv_a: &Mat4, m: &Mat4, a: (u32, u32), b: (u32, u32), x: 
 
 /// The AVX2 build of the motion field (on by default where the CPU has it); [`set_simd`]
 /// turns it off for tests and timing.
-static AVX2: crate::Avx2Switch = crate::Avx2Switch::new();
+static AVX2: crate::SimdSwitch = crate::SimdSwitch::avx2();
 
 /// Turns the AVX2 build of [`motion_field`] on (default) or off; both give the same bits.
 pub fn set_simd(enabled: bool) {

@@ -1,31 +1,47 @@
 //! The run-time choice between a kernel's AVX2 build and its portable build (x86-64), one switch
-//! per crate. Every AVX2 build in zwarp computes bit-identical results to its portable twin; the
+//! per crate and level. Every AVX2 build in zwarp computes bit-identical results to its portable twin; the
 //! switch exists so that tests can prove it and benchmarks can time the portable build.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// A crate's AVX2 switch: on by default, active where it is on and the CPU reports AVX2.
+/// A crate's switch for the builds of one x86-64 SIMD level: on by default, active where it is
+/// on and the CPU reports that level. [`SimdSwitch::avx2`] guards the AVX2 builds;
+/// [`SimdSwitch::avx512`] guards builds of the same AVX2 code compiled with AVX-512 (F, VL, BW,
+/// DQ) enabled, which lets the compiler use 32 vector registers and mask registers for the same
+/// operations (the results stay bit-identical: no instruction changes what it computes).
 #[derive(Debug)]
-pub struct Avx2Switch(AtomicBool);
+pub struct SimdSwitch {
+    on: AtomicBool,
+    avx512: bool,
+}
 
-impl Avx2Switch {
-    /// A switch that is on (for a `static`).
-    pub const fn new() -> Self {
-        Avx2Switch(AtomicBool::new(true))
+impl SimdSwitch {
+    /// The AVX2 switch (for a `static`), on.
+    pub const fn avx2() -> Self {
+        SimdSwitch { on: AtomicBool::new(true), avx512: false }
     }
 
-    /// Turns the AVX2 builds on (default) or off.
+    /// The AVX-512 switch (for a `static`), on; active only where AVX2 is too.
+    pub const fn avx512() -> Self {
+        SimdSwitch { on: AtomicBool::new(true), avx512: true }
+    }
+
+    /// Turns the builds on (default) or off.
     pub fn set(&self, enabled: bool) {
-        self.0.store(enabled, Ordering::Relaxed);
+        self.on.store(enabled, Ordering::Relaxed);
     }
 
-    /// `true` if the AVX2 builds run: the switch is on and the CPU reports AVX2 (never off
+    /// `true` if the builds run: the switch is on and the CPU reports the level (never off
     /// x86-64).
     #[inline]
     pub fn active(&self) -> bool {
         #[cfg(target_arch = "x86_64")]
         {
-            self.0.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx2")
+            use std::arch::is_x86_feature_detected as has;
+            self.on.load(Ordering::Relaxed)
+                && has!("avx2")
+                && (!self.avx512
+                    || (has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq")))
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
@@ -34,9 +50,9 @@ impl Avx2Switch {
     }
 }
 
-impl Default for Avx2Switch {
+impl Default for SimdSwitch {
     fn default() -> Self {
-        Self::new()
+        Self::avx2()
     }
 }
 
@@ -216,13 +232,20 @@ mod tests {
 
     #[test]
     fn a_switch_turned_off_is_never_active() {
-        let s = Avx2Switch::new();
+        let (s, w) = (SimdSwitch::avx2(), SimdSwitch::avx512());
         s.set(false);
-        assert!(!s.active());
+        w.set(false);
+        assert!(!s.active() && !w.active());
         s.set(true);
+        w.set(true);
         #[cfg(target_arch = "x86_64")]
-        assert_eq!(s.active(), std::arch::is_x86_feature_detected!("avx2"));
+        {
+            use std::arch::is_x86_feature_detected as has;
+            assert_eq!(s.active(), has!("avx2"));
+            let wide = has!("avx2") && has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq");
+            assert_eq!(w.active(), wide);
+        }
         #[cfg(not(target_arch = "x86_64"))]
-        assert!(!s.active());
+        assert!(!s.active() && !w.active());
     }
 }

@@ -2,9 +2,9 @@
 //! the CPU has AVX2). Both builds compute bit-identical results (no FMA, same operation order);
 //! the switch exists so tests can prove it and for timing the portable build.
 
-use zwarp_core::Avx2Switch;
+use zwarp_core::SimdSwitch;
 
-static AVX2: Avx2Switch = Avx2Switch::new();
+static AVX2: SimdSwitch = SimdSwitch::avx2();
 
 /// Enables or disables the AVX2 builds (for tests / benchmarks).
 pub(crate) fn set_simd(enabled: bool) {

@@ -845,6 +845,7 @@ impl<'a> Kernel<'a> {
             n_seeds: self.params.n_seeds,
             first_converged: self.params.choice == crate::CandidateChoice::FirstConverged,
             nearest: self.params.sampling == crate::Sampling::Nearest,
+            avx512: crate::simd::has_avx512(),
         }
     }
 

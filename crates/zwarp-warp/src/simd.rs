@@ -3,9 +3,10 @@
 //! order, min / max as compare-selects); the switch exists so tests can prove it and benchmarks
 //! can time the portable build.
 
-use zwarp_core::Avx2Switch;
+use zwarp_core::SimdSwitch;
 
-static AVX2: Avx2Switch = Avx2Switch::new();
+static AVX2: SimdSwitch = SimdSwitch::avx2();
+static AVX512: SimdSwitch = SimdSwitch::avx512();
 
 /// Enables or disables the AVX2 builds of the warp's kernels (tests and benchmarks; on by
 /// default where the CPU has AVX2).
@@ -18,6 +19,50 @@ pub fn set_simd(enabled: bool) {
 pub fn has_avx2() -> bool {
     AVX2.active()
 }
+
+/// Enables or disables the AVX-512 build of the search's walks (tests and benchmarks; on by
+/// default where the CPU has AVX-512 F, VL, BW and DQ). That build is the AVX2 code compiled
+/// with AVX-512 enabled (32 vector registers, mask registers): the same operations, the same
+/// bits, fewer spills.
+pub fn set_avx512(enabled: bool) {
+    AVX512.set(enabled);
+}
+
+/// `true` if the AVX-512 build of the walks runs: the AVX2 builds run, its switch is on and the
+/// CPU reports AVX-512 F, VL, BW and DQ.
+#[inline]
+pub fn has_avx512() -> bool {
+    has_avx2() && AVX512.active()
+}
+
+/// Defines `$name`, which runs the `#[inline(always)]` body `$body` (AVX2 intrinsics, no target
+/// feature of its own) compiled for AVX-512 F, VL, BW and DQ where `$wide` holds, else for
+/// AVX2: two builds of one source, chosen per call. The wide build executes the same
+/// operations (the compiler only gets 32 vector registers and mask registers to schedule them
+/// with), so both are bit-identical; callers must have checked AVX2, and `$wide` must imply
+/// [`has_avx512`].
+macro_rules! avx2_or_avx512 {
+    ($(#[$meta:meta])* $vis:vis unsafe fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? = $body:path, wide if $wide:expr;) => {
+        $(#[$meta])*
+        #[inline(always)]
+        $vis unsafe fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[target_feature(enable = "avx2")]
+            unsafe fn narrow($($arg: $ty),*) $(-> $ret)? {
+                $body($($arg),*)
+            }
+            #[target_feature(enable = "avx2,avx512f,avx512vl,avx512bw,avx512dq")]
+            unsafe fn wide($($arg: $ty),*) $(-> $ret)? {
+                $body($($arg),*)
+            }
+            if $wide {
+                wide($($arg),*)
+            } else {
+                narrow($($arg),*)
+            }
+        }
+    };
+}
+pub(crate) use avx2_or_avx512;
 
 /// `min` as a compare-select (`a < b ? a : b`): what `minps` computes, so loops of it vectorize
 /// and the AVX2 builds stay bit-identical to the portable ones. No NaN may reach it (the layer

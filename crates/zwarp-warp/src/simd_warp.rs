@@ -45,6 +45,8 @@ pub(crate) struct LaneSearch<'a> {
     /// `Sampling::Nearest`: every fetch takes the texel under `q` (the adaptive fetch's
     /// non-smooth branch), never the bilinear one.
     pub nearest: bool,
+    /// The walks run their AVX-512 build ([`crate::simd::has_avx512`]).
+    pub avx512: bool,
 }
 
 /// Results of eight lanes of one layer's search.
@@ -137,9 +139,9 @@ struct Smp8 {
 }
 
 /// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive or, with `nearest`, nearest
-/// sampling) for the `live` lanes, whose `q` lies inside the image.
-#[inline]
-#[target_feature(enable = "avx2")]
+/// sampling) for the `live` lanes, whose `q` lies inside the image. Part of [`walk8`]'s body
+/// (inlined into each of its builds, no target feature of its own).
+#[inline(always)]
 unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy: __m256, live: __m256) -> Smp8 {
     let live_i = _mm256_castps_si256(live);
     let (half, one, zero) = (splat(0.5), splat(1.0), _mm256_setzero_ps());
@@ -617,15 +619,33 @@ impl Texels {
     }
 }
 
+crate::simd::avx2_or_avx512! {
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
 /// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, the
 /// walk's closest approach (smallest squared residual of a smooth sampled iterate and its depth,
 /// `+inf` if none), its farthest sample's depth after the first step (`-inf` if none) and, for
 /// the lanes that failed, its straddle depth (`search::Approach::straddle`, `+inf` if none).
-#[inline]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::type_complexity)]
+///
+/// Most of a warp's time on scenes with many multi-seed pixels: where the CPU has AVX-512 the
+/// walk runs a build with it enabled ([`LaneSearch::avx512`]), else the AVX2 build.
 unsafe fn walk8(
+    ls: &LaneSearch<'_>,
+    k: usize,
+    px: __m256,
+    py: __m256,
+    qx: __m256,
+    qy: __m256,
+    live: __m256,
+) -> Walk8 = walk8_lanes, wide if ls.avx512;
+}
+
+/// What [`walk8`] returns: converged lanes, their depth, position and tag, the closest approach
+/// (squared residual, depth), the farthest sample's depth and the straddle depth.
+type Walk8 = (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256), __m256, __m256);
+
+/// The body of [`walk8`], compiled into each build (no target feature of its own).
+#[inline(always)]
+unsafe fn walk8_lanes(
     ls: &LaneSearch<'_>,
     k: usize,
     px: __m256,
@@ -633,7 +653,7 @@ unsafe fn walk8(
     mut qx: __m256,
     mut qy: __m256,
     mut live: __m256,
-) -> (__m256, __m256, __m256, __m256, __m256i, (__m256, __m256), __m256, __m256) {
+) -> Walk8 {
     let zero = _mm256_setzero_ps();
     let one = splat(1.0);
     let inf = splat(f32::INFINITY);

@@ -1,5 +1,7 @@
 //! The AVX2 builds of the preparation, the warp, the background fill and the forward baselines
-//! (VFW, AFW) compute exactly what the portable code computes: both builds on the same inputs, compared bit for bit. (Its own test
+//! (VFW, AFW) compute exactly what the portable code computes, and so do the AVX-512 builds
+//! where the CPU has them (the warp's walks, VFW, the floor pass): every build on the same
+//! inputs, compared bit for bit. (Its own test
 //! binary: `simd::set_simd` is process-wide.) Where the CPU has no AVX2 both runs take the
 //! portable code and the test checks nothing new; it says so.
 
@@ -40,6 +42,11 @@ fn both(layers: &[WarpLayer<'_>], params: &WarpParams) -> (WarpOutput, WarpOutpu
         out
     };
     let fast = run(true);
+    // The AVX2 build of the walks (the AVX-512 one runs where the CPU has it): the same bits.
+    simd::set_avx512(false);
+    let narrow = run(true);
+    simd::set_avx512(true);
+    assert!(bits(&fast) == bits(&narrow), "the AVX-512 and AVX2 builds differ");
     let portable = run(false);
     simd::set_simd(true);
     (fast, portable)
@@ -205,7 +212,33 @@ fn forward_both(layers: &[WarpLayer<'_>]) -> [(Vec<u32>, Vec<u32>); 2] {
         simd::set_simd(true);
         out
     };
-    [(run(true, vfw_layers), run(false, vfw_layers)), (run(true, afw_layers), run(false, afw_layers))]
+    simd::set_avx512(false);
+    let narrow = run(true, vfw_layers);
+    simd::set_avx512(true);
+    let wide = run(true, vfw_layers);
+    assert!(wide == narrow, "VFW: the AVX-512 and AVX2 builds differ");
+    [(wide, run(false, vfw_layers)), (run(true, afw_layers), run(false, afw_layers))]
+}
+
+/// The streaming floor pass: its AVX-512, AVX2 and portable builds write the same values.
+#[test]
+fn the_floor_pass_builds_agree() {
+    let (depth, motion) = city(131, 77, 3, 1);
+    let layers: Vec<WarpLayer> = depth.iter().zip(&motion).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+    let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
+    let run = |simd: bool, wide: bool| {
+        simd::set_simd(simd);
+        simd::set_avx512(wide);
+        let mut out = vec![0f32; 131 * 77];
+        floor::floor_pass(&layers, 1, 131, &mut out).unwrap();
+        simd::set_simd(true);
+        simd::set_avx512(true);
+        out.iter().map(|z| z.to_bits()).collect::<Vec<_>>()
+    };
+    let wide = run(true, true);
+    assert_eq!(wide, run(true, false));
+    assert_eq!(wide, run(false, false));
+    assert!(wide.iter().any(|&z| f32::from_bits(z) < 1.0), "no surface to compare");
 }
 
 #[test]

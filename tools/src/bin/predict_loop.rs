@@ -3,7 +3,7 @@
 //! with `perf` and to compare kernel changes on.
 //!
 //! `cargo run --release -p zwarp-tools --bin predict_loop -- [scene=cb] [w=1920] [h=1080]
-//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1] [sampling=adaptive|nearest] [bound=oriented|tight|global]`
+//! [l=1] [n=4] [reps=30] [frame=0] [speed=1] [part=all|prepare|warp|fill|afw|vfw] [bi=6] [path=FILE.json] [render=1] [sampling=adaptive|nearest] [bound=oriented|tight|global] [avx512=1]`
 //!
 //! `bi` is `WarpParams::bound_iterations`; `render=0` leaves the depth render out of the loop (to
 //! profile the prediction alone).
@@ -26,7 +26,7 @@ fn stats(mut t: Vec<f64>) -> (f64, f64, f64) {
 
 fn main() {
     let args = zwarp_tools::common::KeyArgs::from_env(
-        "scene, w, h, l, n, reps, frame, speed, part, bi, path, render, sampling, bound",
+        "scene, w, h, l, n, reps, frame, speed, part, bi, path, render, sampling, bound, avx512",
     );
     let get = |k: &str, d: &str| args.get(k, d);
     let name = get("scene", "cb");
@@ -37,6 +37,7 @@ fn main() {
     let frame: usize = get("frame", "0").parse().unwrap();
     let speed: f32 = get("speed", "1").parse().unwrap();
     let part = get("part", "all");
+    zwarp_warp::simd::set_avx512(get("avx512", "1") != "0");
 
     let loaded = zwarp_scene::load_scene(&name, &SceneOptions::default()).unwrap();
     let path = match args.opt("path") {

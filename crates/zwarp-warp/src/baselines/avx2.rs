@@ -278,11 +278,27 @@ unsafe fn drawn(a: &WindowTests, b: &WindowTests, dx: usize, dy: usize, z: __m25
     _mm256_blendv_ps(ps(EMPTY_DEPTH), z, _mm256_or_ps(a.covers(dx, dy), b.covers(dx, dy)))
 }
 
-/// The VFW quads of source row `y` of layer `k` (`l`) into the band of target rows starting at
-/// `y0` (see [`super::vfw_row`]), its neighbour rows read through the band task's `rows`.
-#[target_feature(enable = "avx2")]
+crate::simd::avx2_or_avx512! {
+    /// The VFW quads of source row `y` of layer `k` (`l`) into the band of target rows starting
+    /// at `y0` (see [`super::vfw_row`]), its neighbour rows read through the band task's `rows`;
+    /// AVX-512-enabled where the CPU has it.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn vfw_row(
+        l: &WarpLayer<'_>,
+        k: usize,
+        w: u32,
+        h: u32,
+        band: &mut [f32],
+        y0: usize,
+        y: usize,
+        rows: &mut RowCache,
+    ) = vfw_row_lanes, wide if crate::simd::has_avx512();
+}
+
+/// The body of [`vfw_row`], compiled into each of its builds.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) unsafe fn vfw_row(
+unsafe fn vfw_row_lanes(
     l: &WarpLayer<'_>,
     k: usize,
     w: u32,
