@@ -8,6 +8,7 @@
 use zwarp_core::SimdSwitch;
 
 static AVX2: SimdSwitch = SimdSwitch::avx2();
+static AVX512: SimdSwitch = SimdSwitch::avx512();
 
 /// Enables (default) or disables the AVX2 lanes of the colour warps (results are identical).
 pub fn set_simd(enabled: bool) {
@@ -17,6 +18,18 @@ pub fn set_simd(enabled: bool) {
 /// `true` if the AVX2 lanes run: switched on and the CPU has AVX2.
 pub fn simd_enabled() -> bool {
     AVX2.active()
+}
+
+/// Enables (default) or disables the AVX-512-enabled build of the heuristic rows and the robust
+/// warp's quads (the same AVX2 code with 32 registers and mask registers; results identical).
+pub fn set_avx512(enabled: bool) {
+    AVX512.set(enabled);
+}
+
+/// `true` if the AVX-512-enabled build runs: the lanes run, it is switched on and the CPU has
+/// AVX-512 F, VL, BW and DQ.
+pub fn avx512_enabled() -> bool {
+    simd_enabled() && AVX512.active()
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -408,25 +421,26 @@ pub(crate) mod avx2 {
         _mm256_cmp_ps::<_CMP_LT_OQ>(d, _mm256_set1_ps(zwarp_warp::sampling::CONTINUITY_PX))
     }
 
-    /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image).
-    /// The heuristic warp of row `y`, eight pixels at a time ([`heuristic8`]) while eight remain:
-    /// returns where the portable path takes over.
-    #[target_feature(enable = "avx2")]
-    pub(crate) unsafe fn heuristic_row(
-        f: &Field<'_>,
-        color: &[[f32; 3]],
-        params: &HeuristicParams,
-        y: usize,
-        oc: &mut [[f32; 3]],
-        od: &mut [f32],
-        or: &mut [f32],
-    ) -> usize {
-        let mut x0 = 0;
-        while x0 + 8 <= oc.len() {
-            heuristic8(f, color, params, x0, y, &mut oc[x0..x0 + 8], &mut od[x0..x0 + 8], &mut or[x0..x0 + 8]);
-            x0 += 8;
+    zwarp_core::avx2_or_avx512! {
+        /// The heuristic warp of row `y`, eight pixels at a time ([`heuristic8`]) while eight
+        /// remain: returns where the portable path takes over. AVX-512-enabled where the CPU
+        /// has it.
+        pub(crate) unsafe fn heuristic_row(
+            f: &Field<'_>,
+            color: &[[f32; 3]],
+            params: &HeuristicParams,
+            y: usize,
+            oc: &mut [[f32; 3]],
+            od: &mut [f32],
+            or: &mut [f32],
+        ) -> usize where wide = super::avx512_enabled(); {
+            let mut x0 = 0;
+            while x0 + 8 <= oc.len() {
+                heuristic8(f, color, params, x0, y, &mut oc[x0..x0 + 8], &mut od[x0..x0 + 8], &mut or[x0..x0 + 8]);
+                x0 += 8;
+            }
+            x0
         }
-        x0
     }
 
     /// The heuristic warp of pixels `x0..x0 + 8` of row `y` (all inside the image); inlined into
@@ -574,165 +588,168 @@ pub(crate) mod avx2 {
         pub y0: i32,
     }
 
-    /// The robust warp's search for pixels `px0..px1` of rows `py0..py1` from quad `q`, eight
-    /// at a time: the interpolated seed, the shared search's walk (Newton steps with
-    /// `accelerate`), the footprint test and the colour at `p - V(q)` — the portable loop's
-    /// arithmetic. An accepted lane nearer than what `band` holds at its pixel replaces depth,
-    /// colour and residual there (the portable loop's depth test, eight pixels per masked
-    /// store); the set-up (planes, sizes) is done once per quad.
-    #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) unsafe fn robust_rows(
-        f: &Field<'_>,
-        rho: &[f32],
-        color: &[[f32; 3]],
-        q: &Quad,
-        (px0, px1, py0, py1): (i32, i32, i32, i32),
-        iterations: u32,
-        threshold: f32,
-        accelerate: bool,
-        band: BandOut<'_>,
-    ) {
-        let g = Grid::of(f);
-        let rp = rho.as_ptr();
-        let zero = _mm256_setzero_ps();
-        let one = _mm256_set1_ps(1.0);
-        let sign = _mm256_set1_ps(-0.0);
-        let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        let thr2 = _mm256_set1_ps(threshold * threshold);
-        // The seed (Warped::seed): the pixel's relative position in the warped box mapped into
-        // the source box, clamped to the footprint.
-        let rel = |p: __m256, k: usize| {
-            if q.dst_ext[k] > 1e-6 {
-                _mm256_div_ps(_mm256_sub_ps(p, _mm256_set1_ps(q.dst_lo[k])), _mm256_set1_ps(q.dst_ext[k]))
-            } else {
-                _mm256_set1_ps(0.5)
-            }
-        };
-        let seed = |rel: __m256, k: usize| {
-            let s = _mm256_add_ps(_mm256_set1_ps(q.src_lo[k]), _mm256_mul_ps(rel, _mm256_set1_ps(q.src_ext[k])));
-            let (lo, hi) = (q.src_lo[k] - 0.5, (q.src_lo[k] + q.src_ext[k]) + 0.499);
-            _mm256_min_ps(_mm256_max_ps(s, _mm256_set1_ps(lo)), _mm256_set1_ps(hi))
-        };
-        let bw = band.width;
-        for py in py0..py1 {
-            let row = (py - band.y0) as usize * bw;
-            let (od, oc, or) =
-                (&mut band.depth[row..row + bw], &mut band.color[row..row + bw], &mut band.residual[row..row + bw]);
-            let ppy = _mm256_set1_ps(py as f32 + 0.5);
-            let sy = seed(rel(ppy, 1), 1);
-            let mut px = px0;
-            while px < px1 {
-                let n = ((px1 - px) as usize).min(8);
-                let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
-                let ppx = _mm256_add_ps(
-                    _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)),
-                    _mm256_set1_ps(0.5),
-                );
-                let (mut qx, mut qy) = (seed(rel(ppx, 0), 0), sy);
-                let mut active = valid;
-                let mut conv = zero;
-                let mut c = Visit::empty(0.0);
-                for _ in 0..iterations {
-                    let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
-                    let sm = smooth_rho(&l, rp);
-                    let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
-                    let (wx, wy, stx, sty, now) = fixed_point_step((ppx, ppy), (vx, vy), (qx, qy), active, thr2);
-                    c.keep(now, (qx, qy), (vx, vy), z);
-                    conv = _mm256_or_ps(conv, now);
-                    active = _mm256_andnot_ps(now, active);
-                    let (mut nx, mut ny) = (wx, wy);
-                    if accelerate {
-                        // newton_step with the bilinear Jacobian (zero for nearest samples).
-                        let dxx = _mm256_and_ps(
-                            sm,
-                            lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay),
-                        );
-                        let dxy = _mm256_and_ps(
-                            sm,
-                            lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay),
-                        );
-                        let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
-                        let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
-                        let m00 = _mm256_add_ps(one, dxx);
-                        let m01 = dyx;
-                        let m10 = dxy;
-                        let m11 = _mm256_add_ps(one, dyy);
-                        let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
-                        let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_andnot_ps(sign, det), _mm256_set1_ps(0.05));
-                        let ddx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
-                        let ddy = _mm256_div_ps(
-                            _mm256_add_ps(_mm256_mul_ps(_mm256_xor_ps(m10, sign), stx), _mm256_mul_ps(m00, sty)),
-                            det,
-                        );
-                        nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, ddx), ok);
-                        ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, ddy), ok);
-                    }
-                    qx = _mm256_blendv_ps(qx, nx, active);
-                    qy = _mm256_blendv_ps(qy, ny, active);
-                }
-                let foot = _mm256_and_ps(
-                    _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_GE_OQ>(c.qx, _mm256_set1_ps(q.foot[0])),
-                        _mm256_cmp_ps::<_CMP_LT_OQ>(c.qx, _mm256_set1_ps(q.foot[1])),
-                    ),
-                    _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_GE_OQ>(c.qy, _mm256_set1_ps(q.foot[2])),
-                        _mm256_cmp_ps::<_CMP_LT_OQ>(c.qy, _mm256_set1_ps(q.foot[3])),
-                    ),
-                );
-                let acc = _mm256_and_ps(conv, foot);
-                // Accepted and nearer than what the row holds (`<`: the portable depth test).
-                let x = px as usize;
-                let whole = x + 8 <= bw;
-                let old_z = if whole { _mm256_loadu_ps(od.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
-                let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(c.z, old_z));
-                if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
-                    px += 8;
-                    continue;
-                }
-                let ex = _mm256_sub_ps(_mm256_add_ps(c.qx, c.vx), ppx);
-                let ey = _mm256_sub_ps(_mm256_add_ps(c.qy, c.vy), ppy);
-                let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
-                // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
-                let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, c.vx), acc);
-                let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, c.vy), acc);
-                let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
-                let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
-                let l = locate(qx, qy, g.wi, g.wm, g.hm);
-                let sm = smooth_rho(&l, rp);
-                let cells = cell_rgb(color, &l, acc, g.wi, g.len);
-                let mut rgb = [zero; 3];
-                for (o, c) in rgb.iter_mut().zip(cells) {
-                    let top = mix(c[0], c[1], l.ax);
-                    let bot = mix(c[2], c[3], l.ax);
-                    *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
-                }
-                if whole {
-                    _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, c.z, win));
-                    let rp = or.as_mut_ptr().add(x);
-                    _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
-                    let cp = oc.as_mut_ptr().add(x) as *mut f32;
-                    for ((k, v), m) in interleave3x8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
-                        let q = cp.add(8 * k);
-                        _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
-                    }
+    zwarp_core::avx2_or_avx512! {
+        /// The robust warp's search for pixels `px0..px1` of rows `py0..py1` from quad `q`,
+        /// eight at a time: the interpolated seed, the shared search's walk (Newton steps with
+        /// `accelerate`), the footprint test and the colour at `p - V(q)` — the portable loop's
+        /// arithmetic. An accepted lane nearer than what `band` holds at its pixel replaces
+        /// depth, colour and residual there (the portable loop's depth test, eight pixels per
+        /// masked store); the set-up (planes, sizes) is done once per quad. AVX-512-enabled
+        /// where the CPU has it.
+        #[allow(clippy::too_many_arguments)]
+        pub(crate) unsafe fn robust_rows(
+            f: &Field<'_>,
+            rho: &[f32],
+            color: &[[f32; 3]],
+            q: &Quad,
+            pixels: (i32, i32, i32, i32),
+            iterations: u32,
+            threshold: f32,
+            accelerate: bool,
+            band: BandOut<'_>,
+        ) where wide = super::avx512_enabled(); {
+            let (px0, px1, py0, py1) = pixels;
+            let g = Grid::of(f);
+            let rp = rho.as_ptr();
+            let zero = _mm256_setzero_ps();
+            let one = _mm256_set1_ps(1.0);
+            let sign = _mm256_set1_ps(-0.0);
+            let lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+            let thr2 = _mm256_set1_ps(threshold * threshold);
+            // The seed (Warped::seed): the pixel's relative position in the warped box mapped into
+            // the source box, clamped to the footprint.
+            let rel = |p: __m256, k: usize| {
+                if q.dst_ext[k] > 1e-6 {
+                    _mm256_div_ps(_mm256_sub_ps(p, _mm256_set1_ps(q.dst_lo[k])), _mm256_set1_ps(q.dst_ext[k]))
                 } else {
-                    // The row's last pixels: lane by lane.
-                    let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
-                    _mm256_storeu_ps(z8.as_mut_ptr(), c.z);
-                    _mm256_storeu_ps(r8.as_mut_ptr(), res);
-                    store3x8(c8.as_mut_ptr() as *mut f32, rgb);
-                    let mut m = _mm256_movemask_ps(acc) as u32;
-                    while m != 0 {
-                        let k = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        if z8[k] < od[x + k] {
-                            (od[x + k], oc[x + k], or[x + k]) = (z8[k], c8[k], r8[k]);
+                    _mm256_set1_ps(0.5)
+                }
+            };
+            let seed = |rel: __m256, k: usize| {
+                let s = _mm256_add_ps(_mm256_set1_ps(q.src_lo[k]), _mm256_mul_ps(rel, _mm256_set1_ps(q.src_ext[k])));
+                let (lo, hi) = (q.src_lo[k] - 0.5, (q.src_lo[k] + q.src_ext[k]) + 0.499);
+                _mm256_min_ps(_mm256_max_ps(s, _mm256_set1_ps(lo)), _mm256_set1_ps(hi))
+            };
+            let bw = band.width;
+            for py in py0..py1 {
+                let row = (py - band.y0) as usize * bw;
+                let (od, oc, or) =
+                    (&mut band.depth[row..row + bw], &mut band.color[row..row + bw], &mut band.residual[row..row + bw]);
+                let ppy = _mm256_set1_ps(py as f32 + 0.5);
+                let sy = seed(rel(ppy, 1), 1);
+                let mut px = px0;
+                while px < px1 {
+                    let n = ((px1 - px) as usize).min(8);
+                    let valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_i));
+                    let ppx = _mm256_add_ps(
+                        _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(px), lane_i)),
+                        _mm256_set1_ps(0.5),
+                    );
+                    let (mut qx, mut qy) = (seed(rel(ppx, 0), 0), sy);
+                    let mut active = valid;
+                    let mut conv = zero;
+                    let mut c = Visit::empty(0.0);
+                    for _ in 0..iterations {
+                        let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
+                        let sm = smooth_rho(&l, rp);
+                        let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
+                        let (wx, wy, stx, sty, now) = fixed_point_step((ppx, ppy), (vx, vy), (qx, qy), active, thr2);
+                        c.keep(now, (qx, qy), (vx, vy), z);
+                        conv = _mm256_or_ps(conv, now);
+                        active = _mm256_andnot_ps(now, active);
+                        let (mut nx, mut ny) = (wx, wy);
+                        if accelerate {
+                            // newton_step with the bilinear Jacobian (zero for nearest samples).
+                            let dxx = _mm256_and_ps(
+                                sm,
+                                lerp(_mm256_sub_ps(v4[1].x, v4[0].x), _mm256_sub_ps(v4[3].x, v4[2].x), l.ay),
+                            );
+                            let dxy = _mm256_and_ps(
+                                sm,
+                                lerp(_mm256_sub_ps(v4[1].y, v4[0].y), _mm256_sub_ps(v4[3].y, v4[2].y), l.ay),
+                            );
+                            let dyx = _mm256_and_ps(sm, _mm256_sub_ps(bx, tx));
+                            let dyy = _mm256_and_ps(sm, _mm256_sub_ps(by, ty));
+                            let m00 = _mm256_add_ps(one, dxx);
+                            let m01 = dyx;
+                            let m10 = dxy;
+                            let m11 = _mm256_add_ps(one, dyy);
+                            let det = _mm256_sub_ps(_mm256_mul_ps(m00, m11), _mm256_mul_ps(m01, m10));
+                            let ok = _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_andnot_ps(sign, det), _mm256_set1_ps(0.05));
+                            let ddx = _mm256_div_ps(_mm256_sub_ps(_mm256_mul_ps(m11, stx), _mm256_mul_ps(m01, sty)), det);
+                            let ddy = _mm256_div_ps(
+                                _mm256_add_ps(_mm256_mul_ps(_mm256_xor_ps(m10, sign), stx), _mm256_mul_ps(m00, sty)),
+                                det,
+                            );
+                            nx = _mm256_blendv_ps(wx, _mm256_add_ps(qx, ddx), ok);
+                            ny = _mm256_blendv_ps(wy, _mm256_add_ps(qy, ddy), ok);
+                        }
+                        qx = _mm256_blendv_ps(qx, nx, active);
+                        qy = _mm256_blendv_ps(qy, ny, active);
+                    }
+                    let foot = _mm256_and_ps(
+                        _mm256_and_ps(
+                            _mm256_cmp_ps::<_CMP_GE_OQ>(c.qx, _mm256_set1_ps(q.foot[0])),
+                            _mm256_cmp_ps::<_CMP_LT_OQ>(c.qx, _mm256_set1_ps(q.foot[1])),
+                        ),
+                        _mm256_and_ps(
+                            _mm256_cmp_ps::<_CMP_GE_OQ>(c.qy, _mm256_set1_ps(q.foot[2])),
+                            _mm256_cmp_ps::<_CMP_LT_OQ>(c.qy, _mm256_set1_ps(q.foot[3])),
+                        ),
+                    );
+                    let acc = _mm256_and_ps(conv, foot);
+                    // Accepted and nearer than what the row holds (`<`: the portable depth test).
+                    let x = px as usize;
+                    let whole = x + 8 <= bw;
+                    let old_z = if whole { _mm256_loadu_ps(od.as_ptr().add(x)) } else { _mm256_set1_ps(f32::INFINITY) };
+                    let win = _mm256_and_ps(acc, _mm256_cmp_ps::<_CMP_LT_OQ>(c.z, old_z));
+                    if _mm256_movemask_ps(if whole { win } else { acc }) == 0 {
+                        px += 8;
+                        continue;
+                    }
+                    let ex = _mm256_sub_ps(_mm256_add_ps(c.qx, c.vx), ppx);
+                    let ey = _mm256_sub_ps(_mm256_add_ps(c.qy, c.vy), ppy);
+                    let res = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
+                    // Colour at p - V(q), clamped, continuity by rho (ColorSampler::color).
+                    let colx = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppx, c.vx), acc);
+                    let coly = _mm256_blendv_ps(_mm256_set1_ps(0.5), _mm256_sub_ps(ppy, c.vy), acc);
+                    let qx = _mm256_min_ps(_mm256_max_ps(colx, zero), g.cx);
+                    let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
+                    let l = locate(qx, qy, g.wi, g.wm, g.hm);
+                    let sm = smooth_rho(&l, rp);
+                    let cells = cell_rgb(color, &l, acc, g.wi, g.len);
+                    let mut rgb = [zero; 3];
+                    for (o, c) in rgb.iter_mut().zip(cells) {
+                        let top = mix(c[0], c[1], l.ax);
+                        let bot = mix(c[2], c[3], l.ax);
+                        *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
+                    }
+                    if whole {
+                        _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, c.z, win));
+                        let rp = or.as_mut_ptr().add(x);
+                        _mm256_storeu_ps(rp, _mm256_blendv_ps(_mm256_loadu_ps(rp), res, win));
+                        let cp = oc.as_mut_ptr().add(x) as *mut f32;
+                        for ((k, v), m) in interleave3x8(rgb).into_iter().enumerate().zip(spread_mask3(win)) {
+                            let q = cp.add(8 * k);
+                            _mm256_storeu_ps(q, _mm256_blendv_ps(_mm256_loadu_ps(q), v, m));
+                        }
+                    } else {
+                        // The row's last pixels: lane by lane.
+                        let (mut z8, mut r8, mut c8) = ([0f32; 8], [0f32; 8], [[0f32; 3]; 8]);
+                        _mm256_storeu_ps(z8.as_mut_ptr(), c.z);
+                        _mm256_storeu_ps(r8.as_mut_ptr(), res);
+                        store3x8(c8.as_mut_ptr() as *mut f32, rgb);
+                        let mut m = _mm256_movemask_ps(acc) as u32;
+                        while m != 0 {
+                            let k = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            if z8[k] < od[x + k] {
+                                (od[x + k], oc[x + k], or[x + k]) = (z8[k], c8[k], r8[k]);
+                            }
                         }
                     }
+                    px += 8;
                 }
-                px += 8;
             }
         }
     }

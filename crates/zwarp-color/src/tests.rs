@@ -486,6 +486,11 @@ fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
                     (c, d, r)
                 };
                 assert!(bits(&portable) == bits(&lanes), "{p:?} {seed:?} T={t}");
+                // The AVX-512-enabled build (where the CPU has it) against the AVX2 one.
+                crate::lanes::set_avx512(false);
+                let narrow = heuristic_warp(&f, &color, &hp).unwrap();
+                crate::lanes::set_avx512(true);
+                assert!(bits(&narrow) == bits(&lanes), "AVX2 vs AVX-512 {p:?} {seed:?} T={t}");
                 compared += 1;
             }
         }
@@ -505,6 +510,18 @@ fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
             set_simd(true);
             let (lanes, sl) = robust_warp(&f, &color, &rp).unwrap();
             assert_eq!(sp, sl);
+            crate::lanes::set_avx512(false);
+            let (narrow, _) = robust_warp(&f, &color, &rp).unwrap();
+            crate::lanes::set_avx512(true);
+            let same_builds = narrow
+                .color
+                .data()
+                .iter()
+                .zip(lanes.color.data())
+                .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+                && narrow.depth.data().iter().zip(lanes.depth.data()).all(|(a, b)| a.to_bits() == b.to_bits())
+                && narrow.residual.data().iter().zip(lanes.residual.data()).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same_builds, "robust AVX2 vs AVX-512 {p:?} accelerate {accelerate} tile {tile}");
             let same = portable
                 .color
                 .data()

@@ -40,8 +40,7 @@ impl SimdSwitch {
             use std::arch::is_x86_feature_detected as has;
             self.on.load(Ordering::Relaxed)
                 && has!("avx2")
-                && (!self.avx512
-                    || (has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq")))
+                && (!self.avx512 || (has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq")))
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
@@ -54,6 +53,42 @@ impl Default for SimdSwitch {
     fn default() -> Self {
         Self::avx2()
     }
+}
+
+/// Defines `$name`, whose body (AVX2 intrinsics) is compiled twice: for AVX2, and for AVX2 with
+/// AVX-512 F, VL, BW and DQ enabled, which runs the same 256-bit operations with 32 vector
+/// registers and mask registers to schedule them (bit-identical results). Each call takes the
+/// second build where `$wide` holds (a crate's [`SimdSwitch::avx512`]), else the first; the
+/// caller must have checked AVX2. The body is stamped into both builds, so closures in it take
+/// their features.
+///
+/// ```ignore
+/// zwarp_core::avx2_or_avx512! {
+///     /// Docs of `rows`.
+///     pub(crate) unsafe fn rows(a: &[f32], out: &mut [f32]) -> usize where wide = has_avx512(); {
+///         // AVX2 intrinsics
+///     }
+/// }
+/// ```
+#[macro_export]
+macro_rules! avx2_or_avx512 {
+    ($(#[$meta:meta])* $vis:vis unsafe fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? where wide = $wide:expr; $body:block) => {
+        $(#[$meta])*
+        #[inline(always)]
+        $vis unsafe fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[target_feature(enable = "avx2")]
+            #[allow(clippy::too_many_arguments)]
+            unsafe fn narrow($($arg: $ty),*) $(-> $ret)? $body
+            #[target_feature(enable = "avx2,avx512f,avx512vl,avx512bw,avx512dq")]
+            #[allow(clippy::too_many_arguments)]
+            unsafe fn wide($($arg: $ty),*) $(-> $ret)? $body
+            if $wide {
+                wide($($arg),*)
+            } else {
+                narrow($($arg),*)
+            }
+        }
+    };
 }
 
 /// AVX2 building blocks shared by the crates' AVX2 builds: glam's matrix-vector product on eight

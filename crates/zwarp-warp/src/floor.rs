@@ -44,11 +44,13 @@ pub fn floor_pass(layers: &[WarpLayer<'_>], m: u32, w: u32, out: &mut [f32]) -> 
 }
 
 #[cfg(target_arch = "x86_64")]
-crate::simd::avx2_or_avx512! {
+zwarp_core::avx2_or_avx512! {
     /// [`rows_impl`] vectorized for AVX2, or for AVX-512 where the CPU has it: the floor is the
     /// memory's speed, so it takes the widest build there is.
     unsafe fn rows_avx2(d: &[&[f32]], mo: &[&[Motion]], y0: usize, w: usize, m: usize, sw: usize, rows: &mut [f32])
-        = rows_impl, wide if crate::simd::has_avx512();
+    where wide = crate::simd::has_avx512(); {
+        rows_impl(d, mo, y0, w, m, sw, rows)
+    }
 }
 
 #[inline(always)]

@@ -35,35 +35,6 @@ pub fn has_avx512() -> bool {
     has_avx2() && AVX512.active()
 }
 
-/// Defines `$name`, which runs the `#[inline(always)]` body `$body` (AVX2 intrinsics, no target
-/// feature of its own) compiled for AVX-512 F, VL, BW and DQ where `$wide` holds, else for
-/// AVX2: two builds of one source, chosen per call. The wide build executes the same
-/// operations (the compiler only gets 32 vector registers and mask registers to schedule them
-/// with), so both are bit-identical; callers must have checked AVX2, and `$wide` must imply
-/// [`has_avx512`].
-macro_rules! avx2_or_avx512 {
-    ($(#[$meta:meta])* $vis:vis unsafe fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? = $body:path, wide if $wide:expr;) => {
-        $(#[$meta])*
-        #[inline(always)]
-        $vis unsafe fn $name($($arg: $ty),*) $(-> $ret)? {
-            #[target_feature(enable = "avx2")]
-            unsafe fn narrow($($arg: $ty),*) $(-> $ret)? {
-                $body($($arg),*)
-            }
-            #[target_feature(enable = "avx2,avx512f,avx512vl,avx512bw,avx512dq")]
-            unsafe fn wide($($arg: $ty),*) $(-> $ret)? {
-                $body($($arg),*)
-            }
-            if $wide {
-                wide($($arg),*)
-            } else {
-                narrow($($arg),*)
-            }
-        }
-    };
-}
-pub(crate) use avx2_or_avx512;
-
 /// `min` as a compare-select (`a < b ? a : b`): what `minps` computes, so loops of it vectorize
 /// and the AVX2 builds stay bit-identical to the portable ones. No NaN may reach it (the layer
 /// preparation rejects NaN input; empty texels are `+inf`).

@@ -619,7 +619,7 @@ impl Texels {
     }
 }
 
-crate::simd::avx2_or_avx512! {
+zwarp_core::avx2_or_avx512! {
 /// One seed per lane through the walk of `fixed_point_search` on layer `k` (with the
 /// cross-layer fallback): the lanes that converged, their sample's depth, position and tag, the
 /// walk's closest approach (smallest squared residual of a smooth sampled iterate and its depth,
@@ -636,7 +636,9 @@ unsafe fn walk8(
     qx: __m256,
     qy: __m256,
     live: __m256,
-) -> Walk8 = walk8_lanes, wide if ls.avx512;
+) -> Walk8 where wide = ls.avx512; {
+    walk8_lanes(ls, k, px, py, qx, qy, live)
+}
 }
 
 /// What [`walk8`] returns: converged lanes, their depth, position and tag, the closest approach

@@ -278,7 +278,7 @@ unsafe fn drawn(a: &WindowTests, b: &WindowTests, dx: usize, dy: usize, z: __m25
     _mm256_blendv_ps(ps(EMPTY_DEPTH), z, _mm256_or_ps(a.covers(dx, dy), b.covers(dx, dy)))
 }
 
-crate::simd::avx2_or_avx512! {
+zwarp_core::avx2_or_avx512! {
     /// The VFW quads of source row `y` of layer `k` (`l`) into the band of target rows starting
     /// at `y0` (see [`super::vfw_row`]), its neighbour rows read through the band task's `rows`;
     /// AVX-512-enabled where the CPU has it.
@@ -292,170 +292,156 @@ crate::simd::avx2_or_avx512! {
         y0: usize,
         y: usize,
         rows: &mut RowCache,
-    ) = vfw_row_lanes, wide if crate::simd::has_avx512();
-}
-
-/// The body of [`vfw_row`], compiled into each of its builds.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-unsafe fn vfw_row_lanes(
-    l: &WarpLayer<'_>,
-    k: usize,
-    w: u32,
-    h: u32,
-    band: &mut [f32],
-    y0: usize,
-    y: usize,
-    rows: &mut RowCache,
-) {
-    let wu = w as usize;
-    let mut band = Band::new(band, w, h, y0);
-    let clip = band.clip();
-    // The portable path of one pixel (image border, lanes whose quad needs a bigger window).
-    let scalar = |band: &mut Band<'_>, x: usize| {
-        if let Some(m) = sample_at(l, w, h, x as i64, y as i64) {
-            vfw_pixel(l, band, x, y, m);
-        }
-    };
-    // Groups of eight whose 3 x 10 neighbourhood lies inside the image.
-    let inner = y >= 1 && y + 1 < h as usize && wu >= 10;
-    let (gx0, gx1) = if inner { (1, 1 + (wu - 2) / 8 * 8) } else { (0, 0) };
-    for x in (0..gx0).chain(gx1..wu) {
-        scalar(&mut band, x);
-    }
-    let lim = Limits { w1: ps(w as f32 - 1.0), h1: ps(h as f32 - 1.0), clip0: ps(clip.0), clip1: ps(clip.1) };
-    let lanes = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
-    let cy = ps(y as f32 + 0.5);
-    let wv = _mm256_set1_epi32(wu as i32);
-    if gx0 < gx1 {
-        for r in y - 1..=y + 1 {
-            rows.fill(l, k, wu, r);
-        }
-    }
-    let rows = &*rows;
-    for x in (gx0..gx1).step_by(8) {
-        let own = rows.load(x, y);
-        // Quads that cannot reach the band are skipped (`vfw_pixel`'s test), whole groups first.
-        let c = _mm256_add_ps(cy, own.vy);
-        let far = _mm256_or_ps(
-            _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(c, ps(VFW_ROW_REACH)), lim.clip0),
-            _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(c, ps(VFW_ROW_REACH)), lim.clip1),
-        );
-        let live = _mm256_andnot_ps(far, own.ok);
-        if _mm256_movemask_ps(live) == 0 {
-            continue;
-        }
-        let nb = [
-            [rows.load(x - 1, y - 1), rows.load(x, y - 1), rows.load(x + 1, y - 1)],
-            [rows.load(x - 1, y), own, rows.load(x + 1, y)],
-            [rows.load(x - 1, y + 1), rows.load(x, y + 1), rows.load(x + 1, y + 1)],
-        ];
-        let px = _mm256_add_ps(ps(x as f32), lanes);
-        let px1 = _mm256_add_ps(px, ps(1.0));
-        let (py, py1) = (ps(y as f32), ps(y as f32 + 1.0));
-        let q = [
-            corner(P8 { x: px, y: py }, [&nb[0][0], &nb[0][1], &nb[1][0], &nb[1][1]], &own, (-1.0, -1.0)),
-            corner(P8 { x: px1, y: py }, [&nb[0][1], &nb[0][2], &nb[1][1], &nb[1][2]], &own, (1.0, -1.0)),
-            corner(P8 { x: px1, y: py1 }, [&nb[1][1], &nb[1][2], &nb[2][1], &nb[2][2]], &own, (1.0, 1.0)),
-            corner(P8 { x: px, y: py1 }, [&nb[1][0], &nb[1][1], &nb[2][0], &nb[2][1]], &own, (-1.0, 1.0)),
-        ];
-        let a = setup([q[0], q[1], q[2]], &lim);
-        let b = setup([q[0], q[2], q[3]], &lim);
-        // The quad's box: the window of 3 x 3 centres starting at its first column and row.
-        let lo = P8 {
-            x: _mm256_min_ps(_mm256_min_ps(q[0].x, q[1].x), _mm256_min_ps(q[2].x, q[3].x)),
-            y: _mm256_min_ps(_mm256_min_ps(q[0].y, q[1].y), _mm256_min_ps(q[2].y, q[3].y)),
+    ) where wide = crate::simd::has_avx512(); {
+        let wu = w as usize;
+        let mut band = Band::new(band, w, h, y0);
+        let clip = band.clip();
+        // The portable path of one pixel (image border, lanes whose quad needs a bigger window).
+        let scalar = |band: &mut Band<'_>, x: usize| {
+            if let Some(m) = sample_at(l, w, h, x as i64, y as i64) {
+                vfw_pixel(l, band, x, y, m);
+            }
         };
-        let hi = P8 {
-            x: _mm256_max_ps(_mm256_max_ps(q[0].x, q[1].x), _mm256_max_ps(q[2].x, q[3].x)),
-            y: _mm256_max_ps(_mm256_max_ps(q[0].y, q[1].y), _mm256_max_ps(q[2].y, q[3].y)),
-        };
-        let (wx0, wx1, wy0, wy1) = lim.bounds(lo, hi);
-        let fits = _mm256_and_ps(
-            _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(wx1, wx0), ps(2.0)),
-            _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(wy1, wy0), ps(2.0)),
-        );
-        let fast = _mm256_and_ps(live, fits);
-        let slow = _mm256_movemask_ps(_mm256_andnot_ps(fits, live)) as u32;
-        let z = _mm256_add_ps(own.z, ps(0.0));
-        let mut zs = [0f32; 8];
-        _mm256_storeu_ps(zs.as_mut_ptr(), z);
-        // Window origin as an index into the band (only used for fast lanes, whose box is
-        // inside the image and the band).
-        let base = _mm256_add_epi32(
-            _mm256_mullo_epi32(_mm256_cvttps_epi32(_mm256_sub_ps(_mm256_max_ps(wy0, lim.clip0), lim.clip0)), wv),
-            _mm256_cvttps_epi32(_mm256_max_ps(wx0, ps(0.0))),
-        );
-        let mut at = [0i32; 8];
-        _mm256_storeu_si256(at.as_mut_ptr() as *mut __m256i, base);
-        let (ta, tb) = (WindowTests::new(&a, wx0, wy0), WindowTests::new(&b, wx0, wy0));
-        let wx0i = _mm256_cvttps_epi32(_mm256_max_ps(wx0, ps(0.0)));
-        let first = _mm256_permutevar8x32_epi32(wx0i, _mm256_setzero_si256());
-        let row0 = _mm256_permutevar8x32_ps(wy0, _mm256_setzero_si256());
-        let c0 = _mm256_extract_epi32::<0>(wx0i);
-        let lined_up = _mm256_and_ps(
-            _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-                wx0i,
-                _mm256_add_epi32(first, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)),
-            )),
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(wy0, row0),
-        );
-        if _mm256_movemask_ps(_mm256_and_ps(fast, lined_up)) == 0xff && c0 as usize + 9 < wu {
-            // The eight windows start on one row at consecutive columns (a smooth surface): a
-            // window row's ten target pixels take, per column, the min over the lanes and
-            // window columns that land there, formed with lane shifts, one vector min per row.
-            let shift1 = _mm256_setr_epi32(0, 0, 1, 2, 3, 4, 5, 6);
-            let shift2 = _mm256_setr_epi32(0, 0, 0, 1, 2, 3, 4, 5);
-            let far = ps(EMPTY_DEPTH);
-            let wy = _mm256_cvtss_f32(wy0);
-            for dy in 0..3 {
-                if wy + dy as f32 > clip.1 {
-                    break;
-                }
-                let (v0, v1, v2) = (drawn(&ta, &tb, 0, dy, z), drawn(&ta, &tb, 1, dy, z), drawn(&ta, &tb, 2, dy, z));
-                let s1 = _mm256_blend_ps::<0b0000_0001>(_mm256_permutevar8x32_ps(v1, shift1), far);
-                let s2 = _mm256_blend_ps::<0b0000_0011>(_mm256_permutevar8x32_ps(v2, shift2), far);
-                let m = _mm256_min_ps(v0, _mm256_min_ps(s1, s2));
-                let mut hi = [0f32; 8];
-                _mm256_storeu_ps(hi.as_mut_ptr(), _mm256_min_ps(v1, _mm256_permutevar8x32_ps(v2, shift1)));
-                let mut last = [0f32; 8];
-                _mm256_storeu_ps(last.as_mut_ptr(), v2);
-                let at = ((wy - clip.0) as usize + dy) * wu + c0 as usize;
-                let row = &mut band.rows[at..at + 10];
-                _mm256_storeu_ps(row.as_mut_ptr(), _mm256_min_ps(m, _mm256_loadu_ps(row.as_ptr())));
-                // Column 8: lane 7's window column 1, lane 6's column 2; column 9: lane 7's column 2.
-                row[8] = if hi[7] < row[8] { hi[7] } else { row[8] };
-                row[9] = if last[7] < row[9] { last[7] } else { row[9] };
-            }
-        } else {
-            // Per lane, bit `3 dy + dx` marks a drawn centre of its window.
-            let mut drawn = _mm256_setzero_si256();
-            for dy in 0..3 {
-                for dx in 0..3 {
-                    let hit = _mm256_castps_si256(_mm256_or_ps(ta.covers(dx, dy), tb.covers(dx, dy)));
-                    drawn = _mm256_or_si256(drawn, _mm256_and_si256(hit, _mm256_set1_epi32(1 << (3 * dy + dx))));
-                }
-            }
-            let mut masks = [0u32; 8];
-            _mm256_storeu_si256(masks.as_mut_ptr() as *mut __m256i, drawn);
-            let offsets = [0, 1, 2, wu, wu + 1, wu + 2, 2 * wu, 2 * wu + 1, 2 * wu + 2];
-            let mut lanes_left = _mm256_movemask_ps(fast) as u32;
-            while lanes_left != 0 {
-                let k = lanes_left.trailing_zeros() as usize;
-                lanes_left &= lanes_left - 1;
-                let (mut m, z, at) = (masks[k], zs[k], at[k] as usize);
-                while m != 0 {
-                    let o = &mut band.rows[at + offsets[m.trailing_zeros() as usize]];
-                    m &= m - 1;
-                    *o = if z < *o { z } else { *o };
-                }
+        // Groups of eight whose 3 x 10 neighbourhood lies inside the image.
+        let inner = y >= 1 && y + 1 < h as usize && wu >= 10;
+        let (gx0, gx1) = if inner { (1, 1 + (wu - 2) / 8 * 8) } else { (0, 0) };
+        for x in (0..gx0).chain(gx1..wu) {
+            scalar(&mut band, x);
+        }
+        let lim = Limits { w1: ps(w as f32 - 1.0), h1: ps(h as f32 - 1.0), clip0: ps(clip.0), clip1: ps(clip.1) };
+        let lanes = _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0);
+        let cy = ps(y as f32 + 0.5);
+        let wv = _mm256_set1_epi32(wu as i32);
+        if gx0 < gx1 {
+            for r in y - 1..=y + 1 {
+                rows.fill(l, k, wu, r);
             }
         }
-        let mut bits = slow;
-        while bits != 0 {
-            let k = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            scalar(&mut band, x + k);
+        let rows = &*rows;
+        for x in (gx0..gx1).step_by(8) {
+            let own = rows.load(x, y);
+            // Quads that cannot reach the band are skipped (`vfw_pixel`'s test), whole groups first.
+            let c = _mm256_add_ps(cy, own.vy);
+            let far = _mm256_or_ps(
+                _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_add_ps(c, ps(VFW_ROW_REACH)), lim.clip0),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(_mm256_sub_ps(c, ps(VFW_ROW_REACH)), lim.clip1),
+            );
+            let live = _mm256_andnot_ps(far, own.ok);
+            if _mm256_movemask_ps(live) == 0 {
+                continue;
+            }
+            let nb = [
+                [rows.load(x - 1, y - 1), rows.load(x, y - 1), rows.load(x + 1, y - 1)],
+                [rows.load(x - 1, y), own, rows.load(x + 1, y)],
+                [rows.load(x - 1, y + 1), rows.load(x, y + 1), rows.load(x + 1, y + 1)],
+            ];
+            let px = _mm256_add_ps(ps(x as f32), lanes);
+            let px1 = _mm256_add_ps(px, ps(1.0));
+            let (py, py1) = (ps(y as f32), ps(y as f32 + 1.0));
+            let q = [
+                corner(P8 { x: px, y: py }, [&nb[0][0], &nb[0][1], &nb[1][0], &nb[1][1]], &own, (-1.0, -1.0)),
+                corner(P8 { x: px1, y: py }, [&nb[0][1], &nb[0][2], &nb[1][1], &nb[1][2]], &own, (1.0, -1.0)),
+                corner(P8 { x: px1, y: py1 }, [&nb[1][1], &nb[1][2], &nb[2][1], &nb[2][2]], &own, (1.0, 1.0)),
+                corner(P8 { x: px, y: py1 }, [&nb[1][0], &nb[1][1], &nb[2][0], &nb[2][1]], &own, (-1.0, 1.0)),
+            ];
+            let a = setup([q[0], q[1], q[2]], &lim);
+            let b = setup([q[0], q[2], q[3]], &lim);
+            // The quad's box: the window of 3 x 3 centres starting at its first column and row.
+            let lo = P8 {
+                x: _mm256_min_ps(_mm256_min_ps(q[0].x, q[1].x), _mm256_min_ps(q[2].x, q[3].x)),
+                y: _mm256_min_ps(_mm256_min_ps(q[0].y, q[1].y), _mm256_min_ps(q[2].y, q[3].y)),
+            };
+            let hi = P8 {
+                x: _mm256_max_ps(_mm256_max_ps(q[0].x, q[1].x), _mm256_max_ps(q[2].x, q[3].x)),
+                y: _mm256_max_ps(_mm256_max_ps(q[0].y, q[1].y), _mm256_max_ps(q[2].y, q[3].y)),
+            };
+            let (wx0, wx1, wy0, wy1) = lim.bounds(lo, hi);
+            let fits = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(wx1, wx0), ps(2.0)),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(wy1, wy0), ps(2.0)),
+            );
+            let fast = _mm256_and_ps(live, fits);
+            let slow = _mm256_movemask_ps(_mm256_andnot_ps(fits, live)) as u32;
+            let z = _mm256_add_ps(own.z, ps(0.0));
+            let mut zs = [0f32; 8];
+            _mm256_storeu_ps(zs.as_mut_ptr(), z);
+            // Window origin as an index into the band (only used for fast lanes, whose box is
+            // inside the image and the band).
+            let base = _mm256_add_epi32(
+                _mm256_mullo_epi32(_mm256_cvttps_epi32(_mm256_sub_ps(_mm256_max_ps(wy0, lim.clip0), lim.clip0)), wv),
+                _mm256_cvttps_epi32(_mm256_max_ps(wx0, ps(0.0))),
+            );
+            let mut at = [0i32; 8];
+            _mm256_storeu_si256(at.as_mut_ptr() as *mut __m256i, base);
+            let (ta, tb) = (WindowTests::new(&a, wx0, wy0), WindowTests::new(&b, wx0, wy0));
+            let wx0i = _mm256_cvttps_epi32(_mm256_max_ps(wx0, ps(0.0)));
+            let first = _mm256_permutevar8x32_epi32(wx0i, _mm256_setzero_si256());
+            let row0 = _mm256_permutevar8x32_ps(wy0, _mm256_setzero_si256());
+            let c0 = _mm256_extract_epi32::<0>(wx0i);
+            let lined_up = _mm256_and_ps(
+                _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                    wx0i,
+                    _mm256_add_epi32(first, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)),
+                )),
+                _mm256_cmp_ps::<_CMP_EQ_OQ>(wy0, row0),
+            );
+            if _mm256_movemask_ps(_mm256_and_ps(fast, lined_up)) == 0xff && c0 as usize + 9 < wu {
+                // The eight windows start on one row at consecutive columns (a smooth surface): a
+                // window row's ten target pixels take, per column, the min over the lanes and
+                // window columns that land there, formed with lane shifts, one vector min per row.
+                let shift1 = _mm256_setr_epi32(0, 0, 1, 2, 3, 4, 5, 6);
+                let shift2 = _mm256_setr_epi32(0, 0, 0, 1, 2, 3, 4, 5);
+                let far = ps(EMPTY_DEPTH);
+                let wy = _mm256_cvtss_f32(wy0);
+                for dy in 0..3 {
+                    if wy + dy as f32 > clip.1 {
+                        break;
+                    }
+                    let (v0, v1, v2) = (drawn(&ta, &tb, 0, dy, z), drawn(&ta, &tb, 1, dy, z), drawn(&ta, &tb, 2, dy, z));
+                    let s1 = _mm256_blend_ps::<0b0000_0001>(_mm256_permutevar8x32_ps(v1, shift1), far);
+                    let s2 = _mm256_blend_ps::<0b0000_0011>(_mm256_permutevar8x32_ps(v2, shift2), far);
+                    let m = _mm256_min_ps(v0, _mm256_min_ps(s1, s2));
+                    let mut hi = [0f32; 8];
+                    _mm256_storeu_ps(hi.as_mut_ptr(), _mm256_min_ps(v1, _mm256_permutevar8x32_ps(v2, shift1)));
+                    let mut last = [0f32; 8];
+                    _mm256_storeu_ps(last.as_mut_ptr(), v2);
+                    let at = ((wy - clip.0) as usize + dy) * wu + c0 as usize;
+                    let row = &mut band.rows[at..at + 10];
+                    _mm256_storeu_ps(row.as_mut_ptr(), _mm256_min_ps(m, _mm256_loadu_ps(row.as_ptr())));
+                    // Column 8: lane 7's window column 1, lane 6's column 2; column 9: lane 7's column 2.
+                    row[8] = if hi[7] < row[8] { hi[7] } else { row[8] };
+                    row[9] = if last[7] < row[9] { last[7] } else { row[9] };
+                }
+            } else {
+                // Per lane, bit `3 dy + dx` marks a drawn centre of its window.
+                let mut drawn = _mm256_setzero_si256();
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let hit = _mm256_castps_si256(_mm256_or_ps(ta.covers(dx, dy), tb.covers(dx, dy)));
+                        drawn = _mm256_or_si256(drawn, _mm256_and_si256(hit, _mm256_set1_epi32(1 << (3 * dy + dx))));
+                    }
+                }
+                let mut masks = [0u32; 8];
+                _mm256_storeu_si256(masks.as_mut_ptr() as *mut __m256i, drawn);
+                let offsets = [0, 1, 2, wu, wu + 1, wu + 2, 2 * wu, 2 * wu + 1, 2 * wu + 2];
+                let mut lanes_left = _mm256_movemask_ps(fast) as u32;
+                while lanes_left != 0 {
+                    let k = lanes_left.trailing_zeros() as usize;
+                    lanes_left &= lanes_left - 1;
+                    let (mut m, z, at) = (masks[k], zs[k], at[k] as usize);
+                    while m != 0 {
+                        let o = &mut band.rows[at + offsets[m.trailing_zeros() as usize]];
+                        m &= m - 1;
+                        *o = if z < *o { z } else { *o };
+                    }
+                }
+            }
+            let mut bits = slow;
+            while bits != 0 {
+                let k = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                scalar(&mut band, x + k);
+            }
         }
     }
 }
