@@ -3,7 +3,8 @@
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
 //! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), the
 //! motion field itself (AVX2 and portable builds), the
-//! VFW / AFW forward baselines side by side, and the streaming floor of the same inputs
+//! VFW / AFW forward baselines side by side, the AVX2 builds of the walks and of VFW beside
+//! their AVX-512-enabled builds, and the streaming floor of the same inputs
 //! (`floor::floor_pass`: one read of every layer, one write of the output).
 //!
 //! After the criterion groups a summary prints, per configuration: median wall time over a few
@@ -128,7 +129,20 @@ fn main() {
                     b.iter(|| warp_prepared(&prepared, &params).unwrap())
                 });
             }
+            // The AVX2 builds of the walks and of VFW beside the AVX-512-enabled ones (where the
+            // CPU has AVX-512; elsewhere both rows time the AVX2 build).
+            let params = WarpParams { n_seeds: 16, ..Default::default() };
+            g.bench_with_input(BenchmarkId::new(format!("ours_L{l}_avx2_only"), 16), &16, |b, _| {
+                zwarp_warp::simd::set_avx512(false);
+                b.iter(|| warp_prepared(&prepared, &params).unwrap());
+                zwarp_warp::simd::set_avx512(true);
+            });
             g.bench_with_input(BenchmarkId::new("vfw", l), &l, |b, _| b.iter(|| vfw_layers(&ls).unwrap()));
+            g.bench_with_input(BenchmarkId::new("vfw_avx2_only", l), &l, |b, _| {
+                zwarp_warp::simd::set_avx512(false);
+                b.iter(|| vfw_layers(&ls).unwrap());
+                zwarp_warp::simd::set_avx512(true);
+            });
             g.bench_with_input(BenchmarkId::new("afw", l), &l, |b, _| b.iter(|| afw_layers(&ls).unwrap()));
         }
         // The motion of layer 0 (Sec. 3.1) into a reused buffer: the AVX2 build and the portable one.
@@ -193,6 +207,16 @@ fn main() {
                 "L={l} ours N={n:2}: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor, {mpx:.2} Mpx/s/core{traffic}",
                 t / floor
             );
+        }
+        {
+            // The walks' AVX2 build at N = 16 (the AVX-512-enabled one is the row above).
+            let params = WarpParams { n_seeds: 16, ..Default::default() };
+            zwarp_warp::simd::set_avx512(false);
+            let (t, lo, hi) = median_ms(5, || {
+                let _ = warp_prepared(&prepared, &params).unwrap();
+            });
+            zwarp_warp::simd::set_avx512(true);
+            println!("L={l} ours N=16, AVX2 build only: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor", t / floor);
         }
         for (name, f) in [("VFW", vfw_layers as fn(&[WarpLayer<'_>]) -> _), ("AFW", afw_layers)] {
             let (t, lo, hi) = median_ms(5, || {
