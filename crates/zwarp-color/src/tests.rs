@@ -513,23 +513,13 @@ fn heuristic_lanes_are_bit_identical_to_the_portable_path() {
             crate::lanes::set_avx512(false);
             let (narrow, _) = robust_warp(&f, &color, &rp).unwrap();
             crate::lanes::set_avx512(true);
-            let same_builds = narrow
-                .color
-                .data()
-                .iter()
-                .zip(lanes.color.data())
-                .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
-                && narrow.depth.data().iter().zip(lanes.depth.data()).all(|(a, b)| a.to_bits() == b.to_bits())
-                && narrow.residual.data().iter().zip(lanes.residual.data()).all(|(a, b)| a.to_bits() == b.to_bits());
-            assert!(same_builds, "robust AVX2 vs AVX-512 {p:?} accelerate {accelerate} tile {tile}");
-            let same = portable
-                .color
-                .data()
-                .iter()
-                .zip(lanes.color.data())
-                .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
-                && portable.depth.data().iter().zip(lanes.depth.data()).all(|(a, b)| a.to_bits() == b.to_bits())
-                && portable.residual.data().iter().zip(lanes.residual.data()).all(|(a, b)| a.to_bits() == b.to_bits());
+            let same_bits = |a: &ColorWarpOutput, b: &ColorWarpOutput| {
+                a.color.data().iter().zip(b.color.data()).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+                    && a.depth.data().iter().zip(b.depth.data()).all(|(a, b)| a.to_bits() == b.to_bits())
+                    && a.residual.data().iter().zip(b.residual.data()).all(|(a, b)| a.to_bits() == b.to_bits())
+            };
+            assert!(same_bits(&narrow, &lanes), "robust AVX2 vs AVX-512 {p:?} accelerate {accelerate} tile {tile}");
+            let same = same_bits(&portable, &lanes);
             assert!(same, "robust {p:?} accelerate {accelerate} tile {tile}");
         }
     }
