@@ -3,7 +3,9 @@
 //! order as the portable path (`heuristic_pixel`: the seed, `zwarp_warp::search::
 //! fixed_point_search` with one seed, the orbit in-painting, the colour look-up), so the output
 //! is bit-identical (no FMA; `min`/`max`/comparisons with the semantics of glam's). Chosen at
-//! run time where the CPU has AVX2 ([`set_simd`] switches it off for tests and timing).
+//! run time where the CPU has AVX2 ([`set_simd`] switches it off for tests and timing); the
+//! heuristic rows and the robust warp's quads also have an AVX-512-enabled build of the same
+//! code ([`set_avx512`]).
 
 use zwarp_core::SimdSwitch;
 

@@ -35,7 +35,7 @@ pub fn floor_pass(layers: &[WarpLayer<'_>], m: u32, w: u32, out: &mut [f32]) -> 
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
             // SAFETY: only taken when the CPU reports AVX2.
-            unsafe { rows_avx2(&depths, &motions, c * 8, wu, mu, swu, rows) };
+            unsafe { rows_simd(&depths, &motions, c * 8, wu, mu, swu, rows) };
             return;
         }
         rows_impl(&depths, &motions, c * 8, wu, mu, swu, rows);
@@ -47,7 +47,7 @@ pub fn floor_pass(layers: &[WarpLayer<'_>], m: u32, w: u32, out: &mut [f32]) -> 
 zwarp_core::avx2_or_avx512! {
     /// [`rows_impl`] vectorized for AVX2, or for AVX-512 where the CPU has it: the floor is the
     /// memory's speed, so it takes the widest build there is.
-    unsafe fn rows_avx2(d: &[&[f32]], mo: &[&[Motion]], y0: usize, w: usize, m: usize, sw: usize, rows: &mut [f32])
+    unsafe fn rows_simd(d: &[&[f32]], mo: &[&[Motion]], y0: usize, w: usize, m: usize, sw: usize, rows: &mut [f32])
     where wide = crate::simd::has_avx512(); {
         rows_impl(d, mo, y0, w, m, sw, rows)
     }

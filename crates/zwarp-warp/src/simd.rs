@@ -1,7 +1,7 @@
-//! Run-time choice of the AVX2 builds of the warp's kernels (x86-64 only), and the scalar
-//! operations that keep them bit-identical to the portable builds (no FMA, same operation
-//! order, min / max as compare-selects); the switch exists so tests can prove it and benchmarks
-//! can time the portable build.
+//! Run-time choice of the AVX2 builds of the warp's kernels and of the AVX-512-enabled builds
+//! of the hottest ones (x86-64 only), and the scalar operations that keep them bit-identical to
+//! the portable builds (no FMA, same operation order, min / max as compare-selects); the
+//! switches exist so tests can prove it and benchmarks can time each build.
 
 use zwarp_core::SimdSwitch;
 
