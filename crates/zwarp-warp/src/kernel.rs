@@ -1134,14 +1134,17 @@ impl<'a> Kernel<'a> {
             if row == 1 && !two {
                 break;
             }
-            drow[x..x + n].copy_from_slice(&zs[4 * row..4 * row + n]);
             let bits = hasb >> (4 * row);
             if n == 4 {
+                // A fixed-size store: a variable-length copy here was a `memmove` call per row.
+                let half = if row == 0 { _mm256_castps256_ps128(fz) } else { _mm256_extractf128_ps::<1>(fz) };
+                _mm_storeu_ps(drow[x..x + 4].as_mut_ptr(), half);
                 // SAFETY: `PixelState` is a repr(u8) enum (STATE4's bytes are its values) and the
                 // slice holds four elements from `x`.
                 let dst = srow[x..x + 4].as_mut_ptr() as *mut [u8; 4];
                 unsafe { dst.write_unaligned(STATE4[(bits & 0xf) as usize]) };
             } else {
+                drow[x..x + n].copy_from_slice(&zs[4 * row..4 * row + n]);
                 for (i, st) in srow[x..x + n].iter_mut().enumerate() {
                     *st = if bits >> i & 1 != 0 { PixelState::Converged } else { PixelState::Hole };
                 }
