@@ -175,6 +175,127 @@ pub struct TightBound {
     pub min_depth: f32,
 }
 
+/// The texels of one mip level, the input of the next level's reduction.
+struct LevelTexels<'a> {
+    w: usize,
+    h: usize,
+    data: &'a [[f32; 4]],
+    zmin: &'a [f32],
+    grad: &'a [[f32; 2]],
+}
+
+/// Row `ty` of the next coarser level from `below` (Sec. 3.3's min-max mipmap, and the min
+/// depth and gradient mipmaps beside it): each texel is the union of the (up to) 2x2 texels
+/// under it, folded from empty in the order upper-left, upper-right, lower-left, lower-right.
+/// `simd` takes the AVX2 build for the full 2x2 blocks (same compare-selects in the same
+/// order: the same bits).
+fn level_row(
+    below: &LevelTexels<'_>,
+    ty: usize,
+    row: &mut [[f32; 4]],
+    zrow: &mut [f32],
+    grow: &mut [[f32; 2]],
+    simd: bool,
+) {
+    let (pw, y0) = (below.w, ty * 2);
+    let y1 = (y0 + 2).min(below.h);
+    // Full 2x2 blocks first, then the texels at the right and bottom borders.
+    let full = if y1 == y0 + 2 { pw / 2 } else { 0 };
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if simd && full > 0 {
+        // SAFETY: `simd` is only set where the CPU has AVX2 (or by tests that check it).
+        done = unsafe { level_row_avx2::blocks(below, y0, &mut row[..full], &mut zrow[..full], &mut grow[..full]) };
+    }
+    let _ = simd;
+    for tx in done..row.len() {
+        let (x0, x1) = (tx * 2, (tx * 2 + 2).min(pw));
+        let (mut b, mut z, mut g) = (Bound::EMPTY, f32::INFINITY, [f32::NEG_INFINITY; 2]);
+        for y in y0..y1 {
+            for i in y * pw + x0..y * pw + x1 {
+                b = b.union(&Bound::from_texel(&below.data[i]));
+                z = fmin(z, below.zmin[i]);
+                g = [fmax(g[0], below.grad[i][0]), fmax(g[1], below.grad[i][1])];
+            }
+        }
+        (row[tx], zrow[tx], grow[tx]) = (b.to_texel(), z, g);
+    }
+}
+
+/// The AVX2 build of [`level_row`]'s full 2x2 blocks.
+#[cfg(target_arch = "x86_64")]
+mod level_row_avx2 {
+    use super::LevelTexels;
+    use std::arch::x86_64::*;
+
+    /// The full blocks of a row pair from `y0` (both rows present, `row.len() <= w / 2`):
+    /// min-max texels two at a time, gradients four and min depths eight at a time; returns
+    /// how many texels it wrote (a multiple of eight; the rest is left to the portable loop).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn blocks(
+        b: &LevelTexels<'_>,
+        y0: usize,
+        row: &mut [[f32; 4]],
+        zrow: &mut [f32],
+        grow: &mut [[f32; 2]],
+    ) -> usize {
+        let pw = b.w;
+        // Multiples of eight texels: the min depths go eight at a time.
+        let texels = row.len() / 8 * 8;
+        debug_assert!(2 * row.len() <= pw && y0 + 1 < b.h);
+        let (up, lo) = (y0 * pw, (y0 + 1) * pw);
+        // `acc < next ? acc : next` / `acc > next ? acc : next`, as glam's and fmin / fmax's
+        // compare-selects (the fold starts at the first texel: the union with empty is it).
+        let fold4 = |a, b, c, d| {
+            let mn = _mm256_min_ps(_mm256_min_ps(_mm256_min_ps(a, b), c), d);
+            let mx = _mm256_max_ps(_mm256_max_ps(_mm256_max_ps(a, b), c), d);
+            (mn, mx)
+        };
+        // Min-max texels [lo.x, lo.y, hi.x, hi.y]: two outputs per step.
+        let data = b.data.as_ptr() as *const f32;
+        for tx in (0..texels).step_by(2) {
+            let ld = |r: usize| {
+                let u0 = _mm256_loadu_ps(data.add(4 * (r + 2 * tx)));
+                let u1 = _mm256_loadu_ps(data.add(4 * (r + 2 * tx + 2)));
+                (_mm256_permute2f128_ps::<0x20>(u0, u1), _mm256_permute2f128_ps::<0x31>(u0, u1))
+            };
+            let ((a, bb), (c, d)) = (ld(up), ld(lo));
+            let (mn, mx) = fold4(a, bb, c, d);
+            _mm256_storeu_ps(row.as_mut_ptr().add(tx) as *mut f32, _mm256_blend_ps::<0b1100_1100>(mn, mx));
+        }
+        // Min depths: eight outputs per step (even / odd columns; one lane permutation for all).
+        let z = b.zmin.as_ptr();
+        for tx in (0..texels).step_by(8) {
+            let eo = |r: usize| {
+                let v0 = _mm256_loadu_ps(z.add(r + 2 * tx));
+                let v1 = _mm256_loadu_ps(z.add(r + 2 * tx + 8));
+                (_mm256_shuffle_ps::<0b10_00_10_00>(v0, v1), _mm256_shuffle_ps::<0b11_01_11_01>(v0, v1))
+            };
+            let ((a, bb), (c, d)) = (eo(up), eo(lo));
+            let (mn, _) = fold4(a, bb, c, d);
+            let mn = _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(mn)));
+            _mm256_storeu_ps(zrow.as_mut_ptr().add(tx), mn);
+        }
+        // Gradients [gx, gy]: four outputs per step (even / odd texel pairs).
+        let g = b.grad.as_ptr() as *const f64;
+        for tx in (0..texels).step_by(4) {
+            let eo = |r: usize| {
+                let v0 = _mm256_loadu_pd(g.add(r + 2 * tx));
+                let v1 = _mm256_loadu_pd(g.add(r + 2 * tx + 4));
+                (_mm256_castpd_ps(_mm256_unpacklo_pd(v0, v1)), _mm256_castpd_ps(_mm256_unpackhi_pd(v0, v1)))
+            };
+            let ((a, bb), (c, d)) = (eo(up), eo(lo));
+            let (_, mx) = fold4(a, bb, c, d);
+            let mx = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(mx));
+            _mm256_storeu_pd(grow.as_mut_ptr().add(tx) as *mut f64, mx);
+        }
+        texels
+    }
+}
+
 /// One mip level: its size and where its texels start in the pyramid's buffers.
 #[derive(Clone, Copy, Debug)]
 struct Level {
@@ -445,69 +566,24 @@ impl MotionPyramid {
         grad.resize(total, [f32::INFINITY; 2]);
         for k in 1..levels.len() {
             let (prev, cur) = (levels[k - 1], levels[k]);
-            let (below, above) = grad.split_at_mut(cur.off);
-            let pg = &below[prev.off..];
-            above[..cur.w as usize * cur.h as usize].par_chunks_mut(cur.w as usize).enumerate().for_each(
-                |(ty, row)| {
-                    for (tx, out) in row.iter_mut().enumerate() {
-                        let mut g = [f32::NEG_INFINITY; 2];
-                        for y in 2 * ty..(2 * ty + 2).min(prev.h as usize) {
-                            for x in 2 * tx..(2 * tx + 2).min(prev.w as usize) {
-                                let t = pg[y * prev.w as usize + x];
-                                g = [fmax(g[0], t[0]), fmax(g[1], t[1])];
-                            }
-                        }
-                        *out = g;
-                    }
-                },
-            );
-        }
-        for k in 1..levels.len() {
-            let (prev, cur) = (levels[k - 1], levels[k]);
+            let n = cur.w as usize * cur.h as usize;
             let (below, above) = data.split_at_mut(cur.off);
             let (zbelow, zabove) = zmin.split_at_mut(cur.off);
-            let n = cur.w as usize * cur.h as usize;
-            let (pdata, pz) = (&below[prev.off..], &zbelow[prev.off..]);
+            let (gbelow, gabove) = grad.split_at_mut(cur.off);
+            let below = LevelTexels {
+                w: prev.w as usize,
+                h: prev.h as usize,
+                data: &below[prev.off..],
+                zmin: &zbelow[prev.off..],
+                grad: &gbelow[prev.off..],
+            };
+            let cw = cur.w as usize;
             above[..n]
-                .par_chunks_mut(cur.w as usize)
-                .zip(zabove[..n].par_chunks_mut(cur.w as usize))
+                .par_chunks_mut(cw)
+                .zip(zabove[..n].par_chunks_mut(cw))
+                .zip(gabove[..n].par_chunks_mut(cw))
                 .enumerate()
-                .for_each(|(ty, (row, zrow))| {
-                    let y0 = ty * 2;
-                    let y1 = (y0 + 2).min(prev.h as usize);
-                    let pw = prev.w as usize;
-                    // Full 2x2 blocks first, unrolled in the general loop's order (EMPTY, then
-                    // the upper row's two texels, then the lower row's).
-                    let full = if y1 == y0 + 2 { pw / 2 } else { 0 };
-                    let (up, lo) = (&pdata[y0 * pw..(y0 + 1) * pw], &pdata[(y0 + 1).min(y1 - 1) * pw..]);
-                    let (zup, zlo) = (&pz[y0 * pw..(y0 + 1) * pw], &pz[(y0 + 1).min(y1 - 1) * pw..]);
-                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate().take(full) {
-                        let (a, b, c, d) = (&up[2 * tx], &up[2 * tx + 1], &lo[2 * tx], &lo[2 * tx + 1]);
-                        let b = Bound::EMPTY
-                            .union(&Bound::from_texel(a))
-                            .union(&Bound::from_texel(b))
-                            .union(&Bound::from_texel(c))
-                            .union(&Bound::from_texel(d));
-                        *out = b.to_texel();
-                        *zout =
-                            f32::INFINITY.min(zup[2 * tx]).min(zup[2 * tx + 1]).min(zlo[2 * tx]).min(zlo[2 * tx + 1]);
-                    }
-                    for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate().skip(full) {
-                        let x0 = tx * 2;
-                        let x1 = (x0 + 2).min(prev.w as usize);
-                        let mut b = Bound::EMPTY;
-                        let mut z = f32::INFINITY;
-                        for y in y0..y1 {
-                            let r = y * prev.w as usize + x0..y * prev.w as usize + x1;
-                            for (t, pz) in pdata[r.clone()].iter().zip(&pz[r]) {
-                                b = b.union(&Bound::from_texel(t));
-                                z = z.min(*pz);
-                            }
-                        }
-                        *out = b.to_texel();
-                        *zout = z;
-                    }
-                });
+                .for_each(|(ty, ((row, zrow), grow))| level_row(&below, ty, row, zrow, grow, crate::simd::has_avx2()));
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
         MotionPyramid { width: w, height: h, frame, levels, data, zmin, grad }
@@ -969,6 +1045,54 @@ mod tests {
             }
         }
         b
+    }
+
+    /// The AVX2 reduction of a mip level's full 2x2 blocks gives the portable fold's bits
+    /// (min-max texels, min depths, gradients), on random texels with empty ones (+-inf), signed
+    /// zeros and ties, at sizes that leave odd columns, odd rows and short rows to the portable
+    /// loop.
+    #[test]
+    fn avx2_level_reduction_equals_the_portable_one() {
+        if !crate::simd::has_avx2() {
+            eprintln!("note: no AVX2 on this CPU; both runs take the portable code");
+        }
+        let mut rng = Pcg32::seed_from_u64(7);
+        let v = |rng: &mut Pcg32| match rng.random_range(0..8) {
+            0 => f32::INFINITY,
+            1 => f32::NEG_INFINITY,
+            2 => 0.0,
+            3 => -0.0,
+            4 => 1.5,
+            _ => rng.random_range(-30.0..30.0f32),
+        };
+        for (w, h) in [(1usize, 1usize), (2, 2), (3, 5), (17, 9), (33, 8), (40, 41), (64, 3)] {
+            let n = w * h;
+            let data: Vec<[f32; 4]> = (0..n).map(|_| [v(&mut rng), v(&mut rng), v(&mut rng), v(&mut rng)]).collect();
+            let zmin: Vec<f32> = (0..n).map(|_| v(&mut rng)).collect();
+            let grad: Vec<[f32; 2]> = (0..n).map(|_| [v(&mut rng), v(&mut rng)]).collect();
+            let below = LevelTexels { w, h, data: &data, zmin: &zmin, grad: &grad };
+            let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+            let run = |simd: bool| {
+                let (mut d, mut z, mut g) = (vec![[0f32; 4]; cw * ch], vec![0f32; cw * ch], vec![[0f32; 2]; cw * ch]);
+                for ty in 0..ch {
+                    let r = ty * cw..(ty + 1) * cw;
+                    level_row(&below, ty, &mut d[r.clone()], &mut z[r.clone()], &mut g[r], simd);
+                }
+                let bits = |x: &[f32]| x.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                (bits(d.as_flattened()), bits(&z), bits(g.as_flattened()))
+            };
+            let (fast, portable) = (run(crate::simd::has_avx2()), run(false));
+            assert!(fast == portable, "{w}x{h}");
+            // And the fold is the union of the 2x2 block: spot-check the first texel.
+            let (d, _, _) = portable;
+            let mut b = Bound::EMPTY;
+            for (y, x) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                if y < h && x < w {
+                    b = b.union(&Bound::from_texel(&data[y * w + x]));
+                }
+            }
+            assert_eq!(d[..4], b.to_texel().map(f32::to_bits), "{w}x{h}");
+        }
     }
 
     /// An affine motion field `v(q) = A q + c` at depth 0.5 (`w x h`).

@@ -441,15 +441,15 @@ fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
     }
 }
 
-/// [`reuse`] for a mipmap buffer: `n` texels of level 1 (their values are overwritten by the
-/// caller), capacity for `all` (every level).
+/// [`reuse`] for a mipmap buffer: at least `n` texels (level 1, overwritten by the caller),
+/// capacity for `all` (every level). A recycled buffer keeps its length: the coarser levels
+/// after level 1 are overwritten too ([`MotionPyramid::from_level1`]), so they are not filled
+/// again every frame.
 fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
     if v.capacity() < all {
         v = zwarp_core::pages::uninit(all);
     }
-    if v.len() >= n {
-        v.truncate(n);
-    } else {
+    if v.len() < n {
         v.resize(n, fill);
     }
     v
@@ -580,9 +580,9 @@ impl PreparedLayer {
             .par_chunks_mut(cw)
             .zip(vy.par_chunks_mut(cw))
             .zip(z.par_chunks_mut(cw))
-            .zip(aab.par_chunks_mut(cl))
-            .zip(zmin.par_chunks_mut(cl))
-            .zip(grad.par_chunks_mut(cl));
+            .zip(aab[..lw * lh].par_chunks_mut(cl))
+            .zip(zmin[..lw * lh].par_chunks_mut(cl))
+            .zip(grad[..lw * lh].par_chunks_mut(cl));
         let stats = if need_ob {
             rows.zip(obd[..lw * lh].par_chunks_mut(cl))
                 .enumerate()
