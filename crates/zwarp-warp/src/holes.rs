@@ -122,14 +122,21 @@ fn fill_holes_listed(
     }
     let r = radius as i64;
     let (dd, sd) = (depth.data(), state.data());
+    let runs = hole_runs(holes, w, h);
     let fills: Vec<(u32, f32)> = holes
         .par_chunks(1024)
-        .flat_map_iter(|chunk| {
-            chunk.iter().filter_map(|&i| {
+        .zip(runs.par_chunks(1024))
+        .flat_map_iter(|(chunk, runs)| {
+            chunk.iter().zip(runs).filter_map(|(&i, run)| {
                 let (x, y) = ((i % w) as i64, (i / w) as i64);
-                // Nearest converged pixel along +d and -d within the radius.
+                // Nearest converged pixel along +d and -d within the radius. The listed holes
+                // next to the pixel along d are skipped at once (`run`); a pixel after them
+                // that is neither converged nor listed (filled by an earlier pass) continues
+                // the walk step by step, as does a saturated run.
                 let probe = |dx: i64, dy: i64| -> Option<(i64, f32)> {
-                    for k in 1..=r {
+                    let skip = run[probe_slot(dx, dy)];
+                    let first = if skip == u8::MAX { 1 } else { skip as i64 + 1 };
+                    for k in first..=r {
                         let (xx, yy) = (x + dx * k, y + dy * k);
                         if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
                             return None;
@@ -150,6 +157,82 @@ fn fill_holes_listed(
         dd[i as usize] = z;
         sd[i as usize] = PixelState::Filled;
     }
+}
+
+/// The eight probe directions of [`hole_fill`]: [`FILL_DIRECTIONS`] and their opposites.
+const PROBE_DIRECTIONS: [(i64, i64); 8] = [(1, 0), (0, 1), (1, 1), (1, -1), (-1, 0), (0, -1), (-1, -1), (-1, 1)];
+
+/// The index of `(dx, dy)` in [`PROBE_DIRECTIONS`].
+#[inline]
+fn probe_slot(dx: i64, dy: i64) -> usize {
+    match (dx, dy) {
+        (1, 0) => 0,
+        (0, 1) => 1,
+        (1, 1) => 2,
+        (1, -1) => 3,
+        (-1, 0) => 4,
+        (0, -1) => 5,
+        (-1, -1) => 6,
+        _ => 7,
+    }
+}
+
+/// For each of the listed holes (row-major indices, ascending) of a `w x h` image and each of
+/// the [`PROBE_DIRECTIONS`]: how many listed holes follow it along that direction before the
+/// first pixel that is not one (saturating at `u8::MAX`). A hole's run is one more than its
+/// neighbour's: two passes over the list, forwards for the directions whose neighbour comes
+/// earlier in it and backwards for the others (in parallel), with a cursor per direction on
+/// the neighbour (its index moves monotonically).
+fn hole_runs(holes: &[u32], w: u32, h: u32) -> Vec<[u8; 8]> {
+    debug_assert!(holes.windows(2).all(|p| p[0] < p[1]), "hole lists are ascending");
+    let n = holes.len();
+    // The directions whose neighbour comes earlier in the list (visited forwards) and later
+    // (visited backwards), each pass filling its own half of the slots.
+    let off = |s: usize| PROBE_DIRECTIONS[s].1 * w as i64 + PROBE_DIRECTIONS[s].0;
+    let (earlier, later): (Vec<usize>, Vec<usize>) = (0..8).partition(|&s| off(s) < 0);
+    let pass = |forward: bool, slots: &[usize]| -> Vec<[u8; 8]> {
+        let mut runs = vec![[0u8; 8]; n];
+        let mut cursor = [if forward { 0 } else { n.saturating_sub(1) }; 8];
+        let mut visit = |t: usize| {
+            let i = holes[t];
+            let (x, y) = (i % w, i / w);
+            for (j, &slot) in cursor.iter_mut().zip(slots) {
+                let (dx, dy) = PROBE_DIRECTIONS[slot];
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx < 0 || nx >= w as i64 || ny < 0 || ny >= h as i64 {
+                    continue;
+                }
+                let nb = (ny * w as i64 + nx) as u32;
+                // The cursor: the first entry at or past the neighbour in the visiting order
+                // (the neighbours of successive holes move monotonically).
+                if forward {
+                    while holes[*j] < nb {
+                        *j += 1;
+                    }
+                } else {
+                    while holes[*j] > nb {
+                        *j -= 1;
+                    }
+                }
+                if holes[*j] == nb {
+                    runs[t][slot] = runs[*j][slot].saturating_add(1);
+                }
+            }
+        };
+        if forward {
+            (0..n).for_each(&mut visit);
+        } else {
+            (0..n).rev().for_each(&mut visit);
+        }
+        runs
+    };
+    let (mut runs, back) = rayon::join(|| pass(true, &earlier), || pass(false, &later));
+    for (r, b) in runs.iter_mut().zip(&back) {
+        for &s in &later {
+            r[s] = b[s];
+        }
+    }
+    runs
 }
 
 /// [`FillRule::Background`] takes the farthest side among the directions bracketed within this
@@ -667,6 +750,64 @@ mod tests {
             }
         });
         (d, s)
+    }
+
+    /// The hole fill that skips runs of listed holes gives exactly what walking every probe
+    /// step by step gives: random images of converged pixels, holes (listed) and pixels filled
+    /// by an earlier pass (not listed, walked over), both rules, radii below and above the
+    /// runs' saturation, and long runs along every direction.
+    #[test]
+    fn run_skipping_fill_equals_the_step_by_step_walk() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(11);
+        for (w, h, p_hole, p_filled) in [
+            (1u32, 1u32, 0.5f32, 0.0f32),
+            (7, 5, 0.5, 0.1),
+            (40, 30, 0.7, 0.05),
+            (300, 4, 0.97, 0.0),
+            (23, 61, 0.85, 0.1),
+        ] {
+            let depth = Image::from_fn(w, h, |_, _| rng.random_range(0.1..0.99f32));
+            let state = Image::from_fn(w, h, |_, _| {
+                let u: f32 = rng.random();
+                if u < p_hole {
+                    PixelState::Hole
+                } else if u < p_hole + p_filled {
+                    PixelState::Filled
+                } else {
+                    PixelState::Converged
+                }
+            });
+            for rule in [FillRule::Nearest, FillRule::Background] {
+                for radius in [1u32, 3, 64, 300] {
+                    let (mut d, mut s) = (depth.clone(), state.clone());
+                    fill_holes(&mut d, &mut s, radius, rule);
+                    // The walk of every probe from step 1.
+                    let (dd, sd) = (depth.data(), state.data());
+                    let (mut want, mut want_state) = (depth.clone(), state.clone());
+                    for i in hole_list(&state) {
+                        let (x, y) = ((i % w) as i64, (i / w) as i64);
+                        let probe = |dx: i64, dy: i64| {
+                            (1..=radius as i64)
+                                .map(|k| (x + dx * k, y + dy * k))
+                                .take_while(|&(xx, yy)| xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64)
+                                .enumerate()
+                                .find_map(|(k, (xx, yy))| {
+                                    let j = yy as usize * w as usize + xx as usize;
+                                    (sd[j] == PixelState::Converged).then_some((k as i64 + 1, dd[j]))
+                                })
+                        };
+                        if let Some(z) = hole_fill(rule, probe) {
+                            want.data_mut()[i as usize] = z;
+                            want_state.data_mut()[i as usize] = PixelState::Filled;
+                        }
+                    }
+                    let bits = |im: &Image<f32>| im.data().iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+                    assert!(bits(&d) == bits(&want), "{w}x{h} {rule:?} radius {radius}");
+                    assert!(s.data() == want_state.data(), "{w}x{h} {rule:?} radius {radius}");
+                }
+            }
+        }
     }
 
     #[test]
