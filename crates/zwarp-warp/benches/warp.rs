@@ -1,7 +1,8 @@
 //! Depth-warp benchmark (seed 000 Table 1/3 style) on a synthetic 1920x1080 city: ground plus
 //! 6x6 boxes ray cast analytically, peeled into 3 layers (the last = ground only), camera
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
-//! and L in {1, 3}, the motion mipmap construction (MMC, part of `PreparedLayer::prepare_stack`), the
+//! and L in {1, 3}, the motion mipmap construction (MMC, part of the preparation, timed as an
+//! engine runs it: `PreparedLayer::prepare_stack_recycling` into last frame's buffers), the
 //! motion field itself (AVX2 and portable builds), the
 //! VFW / AFW forward baselines side by side, the AVX2 builds of the walks and of VFW beside
 //! their AVX-512-enabled builds, and the streaming floor of the same inputs
@@ -119,14 +120,21 @@ fn main() {
             g.bench_with_input(BenchmarkId::new("floor", l), &l, |b, _| {
                 b.iter(|| zwarp_warp::floor::floor_pass(&ls, 1, 1920, &mut floor_out).unwrap())
             });
+            // The steady state of an engine: last frame's preparation recycled.
+            let mut rec = Vec::new();
             g.bench_with_input(BenchmarkId::new("mmc_prepare", l), &l, |b, _| {
-                b.iter(|| PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap())
+                b.iter(|| {
+                    rec = PreparedLayer::prepare_stack_recycling(&ls, BoundKind::Oriented, std::mem::take(&mut rec))
+                        .unwrap()
+                })
             });
             let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap();
+            // Outputs recycled too, as `zwarp eval` and an engine keep them.
+            let (mut out, mut fwd) = (WarpOutput::empty(), Image::new(0, 0, 0.0f32));
             for n in [1u32, 4, 16] {
                 let params = WarpParams { n_seeds: n, ..Default::default() };
                 g.bench_with_input(BenchmarkId::new(format!("ours_L{l}"), n), &n, |b, _| {
-                    b.iter(|| warp_prepared(&prepared, &params).unwrap())
+                    b.iter(|| warp_prepared_into(&prepared, &params, &mut out).unwrap())
                 });
             }
             // The AVX2 builds of the walks and of VFW beside the AVX-512-enabled ones (where the
@@ -134,16 +142,20 @@ fn main() {
             let params = WarpParams { n_seeds: 16, ..Default::default() };
             g.bench_with_input(BenchmarkId::new(format!("ours_L{l}_avx2_only"), 16), &16, |b, _| {
                 zwarp_warp::simd::set_avx512(false);
-                b.iter(|| warp_prepared(&prepared, &params).unwrap());
+                b.iter(|| warp_prepared_into(&prepared, &params, &mut out).unwrap());
                 zwarp_warp::simd::set_avx512(true);
             });
-            g.bench_with_input(BenchmarkId::new("vfw", l), &l, |b, _| b.iter(|| vfw_layers(&ls).unwrap()));
+            g.bench_with_input(BenchmarkId::new("vfw", l), &l, |b, _| {
+                b.iter(|| vfw_layers_into(&ls, &mut fwd).unwrap())
+            });
             g.bench_with_input(BenchmarkId::new("vfw_avx2_only", l), &l, |b, _| {
                 zwarp_warp::simd::set_avx512(false);
-                b.iter(|| vfw_layers(&ls).unwrap());
+                b.iter(|| vfw_layers_into(&ls, &mut fwd).unwrap());
                 zwarp_warp::simd::set_avx512(true);
             });
-            g.bench_with_input(BenchmarkId::new("afw", l), &l, |b, _| b.iter(|| afw_layers(&ls).unwrap()));
+            g.bench_with_input(BenchmarkId::new("afw", l), &l, |b, _| {
+                b.iter(|| afw_layers_into(&ls, &mut fwd).unwrap())
+            });
         }
         // The motion of layer 0 (Sec. 3.1) into a reused buffer: the AVX2 build and the portable one.
         let mut out = Image::new(0, 0, Motion::default());
@@ -186,16 +198,16 @@ fn main() {
         // are kernel time over it.
         let (floor, flo, fhi) = zwarp_warp::floor::floor_ms(&ls, 1, 5).unwrap();
         println!("L={l} floor: {floor:.2} ms [{flo:.2}, {fhi:.2}]");
+        let mut rec = Vec::new();
         let (t, lo, hi) = median_ms(5, || {
-            std::hint::black_box(PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap());
+            rec = PreparedLayer::prepare_stack_recycling(&ls, BoundKind::Oriented, std::mem::take(&mut rec)).unwrap();
         });
-        println!("L={l} MMC+prepare: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor", t / floor);
+        println!("L={l} MMC+prepare (recycled): {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor", t / floor);
         let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Oriented).unwrap();
+        let (mut out, mut fwd) = (WarpOutput::empty(), Image::new(0, 0, 0.0f32));
         for n in [1u32, 4, 16] {
             let params = WarpParams { n_seeds: n, ..Default::default() };
-            let (t, lo, hi) = median_ms(5, || {
-                let _ = warp_prepared(&prepared, &params).unwrap();
-            });
+            let (t, lo, hi) = median_ms(5, || warp_prepared_into(&prepared, &params, &mut out).unwrap());
             let mpx = px / (t * 1e-3) / 1e6 / threads as f64;
             let traffic = if l == 1 {
                 let (b, s) = traffic_per_pixel(&prepared[0], &params);
@@ -212,16 +224,14 @@ fn main() {
             // The walks' AVX2 build at N = 16 (the AVX-512-enabled one is the row above).
             let params = WarpParams { n_seeds: 16, ..Default::default() };
             zwarp_warp::simd::set_avx512(false);
-            let (t, lo, hi) = median_ms(5, || {
-                let _ = warp_prepared(&prepared, &params).unwrap();
-            });
+            let (t, lo, hi) = median_ms(5, || warp_prepared_into(&prepared, &params, &mut out).unwrap());
             zwarp_warp::simd::set_avx512(true);
             println!("L={l} ours N=16, AVX2 build only: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor", t / floor);
         }
-        for (name, f) in [("VFW", vfw_layers as fn(&[WarpLayer<'_>]) -> _), ("AFW", afw_layers)] {
-            let (t, lo, hi) = median_ms(5, || {
-                let _ = f(&ls).unwrap();
-            });
+        for (name, f) in
+            [("VFW", vfw_layers_into as fn(&[WarpLayer<'_>], &mut Image<f32>) -> _), ("AFW", afw_layers_into)]
+        {
+            let (t, lo, hi) = median_ms(5, || f(&ls, &mut fwd).unwrap());
             let mpx = px / (t * 1e-3) / 1e6 / threads as f64;
             println!("L={l} {name}: {t:.1} ms [{lo:.1}, {hi:.1}], {:.1}x floor, {mpx:.2} Mpx/s/core", t / floor);
         }
