@@ -370,14 +370,8 @@ pub(crate) unsafe fn search8(
             )
         }
     };
-    let mut has = zero;
-    let mut depth = one;
-    let (mut cqx, mut cqy) = (zero, zero);
-    let mut ctag = _mm256_setzero_si256();
-    let mut closest = (inf, inf);
-    let mut farthest = splat(f32::NEG_INFINITY);
-    let mut straddle = inf;
-    for j in 0..max_n {
+    // Seed j's position and lanes (`None`: no lane walks it).
+    let seed = |j: i32, has: __m256| -> Option<(__m256, __m256, __m256)> {
         let ji = _mm256_set1_epi32(j);
         let in_use = _mm256_castsi256_ps(_mm256_cmpgt_epi32(ntot, ji));
         let mut live = _mm256_and_ps(act, in_use);
@@ -385,7 +379,7 @@ pub(crate) unsafe fn search8(
             live = _mm256_andnot_ps(has, live);
         }
         if _mm256_movemask_ps(live) == 0 {
-            continue;
+            return None;
         }
         let (mut qx, mut qy) = if max_n == 1 {
             // One seed: from_frame(lo + 0.5 * e) (stratified_seeds, n == 1).
@@ -429,32 +423,65 @@ pub(crate) unsafe fn search8(
         // glam clamp: max(0) then min(max_q) (compare-selects, as maxps / minps).
         qx = _mm256_min_ps(_mm256_max_ps(qx, zero), mxq);
         qy = _mm256_min_ps(_mm256_max_ps(qy, zero), myq);
-        let (now, z, wqx, wqy, wtag, wa, wf, ws) = walk8(ls, k, px, py, qx, qy, live);
-        closest = nearer(closest, wa);
-        farthest = _mm256_max_ps(farthest, wf);
-        straddle = _mm256_min_ps(straddle, _mm256_blendv_ps(inf, ws, live));
-        // MinDepth in seed order: the first candidate, then strictly nearer ones.
+        Some((qx, qy, live))
+    };
+    // MinDepth in seed order: the first candidate, then strictly nearer ones.
+    let reduce = |acc: &mut Lanes, live: __m256, w: Walk8| {
+        let (now, z, wqx, wqy, wtag, wa, wf, ws) = w;
+        let c = nearer((acc.closest, acc.closest_depth), wa);
+        (acc.closest, acc.closest_depth) = c;
+        acc.farthest = _mm256_max_ps(acc.farthest, wf);
+        acc.straddle = _mm256_min_ps(acc.straddle, _mm256_blendv_ps(inf, ws, live));
+        let has = acc.converged;
         let take = _mm256_and_ps(
             now,
-            _mm256_or_ps(_mm256_andnot_ps(has, now), _mm256_cmp_ps::<_CMP_LT_OQ>(z, _mm256_blendv_ps(inf, depth, has))),
+            _mm256_or_ps(
+                _mm256_andnot_ps(has, now),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(z, _mm256_blendv_ps(inf, acc.depth, has)),
+            ),
         );
-        depth = _mm256_blendv_ps(depth, z, take);
-        cqx = _mm256_blendv_ps(cqx, wqx, take);
-        cqy = _mm256_blendv_ps(cqy, wqy, take);
-        ctag = _mm256_blendv_epi8(ctag, wtag, _mm256_castps_si256(take));
-        has = _mm256_or_ps(has, now);
+        acc.depth = _mm256_blendv_ps(acc.depth, z, take);
+        acc.qx = _mm256_blendv_ps(acc.qx, wqx, take);
+        acc.qy = _mm256_blendv_ps(acc.qy, wqy, take);
+        acc.tag = _mm256_blendv_epi8(acc.tag, wtag, _mm256_castps_si256(take));
+        acc.converged = _mm256_or_ps(has, now);
+    };
+    let mut acc = Lanes {
+        converged: zero,
+        depth: one,
+        qx: zero,
+        qy: zero,
+        tag: _mm256_setzero_si256(),
+        closest: inf,
+        closest_depth: inf,
+        farthest: splat(f32::NEG_INFINITY),
+        straddle: inf,
+    };
+    // Under MinDepth the seeds' walks are independent (only the reduction is in seed order):
+    // seeds go in pairs, both walks issued before either is reduced, so that the out-of-order
+    // core overlaps their dependent fetch chains (larger batches spill registers).
+    let pair = !ls.first_converged;
+    let mut j = 0;
+    while j < max_n {
+        if pair && j + 1 < max_n {
+            let (a, b) = (seed(j, acc.converged), seed(j + 1, acc.converged));
+            let wa = a.map(|(qx, qy, live)| walk8(ls, k, px, py, qx, qy, live));
+            let wb = b.map(|(qx, qy, live)| walk8(ls, k, px, py, qx, qy, live));
+            if let (Some((_, _, live)), Some(w)) = (a, wa) {
+                reduce(&mut acc, live, w);
+            }
+            if let (Some((_, _, live)), Some(w)) = (b, wb) {
+                reduce(&mut acc, live, w);
+            }
+            j += 2;
+        } else {
+            if let Some((qx, qy, live)) = seed(j, acc.converged) {
+                reduce(&mut acc, live, walk8(ls, k, px, py, qx, qy, live));
+            }
+            j += 1;
+        }
     }
-    Lanes {
-        converged: has,
-        depth,
-        qx: cqx,
-        qy: cqy,
-        tag: ctag,
-        closest: closest.0,
-        closest_depth: closest.1,
-        farthest,
-        straddle,
-    }
+    acc
 }
 
 /// The first iteration of [`walk8`] for one seed per lane (the lanes' own layer only, no
