@@ -207,6 +207,7 @@ fn level_row(
         // SAFETY: `simd` is only set where the CPU has AVX2 (or by tests that check it).
         done = unsafe { level_row_avx2::blocks(below, y0, &mut row[..full], &mut zrow[..full], &mut grow[..full]) };
     }
+    #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
     for tx in done..row.len() {
         let (x0, x1) = (tx * 2, (tx * 2 + 2).min(pw));
