@@ -160,21 +160,27 @@ fn fill_holes_listed(
 }
 
 /// The eight probe directions of [`hole_fill`]: [`FILL_DIRECTIONS`] and their opposites.
-const PROBE_DIRECTIONS: [(i64, i64); 8] = [(1, 0), (0, 1), (1, 1), (1, -1), (-1, 0), (0, -1), (-1, -1), (-1, 1)];
+const PROBE_DIRECTIONS: [(i64, i64); 8] = {
+    let f = FILL_DIRECTIONS;
+    [f[0], f[1], f[2], f[3], (-f[0].0, -f[0].1), (-f[1].0, -f[1].1), (-f[2].0, -f[2].1), (-f[3].0, -f[3].1)]
+};
 
-/// The index of `(dx, dy)` in [`PROBE_DIRECTIONS`].
+/// [`probe_slot`]'s table: the index in [`PROBE_DIRECTIONS`] of `(dx, dy)` at `3 (dx + 1) + dy + 1`.
+const PROBE_SLOTS: [usize; 9] = {
+    let mut t = [0; 9];
+    let mut s = 0;
+    while s < PROBE_DIRECTIONS.len() {
+        let (dx, dy) = PROBE_DIRECTIONS[s];
+        t[(3 * (dx + 1) + dy + 1) as usize] = s;
+        s += 1;
+    }
+    t
+};
+
+/// The index of the direction `(dx, dy)` in [`PROBE_DIRECTIONS`].
 #[inline]
 fn probe_slot(dx: i64, dy: i64) -> usize {
-    match (dx, dy) {
-        (1, 0) => 0,
-        (0, 1) => 1,
-        (1, 1) => 2,
-        (1, -1) => 3,
-        (-1, 0) => 4,
-        (0, -1) => 5,
-        (-1, -1) => 6,
-        _ => 7,
-    }
+    PROBE_SLOTS[(3 * (dx + 1) + dy + 1) as usize]
 }
 
 /// For each of the listed holes (row-major indices, ascending) of a `w x h` image and each of
