@@ -180,11 +180,16 @@ pub fn motion_field_with_into(
     let (a, b) = ((w, h), (cam_b.width, cam_b.height));
     let simd = AVX2.active();
     let items = items.filter(|_| !ids.is_empty());
+    // unproject_with's x in NDC per column (the same operations, so the same bits): the AVX2
+    // build reads it instead of dividing every row again; the divisions bound that build.
+    let ndc_x: Vec<f32> =
+        if simd { (0..w).map(|x| (x as f32 + 0.5) / w as f32 * 2.0 - 1.0).collect() } else { Vec::new() };
     out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
         let dr = &depth.data()[y * wu..(y + 1) * wu];
         let ir = items.map(|i| &i.data()[y * wu..(y + 1) * wu]);
         // The matrix of pixel x: its object's where it is a surface of a moving object.
         let (mut last, mut last_m) = (NO_ITEM, &vp_b);
+        let ndc_y = 1.0 - (y as f32 + 0.5) / h as f32 * 2.0;
         let mut matrix = |x: usize| -> &Mat4 {
             match ir {
                 Some(ir) if dr[x] < 1.0 => {
@@ -207,7 +212,19 @@ pub fn motion_field_with_into(
                 let end = (x + 1..x + 8).find(|&i| !std::ptr::eq(matrix(i), m)).unwrap_or(x + 8);
                 if end == x + 8 {
                     // SAFETY: `simd` says the CPU has AVX2; the slices hold eight elements from x.
-                    unsafe { avx2::eight(&inv_a, m, a, b, x as u32, y as u32, &dr[x..x + 8], &mut row[x..x + 8]) };
+                    unsafe {
+                        avx2::eight(
+                            &inv_a,
+                            m,
+                            b,
+                            x as u32,
+                            y as u32,
+                            &ndc_x[x..x + 8],
+                            ndc_y,
+                            &dr[x..x + 8],
+                            &mut row[x..x + 8],
+                        )
+                    };
                 } else {
                     for i in x..end {
                         row[i] = reproject_pixel(&inv_a, m, a, b, i as u32, y as u32, dr[i]);
@@ -234,24 +251,26 @@ mod avx2 {
     use crate::simd::avx2::{mat4_mul8, store3x8};
 
     /// [`super::reproject_pixel`] of pixels `x..x + 8` of row `y`, all moving with matrix `m`
-    /// (the target's view-projection, times an object's motion): `unproject_with`,
-    /// `project_with` and the motion sample, operation for operation.
+    /// (the target's view-projection, times an object's motion): `unproject_with` (from the
+    /// pixels' NDC `ndc_x`, `ndc_y`, which it computes first), `project_with` and the motion
+    /// sample, operation for operation.
     ///
     /// # Safety
-    /// The CPU must support AVX2; `d` and `out` hold eight elements.
+    /// The CPU must support AVX2; `ndc_x`, `d` and `out` hold eight elements.
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
     pub(super) unsafe fn eight(
         inv_a: &Mat4,
         m: &Mat4,
-        a: (u32, u32),
         b: (u32, u32),
         x: u32,
         y: u32,
+        ndc_x: &[f32],
+        ndc_y: f32,
         d: &[f32],
         out: &mut [Motion],
     ) {
-        let (one, two, half) = (_mm256_set1_ps(1.0), _mm256_set1_ps(2.0), _mm256_set1_ps(0.5));
+        let (one, half) = (_mm256_set1_ps(1.0), _mm256_set1_ps(0.5));
         let px = _mm256_add_ps(
             _mm256_cvtepi32_ps(_mm256_add_epi32(
                 _mm256_set1_epi32(x as i32),
@@ -262,8 +281,7 @@ mod avx2 {
         let py = _mm256_set1_ps(y as f32 + 0.5);
         let dv = _mm256_loadu_ps(d.as_ptr());
         // unproject_with(inv_a, a, px, py, d.min(1.0))
-        let nx = _mm256_sub_ps(_mm256_mul_ps(_mm256_div_ps(px, _mm256_set1_ps(a.0 as f32)), two), one);
-        let ny = _mm256_sub_ps(one, _mm256_mul_ps(_mm256_div_ps(py, _mm256_set1_ps(a.1 as f32)), two));
+        let (nx, ny) = (_mm256_loadu_ps(ndc_x.as_ptr()), _mm256_set1_ps(ndc_y));
         let p = mat4_mul8(inv_a, [nx, ny, _mm256_min_ps(dv, one), one]);
         let world = [_mm256_div_ps(p[0], p[3]), _mm256_div_ps(p[1], p[3]), _mm256_div_ps(p[2], p[3])];
         // project_with(m, b, world)
