@@ -77,7 +77,7 @@ impl FieldParams {
 }
 
 /// The per-texel terms of the warp fields of one source frame (seed 001 Sec. 3.1, 4).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct WarpBasis {
     width: u32,
     height: u32,
@@ -133,11 +133,53 @@ impl WarpBasis {
     /// field towards the previous frame and `t < 0`... or any other frame: `t` counts in its
     /// units. Replaces any motion and acceleration terms.
     pub fn temporal(depth: &Image<f32>, m: &Image<Motion>) -> Result<Self> {
-        check_motion(depth, m, "temporal warp field")?;
-        let mut b = Self::new(depth)?;
-        let d = m.data();
-        b.motion = Some(Planes::from_fn(d.len(), |i| mv(&d[i])));
+        let mut b = WarpBasis { width: 0, height: 0, depth: Vec::new(), motion: None, accel: None, spatial: None };
+        b.set_temporal(depth, m)?;
         Ok(b)
+    }
+
+    /// [`Self::temporal`] into this basis, reusing its buffers (an engine's steady state, one
+    /// basis per generated frame: fresh 1080p planes cost more than the pass that fills them).
+    /// Validates, clamps the depth and splits the motion in one pass. Replaces every term; on
+    /// error the basis holds none.
+    pub fn set_temporal(&mut self, depth: &Image<f32>, m: &Image<Motion>) -> Result<()> {
+        (self.accel, self.spatial) = (None, None);
+        let planes = self.motion.take().unwrap_or_default();
+        depth.check_nonempty("warp basis depth")?;
+        depth.check_same_size(m, "temporal warp field")?;
+        let n = depth.data().len();
+        self.depth = zwarp_core::pages::reuse(std::mem::take(&mut self.depth), n, 0.0);
+        let mut p =
+            Planes { x: zwarp_core::pages::reuse(planes.x, n, 0.0), y: zwarp_core::pages::reuse(planes.y, n, 0.0) };
+        let (src, mot) = (depth.data(), m.data());
+        // (some motion is NaN, some depth is not finite)
+        let (nan_motion, bad_depth) = self
+            .depth
+            .par_chunks_mut(CHUNK)
+            .zip(p.x.par_chunks_mut(CHUNK).zip(p.y.par_chunks_mut(CHUNK)))
+            .enumerate()
+            .map(|(c, (ds, (xs, ys)))| {
+                let i0 = c * CHUNK;
+                let (src, mot) = (&src[i0..i0 + ds.len()], &mot[i0..i0 + ds.len()]);
+                let (mut nan, mut bad) = (false, false);
+                for (((d, s), out), (x, y)) in src.iter().zip(mot).zip(ds).zip(xs.iter_mut().zip(ys)) {
+                    nan |= s.v.is_nan();
+                    bad |= !d.is_finite();
+                    *out = d.clamp(0.0, 1.0);
+                    (*x, *y) = mv(s).into();
+                }
+                (nan, bad)
+            })
+            .reduce(|| (false, false), |a, b| (a.0 | b.0, a.1 | b.1));
+        if nan_motion {
+            return Err(Error::invalid("temporal warp field: motion holds NaN"));
+        }
+        if bad_depth {
+            return Err(Error::invalid("warp basis: depth buffer holds NaN or infinite values"));
+        }
+        (self.width, self.height) = (depth.width(), depth.height());
+        self.motion = Some(p);
+        Ok(())
     }
 
     /// Second-order temporal reprojection (eq. 3) from three frames: the source frame (its

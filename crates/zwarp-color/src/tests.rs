@@ -432,6 +432,45 @@ fn bad_input_is_a_one_line_error() {
     assert!(require_color(None, "frame 3").unwrap_err().to_string().contains("frame 3"));
 }
 
+/// A temporal basis refilled in place (a frame loop) equals a fresh one across sizes, with the
+/// depth clamped to [0, 1], infinite motion sent far off and an earlier spatial term dropped;
+/// bad input is refused with one line and leaves no term behind.
+#[test]
+fn a_recycled_temporal_basis_equals_a_fresh_one() {
+    let frame = |w: u32, h: u32, s: f32| {
+        let depth = Image::from_fn(w, h, |x, y| -0.2 + 0.011 * s * ((x * 7 + y * 3) % 131) as f32);
+        let m = Image::from_fn(w, h, |x, y| Motion {
+            v: if (x + y) % 13 == 0 { Vec2::splat(f32::INFINITY) } else { Vec2::new(s * x as f32, -0.5 * y as f32) },
+            depth: 0.5,
+        });
+        (depth, m)
+    };
+    let (d0, m0) = frame(40, 30, 1.0);
+    let mut b = WarpBasis::temporal(&d0, &m0).unwrap().with_spatial(&cam(40, 30), None).unwrap();
+    assert!(b.field(FieldParams::spatial(0.1, 0.0)).is_ok());
+    for (w, h, s) in [(17, 9, 0.7), (64, 33, 1.3), (40, 30, 1.0)] {
+        let (d, m) = frame(w, h, s);
+        b.set_temporal(&d, &m).unwrap();
+        let fresh = WarpBasis::temporal(&d, &m).unwrap();
+        assert_eq!(b, fresh);
+        let f = b.field(FieldParams::temporal(1.0)).unwrap();
+        assert_eq!(f.size(), (w, h));
+        assert!(b.field(FieldParams::spatial(0.1, 0.0)).is_err(), "the spatial term is gone");
+    }
+    let (d, m) = frame(40, 30, 1.0);
+    let mut nan = m.clone();
+    nan.get_mut(3, 4).v.y = f32::NAN;
+    let mut inf = d.clone();
+    *inf.get_mut(39, 29) = f32::INFINITY;
+    for (depth, motion, what) in
+        [(&d, &nan, "NaN"), (&inf, &m, "infinite"), (&d, &Image::new(3, 3, Motion::default()), "3x3")]
+    {
+        let e = b.set_temporal(depth, motion).unwrap_err().to_string();
+        assert!(e.contains(what) && !e.contains('\n'), "{e}");
+        assert!(b.field(FieldParams::temporal(1.0)).is_err(), "no term after an error");
+    }
+}
+
 #[test]
 fn floor_pass_copies_the_colour() {
     let (b, color) = strip_scene();

@@ -28,6 +28,17 @@ pub fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
     v
 }
 
+/// `v` resized to `n` elements, reusing its allocation when it is large enough (a per-frame
+/// buffer of the last frame); a new one is [`filled`]. The caller overwrites every element.
+pub fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
+    if v.capacity() >= n {
+        v.resize(n, fill);
+        v
+    } else {
+        filled(n, fill)
+    }
+}
+
 /// An empty `Vec` with capacity for `n` elements, advised for huge pages; the caller writes the
 /// first `n` elements through `spare_capacity_mut` and then sets the length.
 pub fn uninit<T>(n: usize) -> Vec<T> {

@@ -429,20 +429,8 @@ struct Spare {
     grad: Vec<[f32; 2]>,
 }
 
-/// `v` resized to `n` elements, reusing its allocation when it is large enough; new buffers are
-/// advised for huge pages. Every element is overwritten by the caller.
-fn reuse<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, fill: T) -> Vec<T> {
-    if v.capacity() >= n {
-        v.resize(n, fill);
-        v.truncate(n);
-        v
-    } else {
-        zwarp_core::pages::filled(n, fill)
-    }
-}
-
-/// [`reuse`] for a mipmap buffer: at least `n` texels (level 1, overwritten by the caller),
-/// capacity for `all` (every level). A recycled buffer keeps its length: the coarser levels
+/// [`zwarp_core::pages::reuse`] for a mipmap buffer: at least `n` texels (level 1, overwritten
+/// by the caller), capacity for `all` (every level). A recycled buffer keeps its length: the coarser levels
 /// after level 1 are overwritten too ([`MotionPyramid::from_level1`]), so they are not filled
 /// again every frame.
 fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
@@ -528,9 +516,9 @@ impl PreparedLayer {
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
         let n = wu * h as usize;
         let Spare { planes, level1, oriented, zmin, grad } = spare;
-        let mut vx = reuse(planes.vx, n, 0.0);
-        let mut vy = reuse(planes.vy, n, 0.0);
-        let mut z = reuse(planes.z, n, 0.0);
+        let mut vx = zwarp_core::pages::reuse(planes.vx, n, 0.0);
+        let mut vy = zwarp_core::pages::reuse(planes.vy, n, 0.0);
+        let mut z = zwarp_core::pages::reuse(planes.z, n, 0.0);
         let empty = Bound::EMPTY.to_texel_pub();
         // The mip buffers get room for every level (a third more than level 1).
         let all = lw * lh + (lw * lh).div_ceil(2) + 64;

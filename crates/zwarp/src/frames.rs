@@ -96,6 +96,8 @@ pub struct FrameWarper {
     source: Option<FrameSource>,
     /// The motion towards the last target, reused by the next call.
     motion: Image<Motion>,
+    /// The warp field's basis towards the last target, its buffers reused by the next call.
+    basis: Option<WarpBasis>,
     output: ColorWarpOutput,
 }
 
@@ -113,6 +115,7 @@ impl FrameWarper {
             gpu,
             source: None,
             motion: Image::new(0, 0, Motion::default()),
+            basis: None,
             output: ColorWarpOutput::empty(),
         })
     }
@@ -181,7 +184,13 @@ impl FrameWarper {
         let motion = &mut self.motion;
         zwarp_core::motion_field_into(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas, motion)?;
         // The field towards the target itself: t = 1 of the exact motion (eq. 2).
-        let basis = WarpBasis::temporal(&src.depth, motion)?;
+        let basis = match &mut self.basis {
+            Some(b) => {
+                b.set_temporal(&src.depth, motion)?;
+                b
+            }
+            none => none.insert(WarpBasis::temporal(&src.depth, motion)?),
+        };
         let field = basis.field(FieldParams::temporal(1.0))?;
         match (&self.gpu, &self.method) {
             (Some(k), ColorMethod::Heuristic(p)) => self.output = k.heuristic(&field, &src.color, p)?,

@@ -48,12 +48,17 @@ fn main() {
         });
         println!("FrameWarper {name}: {t:.2} ms [{lo:.2}, {hi:.2}]");
     }
-    let m = motion_field(&f.depth, Some(&f.items), &c0, &c1, &deltas).unwrap();
+    let mut m = motion_field(&f.depth, Some(&f.items), &c0, &c1, &deltas).unwrap();
+    let (t, lo, hi) =
+        time(&mut || zwarp_core::motion_field_into(&f.depth, Some(&f.items), &c0, &c1, &deltas, &mut m).unwrap());
+    println!("motion_field_into (recycled): {t:.2} ms [{lo:.2}, {hi:.2}]");
     let (t, lo, hi) = time(&mut || {
         std::hint::black_box(WarpBasis::temporal(&f.depth, &m).unwrap());
     });
     println!("WarpBasis::temporal: {t:.2} ms [{lo:.2}, {hi:.2}]");
-    let basis = WarpBasis::temporal(&f.depth, &m).unwrap();
+    let mut basis = WarpBasis::temporal(&f.depth, &m).unwrap();
+    let (t, lo, hi) = time(&mut || basis.set_temporal(&f.depth, &m).unwrap());
+    println!("WarpBasis::set_temporal (recycled): {t:.2} ms [{lo:.2}, {hi:.2}]");
     let field = basis.field(FieldParams::temporal(1.0)).unwrap();
     let mut out = ColorWarpOutput::empty();
     let (t, lo, hi) = time(&mut || heuristic_warp_into(&field, color, &HeuristicParams::default(), &mut out).unwrap());
