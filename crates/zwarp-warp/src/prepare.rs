@@ -430,8 +430,8 @@ struct Spare {
 }
 
 /// [`zwarp_core::pages::reuse`] for a mipmap buffer: at least `n` texels (level 1, overwritten
-/// by the caller), capacity for `all` (every level). A recycled buffer keeps its length: the coarser levels
-/// after level 1 are overwritten too ([`MotionPyramid::from_level1`]), so they are not filled
+/// by the caller), capacity for `all` (every level). A recycled buffer keeps its length: the
+/// coarser levels after level 1 are overwritten too ([`MotionPyramid::from_level1`]), so they are not filled
 /// again every frame.
 fn reuse_mip<T: Copy + Send + Sync>(mut v: Vec<T>, n: usize, all: usize, fill: T) -> Vec<T> {
     if v.capacity() < all {

@@ -193,23 +193,33 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
     let bvx = lerp(top_vx, bot_vx, ay);
     let bvy = lerp(top_vy, bot_vy, ay);
     let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
-    // Nearest: the texel floor(q), always one of the four read.
-    let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
-    let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
-    let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
-    let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
-    let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
-        let t = _mm256_blendv_ps(a10, a00, left);
-        let b = _mm256_blendv_ps(a11, a01, left);
-        _mm256_blendv_ps(b, t, top)
+    // Every live lane smooth: the bilinear sample, no nearest texel.
+    let (vx, vy, z, has) = if _mm256_movemask_ps(_mm256_andnot_ps(smooth, live)) == 0 {
+        (bvx, bvy, bz, live)
+    } else {
+        // Nearest: the texel floor(q), always one of the four read.
+        let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+        let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+        let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
+        let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
+        let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
+            let t = _mm256_blendv_ps(a10, a00, left);
+            let b = _mm256_blendv_ps(a11, a01, left);
+            _mm256_blendv_ps(b, t, top)
+        };
+        let nz = pick(z00, z10, z01, z11);
+        (
+            _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
+            _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
+            _mm256_blendv_ps(nz, bz, smooth),
+            _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz))),
+        )
     };
-    let nz = pick(z00, z10, z01, z11);
-    let has = _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz)));
     Smp8 {
         has,
-        vx: _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
-        vy: _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
-        z: _mm256_blendv_ps(nz, bz, smooth),
+        vx,
+        vy,
+        z,
         dxx: _mm256_and_ps(smooth, dxx),
         dxy: _mm256_and_ps(smooth, dxy),
         dyx: _mm256_and_ps(smooth, dyx),
@@ -571,20 +581,27 @@ unsafe fn first8(
     let top_d = _mm256_add_ps(z00, _mm256_mul_ps(_mm256_sub_ps(z10, z00), ax));
     let bot_d = _mm256_add_ps(z01, _mm256_mul_ps(_mm256_sub_ps(z11, z01), ax));
     let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
-    let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
-    let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
-    let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
-    let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
-    let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
-        let t = _mm256_blendv_ps(a10, a00, left);
-        let b = _mm256_blendv_ps(a11, a01, left);
-        _mm256_blendv_ps(b, t, top)
+    // Every live lane smooth (surfaces away from edges): the bilinear sample, no nearest texel.
+    let (vx, vy, z, own) = if _mm256_movemask_ps(_mm256_andnot_ps(smooth, live)) == 0 {
+        (bvx, bvy, bz, live)
+    } else {
+        let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+        let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+        let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
+        let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
+        let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
+            let t = _mm256_blendv_ps(a10, a00, left);
+            let b = _mm256_blendv_ps(a11, a01, left);
+            _mm256_blendv_ps(b, t, top)
+        };
+        let nz = pick(z00, z10, z01, z11);
+        (
+            _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
+            _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
+            _mm256_blendv_ps(nz, bz, smooth),
+            _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz))),
+        )
     };
-    let nz = pick(z00, z10, z01, z11);
-    let own = _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz)));
-    let vx = _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth);
-    let vy = _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth);
-    let z = _mm256_blendv_ps(nz, bz, smooth);
     let stx = _mm256_sub_ps(_mm256_sub_ps(px, vx), qx);
     let sty = _mm256_sub_ps(_mm256_sub_ps(py, vy), qy);
     let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
