@@ -188,22 +188,51 @@ pub(crate) mod avx2 {
 
     /// The field sample of each lane's cell: bilinear where `sm`, the nearest texel elsewhere —
     /// `(vx, vy, depth)` and the bilinear rows `[top.x, top.y, bottom.x, bottom.y]` (the
-    /// Jacobian's finite differences).
+    /// Jacobian's finite differences). Only the `used` lanes' values are defined.
     #[inline(always)]
     unsafe fn sample_cell(
         l: &Loc,
         v4: &[V2; 4],
         z4: &[__m256; 4],
         sm: __m256,
+        used: __m256,
     ) -> (__m256, __m256, __m256, [__m256; 4]) {
         let tx = lerp(v4[0].x, v4[1].x, l.ax);
         let ty = lerp(v4[0].y, v4[1].y, l.ax);
         let bx = lerp(v4[2].x, v4[3].x, l.ax);
         let by = lerp(v4[2].y, v4[3].y, l.ax);
-        let vx = _mm256_blendv_ps(near(l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), lerp(tx, bx, l.ay), sm);
-        let vy = _mm256_blendv_ps(near(l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), lerp(ty, by, l.ay), sm);
+        let (vx, vy) = (lerp(tx, bx, l.ay), lerp(ty, by, l.ay));
         let bz = mix(mix(z4[0], z4[1], l.ax), mix(z4[2], z4[3], l.ax), l.ay);
+        if all_smooth(sm, used) {
+            return (vx, vy, bz, [tx, ty, bx, by]);
+        }
+        let vx = _mm256_blendv_ps(near(l, [v4[0].x, v4[1].x, v4[2].x, v4[3].x]), vx, sm);
+        let vy = _mm256_blendv_ps(near(l, [v4[0].y, v4[1].y, v4[2].y, v4[3].y]), vy, sm);
         (vx, vy, _mm256_blendv_ps(near(l, *z4), bz, sm), [tx, ty, bx, by])
+    }
+
+    /// `true` where every `used` lane is smooth: the bilinear value is the sample, the nearest
+    /// texel need not be picked.
+    #[inline(always)]
+    unsafe fn all_smooth(sm: __m256, used: __m256) -> bool {
+        _mm256_movemask_ps(_mm256_andnot_ps(sm, used)) == 0
+    }
+
+    /// The colour of each lane's cell (per channel its four texels): bilinear where `sm`, the
+    /// nearest texel elsewhere. Only the `used` lanes' values are defined.
+    #[inline(always)]
+    unsafe fn cell_color(l: &Loc, cells: [[__m256; 4]; 3], sm: __m256, used: __m256) -> [__m256; 3] {
+        // No closures: they would not take the caller's AVX2.
+        let mut rgb = [_mm256_setzero_ps(); 3];
+        for (o, c) in rgb.iter_mut().zip(&cells) {
+            *o = mix(mix(c[0], c[1], l.ax), mix(c[2], c[3], l.ax), l.ay);
+        }
+        if !all_smooth(sm, used) {
+            for (o, c) in rgb.iter_mut().zip(&cells) {
+                *o = _mm256_blendv_ps(near(l, *c), *o, sm);
+            }
+        }
+        rgb
     }
 
     #[derive(Clone, Copy)]
@@ -501,7 +530,7 @@ pub(crate) mod avx2 {
         for _ in 0..params.iterations {
             let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
             let sm = smooth(&v4);
-            let (vx, vy, z, _) = sample_cell(&l, &v4, &z4, sm);
+            let (vx, vy, z, _) = sample_cell(&l, &v4, &z4, sm, active);
             // Record the visit (the orbit's farthest sample).
             let better = _mm256_and_ps(
                 active,
@@ -549,13 +578,7 @@ pub(crate) mod avx2 {
             let v4 = [v_at(pl, l.i[0]), v_at(pl, l.i[1]), v_at(pl, l.i[2]), v_at(pl, l.i[3])];
             smooth(&v4)
         };
-        let cells = cell_rgb(color, &l, all, g.wi, g.len);
-        let mut rgb = [zero; 3];
-        for (o, c) in rgb.iter_mut().zip(cells) {
-            let top = mix(c[0], c[1], l.ax);
-            let bot = mix(c[2], c[3], l.ax);
-            *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
-        }
+        let rgb = cell_color(&l, cell_rgb(color, &l, all, g.wi, g.len), sm, all);
         debug_assert!(oc.len() == 8);
         store3x8(oc.as_mut_ptr() as *mut f32, rgb);
         _mm256_storeu_ps(od.as_mut_ptr(), outz);
@@ -654,7 +677,7 @@ pub(crate) mod avx2 {
                     for _ in 0..iterations {
                         let Some((l, v4, z4)) = g.fetch(qx, qy, &mut active) else { break };
                         let sm = smooth_rho(&l, rp);
-                        let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm);
+                        let (vx, vy, z, [tx, ty, bx, by]) = sample_cell(&l, &v4, &z4, sm, active);
                         let (wx, wy, stx, sty, now) = fixed_point_step((ppx, ppy), (vx, vy), (qx, qy), active, thr2);
                         c.keep(now, (qx, qy), (vx, vy), z);
                         conv = _mm256_or_ps(conv, now);
@@ -719,13 +742,7 @@ pub(crate) mod avx2 {
                     let qy = _mm256_min_ps(_mm256_max_ps(coly, zero), g.cy);
                     let l = locate(qx, qy, g.wi, g.wm, g.hm);
                     let sm = smooth_rho(&l, rp);
-                    let cells = cell_rgb(color, &l, acc, g.wi, g.len);
-                    let mut rgb = [zero; 3];
-                    for (o, c) in rgb.iter_mut().zip(cells) {
-                        let top = mix(c[0], c[1], l.ax);
-                        let bot = mix(c[2], c[3], l.ax);
-                        *o = _mm256_blendv_ps(near(&l, c), mix(top, bot, l.ay), sm);
-                    }
+                    let rgb = cell_color(&l, cell_rgb(color, &l, acc, g.wi, g.len), sm, acc);
                     if whole {
                         _mm256_storeu_ps(od.as_mut_ptr().add(x), _mm256_blendv_ps(old_z, c.z, win));
                         let rp = or.as_mut_ptr().add(x);
