@@ -193,28 +193,15 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
     let bvx = lerp(top_vx, bot_vx, ay);
     let bvy = lerp(top_vy, bot_vy, ay);
     let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
-    // Every live lane smooth: the bilinear sample, no nearest texel.
-    let (vx, vy, z, has) = if _mm256_movemask_ps(_mm256_andnot_ps(smooth, live)) == 0 {
-        (bvx, bvy, bz, live)
-    } else {
-        // Nearest: the texel floor(q), always one of the four read.
-        let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
-        let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
-        let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
-        let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
-        let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
-            let t = _mm256_blendv_ps(a10, a00, left);
-            let b = _mm256_blendv_ps(a11, a01, left);
-            _mm256_blendv_ps(b, t, top)
-        };
-        let nz = pick(z00, z10, z01, z11);
-        (
-            _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
-            _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
-            _mm256_blendv_ps(nz, bz, smooth),
-            _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz))),
-        )
-    };
+    let (vx, vy, z, has) = adaptive8(
+        (qx, qy),
+        live,
+        (x0, y0),
+        (wm, hm),
+        smooth,
+        (bvx, bvy, bz),
+        [[vx00, vx10, vx01, vx11], [vy00, vy10, vy01, vy11], [z00, z10, z01, z11]],
+    );
     Smp8 {
         has,
         vx,
@@ -226,6 +213,49 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
         dyy: _mm256_and_ps(smooth, dyy),
         smooth: _mm256_and_ps(live, smooth),
     }
+}
+
+/// The adaptive sample (`LayerSampler`) of the `live` lanes from their cell's texels (motion x,
+/// motion y, target depth; each `[(x0, y0), (x1, y0), (x0, y1), (x1, y1)]`): the bilinear
+/// `(vx, vy, z)` where the cell is `smooth`, the nearest texel `floor(q)` elsewhere; and the
+/// live lanes with a sample (smooth, or a valid nearest texel). Where every live lane is smooth
+/// (surfaces away from edges) the nearest texel is not picked at all.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn adaptive8(
+    (qx, qy): (__m256, __m256),
+    live: __m256,
+    (x0, y0): (__m256i, __m256i),
+    (wm, hm): (__m256i, __m256i),
+    smooth: __m256,
+    (bvx, bvy, bz): (__m256, __m256, __m256),
+    [v_x, v_y, v_z]: [[__m256; 4]; 3],
+) -> (__m256, __m256, __m256, __m256) {
+    if _mm256_movemask_ps(_mm256_andnot_ps(smooth, live)) == 0 {
+        return (bvx, bvy, bz, live);
+    }
+    let live_i = _mm256_castps_si256(live);
+    // The texel floor(q), always one of the four read.
+    let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
+    let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
+    let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
+    let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
+    let pick = |[a00, a10, a01, a11]: [__m256; 4]| {
+        let t = _mm256_blendv_ps(a10, a00, left);
+        let b = _mm256_blendv_ps(a11, a01, left);
+        _mm256_blendv_ps(b, t, top)
+    };
+    let nz = pick(v_z);
+    let valid = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GE_OQ>(nz, _mm256_setzero_ps()),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(nz, splat(1.0)),
+    );
+    (
+        _mm256_blendv_ps(pick(v_x), bvx, smooth),
+        _mm256_blendv_ps(pick(v_y), bvy, smooth),
+        _mm256_blendv_ps(nz, bz, smooth),
+        _mm256_and_ps(live, _mm256_or_ps(smooth, valid)),
+    )
 }
 
 /// [`crate::sampling::continuous_cell`] per lane, from the cell's motion range and its four
@@ -581,27 +611,15 @@ unsafe fn first8(
     let top_d = _mm256_add_ps(z00, _mm256_mul_ps(_mm256_sub_ps(z10, z00), ax));
     let bot_d = _mm256_add_ps(z01, _mm256_mul_ps(_mm256_sub_ps(z11, z01), ax));
     let bz = _mm256_add_ps(top_d, _mm256_mul_ps(_mm256_sub_ps(bot_d, top_d), ay));
-    // Every live lane smooth (surfaces away from edges): the bilinear sample, no nearest texel.
-    let (vx, vy, z, own) = if _mm256_movemask_ps(_mm256_andnot_ps(smooth, live)) == 0 {
-        (bvx, bvy, bz, live)
-    } else {
-        let xn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qx), live_i), wm);
-        let yn = _mm256_min_epi32(_mm256_and_si256(_mm256_cvttps_epi32(qy), live_i), hm);
-        let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(xn, x0));
-        let top = _mm256_castsi256_ps(_mm256_cmpeq_epi32(yn, y0));
-        let pick = |a00: __m256, a10: __m256, a01: __m256, a11: __m256| {
-            let t = _mm256_blendv_ps(a10, a00, left);
-            let b = _mm256_blendv_ps(a11, a01, left);
-            _mm256_blendv_ps(b, t, top)
-        };
-        let nz = pick(z00, z10, z01, z11);
-        (
-            _mm256_blendv_ps(pick(vx00, vx10, vx01, vx11), bvx, smooth),
-            _mm256_blendv_ps(pick(vy00, vy10, vy01, vy11), bvy, smooth),
-            _mm256_blendv_ps(nz, bz, smooth),
-            _mm256_and_ps(live, _mm256_or_ps(smooth, valid(nz))),
-        )
-    };
+    let (vx, vy, z, own) = adaptive8(
+        (qx, qy),
+        live,
+        (x0, y0),
+        (wm, hm),
+        smooth,
+        (bvx, bvy, bz),
+        [[vx00, vx10, vx01, vx11], [vy00, vy10, vy01, vy11], [z00, z10, z01, z11]],
+    );
     let stx = _mm256_sub_ps(_mm256_sub_ps(px, vx), qx);
     let sty = _mm256_sub_ps(_mm256_sub_ps(py, vy), qy);
     let r2 = _mm256_add_ps(_mm256_mul_ps(stx, stx), _mm256_mul_ps(sty, sty));
