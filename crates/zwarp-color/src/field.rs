@@ -141,7 +141,7 @@ impl WarpBasis {
     /// [`Self::temporal`] into this basis, reusing its buffers (an engine's steady state, one
     /// basis per generated frame: fresh 1080p planes cost more than the pass that fills them).
     /// Validates, clamps the depth and splits the motion in one pass. Replaces every term; on
-    /// error the basis holds none.
+    /// error the basis holds none (and, once the pass ran, no depth: a 0x0 basis).
     pub fn set_temporal(&mut self, depth: &Image<f32>, m: &Image<Motion>) -> Result<()> {
         (self.accel, self.spatial) = (None, None);
         let planes = self.motion.take().unwrap_or_default();
@@ -171,11 +171,15 @@ impl WarpBasis {
                 (nan, bad)
             })
             .reduce(|| (false, false), |a, b| (a.0 | b.0, a.1 | b.1));
-        if nan_motion {
-            return Err(Error::invalid("temporal warp field: motion holds NaN"));
-        }
-        if bad_depth {
-            return Err(Error::invalid("warp basis: depth buffer holds NaN or infinite values"));
+        if nan_motion || bad_depth {
+            // The depth was overwritten: keep no half-filled basis.
+            self.depth.clear();
+            (self.width, self.height) = (0, 0);
+            return Err(Error::invalid(if nan_motion {
+                "temporal warp field: motion holds NaN"
+            } else {
+                "warp basis: depth buffer holds NaN or infinite values"
+            }));
         }
         (self.width, self.height) = (depth.width(), depth.height());
         self.motion = Some(p);

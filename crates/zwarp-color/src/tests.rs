@@ -462,12 +462,17 @@ fn a_recycled_temporal_basis_equals_a_fresh_one() {
     nan.get_mut(3, 4).v.y = f32::NAN;
     let mut inf = d.clone();
     *inf.get_mut(39, 29) = f32::INFINITY;
-    for (depth, motion, what) in
-        [(&d, &nan, "NaN"), (&inf, &m, "infinite"), (&d, &Image::new(3, 3, Motion::default()), "3x3")]
+    // A size mismatch is refused before the pass (the last good depth stays, without terms); bad
+    // values are found by the pass, which leaves a 0x0 basis.
+    let small = Image::new(3, 3, Motion::default());
+    for (depth, motion, what, left) in
+        [(&d, &small, "3x3", (40, 30)), (&d, &nan, "NaN", (0, 0)), (&inf, &m, "infinite", (0, 0))]
     {
+        b.set_temporal(&d, &m).unwrap();
         let e = b.set_temporal(depth, motion).unwrap_err().to_string();
         assert!(e.contains(what) && !e.contains('\n'), "{e}");
         assert!(b.field(FieldParams::temporal(1.0)).is_err(), "no term after an error");
+        assert_eq!(b.field(FieldParams::temporal(0.0)).unwrap().size(), left);
     }
 }
 
