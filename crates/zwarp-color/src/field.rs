@@ -140,33 +140,65 @@ impl WarpBasis {
 
     /// [`Self::temporal`] into this basis, reusing its buffers (an engine's steady state, one
     /// basis per generated frame: fresh 1080p planes cost more than the pass that fills them).
-    /// Validates, clamps the depth and splits the motion in one pass. Replaces every term; on
-    /// error the basis holds none (and, once the pass ran, no depth: a 0x0 basis).
+    /// Replaces every term; on error the basis holds none (and, once the motion is in, no
+    /// depth: a 0x0 basis).
     pub fn set_temporal(&mut self, depth: &Image<f32>, m: &Image<Motion>) -> Result<()> {
+        self.set_temporal_with(depth, |x, y| {
+            depth.check_same_size(m, "temporal warp field")?;
+            let n = m.data().len();
+            x.resize(n, 0.0);
+            y.resize(n, 0.0);
+            x.par_chunks_mut(CHUNK).zip(y.par_chunks_mut(CHUNK)).zip(m.data().par_chunks(CHUNK)).for_each(
+                |((xs, ys), ms)| {
+                    for ((x, y), s) in xs.iter_mut().zip(ys).zip(ms) {
+                        (*x, *y) = s.v.into();
+                    }
+                },
+            );
+            Ok(())
+        })
+    }
+
+    /// [`Self::set_temporal`] with the motion `M` written by `fill` straight into the basis'
+    /// planes (x and y, resized by `fill` to the depth's size; their earlier allocations
+    /// reused), e.g. by [`zwarp_core::motion_planes_into`]: no motion records to write and
+    /// split. Then one pass validates (NaN motion, non-finite depth), clamps the depth to
+    /// `[0, 1]` and keeps non-finite motion (behind the target eye) finite.
+    pub fn set_temporal_with(
+        &mut self,
+        depth: &Image<f32>,
+        fill: impl FnOnce(&mut Vec<f32>, &mut Vec<f32>) -> Result<()>,
+    ) -> Result<()> {
         (self.accel, self.spatial) = (None, None);
-        let planes = self.motion.take().unwrap_or_default();
+        let mut p = self.motion.take().unwrap_or_default();
         depth.check_nonempty("warp basis depth")?;
-        depth.check_same_size(m, "temporal warp field")?;
+        fill(&mut p.x, &mut p.y)?;
         let n = depth.data().len();
+        if p.x.len() != n || p.y.len() != n {
+            return Err(Error::invalid(format!(
+                "temporal warp field: motion planes hold {} and {} values, the depth {n}",
+                p.x.len(),
+                p.y.len()
+            )));
+        }
         self.depth = zwarp_core::pages::reuse(std::mem::take(&mut self.depth), n, 0.0);
-        let mut p =
-            Planes { x: zwarp_core::pages::reuse(planes.x, n, 0.0), y: zwarp_core::pages::reuse(planes.y, n, 0.0) };
-        let (src, mot) = (depth.data(), m.data());
+        let src = depth.data();
         // (some motion is NaN, some depth is not finite)
         let (nan_motion, bad_depth) = self
             .depth
             .par_chunks_mut(CHUNK)
             .zip(p.x.par_chunks_mut(CHUNK).zip(p.y.par_chunks_mut(CHUNK)))
-            .enumerate()
-            .map(|(c, (ds, (xs, ys)))| {
-                let i0 = c * CHUNK;
-                let (src, mot) = (&src[i0..i0 + ds.len()], &mot[i0..i0 + ds.len()]);
+            .zip(src.par_chunks(CHUNK))
+            .map(|((ds, (xs, ys)), src)| {
                 let (mut nan, mut bad) = (false, false);
-                for (((d, s), out), (x, y)) in src.iter().zip(mot).zip(ds).zip(xs.iter_mut().zip(ys)) {
-                    nan |= s.v.is_nan();
+                for (((d, out), x), y) in src.iter().zip(ds).zip(xs).zip(ys) {
                     bad |= !d.is_finite();
                     *out = d.clamp(0.0, 1.0);
-                    (*x, *y) = mv(s).into();
+                    nan |= x.is_nan() | y.is_nan();
+                    // `mv`: written only where it changes the value.
+                    if !(x.is_finite() && y.is_finite()) {
+                        (*x, *y) = (1.0e9, 1.0e9);
+                    }
                 }
                 (nan, bad)
             })

@@ -140,66 +140,206 @@ pub fn motion_field_with_into(
     delta: impl Fn(u32) -> Mat4 + Sync,
     out: &mut Image<Motion>,
 ) -> Result<()> {
-    check_motion_inputs(depth, items, cam_a)?;
+    let pass = Pass::new(depth, items, cam_a, cam_b, moving, delta)?;
     let (w, h) = depth.size();
-    let wu = w as usize;
-    // The moving ids on screen, sorted and unique (empty pixels move with the camera, whatever
-    // their id).
-    let mut ids: Vec<u32> = match items {
-        Some(items) => items
-            .data()
-            .par_chunks(wu)
-            .zip(depth.data().par_chunks(wu))
-            .flat_map_iter(|(ir, dr)| {
-                // `moving` asked once per run of one id; NO_ITEM never moves.
-                let (mut last, mut last_moving, mut pushed) = (NO_ITEM, false, NO_ITEM);
-                let mut seen = Vec::new();
-                for (&id, &d) in ir.iter().zip(dr) {
-                    if id != last {
-                        last = id;
-                        last_moving = id != NO_ITEM && moving(id);
-                    }
-                    if last_moving && d < 1.0 && id != pushed {
-                        seen.push(id);
-                        pushed = id;
-                    }
-                }
-                seen
-            })
-            .collect(),
-        None => Vec::new(),
-    };
-    ids.sort_unstable();
-    ids.dedup();
-    let vp_b = cam_b.view_proj();
-    let mats: Vec<Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
-    let inv_a = cam_a.view_proj().inverse();
     if out.size() != (w, h) {
         *out = Image::new(w, h, Motion::default());
     }
-    let (a, b) = ((w, h), (cam_b.width, cam_b.height));
-    let simd = AVX2.active();
-    let items = items.filter(|_| !ids.is_empty());
-    // unproject_with's x in NDC per column (the same operations, so the same bits): the AVX2
-    // build reads it instead of dividing every row again; the divisions bound that build.
-    let ndc_x: Vec<f32> =
-        if simd { (0..w).map(|x| (x as f32 + 0.5) / w as f32 * 2.0 - 1.0).collect() } else { Vec::new() };
-    out.data_mut().par_chunks_mut(wu).enumerate().for_each(|(y, row)| {
-        let dr = &depth.data()[y * wu..(y + 1) * wu];
-        let ir = items.map(|i| &i.data()[y * wu..(y + 1) * wu]);
+    out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, mut row)| pass.row(y, &mut row));
+    Ok(())
+}
+
+/// [`motion_field`]'s motion vectors alone, as two planes (x and y components, row-major, each
+/// resized to the depth buffer's size, allocations reused): the same bits as the `v` of
+/// [`motion_field_into`]'s samples, without their target depth, for consumers that read
+/// planes (a colour warp's field, seed 001) and would otherwise split the records in a second
+/// pass.
+pub fn motion_planes_into(
+    depth: &Image<f32>,
+    items: Option<&Image<u32>>,
+    cam_a: &Camera,
+    cam_b: &Camera,
+    object_deltas: &[Mat4],
+    (vx, vy): (&mut Vec<f32>, &mut Vec<f32>),
+) -> Result<()> {
+    let n = object_deltas.len();
+    let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
+    if let Some(it) = items {
+        depth.check_same_size(it, "depth vs item buffer")?;
+    }
+    let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
+    let pass = Pass::new(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize])?;
+    let (wu, len) = (depth.width() as usize, depth.data().len());
+    for v in [&mut *vx, &mut *vy] {
+        v.resize(len, 0.0);
+    }
+    vx.par_chunks_mut(wu).zip(vy.par_chunks_mut(wu)).enumerate().for_each(|(y, (x, yv))| {
+        pass.row(y, &mut PlaneRow { x, y: yv });
+    });
+    Ok(())
+}
+
+/// Where a motion-field pass writes one row: [`Motion`] records, or the motion's x and y planes
+/// alone ([`PlaneRow`]).
+trait RowOut {
+    /// Pixel `x`'s sample.
+    fn put(&mut self, x: usize, m: Motion);
+    /// Pixels `x..x + 8`: motion x, motion y and target depth per lane.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2; the row holds eight pixels from `x`.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn put8(&mut self, x: usize, v: [std::arch::x86_64::__m256; 3]);
+}
+
+impl RowOut for &mut [Motion] {
+    #[inline(always)]
+    fn put(&mut self, x: usize, m: Motion) {
+        self[x] = m;
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn put8(&mut self, x: usize, v: [std::arch::x86_64::__m256; 3]) {
+        crate::simd::avx2::store3x8(self[x..x + 8].as_mut_ptr() as *mut f32, v);
+    }
+}
+
+/// One row of [`motion_planes_into`]'s planes.
+struct PlaneRow<'a> {
+    x: &'a mut [f32],
+    y: &'a mut [f32],
+}
+
+impl RowOut for PlaneRow<'_> {
+    #[inline(always)]
+    fn put(&mut self, i: usize, m: Motion) {
+        (self.x[i], self.y[i]) = (m.v.x, m.v.y);
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn put8(&mut self, i: usize, [vx, vy, _]: [std::arch::x86_64::__m256; 3]) {
+        use std::arch::x86_64::_mm256_storeu_ps;
+        _mm256_storeu_ps(self.x[i..i + 8].as_mut_ptr(), vx);
+        _mm256_storeu_ps(self.y[i..i + 8].as_mut_ptr(), vy);
+    }
+}
+
+/// What every row of one motion-field pass shares: the cameras' matrices, the on-screen moving
+/// objects' matrices, and the source's NDC x per column.
+struct Pass<'a> {
+    depth: &'a Image<f32>,
+    items: Option<&'a Image<u32>>,
+    /// The moving ids on screen (sorted, unique) and their `VP_b * delta`.
+    ids: Vec<u32>,
+    mats: Vec<Mat4>,
+    vp_b: Mat4,
+    inv_a: Mat4,
+    a: (u32, u32),
+    b: (u32, u32),
+    simd: bool,
+    /// unproject_with's x in NDC per column (the same operations, so the same bits): the AVX2
+    /// build reads it instead of dividing every row again; the divisions bound that build.
+    ndc_x: Vec<f32>,
+}
+
+impl<'a> Pass<'a> {
+    fn new(
+        depth: &'a Image<f32>,
+        items: Option<&'a Image<u32>>,
+        cam_a: &Camera,
+        cam_b: &Camera,
+        moving: impl Fn(u32) -> bool + Sync,
+        delta: impl Fn(u32) -> Mat4 + Sync,
+    ) -> Result<Self> {
+        check_motion_inputs(depth, items, cam_a)?;
+        let (w, h) = depth.size();
+        let wu = w as usize;
+        // The moving ids on screen, sorted and unique (empty pixels move with the camera,
+        // whatever their id).
+        let mut ids: Vec<u32> = match items {
+            Some(items) => items
+                .data()
+                .par_chunks(wu)
+                .zip(depth.data().par_chunks(wu))
+                .flat_map_iter(|(ir, dr)| {
+                    // `moving` asked once per run of one id; NO_ITEM never moves.
+                    let (mut last, mut last_moving, mut pushed) = (NO_ITEM, false, NO_ITEM);
+                    let mut seen = Vec::new();
+                    for (&id, &d) in ir.iter().zip(dr) {
+                        if id != last {
+                            last = id;
+                            last_moving = id != NO_ITEM && moving(id);
+                        }
+                        if last_moving && d < 1.0 && id != pushed {
+                            seen.push(id);
+                            pushed = id;
+                        }
+                    }
+                    seen
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        ids.sort_unstable();
+        ids.dedup();
+        let vp_b = cam_b.view_proj();
+        let mats: Vec<Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
+        let simd = AVX2.active();
+        let ndc_x = if simd { (0..w).map(|x| (x as f32 + 0.5) / w as f32 * 2.0 - 1.0).collect() } else { Vec::new() };
+        Ok(Pass {
+            depth,
+            items: items.filter(|_| !ids.is_empty()),
+            ids,
+            mats,
+            vp_b,
+            inv_a: cam_a.view_proj().inverse(),
+            a: (w, h),
+            b: (cam_b.width, cam_b.height),
+            simd,
+            ndc_x,
+        })
+    }
+
+    /// Row `y` of the field into `row`.
+    fn row(&self, y: usize, row: &mut impl RowOut) {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            // SAFETY: `simd` says the CPU has AVX2.
+            return unsafe { self.row_avx2(y, row) };
+        }
+        self.row_with(y, row, false)
+    }
+
+    /// [`Self::row`] compiled with AVX2, so that the eight-pixel build inlines into the loop.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn row_avx2(&self, y: usize, row: &mut impl RowOut) {
+        self.row_with(y, row, true)
+    }
+
+    /// The loop of [`Self::row`]; `simd`: runs of eight pixels take the AVX2 build.
+    #[inline(always)]
+    fn row_with(&self, y: usize, row: &mut impl RowOut, simd: bool) {
+        let (wu, h) = (self.a.0 as usize, self.a.1);
+        let dr = &self.depth.data()[y * wu..(y + 1) * wu];
+        let ir = self.items.map(|i| &i.data()[y * wu..(y + 1) * wu]);
+        let (ids, mats, vp_b) = (&self.ids, &self.mats, &self.vp_b);
         // The matrix of pixel x: its object's where it is a surface of a moving object.
-        let (mut last, mut last_m) = (NO_ITEM, &vp_b);
+        let (mut last, mut last_m) = (NO_ITEM, vp_b);
         let ndc_y = 1.0 - (y as f32 + 0.5) / h as f32 * 2.0;
         let mut matrix = |x: usize| -> &Mat4 {
             match ir {
                 Some(ir) if dr[x] < 1.0 => {
                     if ir[x] != last {
                         last = ir[x];
-                        last_m = ids.binary_search(&last).map_or(&vp_b, |k| &mats[k]);
+                        last_m = ids.binary_search(&last).map_or(vp_b, |k| &mats[k]);
                     }
                     last_m
                 }
-                _ => &vp_b,
+                _ => vp_b,
             }
         };
         let mut x = 0;
@@ -214,30 +354,28 @@ pub fn motion_field_with_into(
                     // SAFETY: `simd` says the CPU has AVX2; the slices hold eight elements from x.
                     unsafe {
                         avx2::eight(
-                            &inv_a,
+                            &self.inv_a,
                             m,
-                            b,
-                            x as u32,
-                            y as u32,
-                            &ndc_x[x..x + 8],
+                            self.b,
+                            (x as u32, y as u32),
+                            &self.ndc_x[x..x + 8],
                             ndc_y,
                             &dr[x..x + 8],
-                            &mut row[x..x + 8],
+                            row,
                         )
                     };
                 } else {
                     for i in x..end {
-                        row[i] = reproject_pixel(&inv_a, m, a, b, i as u32, y as u32, dr[i]);
+                        row.put(i, reproject_pixel(&self.inv_a, m, self.a, self.b, i as u32, y as u32, dr[i]));
                     }
                 }
                 x = end;
                 continue;
             }
-            row[x] = reproject_pixel(&inv_a, matrix(x), a, b, x as u32, y as u32, dr[x]);
+            row.put(x, reproject_pixel(&self.inv_a, matrix(x), self.a, self.b, x as u32, y as u32, dr[x]));
             x += 1;
         }
-    });
-    Ok(())
+    }
 }
 
 /// The AVX2 build of [`reproject_pixel`] for eight pixels of one row.
@@ -247,8 +385,8 @@ mod avx2 {
 
     use glam::Mat4;
 
-    use super::Motion;
-    use crate::simd::avx2::{mat4_mul8, store3x8};
+    use super::RowOut;
+    use crate::simd::avx2::mat4_mul8;
 
     /// [`super::reproject_pixel`] of pixels `x..x + 8` of row `y`, all moving with matrix `m`
     /// (the target's view-projection, times an object's motion): `unproject_with` (from the
@@ -256,19 +394,20 @@ mod avx2 {
     /// sample, operation for operation.
     ///
     /// # Safety
-    /// The CPU must support AVX2; `ndc_x`, `d` and `out` hold eight elements.
+    /// The CPU must support AVX2; `ndc_x` and `d` hold eight elements, `row` eight pixels from
+    /// `x`; the samples go to `row`.
+    #[inline]
     #[target_feature(enable = "avx2")]
     #[allow(clippy::too_many_arguments)]
     pub(super) unsafe fn eight(
         inv_a: &Mat4,
         m: &Mat4,
         b: (u32, u32),
-        x: u32,
-        y: u32,
+        (x, y): (u32, u32),
         ndc_x: &[f32],
         ndc_y: f32,
         d: &[f32],
-        out: &mut [Motion],
+        row: &mut impl RowOut,
     ) {
         let (one, half) = (_mm256_set1_ps(1.0), _mm256_set1_ps(0.5));
         let px = _mm256_add_ps(
@@ -297,7 +436,7 @@ mod avx2 {
         let vy = _mm256_blendv_ps(_mm256_sub_ps(sy, py), far, behind);
         let empty = _mm256_or_ps(behind, _mm256_cmp_ps::<_CMP_GE_OQ>(dv, one));
         let depth = _mm256_blendv_ps(sz, one, empty);
-        store3x8(out.as_mut_ptr() as *mut f32, [vx, vy, depth]);
+        row.put8(x as usize, [vx, vy, depth]);
     }
 }
 
@@ -367,6 +506,18 @@ mod tests {
         let mut out = Image::new(3, 2, Motion::default());
         motion_field_into(&depth, Some(&items), &a, &b, &deltas, &mut out).unwrap();
         assert_eq!(bits(&out), bits(&portable));
+        // The planes are the samples' motion, in both builds, into vectors of another length.
+        for simd in [false, true] {
+            set_simd(simd);
+            let (mut vx, mut vy) = (vec![7.0; 5], Vec::new());
+            motion_planes_into(&depth, Some(&items), &a, &b, &deltas, (&mut vx, &mut vy)).unwrap();
+            set_simd(true);
+            let split = |c: fn(&Motion) -> f32| portable.data().iter().map(|s| c(s).to_bits()).collect::<Vec<_>>();
+            assert_eq!(vx.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), split(|s| s.v.x), "simd {simd}");
+            assert_eq!(vy.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), split(|s| s.v.y), "simd {simd}");
+        }
+        let (mut vx, mut vy) = (Vec::new(), Vec::new());
+        assert!(motion_planes_into(&depth, Some(&small), &a, &b, &[], (&mut vx, &mut vy)).is_err());
     }
 
     #[test]

@@ -9,7 +9,7 @@ use zwarp_color::{
     heuristic_warp_into, robust_warp_with, ColorWarpOutput, FieldParams, HeuristicParams, RobustParams, Subdivision,
     WarpBasis,
 };
-use zwarp_core::{Camera, Error, Image, Motion, Result};
+use zwarp_core::{Camera, Error, Image, Result};
 
 use crate::{check_target, Backend};
 
@@ -94,8 +94,6 @@ pub struct FrameWarper {
     method: ColorMethod,
     gpu: Option<ColorWarpKernel>,
     source: Option<FrameSource>,
-    /// The motion towards the last target, reused by the next call.
-    motion: Image<Motion>,
     /// The warp field's basis towards the last target, its buffers reused by the next call.
     basis: Option<WarpBasis>,
     output: ColorWarpOutput,
@@ -110,14 +108,7 @@ impl FrameWarper {
             Backend::Cpu => None,
             Backend::Gpu(ctx) => Some(ColorWarpKernel::new(&ctx)?),
         };
-        Ok(FrameWarper {
-            method,
-            gpu,
-            source: None,
-            motion: Image::new(0, 0, Motion::default()),
-            basis: None,
-            output: ColorWarpOutput::empty(),
-        })
+        Ok(FrameWarper { method, gpu, source: None, basis: None, output: ColorWarpOutput::empty() })
     }
 
     /// The colour warp this warper runs.
@@ -181,16 +172,15 @@ impl FrameWarper {
             return Err(Error::invalid("warp_to before prepare: no source frame"));
         };
         check_target(&src.camera, camera)?;
-        let motion = &mut self.motion;
-        zwarp_core::motion_field_into(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas, motion)?;
-        // The field towards the target itself: t = 1 of the exact motion (eq. 2).
+        // The field towards the target itself: t = 1 of the exact motion (eq. 2), the motion
+        // written straight into the basis' planes.
         let basis = match &mut self.basis {
-            Some(b) => {
-                b.set_temporal(&src.depth, motion)?;
-                b
-            }
-            none => none.insert(WarpBasis::temporal(&src.depth, motion)?),
+            Some(b) => b,
+            none => none.insert(WarpBasis::new(&src.depth)?),
         };
+        basis.set_temporal_with(&src.depth, |x, y| {
+            zwarp_core::motion_planes_into(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas, (x, y))
+        })?;
         let field = basis.field(FieldParams::temporal(1.0))?;
         match (&self.gpu, &self.method) {
             (Some(k), ColorMethod::Heuristic(p)) => self.output = k.heuristic(&field, &src.color, p)?,
