@@ -365,8 +365,8 @@ impl<'a> Pass<'a> {
                         )
                     };
                 } else {
-                    for i in x..end {
-                        row.put(i, reproject_pixel(&self.inv_a, m, self.a, self.b, i as u32, y as u32, dr[i]));
+                    for (i, &d) in dr.iter().enumerate().take(end).skip(x) {
+                        row.put(i, reproject_pixel(&self.inv_a, m, self.a, self.b, i as u32, y as u32, d));
                     }
                 }
                 x = end;
