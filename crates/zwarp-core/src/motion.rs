@@ -96,14 +96,8 @@ pub fn motion_field_into(
     object_deltas: &[Mat4],
     out: &mut Image<Motion>,
 ) -> Result<()> {
-    let n = object_deltas.len();
-    let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
-    // Without a moving object the item buffer is not read at all (its size is still checked).
-    if let Some(it) = items {
-        depth.check_same_size(it, "depth vs item buffer")?;
-    }
-    let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
-    motion_field_with_into(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize], out)
+    Pass::of_deltas(depth, items, cam_a, cam_b, object_deltas)?.records(out);
+    Ok(())
 }
 
 /// [`motion_field`] with each object's motion given by functions: `moving(id)` says whether
@@ -140,12 +134,7 @@ pub fn motion_field_with_into(
     delta: impl Fn(u32) -> Mat4 + Sync,
     out: &mut Image<Motion>,
 ) -> Result<()> {
-    let pass = Pass::new(depth, items, cam_a, cam_b, moving, delta)?;
-    let (w, h) = depth.size();
-    if out.size() != (w, h) {
-        *out = Image::new(w, h, Motion::default());
-    }
-    out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, mut row)| pass.row(y, &mut row));
+    Pass::new(depth, items, cam_a, cam_b, moving, delta)?.records(out);
     Ok(())
 }
 
@@ -162,20 +151,7 @@ pub fn motion_planes_into(
     object_deltas: &[Mat4],
     (vx, vy): (&mut Vec<f32>, &mut Vec<f32>),
 ) -> Result<()> {
-    let n = object_deltas.len();
-    let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
-    if let Some(it) = items {
-        depth.check_same_size(it, "depth vs item buffer")?;
-    }
-    let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
-    let pass = Pass::new(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize])?;
-    let (wu, len) = (depth.width() as usize, depth.data().len());
-    for v in [&mut *vx, &mut *vy] {
-        v.resize(len, 0.0);
-    }
-    vx.par_chunks_mut(wu).zip(vy.par_chunks_mut(wu)).enumerate().for_each(|(y, (x, yv))| {
-        pass.row(y, &mut PlaneRow { x, y: yv });
-    });
+    Pass::of_deltas(depth, items, cam_a, cam_b, object_deltas)?.planes(vx, vy);
     Ok(())
 }
 
@@ -243,6 +219,44 @@ struct Pass<'a> {
 }
 
 impl<'a> Pass<'a> {
+    /// [`Pass::new`] for a slice of per-object deltas (as [`motion_field`] takes them).
+    fn of_deltas(
+        depth: &'a Image<f32>,
+        items: Option<&'a Image<u32>>,
+        cam_a: &Camera,
+        cam_b: &Camera,
+        object_deltas: &[Mat4],
+    ) -> Result<Self> {
+        let n = object_deltas.len();
+        let moving = |id: u32| (id as usize) < n && object_deltas[id as usize] != Mat4::IDENTITY;
+        // Without a moving object the item buffer is not read at all (its size is still checked).
+        if let Some(it) = items {
+            depth.check_same_size(it, "depth vs item buffer")?;
+        }
+        let items = items.filter(|_| object_deltas.iter().any(|m| *m != Mat4::IDENTITY));
+        Pass::new(depth, items, cam_a, cam_b, moving, |id| object_deltas[id as usize])
+    }
+
+    /// The field as [`Motion`] records into `out` (resized to the depth's size if needed).
+    fn records(&self, out: &mut Image<Motion>) {
+        let (w, h) = self.a;
+        if out.size() != (w, h) {
+            *out = Image::new(w, h, Motion::default());
+        }
+        out.data_mut().par_chunks_mut(w as usize).enumerate().for_each(|(y, mut row)| self.row(y, &mut row));
+    }
+
+    /// The field's vectors as x / y planes (resized to the depth's size).
+    fn planes(&self, vx: &mut Vec<f32>, vy: &mut Vec<f32>) {
+        let (wu, len) = (self.a.0 as usize, self.a.0 as usize * self.a.1 as usize);
+        for v in [&mut *vx, &mut *vy] {
+            v.resize(len, 0.0);
+        }
+        vx.par_chunks_mut(wu).zip(vy.par_chunks_mut(wu)).enumerate().for_each(|(y, (x, yv))| {
+            self.row(y, &mut PlaneRow { x, y: yv });
+        });
+    }
+
     fn new(
         depth: &'a Image<f32>,
         items: Option<&'a Image<u32>>,
