@@ -128,8 +128,8 @@ pub struct Report {
     pub finished: Option<String>,
     /// Every planned job, in order.
     pub jobs: Vec<JobRecord>,
-    /// Sections run again into this report by a later `--sections` run, with when and the
-    /// load average then.
+    /// Sections run again into this report by later `--sections` runs, with when and the load
+    /// average then: the latest run of each section ("ids at time on cpu, load ...").
     #[serde(default)]
     pub reruns: Vec<String>,
 }
@@ -266,6 +266,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         let order = |j: &JobRecord| Section::ALL.iter().position(|s| s.id() == j.section).unwrap_or(usize::MAX);
         r.jobs.sort_by_key(order);
         let m = machine();
+        drop_reruns_of(&mut r.reruns, &ids);
         r.reruns.push(format!(
             "{} at {} on {} ({} threads), load average {}",
             ids.join(", "),
@@ -363,4 +364,37 @@ pub fn run(args: ReportArgs) -> Result<()> {
         bail!("{failed} of {} jobs failed (their logs are in {})", jobs.len(), out.join("logs").display());
     }
     Ok(())
+}
+
+/// Removes sections `ids` from the rerun records (`"a, b at ..."`), dropping records left with
+/// none: a section run again replaces its earlier record, so the report states what is, not
+/// its history.
+fn drop_reruns_of(reruns: &mut Vec<String>, ids: &[&str]) {
+    reruns.retain_mut(|r| {
+        let Some((sections, rest)) = r.split_once(" at ") else { return true };
+        let left: Vec<&str> = sections.split(", ").filter(|s| !ids.contains(s)).collect();
+        if left.is_empty() {
+            return false;
+        }
+        *r = format!("{} at {rest}", left.join(", "));
+        true
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::drop_reruns_of;
+
+    #[test]
+    fn a_section_run_again_replaces_its_earlier_record() {
+        let mut reruns = vec![
+            "culling at t1 on cpu (2 threads), load average 1".to_string(),
+            "quality, bounds_speed, culling at t2 on cpu (2 threads), load average 2".to_string(),
+            "colour at t3 on cpu (2 threads), load average 3".to_string(),
+        ];
+        drop_reruns_of(&mut reruns, &["culling", "colour"]);
+        assert_eq!(reruns, vec!["quality, bounds_speed at t2 on cpu (2 threads), load average 2".to_string()]);
+        drop_reruns_of(&mut reruns, &["iterations"]);
+        assert_eq!(reruns.len(), 1);
+    }
 }
