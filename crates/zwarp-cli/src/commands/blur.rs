@@ -40,10 +40,10 @@ pub struct BlurArgs {
     #[arg(long, default_value_t = 64)]
     pub samples: usize,
     /// Shutter interval in frames, centred on the frame (0.5 = a 180-degree shutter).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub shutter: f32,
     /// Lens radius in world units.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub aperture: f32,
     /// Focus distance in world units (default: the view depth at the image centre).
     #[arg(long)]

@@ -29,7 +29,7 @@ pub struct CullArgs {
     #[arg(long, default_value_t = 30)]
     pub frames: usize,
     /// Motion-speed factors (comma list): frame k is taken at time k * speed / fps.
-    #[arg(long, default_value = "1")]
+    #[arg(long, default_value = "1", allow_hyphen_values = true)]
     pub speed: String,
     /// Methods (comma list of nocull, vfc, lastframe, twophase, woc, awoc, ideal, ref).
     #[arg(long, default_value = "nocull,vfc,lastframe,twophase,woc,awoc,ideal,ref")]

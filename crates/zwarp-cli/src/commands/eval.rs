@@ -32,7 +32,7 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 4)]
     pub frames: usize,
     /// Motion-speed factors (comma list): frame k is taken at time k * speed / fps.
-    #[arg(long, default_value = "1")]
+    #[arg(long, default_value = "1", allow_hyphen_values = true)]
     pub speed: String,
     /// Search seeds N (comma list).
     #[arg(long, default_value = "4,16")]
