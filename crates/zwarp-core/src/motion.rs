@@ -212,9 +212,12 @@ struct Pass<'a> {
     inv_a: Mat4,
     a: (u32, u32),
     b: (u32, u32),
+    /// The AVX2 build runs ([`set_simd`] on and the CPU has it).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     simd: bool,
     /// unproject_with's x in NDC per column (the same operations, so the same bits): the AVX2
     /// build reads it instead of dividing every row again; the divisions bound that build.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     ndc_x: Vec<f32>,
 }
 
@@ -336,6 +339,7 @@ impl<'a> Pass<'a> {
 
     /// The loop of [`Self::row`]; `simd`: runs of eight pixels take the AVX2 build.
     #[inline(always)]
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
     fn row_with(&self, y: usize, row: &mut impl RowOut, simd: bool) {
         let (wu, h) = (self.a.0 as usize, self.a.1);
         let dr = &self.depth.data()[y * wu..(y + 1) * wu];
