@@ -146,8 +146,8 @@ impl WarpBasis {
         self.set_temporal_with(depth, |x, y| {
             depth.check_same_size(m, "temporal warp field")?;
             let n = m.data().len();
-            x.resize(n, 0.0);
-            y.resize(n, 0.0);
+            *x = zwarp_core::pages::reuse(std::mem::take(x), n, 0.0);
+            *y = zwarp_core::pages::reuse(std::mem::take(y), n, 0.0);
             x.par_chunks_mut(CHUNK).zip(y.par_chunks_mut(CHUNK)).zip(m.data().par_chunks(CHUNK)).for_each(
                 |((xs, ys), ms)| {
                     for ((x, y), s) in xs.iter_mut().zip(ys).zip(ms) {

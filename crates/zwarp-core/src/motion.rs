@@ -253,7 +253,7 @@ impl<'a> Pass<'a> {
     fn planes(&self, vx: &mut Vec<f32>, vy: &mut Vec<f32>) {
         let (wu, len) = (self.a.0 as usize, self.a.0 as usize * self.a.1 as usize);
         for v in [&mut *vx, &mut *vy] {
-            v.resize(len, 0.0);
+            *v = crate::pages::reuse(std::mem::take(v), len, 0.0);
         }
         vx.par_chunks_mut(wu).zip(vy.par_chunks_mut(wu)).enumerate().for_each(|(y, (x, yv))| {
             self.row(y, &mut PlaneRow { x, y: yv });
