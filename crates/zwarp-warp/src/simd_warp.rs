@@ -1010,22 +1010,18 @@ unsafe fn lookup8(pv: &PyramidView<'_>, r: &[__m256i; 4], live: __m256i) -> [__m
         _mm256_storeu_si256(i.as_mut_ptr() as *mut __m256i, v);
     }
     let base = pv.data.as_ptr();
-    let mut lane = [_mm_setzero_ps(); 8];
-    let mut bits = _mm256_movemask_ps(_mm256_castsi256_ps(live)) as u32;
-    while bits != 0 {
-        let l = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
+    // Lanes l and l + 4 in one vector: their four texels' min (lo) and max (hi) per lane with
+    // 256-bit operations, then [lo.x, lo.y, hi.x, hi.y] per lane. Lanes that are not live read
+    // texel 0 (texels8 masks their indices) and are not used.
+    let pair = |l: usize| {
         // SAFETY: texels8 gives in-range texel indices (4 floats each).
-        let ld = |j: usize| _mm_loadu_ps(base.add(idx[j][l] as usize * 4));
+        let ld = |j: usize| _mm256_loadu2_m128(base.add(idx[j][l + 4] as usize * 4), base.add(idx[j][l] as usize * 4));
         let (a, b, c, d) = (ld(0), ld(1), ld(2), ld(3));
-        let lo = _mm_min_ps(_mm_min_ps(a, b), _mm_min_ps(c, d));
-        let hi = _mm_max_ps(_mm_max_ps(a, b), _mm_max_ps(c, d));
-        lane[l] = _mm_blend_ps::<0b1100>(lo, hi);
-    }
-    let r0 = _mm256_set_m128(lane[4], lane[0]);
-    let r1 = _mm256_set_m128(lane[5], lane[1]);
-    let r2 = _mm256_set_m128(lane[6], lane[2]);
-    let r3 = _mm256_set_m128(lane[7], lane[3]);
+        let lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
+        let hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
+        _mm256_blend_ps::<0b1100_1100>(lo, hi)
+    };
+    let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
     let t0 = _mm256_unpacklo_ps(r0, r1);
     let t1 = _mm256_unpackhi_ps(r0, r1);
     let t2 = _mm256_unpacklo_ps(r2, r3);
