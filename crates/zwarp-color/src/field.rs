@@ -77,7 +77,8 @@ impl FieldParams {
 }
 
 /// The per-texel terms of the warp fields of one source frame (seed 001 Sec. 3.1, 4).
-#[derive(Clone, Debug, PartialEq)]
+/// `Default` is the empty basis (0x0, no term), for [`WarpBasis::set_temporal`] to fill.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct WarpBasis {
     width: u32,
     height: u32,
@@ -133,7 +134,7 @@ impl WarpBasis {
     /// field towards the previous frame and `t < 0`... or any other frame: `t` counts in its
     /// units. Replaces any motion and acceleration terms.
     pub fn temporal(depth: &Image<f32>, m: &Image<Motion>) -> Result<Self> {
-        let mut b = WarpBasis { width: 0, height: 0, depth: Vec::new(), motion: None, accel: None, spatial: None };
+        let mut b = WarpBasis::default();
         b.set_temporal(depth, m)?;
         Ok(b)
     }

@@ -95,7 +95,7 @@ pub struct FrameWarper {
     gpu: Option<ColorWarpKernel>,
     source: Option<FrameSource>,
     /// The warp field's basis towards the last target, its buffers reused by the next call.
-    basis: Option<WarpBasis>,
+    basis: WarpBasis,
     output: ColorWarpOutput,
 }
 
@@ -108,7 +108,7 @@ impl FrameWarper {
             Backend::Cpu => None,
             Backend::Gpu(ctx) => Some(ColorWarpKernel::new(&ctx)?),
         };
-        Ok(FrameWarper { method, gpu, source: None, basis: None, output: ColorWarpOutput::empty() })
+        Ok(FrameWarper { method, gpu, source: None, basis: WarpBasis::default(), output: ColorWarpOutput::empty() })
     }
 
     /// The colour warp this warper runs.
@@ -174,10 +174,7 @@ impl FrameWarper {
         check_target(&src.camera, camera)?;
         // The field towards the target itself: t = 1 of the exact motion (eq. 2), the motion
         // written straight into the basis' planes.
-        let basis = match &mut self.basis {
-            Some(b) => b,
-            none => none.insert(WarpBasis::new(&src.depth)?),
-        };
+        let basis = &mut self.basis;
         basis.set_temporal_with(&src.depth, |x, y| {
             zwarp_core::motion_planes_into(&src.depth, src.items.as_ref(), &src.camera, camera, object_deltas, (x, y))
         })?;
