@@ -45,6 +45,11 @@ const STATE4: [[u8; 4]; 16] = {
 /// Side of a tile of the tile stage (target pixels).
 pub const TILE: u32 = 4;
 
+/// Smallest determinant of `I + J` (the front surface's motion Jacobian) for which
+/// [`Kernel::continuation_covers`] extends the surface: below it the surface folds or
+/// compresses so strongly that its linear extension says nothing.
+const CONTINUATION_MIN_DET: f32 = 0.25;
+
 /// Samples layer k with the cross-layer fallback of Fig. 6.
 pub(crate) struct StackSampler<'a> {
     pub layers: &'a [LayerSampler<'a>],
@@ -446,12 +451,43 @@ impl<'a> Kernel<'a> {
             let Some(f) = s.fetch(c.q) else { return false };
             let q = p - f.v;
             hides(c.q, &f)
+                || self.continuation_covers(front, c, &f, p)
                 || (self.samplers[0].inside(q)
                     && front.iter().any(|t| {
                         t.fetch(q).is_some_and(|g| hides(q, &g))
                             || t.cell_texels(q).any(|(centre, g)| hides(centre, &g))
                     }))
         })
+    }
+
+    /// `true` if the front surface `f` at candidate `c`'s source position, continued past it
+    /// with its own motion Jacobian to the point `q*` that lands on `p`, may still be there: `c`
+    /// (behind `f`) is then hidden at `p`. The peeled front layers show that the surface ends
+    /// before `q*` where one of them sees something behind `f` there, or nothing (peeling went
+    /// past `f`'s depth without meeting it); where all of them see `f`'s depth or nearer, `f`
+    /// may continue behind an occluder of the source view and cover `p` (seed 000 Sec. 3.4: a
+    /// deeper layer is taken where the front layers disocclude it, and a surface that moved away
+    /// from `p` disoccludes it only if it does not reach it). A `q*` beyond the image border is
+    /// judged at the border texel nearest to it. Off with the coverage test
+    /// ([`crate::WarpParams::cover_radius`] 0).
+    #[inline]
+    fn continuation_covers(&self, front: &[LayerSampler<'_>], c: &Candidate, f: &Sample, p: Vec2) -> bool {
+        // Part of the coverage test, which a zero radius disables.
+        if !(self.params.cover_radius > 0.0 && crate::hidden_behind(c.depth, f.depth)) {
+            return false;
+        }
+        // (I + J) d = p - (q + v): one Newton step on the front surface's linear extension.
+        let [jx, jy] = f.dv;
+        let (a, b, e, d) = (1.0 + jx.x, jy.x, jx.y, 1.0 + jy.y);
+        let det = a * d - b * e;
+        if !(det > CONTINUATION_MIN_DET) {
+            return false;
+        }
+        let r = p - (c.q + f.v);
+        let q = c.q + Vec2::new(d * r.x - b * r.y, a * r.y - e * r.x) / det;
+        // Beyond the border: whether the surface reaches the border texel nearest `q*`.
+        let q = q.clamp(Vec2::ZERO, self.max_q());
+        front.iter().all(|t| t.fetch(q).is_some_and(|g| !crate::hidden_behind(g.depth, f.depth)))
     }
 
     /// Seeds (`n_seeds` in the region `tb`, plus an earlier layer's converged position) and the

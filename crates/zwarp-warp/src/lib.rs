@@ -197,7 +197,11 @@ pub struct WarpParams {
     /// hidden too; so is one where a front layer's sample one fixed-point step further
     /// (`q' = p - v(q)` with that front sample's motion), or a texel of the cell around `q'`
     /// (from its centre), lands within the radius and is nearer (a texel-wide sliver at the seam
-    /// between two layers' views of one wall). Default 3.5.
+    /// between two layers' views of one wall). Third, with the radius non-zero: a candidate
+    /// behind a front sample at its source position is hidden where that front surface,
+    /// continued with its motion Jacobian to the point that would land on `p`, may still be
+    /// there — every front layer sees its depth or nearer at that point, i.e. it can run on
+    /// behind an occluder of the source view (a wall behind a column). Default 3.5.
     pub cover_radius: f32,
     /// The last layer is a ground layer peeled alone, without the objects standing on it
     /// (seed 000 Sec. 3.4 and 4: "the last layer was peeled without foreground objects"). Its

@@ -208,6 +208,37 @@ pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
     ]
 }
 
+/// A wall that continues behind a near column (seed 000 Sec. 3.4's layers, as depth and
+/// motion, 32x4, motion along x): layer 0 sees the wall (depth 0.6, moving -10 px) on texels
+/// `0..12` and `20..`, and between them the column (0.3, moving -20 px) when `column`, else a
+/// far surface (0.95, moving -3 px) where the wall ends; layer 1 holds the column's back face
+/// (0.32) behind the column and a far surface (0.95, moving -3 px) everywhere else. Target
+/// pixels 2..9 are uncovered by layer 0 either way. With the column they show the wall's part
+/// hidden behind it in the source, which no layer holds: the far surface of layer 1 converges
+/// there behind the wall. Without it the wall visibly ends at texel 12 and the far surface is
+/// the answer.
+pub fn continuation_layers(column: bool) -> Vec<(Image<f32>, Image<Motion>)> {
+    let (w, h) = (32, 4);
+    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
+    let layer = |f: &dyn Fn(u32) -> Motion| {
+        let motion = Image::from_fn(w, h, |x, _| f(x));
+        (motion.map(|s| s.depth), motion)
+    };
+    let (wall, far) = (m(-10.0, 0.6), m(-3.0, 0.95));
+    vec![
+        layer(&|x| match x {
+            12..20 if column => m(-20.0, 0.3),
+            12..20 => far,
+            _ => wall,
+        }),
+        layer(&|x| match x {
+            12..20 if column => m(-20.0, 0.32),
+            12..20 => m(-3.0, 0.97),
+            _ => far,
+        }),
+    ]
+}
+
 /// A disocclusion over a separately peeled ground (seed 000 Sec. 3.4's last layer, as depth and
 /// motion, 32x4): layer 0 holds a near object (depth 0.5) over texels `0..16` moving -14 px and
 /// beyond it a far surface `far` that stays, so target pixels 2..16 are uncovered; the ground

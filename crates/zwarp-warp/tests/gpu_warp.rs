@@ -146,6 +146,26 @@ fn seam_coverage_matches_cpu() {
     }
 }
 
+/// The continuation test (`synth::continuation_layers`): the GPU hides the far layer behind a
+/// wall that may continue behind a near column, and keeps it where the wall visibly ends, as
+/// the CPU does.
+#[test]
+fn continuation_coverage_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let k = WarpKernel::new(&ctx).unwrap();
+    for column in [true, false] {
+        let ls = zwarp_warp::synth::continuation_layers(column);
+        let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
+        let p = WarpParams { n_seeds: 4, ..base() };
+        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
+        assert_eq!(gpu.state, cpu.state, "column {column}");
+        assert_eq!(gpu.depth, cpu.depth, "column {column}");
+        assert_eq!(gpu.revealed, cpu.revealed, "column {column}");
+        let far = if column { PixelState::Hole } else { PixelState::Converged };
+        assert_eq!(*cpu.state.get(6, 1), far, "column {column}");
+    }
+}
+
 /// `WarpParams::ground_layer` (`synth::ground_gap_layers`): the GPU hides the ground seen
 /// through a disocclusion in front of a far surface, and keeps it where the far side is ground,
 /// as the CPU does.

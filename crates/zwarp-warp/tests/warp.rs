@@ -896,3 +896,41 @@ fn a_contracting_field_takes_one_seed_whatever_n() {
     }
     assert!(unique > (w * h / 4) as usize, "{unique} pixels in unique tiles");
 }
+
+/// [`synth::continuation_layers`]: a far surface converging where a wall moved away from the
+/// pixel. The wall, continued past the far candidate's source position to the point that would
+/// land on the pixel, runs behind the near column there: it may still cover the pixel, the far
+/// candidate is hidden and the pixel goes to the hole policy, as with layer 0 alone. Where the
+/// wall visibly ends before that point the far surface is kept. AVX2 and portable builds agree.
+#[test]
+fn a_deeper_layer_behind_a_wall_that_may_continue_behind_an_occluder_is_hidden() {
+    let warp = |column: bool, layers: usize| {
+        let ls = synth::continuation_layers(column);
+        let layers: Vec<WarpLayer<'_>> = ls[..layers].iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
+        let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, ..Default::default() };
+        let fast = warp_depth(&layers, &params).unwrap();
+        zwarp_warp::simd::set_simd(false);
+        let portable = warp_depth(&layers, &params);
+        zwarp_warp::simd::set_simd(true);
+        assert_eq!(portable.unwrap(), fast, "column {column}, L = {}", layers.len());
+        fast
+    };
+    for column in [true, false] {
+        let (one, two) = (warp(column, 1), warp(column, 2));
+        for y in 0..4 {
+            for x in 2..9 {
+                assert_eq!(*one.state.get(x, y), PixelState::Hole, "column {column}, L = 1 ({x},{y})");
+            }
+            // Pixels 2 and 3 lie within the coverage radius of the wall's landed edge (hidden
+            // either way); the rest of the gap is decided by the continuation.
+            for x in 4..9 {
+                let (st, z) = (*two.state.get(x, y), *two.depth.get(x, y));
+                if column {
+                    assert_eq!(st, PixelState::Hole, "L = 2 ({x},{y}): {z}");
+                } else {
+                    assert_eq!((st, z), (PixelState::Converged, 0.95), "no column, L = 2 ({x},{y})");
+                }
+            }
+        }
+    }
+}

@@ -65,6 +65,8 @@ const RETRY_SEED_FACTOR: u32 = 4u;
 const MAX_SEEDS: u32 = 64u;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
+// depth_warp::kernel::CONTINUATION_MIN_DET.
+const CONTINUATION_MIN_DET: f32 = 0.25;
 // search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
 const STRADDLE_SPAN: f32 = 16.0;
 const STRADDLE_DEPTH_RATIO: f32 = 1.5;
@@ -513,6 +515,33 @@ fn inside(q: vec2<f32>) -> bool {
     return q.x >= 0.0 && q.y >= 0.0 && q.x < f32(params.size.x) && q.y < f32(params.size.y);
 }
 
+// Kernel::continuation_covers: the front surface f at candidate c's source position, continued
+// with its motion Jacobian to the point that lands on p, may still be there (every front layer
+// sees f's depth or nearer at that point): c, behind f, is hidden.
+fn continuation_covers(c: Cand, f: Smp, p: vec2<f32>, max_q: vec2<f32>) -> bool {
+    if (!(params.cover2 > 0.0 && (1.0 - c.depth) * COVER_DEPTH_RATIO < 1.0 - f.depth)) {
+        return false;
+    }
+    let a = 1.0 + f.dvdx.x;
+    let b = f.dvdy.x;
+    let e = f.dvdx.y;
+    let d = 1.0 + f.dvdy.y;
+    let det = a * d - b * e;
+    if (!(det > CONTINUATION_MIN_DET)) {
+        return false;
+    }
+    let r = p - (c.q + f.v);
+    // Beyond the border: judged at the border texel nearest to it (Kernel::max_q).
+    let q = clamp(c.q + vec2<f32>(d * r.x - b * r.y, a * r.y - e * r.x) / det, vec2<f32>(0.0), max_q);
+    for (var i = 0u; i < min(c.tag, params.layers); i++) {
+        let g = fetch(i, q);
+        if (!g.ok || (1.0 - g.depth) * COVER_DEPTH_RATIO < 1.0 - f.depth) {
+            return false;
+        }
+    }
+    return true;
+}
+
 // StackSampler::sample (Fig. 6): an empty landing in layer k > 0 borrows the nearest
 // non-empty layer above once (under the adaptive fetch only a bilinear sample); the second empty
 // landing fails the seed.
@@ -941,6 +970,10 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
             let d = (best.q + s.v) - p;
             if (d.x * d.x + d.y * d.y < params.cover2 && hidden_z < 1.0 - s.depth) {
+                best.ok = false;
+                break;
+            }
+            if (continuation_covers(best, s, p, max_q)) {
                 best.ok = false;
                 break;
             }
