@@ -480,7 +480,7 @@ impl<'a> Kernel<'a> {
         let [jx, jy] = f.dv;
         let (a, b, e, d) = (1.0 + jx.x, jy.x, jx.y, 1.0 + jy.y);
         let det = a * d - b * e;
-        if !(det > CONTINUATION_MIN_DET) {
+        if det.is_nan() || det <= CONTINUATION_MIN_DET {
             return false;
         }
         let r = p - (c.q + f.v);
