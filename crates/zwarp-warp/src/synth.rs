@@ -181,6 +181,17 @@ impl SynthScene {
     }
 }
 
+/// Motion `v` px along x with target depth `depth`: the row patterns below move along x only.
+fn along_x(v: f32, depth: f32) -> Motion {
+    Motion { v: glam::Vec2::new(v, 0.0), depth }
+}
+
+/// One layer of a 32x4 row pattern, as depth and motion: texel `x` of every row is `f(x)`.
+fn row_layer(f: impl Fn(u32) -> Motion) -> (Image<f32>, Image<Motion>) {
+    let motion = Image::from_fn(32, 4, |x, _| f(x));
+    (motion.map(|s| s.depth), motion)
+}
+
 /// One row pattern (32 x 4 texels, motion along x) of a wall seen by three layers around a
 /// near column's silhouette, and a far surface behind everything (seed 000 Sec. 3.4's layers,
 /// as depth and motion): layer 0 sees the wall (depth 0.8, moving -9.5 px) from texel 21 on,
@@ -189,22 +200,16 @@ impl SynthScene {
 /// -5.8 px. Target pixel 10 lies on the seam between the wall's views: only the sliver lands
 /// on it, and the far layer converges there through the seam.
 pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
-    let (w, h) = (32, 4);
     let (column, wall, far) = (0.3, 0.8, 0.95);
-    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
-    let layer = |f: &dyn Fn(u32) -> Motion| {
-        let motion = Image::from_fn(w, h, |x, _| f(x));
-        (motion.map(|s| s.depth), motion)
-    };
     vec![
-        layer(&|x| if x >= 21 { m(-9.5, wall) } else { m(-25.0, column) }),
-        layer(&|x| match x {
-            20 if sliver => m(-9.5, wall),
-            0..20 => m(-25.0, column + 0.05),
-            _ => m(-5.7, far),
+        row_layer(|x| if x >= 21 { along_x(-9.5, wall) } else { along_x(-25.0, column) }),
+        row_layer(|x| match x {
+            20 if sliver => along_x(-9.5, wall),
+            0..20 => along_x(-25.0, column + 0.05),
+            _ => along_x(-5.7, far),
         }),
-        layer(&|x| if x <= 19 { m(-9.6, wall) } else { m(-5.7, far) }),
-        layer(&|_| m(-5.8, far + 0.02)),
+        row_layer(|x| if x <= 19 { along_x(-9.6, wall) } else { along_x(-5.7, far) }),
+        row_layer(|_| along_x(-5.8, far + 0.02)),
     ]
 }
 
@@ -218,22 +223,16 @@ pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
 /// there behind the wall. Without it the wall visibly ends at texel 12 and the far surface is
 /// the answer.
 pub fn continuation_layers(column: bool) -> Vec<(Image<f32>, Image<Motion>)> {
-    let (w, h) = (32, 4);
-    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
-    let layer = |f: &dyn Fn(u32) -> Motion| {
-        let motion = Image::from_fn(w, h, |x, _| f(x));
-        (motion.map(|s| s.depth), motion)
-    };
-    let (wall, far) = (m(-10.0, 0.6), m(-3.0, 0.95));
+    let (wall, far) = (along_x(-10.0, 0.6), along_x(-3.0, 0.95));
     vec![
-        layer(&|x| match x {
-            12..20 if column => m(-20.0, 0.3),
+        row_layer(|x| match x {
+            12..20 if column => along_x(-20.0, 0.3),
             12..20 => far,
             _ => wall,
         }),
-        layer(&|x| match x {
-            12..20 if column => m(-20.0, 0.32),
-            12..20 => m(-3.0, 0.97),
+        row_layer(|x| match x {
+            12..20 if column => along_x(-20.0, 0.32),
+            12..20 => along_x(-3.0, 0.97),
             _ => far,
         }),
     ]
@@ -246,13 +245,7 @@ pub fn continuation_layers(column: bool) -> Vec<(Image<f32>, Image<Motion>)> {
 /// both sides without coming within the default coverage radius (3.5 px) of the pixel, and the
 /// ground converges. With `far` = 0.95 the far side is the ground itself.
 pub fn ground_gap_layers(far: f32) -> Vec<(Image<f32>, Image<Motion>)> {
-    let (w, h) = (32, 4);
-    let m = |v: f32, depth: f32| Motion { v: glam::Vec2::new(v, 0.0), depth };
-    let layer = |f: &dyn Fn(u32) -> Motion| {
-        let motion = Image::from_fn(w, h, |x, _| f(x));
-        (motion.map(|s| s.depth), motion)
-    };
-    vec![layer(&|x| if x < 16 { m(-14.0, 0.5) } else { m(0.0, far) }), layer(&|_| m(0.0, 0.95))]
+    vec![row_layer(|x| if x < 16 { along_x(-14.0, 0.5) } else { along_x(0.0, far) }), row_layer(|_| along_x(0.0, 0.95))]
 }
 
 /// A walk toward a tilted wall with a box in front (one layer, as depth and motion): the wall's

@@ -128,6 +128,17 @@ fn near_wall_coverage_matches_cpu() {
     }
 }
 
+/// The CPU warp of the row-pattern layers `ls` (`zwarp_warp::synth`), after checking that the
+/// GPU gives the same states, depths and revealed pixels.
+fn rows_match_cpu(k: &WarpKernel, ls: &[(Image<f32>, Image<Motion>)], p: &WarpParams, what: &str) -> WarpOutput {
+    let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
+    let (cpu, gpu) = (warp_depth(&layers, p).unwrap(), k.warp(&layers, p).unwrap());
+    assert_eq!(gpu.state, cpu.state, "{what}");
+    assert_eq!(gpu.depth, cpu.depth, "{what}");
+    assert_eq!(gpu.revealed, cpu.revealed, "{what}");
+    cpu
+}
+
 /// The coverage test's fixed-point step (`synth::seam_layers`): the GPU hides the far layer
 /// seen through the seam between three layers' views of a wall, as the CPU does.
 #[test]
@@ -135,13 +146,8 @@ fn seam_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
     for sliver in [true, false] {
-        let seam = zwarp_warp::synth::seam_layers(sliver);
-        let layers: Vec<WarpLayer<'_>> = seam.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let p = WarpParams { n_seeds: 4, cover_radius: 0.5, ..base() };
-        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
-        assert_eq!(gpu.state, cpu.state, "sliver {sliver}");
-        assert_eq!(gpu.depth, cpu.depth, "sliver {sliver}");
-        assert_eq!(gpu.revealed, cpu.revealed, "sliver {sliver}");
+        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::seam_layers(sliver), &p, &format!("sliver {sliver}"));
         assert_eq!(*cpu.state.get(10, 1), if sliver { PixelState::Hole } else { PixelState::Converged });
     }
 }
@@ -154,13 +160,8 @@ fn continuation_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
     for column in [true, false] {
-        let ls = zwarp_warp::synth::continuation_layers(column);
-        let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let p = WarpParams { n_seeds: 4, ..base() };
-        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
-        assert_eq!(gpu.state, cpu.state, "column {column}");
-        assert_eq!(gpu.depth, cpu.depth, "column {column}");
-        assert_eq!(gpu.revealed, cpu.revealed, "column {column}");
+        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::continuation_layers(column), &p, &format!("column {column}"));
         let far = if column { PixelState::Hole } else { PixelState::Converged };
         assert_eq!(*cpu.state.get(6, 1), far, "column {column}");
     }
@@ -174,17 +175,13 @@ fn ground_layer_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
     for (far, ground_layer) in [(0.8, true), (0.8, false), (0.95, true)] {
-        let gap = zwarp_warp::synth::ground_gap_layers(far);
-        let layers: Vec<WarpLayer<'_>> = gap.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let p = WarpParams { n_seeds: 4, ground_layer, ..base() };
-        let (cpu, gpu) = (warp_depth(&layers, &p).unwrap(), k.warp(&layers, &p).unwrap());
-        assert_eq!(gpu.state, cpu.state, "far {far} ground_layer {ground_layer}");
-        assert_eq!(gpu.depth, cpu.depth, "far {far} ground_layer {ground_layer}");
-        assert_eq!(gpu.revealed, cpu.revealed, "far {far} ground_layer {ground_layer}");
+        let what = format!("far {far} ground_layer {ground_layer}");
+        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::ground_gap_layers(far), &p, &what);
         let hidden = ground_layer && far < 0.95;
         assert_eq!(*cpu.state.get(8, 1), if hidden { PixelState::Hole } else { PixelState::Converged });
         // Where kept, the ground's candidate is one the deeper layer revealed.
-        assert_eq!(cpu.revealed.contains(&(cpu.depth.width() + 8)), !hidden, "far {far} ground_layer {ground_layer}");
+        assert_eq!(cpu.revealed.contains(&(cpu.depth.width() + 8)), !hidden, "{what}");
     }
 }
 

@@ -906,7 +906,8 @@ fn a_contracting_field_takes_one_seed_whatever_n() {
 fn a_deeper_layer_behind_a_wall_that_may_continue_behind_an_occluder_is_hidden() {
     let warp = |column: bool, layers: usize| {
         let ls = synth::continuation_layers(column);
-        let layers: Vec<WarpLayer<'_>> = ls[..layers].iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
+        let layers: Vec<WarpLayer<'_>> =
+            ls[..layers].iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
         let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, ..Default::default() };
         let fast = warp_depth(&layers, &params).unwrap();
         zwarp_warp::simd::set_simd(false);
