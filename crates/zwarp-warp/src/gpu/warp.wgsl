@@ -65,7 +65,7 @@ const RETRY_SEED_FACTOR: u32 = 4u;
 const MAX_SEEDS: u32 = 64u;
 // zwarp_warp::COVER_DEPTH_RATIO.
 const COVER_DEPTH_RATIO: f32 = 1.1;
-// depth_warp::kernel::CONTINUATION_MIN_DET.
+// zwarp_warp::kernel::CONTINUATION_MIN_DET.
 const CONTINUATION_MIN_DET: f32 = 0.25;
 // search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
 const STRADDLE_SPAN: f32 = 16.0;
