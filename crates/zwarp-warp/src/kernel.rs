@@ -462,10 +462,11 @@ impl<'a> Kernel<'a> {
 
     /// `true` if the front surface `f` at candidate `c`'s source position, continued past it
     /// with its own motion Jacobian to the point `q*` that lands on `p`, may still be there: `c`
-    /// (behind `f`) is then hidden at `p`. The peeled front layers show that the surface ends
-    /// before `q*` where one of them sees something behind `f` there, or nothing (peeling went
-    /// past `f`'s depth without meeting it); where all of them see `f`'s depth or nearer, `f`
-    /// may continue behind an occluder of the source view and cover `p` (seed 000 Sec. 3.4: a
+    /// (behind `f`) is then hidden at `p`. It is there where a front layer sees `f`'s depth at
+    /// `q*` (within [`crate::COVER_DEPTH_RATIO`] both ways), and may be where all of them see
+    /// nearer (it can run on behind an occluder of the source view); the peeled layers show
+    /// that it ended before `q*` where they go past `f`'s depth without meeting it (one sees
+    /// something behind `f` there, or nothing) and none sees it (seed 000 Sec. 3.4: a
     /// deeper layer is taken where the front layers disocclude it, and a surface that moved away
     /// from `p` disoccludes it only if it does not reach it). A `q*` beyond the image border is
     /// judged at the border texel nearest to it. Off with the coverage test
@@ -487,7 +488,15 @@ impl<'a> Kernel<'a> {
         let q = c.q + Vec2::new(d * r.x - b * r.y, a * r.y - e * r.x) / det;
         // Beyond the border: whether the surface reaches the border texel nearest `q*`.
         let q = q.clamp(Vec2::ZERO, self.max_q());
-        front.iter().all(|t| t.fetch(q).is_some_and(|g| !crate::hidden_behind(g.depth, f.depth)))
+        let mut all_near = true;
+        for t in front {
+            let near = t.fetch(q).filter(|g| !crate::hidden_behind(g.depth, f.depth));
+            if near.is_some_and(|g| !crate::hidden_behind(f.depth, g.depth)) {
+                return true; // f itself seen there: it runs on (its own search missed p)
+            }
+            all_near &= near.is_some();
+        }
+        all_near
     }
 
     /// Seeds (`n_seeds` in the region `tb`, plus an earlier layer's converged position) and the

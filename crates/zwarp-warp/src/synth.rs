@@ -213,26 +213,44 @@ pub fn seam_layers(sliver: bool) -> Vec<(Image<f32>, Image<Motion>)> {
     ]
 }
 
-/// A wall that continues behind a near column (seed 000 Sec. 3.4's layers, as depth and
-/// motion, 32x4, motion along x): layer 0 sees the wall (depth 0.6, moving -10 px) on texels
-/// `0..12` and `20..`, and between them the column (0.3, moving -20 px) when `column`, else a
-/// far surface (0.95, moving -3 px) where the wall ends; layer 1 holds the column's back face
-/// (0.32) behind the column and a far surface (0.95, moving -3 px) everywhere else. Target
-/// pixels 2..9 are uncovered by layer 0 either way. With the column they show the wall's part
-/// hidden behind it in the source, which no layer holds: the far surface of layer 1 converges
-/// there behind the wall. Without it the wall visibly ends at texel 12 and the far surface is
-/// the answer.
-pub fn continuation_layers(column: bool) -> Vec<(Image<f32>, Image<Motion>)> {
+/// What layer 0 sees on texels `12..20` of [`continuation_layers`], beside the wall.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BesideWall {
+    /// A near column (depth 0.3, moving -20 px): the wall may run on behind it.
+    Column,
+    /// A far surface (0.95, moving -3 px): the wall visibly ends at texel 12.
+    Ends,
+    /// A surface at the wall's depth (0.61) moving -20 px: the wall, or something at its depth,
+    /// is seen where its continuation would land on the gap, though none of it does.
+    SameDepth,
+}
+
+/// A wall beside one of [`BesideWall`] (seed 000 Sec. 3.4's layers, as depth and motion, 32x4,
+/// motion along x): layer 0 sees the wall (depth 0.6, moving -10 px) on texels `0..12` and
+/// `20..` and `beside` on `12..20`; layer 1 holds the wall's back face (0.62) behind it, the
+/// column's back face (0.32) behind the column and a far surface (0.97, moving -3 px) behind
+/// the other two; layer 2 a far surface (0.95, moving -3 px) behind the wall. Target pixels
+/// 2..9 are uncovered by layers 0 and 1 in every case, and layer 2's far surface, behind the
+/// wall at its source position, converges there. With the column they show the wall's part
+/// hidden behind it in the source, which no layer holds; where the wall ends the far surface
+/// is the answer; beside a surface at the wall's depth the wall may reach them too.
+pub fn continuation_layers(beside: BesideWall) -> Vec<(Image<f32>, Image<Motion>)> {
     let (wall, far) = (along_x(-10.0, 0.6), along_x(-3.0, 0.95));
+    let beyond = along_x(-3.0, 0.97);
     vec![
-        row_layer(|x| match x {
-            12..20 if column => along_x(-20.0, 0.3),
-            12..20 => far,
+        row_layer(|x| match (x, beside) {
+            (12..20, BesideWall::Column) => along_x(-20.0, 0.3),
+            (12..20, BesideWall::Ends) => far,
+            (12..20, BesideWall::SameDepth) => along_x(-20.0, 0.61),
             _ => wall,
         }),
+        row_layer(|x| match (x, beside) {
+            (12..20, BesideWall::Column) => along_x(-20.0, 0.32),
+            (12..20, _) => beyond,
+            _ => along_x(-10.0, 0.62),
+        }),
         row_layer(|x| match x {
-            12..20 if column => along_x(-20.0, 0.32),
-            12..20 => along_x(-3.0, 0.97),
+            12..20 => along_x(-3.0, 0.99),
             _ => far,
         }),
     ]

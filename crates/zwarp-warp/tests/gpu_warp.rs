@@ -153,17 +153,18 @@ fn seam_coverage_matches_cpu() {
 }
 
 /// The continuation test (`synth::continuation_layers`): the GPU hides the far layer behind a
-/// wall that may continue behind a near column, and keeps it where the wall visibly ends, as
-/// the CPU does.
+/// wall that may continue behind a near column or beside a surface at its depth, and keeps it
+/// where the wall visibly ends, as the CPU does.
 #[test]
 fn continuation_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
-    for column in [true, false] {
+    use zwarp_warp::synth::BesideWall;
+    for beside in [BesideWall::Column, BesideWall::Ends, BesideWall::SameDepth] {
         let p = WarpParams { n_seeds: 4, ..base() };
-        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::continuation_layers(column), &p, &format!("column {column}"));
-        let far = if column { PixelState::Hole } else { PixelState::Converged };
-        assert_eq!(*cpu.state.get(6, 1), far, "column {column}");
+        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::continuation_layers(beside), &p, &format!("{beside:?}"));
+        let far = if beside == BesideWall::Ends { PixelState::Converged } else { PixelState::Hole };
+        assert_eq!(*cpu.state.get(6, 1), far, "{beside:?}");
     }
 }
 

@@ -899,13 +899,15 @@ fn a_contracting_field_takes_one_seed_whatever_n() {
 
 /// [`synth::continuation_layers`]: a far surface converging where a wall moved away from the
 /// pixel. The wall, continued past the far candidate's source position to the point that would
-/// land on the pixel, runs behind the near column there: it may still cover the pixel, the far
-/// candidate is hidden and the pixel goes to the hole policy, as with layer 0 alone. Where the
-/// wall visibly ends before that point the far surface is kept. AVX2 and portable builds agree.
+/// land on the pixel, runs behind the near column there, or something at the wall's depth is
+/// seen there: the wall may still cover the pixel, the far candidate is hidden and the pixel
+/// goes to the hole policy, as with layer 0 alone. Where the wall visibly ends before that
+/// point the far surface is kept. AVX2 and portable builds agree.
 #[test]
 fn a_deeper_layer_behind_a_wall_that_may_continue_behind_an_occluder_is_hidden() {
-    let warp = |column: bool, layers: usize| {
-        let ls = synth::continuation_layers(column);
+    use synth::BesideWall;
+    let warp = |beside: BesideWall, layers: usize| {
+        let ls = synth::continuation_layers(beside);
         let layers: Vec<WarpLayer<'_>> =
             ls[..layers].iter().map(|(d, mo)| WarpLayer { depth: d, motion: mo }).collect();
         let params = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, ..Default::default() };
@@ -913,23 +915,23 @@ fn a_deeper_layer_behind_a_wall_that_may_continue_behind_an_occluder_is_hidden()
         zwarp_warp::simd::set_simd(false);
         let portable = warp_depth(&layers, &params);
         zwarp_warp::simd::set_simd(true);
-        assert_eq!(portable.unwrap(), fast, "column {column}, L = {}", layers.len());
+        assert_eq!(portable.unwrap(), fast, "{beside:?}, L = {}", layers.len());
         fast
     };
-    for column in [true, false] {
-        let (one, two) = (warp(column, 1), warp(column, 2));
+    for beside in [BesideWall::Column, BesideWall::Ends, BesideWall::SameDepth] {
+        let (one, all) = (warp(beside, 1), warp(beside, 3));
         for y in 0..4 {
             for x in 2..9 {
-                assert_eq!(*one.state.get(x, y), PixelState::Hole, "column {column}, L = 1 ({x},{y})");
+                assert_eq!(*one.state.get(x, y), PixelState::Hole, "{beside:?}, L = 1 ({x},{y})");
             }
-            // Pixels 2 and 3 lie within the coverage radius of the wall's landed edge (hidden
+            // Pixels 2 to 4 lie within the coverage radius of the wall's landed edge (hidden
             // either way); the rest of the gap is decided by the continuation.
-            for x in 4..9 {
-                let (st, z) = (*two.state.get(x, y), *two.depth.get(x, y));
-                if column {
-                    assert_eq!(st, PixelState::Hole, "L = 2 ({x},{y}): {z}");
+            for x in 5..9 {
+                let (st, z) = (*all.state.get(x, y), *all.depth.get(x, y));
+                if beside == BesideWall::Ends {
+                    assert_eq!((st, z), (PixelState::Converged, 0.95), "{beside:?}, L = 3 ({x},{y})");
                 } else {
-                    assert_eq!((st, z), (PixelState::Converged, 0.95), "no column, L = 2 ({x},{y})");
+                    assert_eq!(st, PixelState::Hole, "{beside:?}, L = 3 ({x},{y}): {z}");
                 }
             }
         }

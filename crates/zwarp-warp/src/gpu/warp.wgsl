@@ -516,8 +516,8 @@ fn inside(q: vec2<f32>) -> bool {
 }
 
 // Kernel::continuation_covers: the front surface f at candidate c's source position, continued
-// with its motion Jacobian to the point that lands on p, may still be there (every front layer
-// sees f's depth or nearer at that point): c, behind f, is hidden.
+// with its motion Jacobian to the point that lands on p, may still be there (a front layer sees
+// f's depth at that point, or all see nearer): c, behind f, is hidden.
 fn continuation_covers(c: Cand, f: Smp, p: vec2<f32>, max_q: vec2<f32>) -> bool {
     if (!(params.cover2 > 0.0 && (1.0 - c.depth) * COVER_DEPTH_RATIO < 1.0 - f.depth)) {
         return false;
@@ -533,13 +533,16 @@ fn continuation_covers(c: Cand, f: Smp, p: vec2<f32>, max_q: vec2<f32>) -> bool 
     let r = p - (c.q + f.v);
     // Beyond the border: judged at the border texel nearest to it (Kernel::max_q).
     let q = clamp(c.q + vec2<f32>(d * r.x - b * r.y, a * r.y - e * r.x) / det, vec2<f32>(0.0), max_q);
+    var all_near = true;
     for (var i = 0u; i < min(c.tag, params.layers); i++) {
         let g = fetch(i, q);
-        if (!g.ok || (1.0 - g.depth) * COVER_DEPTH_RATIO < 1.0 - f.depth) {
-            return false;
+        let near = g.ok && !((1.0 - g.depth) * COVER_DEPTH_RATIO < 1.0 - f.depth);
+        if (near && !((1.0 - f.depth) * COVER_DEPTH_RATIO < 1.0 - g.depth)) {
+            return true;
         }
+        all_near = all_near && near;
     }
-    return true;
+    return all_near;
 }
 
 // StackSampler::sample (Fig. 6): an empty landing in layer k > 0 borrows the nearest
