@@ -229,7 +229,8 @@ pub enum BesideWall {
 /// motion along x): layer 0 sees the wall (depth 0.6, moving -10 px) on texels `0..12` and
 /// `20..` and `beside` on `12..20`; layer 1 holds the wall's back face (0.62) behind it, the
 /// column's back face (0.32) behind the column and a far surface (0.97, moving -3 px) behind
-/// the other two; layer 2 a far surface (0.95, moving -3 px) behind the wall. Target pixels
+/// the other two; layer 2 a far surface (0.95, moving -3 px) behind the wall and one at 0.99
+/// behind the rest. Target pixels
 /// 2..9 are uncovered by layers 0 and 1 in every case, and layer 2's far surface, behind the
 /// wall at its source position, converges there. With the column they show the wall's part
 /// hidden behind it in the source, which no layer holds; where the wall ends the far surface
