@@ -84,11 +84,11 @@ pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius:
 /// The [`PixelState::Hole`] pixels of `state` (row-major indices, ascending).
 pub(crate) fn hole_list(state: &Image<PixelState>) -> Vec<u32> {
     let w = state.width().max(1) as usize;
-    state
+    let lists: Vec<Vec<u32>> = state
         .data()
         .par_chunks(w * 16)
         .enumerate()
-        .flat_map_iter(|(c, chunk)| {
+        .map(|(c, chunk)| {
             let base = (c * w * 16) as u32;
             // Holes are sparse: blocks of 64 states are tested with a branch-free (vectorised)
             // fold first and only blocks holding a hole are listed pixel by pixel.
@@ -96,14 +96,17 @@ pub(crate) fn hole_list(state: &Image<PixelState>) -> Vec<u32> {
             for (b, block) in chunk.chunks(64).enumerate() {
                 if block.iter().fold(false, |a, s| a | (*s == PixelState::Hole)) {
                     let b0 = base + (b * 64) as u32;
-                    list.extend(
-                        block.iter().enumerate().filter(|(_, s)| **s == PixelState::Hole).map(|(i, _)| b0 + i as u32),
-                    );
+                    for (i, s) in block.iter().enumerate() {
+                        if *s == PixelState::Hole {
+                            list.push(b0 + i as u32);
+                        }
+                    }
                 }
             }
             list
         })
-        .collect()
+        .collect();
+    lists.concat()
 }
 
 /// [`fill_holes`] of the listed holes (a superset of nothing else: every listed pixel must be a
