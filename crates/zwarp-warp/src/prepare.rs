@@ -57,23 +57,26 @@ impl RowStats {
 
 /// Inputs of one level-1 row: the layer's buffers, the earlier layers' depths (a sample that
 /// repeats an earlier layer's depth at its pixel stays a sample but does not enter the
-/// mipmap), the image width and the frame of the oriented texels.
+/// mipmap), the image width, the frame of the oriented texels and whether the oriented global
+/// bound is wanted (the oriented frame is a candidate).
 pub(crate) struct RowInput<'a> {
     pub depth: &'a [f32],
     pub motion: &'a [Motion],
     pub earlier: &'a [&'a [f32]],
     pub w: usize,
     pub frame: BoundFrame,
+    pub with_ob: bool,
 }
 
-/// Outputs of one level-1 row `ty`: the two image rows of samples, the axis-aligned texels, the
-/// oriented ones (when wanted) and the min depths.
+/// Outputs of one level-1 row `ty`: the two image rows of samples, the axis-aligned texels and
+/// the oriented ones where wanted (a frame whose texels are not written still gets its global
+/// bound in [`RowStats`] when it is a candidate) and the min depths.
 pub(crate) struct RowOutput<'a> {
     /// Motion x, motion y and target depth of the two image rows.
     pub vx: &'a mut [f32],
     pub vy: &'a mut [f32],
     pub z: &'a mut [f32],
-    pub aab: &'a mut [[f32; 4]],
+    pub aab: Option<&'a mut [[f32; 4]]>,
     pub ob: Option<&'a mut [[f32; 4]]>,
     pub zmin: &'a mut [f32],
 }
@@ -92,15 +95,23 @@ pub(crate) fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowSta
 /// The portable reduction of columns `xs..w` of level-1 row `ty` (`xs` even): the whole row,
 /// or the columns right of the AVX2 build's multiple of 8.
 fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> RowStats {
-    let RowOutput { vx, vy, z: zs, aab, mut ob, zmin } = out;
+    let RowOutput { vx, vy, z: zs, mut aab, mut ob, zmin } = out;
     let w = input.w;
     let (inf, ninf) = (f32::INFINITY, f32::NEG_INFINITY);
     let empty = [inf, inf, ninf, ninf];
     let ts = xs / 2;
-    aab[ts..].fill(empty);
+    if let Some(a) = aab.as_deref_mut() {
+        a[ts..].fill(empty);
+    }
     if let Some(o) = ob.as_deref_mut() {
         o[ts..].fill(empty);
     }
+    // The global bounds of frames whose texels are not written, folded per pixel (the same
+    // minima and maxima as the union of the texels).
+    let (mut ga, mut go) = (empty, empty);
+    let fold = |t: &mut [f32; 4], (lx, ly, hx, hy): (f32, f32, f32, f32)| {
+        *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
+    };
     zmin[ts..].fill(inf);
     let (c, s) = (input.frame.axis.x, input.frame.axis.y);
     let rows = zs.len() / w;
@@ -128,29 +139,27 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
             zs[o] = if valid { m.depth } else { inf };
             let repeat = input.earlier.iter().any(|e| e[base + x] == d);
             let fresh = valid & !repeat;
-            let t = &mut aab[x >> 1];
-            let (lx, ly, hx, hy) = if fresh { (m.v.x, m.v.y, m.v.x, m.v.y) } else { (inf, inf, ninf, ninf) };
-            *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
+            let a = if fresh { (m.v.x, m.v.y, m.v.x, m.v.y) } else { (inf, inf, ninf, ninf) };
+            fold(aab.as_deref_mut().map_or(&mut ga, |t| &mut t[x >> 1]), a);
             let z = &mut zmin[x >> 1];
             *z = fmin(*z, if fresh { m.depth } else { inf });
-            if let Some(o) = ob.as_deref_mut() {
+            if input.with_ob {
                 // `BoundFrame::to_frame`: the same products and sums.
                 let u = Vec2::new(c * m.v.x + s * m.v.y, -s * m.v.x + c * m.v.y);
-                let (lx, ly, hx, hy) = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
-                let t = &mut o[x >> 1];
-                *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
+                let o = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
+                fold(ob.as_deref_mut().map_or(&mut go, |t| &mut t[x >> 1]), o);
             }
         }
     }
-    let union = |texels: &[[f32; 4]]| {
-        let mut u = empty;
-        for t in texels {
+    let union = |texels: Option<&[[f32; 4]]>, mut u: [f32; 4]| {
+        for t in texels.unwrap_or_default() {
             u = [fmin(u[0], t[0]), fmin(u[1], t[1]), fmax(u[2], t[2]), fmax(u[3], t[3])];
         }
         Bound { lo: Vec2::new(u[0], u[1]), hi: Vec2::new(u[2], u[3]) }
     };
-    let ob = ob.as_deref().map_or(Bound::EMPTY, |o| union(&o[ts..]));
-    RowStats { flags, surf_lo: Vec2::from(slo), surf_hi: Vec2::from(shi), aab: union(&aab[ts..]), ob }
+    let aab = union(aab.as_deref().map(|a| &a[ts..]), ga);
+    let ob = if input.with_ob { union(ob.as_deref().map(|o| &o[ts..]), go) } else { Bound::EMPTY };
+    RowStats { flags, surf_lo: Vec2::from(slo), surf_hi: Vec2::from(shi), aab, ob }
 }
 
 /// The AVX2 build of [`row`]: eight pixels of both image rows per step (four texels), the
@@ -189,7 +198,7 @@ mod avx2 {
         if w8 == 0 {
             return row_impl(input, ty, out, 0);
         }
-        let RowOutput { vx, vy, z: zs, aab, mut ob, zmin } = out;
+        let RowOutput { vx, vy, z: zs, mut aab, mut ob, zmin } = out;
         let rows = zs.len() / w;
         let inf = _mm256_set1_ps(f32::INFINITY);
         let ninf = _mm256_set1_ps(f32::NEG_INFINITY);
@@ -198,7 +207,7 @@ mod avx2 {
         let absmask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
         let (c, s) = (_mm256_set1_ps(input.frame.axis.x), _mm256_set1_ps(input.frame.axis.y));
         let ns = _mm256_set1_ps(-input.frame.axis.y);
-        let with_ob = ob.is_some();
+        let with_ob = input.with_ob;
         let (mut flag_bad_d, mut flag_nan, mut flag_inf) = (zero, zero, zero);
         let (mut slox, mut sloy, mut shix, mut shiy) = (inf, inf, ninf, ninf);
         let mut gl = [inf, inf, ninf, ninf];
@@ -288,25 +297,38 @@ mod avx2 {
             } else {
                 Px { ..empty_px }
             };
-            let t = [
-                pair_min(vmin(p0.aab[0], p1.aab[0])),
-                pair_min(vmin(p0.aab[1], p1.aab[1])),
-                pair_max(vmax(p0.aab[2], p1.aab[2])),
-                pair_max(vmax(p0.aab[3], p1.aab[3])),
+            // Both rows per lane; then, where the frame's texels are written, per lane pair.
+            let a = [
+                vmin(p0.aab[0], p1.aab[0]),
+                vmin(p0.aab[1], p1.aab[1]),
+                vmax(p0.aab[2], p1.aab[2]),
+                vmax(p0.aab[3], p1.aab[3]),
             ];
-            gl = [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])];
-            store_texels(t, aab.as_mut_ptr().add(x / 2) as *mut f32);
+            gl = match aab.as_deref_mut() {
+                Some(out) => {
+                    let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
+                    store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+                    [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])]
+                }
+                None => [vmin(gl[0], a[0]), vmin(gl[1], a[1]), vmax(gl[2], a[2]), vmax(gl[3], a[3])],
+            };
             let zt = pair_min(vmin(p0.z, p1.z));
             _mm_storeu_ps(zmin.as_mut_ptr().add(x / 2), _mm256_castps256_ps128(_mm256_permutevar8x32_ps(zt, even)));
-            if let Some(o) = ob.as_deref_mut() {
-                let t = [
-                    pair_min(vmin(p0.ob[0], p1.ob[0])),
-                    pair_min(vmin(p0.ob[1], p1.ob[1])),
-                    pair_max(vmax(p0.ob[2], p1.ob[2])),
-                    pair_max(vmax(p0.ob[3], p1.ob[3])),
+            if with_ob {
+                let o = [
+                    vmin(p0.ob[0], p1.ob[0]),
+                    vmin(p0.ob[1], p1.ob[1]),
+                    vmax(p0.ob[2], p1.ob[2]),
+                    vmax(p0.ob[3], p1.ob[3]),
                 ];
-                go = [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])];
-                store_texels(t, o.as_mut_ptr().add(x / 2) as *mut f32);
+                go = match ob.as_deref_mut() {
+                    Some(out) => {
+                        let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
+                        store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+                        [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])]
+                    }
+                    None => [vmin(go[0], o[0]), vmin(go[1], o[1]), vmax(go[2], o[2]), vmax(go[3], o[3])],
+                };
             }
         }
         [slox, sloy, shix, shiy] = surf;
@@ -419,7 +441,8 @@ pub struct SurfaceMotion {
     pub all_finite: bool,
 }
 
-/// Buffers of an earlier preparation handed back for reuse (empty: allocate).
+/// Buffers of an earlier preparation handed back for reuse (empty: allocate), and whether it
+/// chose the oriented frame (`None`: no earlier preparation).
 #[derive(Default)]
 struct Spare {
     planes: SamplePlanes,
@@ -427,6 +450,7 @@ struct Spare {
     oriented: Vec<[f32; 4]>,
     zmin: Vec<f32>,
     grad: Vec<[f32; 2]>,
+    hint: Option<bool>,
 }
 
 /// [`zwarp_core::pages::reuse`] for a mipmap buffer: at least `n` texels (level 1, overwritten
@@ -465,8 +489,9 @@ impl PreparedLayer {
 
     /// [`Self::prepare_stack`] into the buffers of `recycled` (an earlier frame's stack, layer
     /// k's buffers for layer k): an engine's steady state. The result is the same bit for bit;
-    /// what it saves is faulting in and zeroing fresh pages every frame. Buffers too small for
-    /// this frame's layers are replaced.
+    /// what it saves is faulting in and zeroing fresh pages every frame and, under
+    /// [`BoundKind::Oriented`], the texels of the frame layer k did not choose last time.
+    /// Buffers too small for this frame's layers are replaced.
     pub fn prepare_stack_recycling(
         layers: &[WarpLayer<'_>],
         bound: BoundKind,
@@ -493,7 +518,9 @@ impl PreparedLayer {
     /// Validation, sample planes and mipmap level 1 of one layer in ONE pass over its buffers
     /// ([`row`] per pair of image rows), then the coarser levels from level 1. The oriented
     /// frame (when a candidate) is reduced in the same pass and chosen by the global bounds of
-    /// both frames ([`crate::BoundKind::Oriented`]).
+    /// both frames ([`crate::BoundKind::Oriented`]). Only the chosen frame's texels are kept:
+    /// where `spare` remembers the last choice, the pass writes that frame's texels and only
+    /// the other's global bound (a choice that changes takes a second pass writing both).
     fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind, spare: Spare) -> Result<Self> {
         layer.depth.check_nonempty("layer depth")?;
         layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
@@ -515,7 +542,7 @@ impl PreparedLayer {
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
         let n = wu * h as usize;
-        let Spare { planes, level1, oriented, zmin, grad } = spare;
+        let Spare { planes, level1, oriented, zmin, grad, hint } = spare;
         let mut vx = zwarp_core::pages::reuse(planes.vx, n, 0.0);
         let mut vy = zwarp_core::pages::reuse(planes.vy, n, 0.0);
         let mut z = zwarp_core::pages::reuse(planes.z, n, 0.0);
@@ -525,7 +552,7 @@ impl PreparedLayer {
         let mut aab = reuse_mip(level1, lw * lh, all, empty);
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
-        let input = RowInput { depth, motion, earlier, w: wu, frame: ob };
+        let input = RowInput { depth, motion, earlier, w: wu, frame: ob, with_ob: need_ob };
         let mut grad = reuse_mip(grad, lw * lh, all, [0.0; 2]);
         let hu = h as usize;
         // Tasks of GRAD_ROWS level-1 rows: each pair of image rows, then the gradient texels of
@@ -535,11 +562,11 @@ impl PreparedLayer {
         let task = |sc: &mut GradScratch,
                     c: usize,
                     [vx, vy, z]: [&mut [f32]; 3],
-                    aab: &mut [[f32; 4]],
+                    mut aab: Option<&mut [[f32; 4]]>,
                     zmin: &mut [f32],
                     g: &mut [[f32; 2]],
                     mut ob: Option<&mut [[f32; 4]]>| {
-            let pairs = aab.len() / lw;
+            let pairs = zmin.len() / lw;
             let mut st = RowStats::EMPTY;
             for j in 0..pairs {
                 let (p, t) = (j * 2 * wu..((j + 1) * 2 * wu).min(vx.len()), j * lw..(j + 1) * lw);
@@ -547,7 +574,7 @@ impl PreparedLayer {
                     vx: &mut vx[p.clone()],
                     vy: &mut vy[p.clone()],
                     z: &mut z[p.clone()],
-                    aab: &mut aab[t.clone()],
+                    aab: aab.as_deref_mut().map(|a| &mut a[t.clone()]),
                     ob: ob.as_deref_mut().map(|o| &mut o[t.clone()]),
                     zmin: &mut zmin[t],
                 };
@@ -564,36 +591,52 @@ impl PreparedLayer {
             }
             st
         };
-        let rows = vx
-            .par_chunks_mut(cw)
-            .zip(vy.par_chunks_mut(cw))
-            .zip(z.par_chunks_mut(cw))
-            .zip(aab[..lw * lh].par_chunks_mut(cl))
-            .zip(zmin[..lw * lh].par_chunks_mut(cl))
-            .zip(grad[..lw * lh].par_chunks_mut(cl));
-        let stats = if need_ob {
-            rows.zip(obd[..lw * lh].par_chunks_mut(cl))
-                .enumerate()
-                .map_init(GradScratch::default, |sc, (c, ((((((vx, vy), z), aab), zmin), g), o))| {
-                    task(sc, c, [vx, vy, z], aab, zmin, g, Some(o))
-                })
-                .reduce(|| RowStats::EMPTY, RowStats::merge)
-        } else {
-            rows.enumerate()
-                .map_init(GradScratch::default, |sc, (c, (((((vx, vy), z), aab), zmin), g))| {
-                    task(sc, c, [vx, vy, z], aab, zmin, g, None)
-                })
-                .reduce(|| RowStats::EMPTY, RowStats::merge)
+        // Which frames' texels the pass writes: both where the oriented frame is a candidate,
+        // unless the recycled preparation chose one (an engine's next frame mostly chooses the
+        // same): then that one, and the other's global bound only; a different choice writes
+        // both in a second pass. The result is the same whichever way it is reached.
+        let mut write = match (need_ob, hint) {
+            (false, _) => (true, false),
+            (true, Some(ob_chosen)) => (!ob_chosen, ob_chosen),
+            (true, None) => (true, true),
         };
-        if stats.flags & 1 != 0 {
-            return Err(Error::invalid("layer depth holds NaN or infinite values"));
-        }
-        if stats.flags & 2 != 0 {
-            return Err(Error::invalid("motion buffer holds NaN values"));
-        }
-        // Oriented: the PCA frame if its global bound has the smaller (ex + 1)(ey + 1), the
-        // global bounds being the unions of the level-1 texels.
-        let use_ob = need_ob && stats.ob.pixel_area() < stats.aab.pixel_area();
+        let (stats, use_ob) = loop {
+            let rows = vx
+                .par_chunks_mut(cw)
+                .zip(vy.par_chunks_mut(cw))
+                .zip(z.par_chunks_mut(cw))
+                .zip(aab[..lw * lh].par_chunks_mut(cl))
+                .zip(zmin[..lw * lh].par_chunks_mut(cl))
+                .zip(grad[..lw * lh].par_chunks_mut(cl));
+            let (wa, wo) = write;
+            let stats = if need_ob {
+                rows.zip(obd[..lw * lh].par_chunks_mut(cl))
+                    .enumerate()
+                    .map_init(GradScratch::default, |sc, (c, ((((((vx, vy), z), aab), zmin), g), o))| {
+                        task(sc, c, [vx, vy, z], wa.then_some(aab), zmin, g, wo.then_some(o))
+                    })
+                    .reduce(|| RowStats::EMPTY, RowStats::merge)
+            } else {
+                rows.enumerate()
+                    .map_init(GradScratch::default, |sc, (c, (((((vx, vy), z), aab), zmin), g))| {
+                        task(sc, c, [vx, vy, z], Some(aab), zmin, g, None)
+                    })
+                    .reduce(|| RowStats::EMPTY, RowStats::merge)
+            };
+            if stats.flags & 1 != 0 {
+                return Err(Error::invalid("layer depth holds NaN or infinite values"));
+            }
+            if stats.flags & 2 != 0 {
+                return Err(Error::invalid("motion buffer holds NaN values"));
+            }
+            // Oriented: the PCA frame if its global bound has the smaller (ex + 1)(ey + 1), the
+            // global bounds being the unions of the level-1 texels.
+            let use_ob = need_ob && stats.ob.pixel_area() < stats.aab.pixel_area();
+            if (write.0 || use_ob) && (write.1 || !use_ob) {
+                break (stats, use_ob);
+            }
+            write = (true, true);
+        };
         let (pyramid, oriented) = if use_ob {
             (MotionPyramid::from_level1(w, h, ob, obd, zmin, grad), aab)
         } else {
@@ -609,8 +652,9 @@ impl PreparedLayer {
     }
     /// The large buffers, for [`Self::prepare_stack_recycling`].
     fn into_spare(self) -> Spare {
+        let hint = Some(!self.pyramid.frame().is_identity());
         let (level1, zmin, grad) = self.pyramid.into_buffers();
-        Spare { planes: self.planes, level1, oriented: self.oriented, zmin, grad }
+        Spare { planes: self.planes, level1, oriented: self.oriented, zmin, grad, hint }
     }
     /// The motion range of the layer's surfaces (see [`SurfaceMotion`]).
     pub fn surfaces(&self) -> SurfaceMotion {

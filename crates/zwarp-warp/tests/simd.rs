@@ -254,6 +254,63 @@ fn avx2_forward_warps_equal_the_portable_ones_on_a_moving_city() {
 }
 
 /// A smooth field with a hole and strong rotation-like parts: the PCA frame is used.
+/// The bits of a preparation: its samples, frame, surfaces' motion range and every texel.
+fn prep_bits(p: &[PreparedLayer]) -> Vec<(Vec<u32>, BoundFrame, String, Vec<String>)> {
+    p.iter()
+        .map(|l| {
+            let pl = l.planes();
+            let samples = pl.vx.iter().chain(&pl.vy).chain(&pl.z).map(|v| v.to_bits()).collect();
+            let py = l.pyramid();
+            let texels = (1..=py.top_level())
+                .flat_map(|level| {
+                    let (lw, lh) = py.level_size(level);
+                    (0..lh).flat_map(move |ty| (0..lw).map(move |tx| format!("{:?}", py.texel(level, tx, ty))))
+                })
+                .collect();
+            (samples, py.frame(), format!("{:?}", l.surfaces()), texels)
+        })
+        .collect()
+}
+
+/// A recycled stack remembers the frame it chose, and the next preparation's pass writes that
+/// frame's texels only (or both, where the choice changes): in both builds the same
+/// preparation as a fresh one, on fields where the oriented frame wins and where the
+/// axis-aligned one does.
+#[test]
+fn recycled_preparations_equal_fresh_ones_in_both_builds() {
+    let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
+    let fields = [field(83, 47, [0.3, 1.0, 0.2, 0.5]), field(83, 47, [1.1, 0.0, 2.0, 1.5])];
+    let mut frames = Vec::new();
+    let mut builds = Vec::new();
+    for simd in [true, false] {
+        simd::set_simd(simd);
+        let mut recycled = Vec::new();
+        let mut seen = Vec::new();
+        for k in [0usize, 0, 1, 1, 0, 1] {
+            let layers = [WarpLayer { depth: &fields[k].0, motion: &fields[k].1 }];
+            let fresh = PreparedLayer::prepare_stack(&layers, BoundKind::Oriented).unwrap();
+            let got = PreparedLayer::prepare_stack_recycling(&layers, BoundKind::Oriented, recycled).unwrap();
+            assert!(prep_bits(&got) == prep_bits(&fresh), "field {k}, simd {simd}");
+            seen.push(prep_bits(&got));
+            frames.push(fresh[0].pyramid().frame().is_identity());
+            // The oriented frame is a candidate on both fields (else its texels are never written).
+            let samples: Vec<Motion> = fields[k]
+                .1
+                .data()
+                .iter()
+                .zip(fields[k].0.data())
+                .map(|(m, &d)| if d < 1.0 { *m } else { Motion { v: Vec2::ZERO, depth: f32::INFINITY } })
+                .collect();
+            assert!(!bounds::pca_frame(&samples, 83, 47, 64).is_identity(), "field {k}");
+            recycled = got;
+        }
+        builds.push(seen);
+    }
+    simd::set_simd(true);
+    assert!(builds[0] == builds[1], "the AVX2 and portable preparations differ");
+    assert!(frames.contains(&true) && frames.contains(&false), "the fields must choose both frames: {frames:?}");
+}
+
 fn field(w: u32, h: u32, c: [f32; 4]) -> (Image<f32>, Image<Motion>) {
     let depth = Image::from_fn(w, h, |x, y| {
         let (dx, dy) = (x as f32 - 0.3 * w as f32, y as f32 - 0.6 * h as f32);
