@@ -25,6 +25,7 @@
 //! and reading a bound back means rotating by `R^T` (paper: "reversing the motion coordinates").
 
 use glam::{Vec2, Vec4};
+use rayon::iter::Either;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
@@ -194,7 +195,7 @@ fn level_row(
     ty: usize,
     row: &mut [[f32; 4]],
     zrow: &mut [f32],
-    grow: &mut [[f32; 2]],
+    mut grow: Option<&mut [[f32; 2]]>,
     simd: bool,
 ) {
     let (pw, y0) = (below.w, ty * 2);
@@ -205,7 +206,15 @@ fn level_row(
     #[cfg(target_arch = "x86_64")]
     if simd && full > 0 {
         // SAFETY: `simd` is only set where the CPU has AVX2 (or by tests that check it).
-        done = unsafe { level_row_avx2::blocks(below, y0, &mut row[..full], &mut zrow[..full], &mut grow[..full]) };
+        done = unsafe {
+            level_row_avx2::blocks(
+                below,
+                y0,
+                &mut row[..full],
+                &mut zrow[..full],
+                grow.as_deref_mut().map(|g| &mut g[..full]),
+            )
+        };
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
@@ -216,10 +225,15 @@ fn level_row(
             for i in y * pw + x0..y * pw + x1 {
                 b = b.union(&Bound::from_texel(&below.data[i]));
                 z = fmin(z, below.zmin[i]);
-                g = [fmax(g[0], below.grad[i][0]), fmax(g[1], below.grad[i][1])];
+                if let Some(bg) = below.grad.get(i) {
+                    g = [fmax(g[0], bg[0]), fmax(g[1], bg[1])];
+                }
             }
         }
-        (row[tx], zrow[tx], grow[tx]) = (b.to_texel(), z, g);
+        (row[tx], zrow[tx]) = (b.to_texel(), z);
+        if let Some(gr) = grow.as_deref_mut() {
+            gr[tx] = g;
+        }
     }
 }
 
@@ -241,7 +255,7 @@ mod level_row_avx2 {
         y0: usize,
         row: &mut [[f32; 4]],
         zrow: &mut [f32],
-        grow: &mut [[f32; 2]],
+        grow: Option<&mut [[f32; 2]]>,
     ) -> usize {
         let pw = b.w;
         // Multiples of eight texels: the min depths go eight at a time.
@@ -281,6 +295,7 @@ mod level_row_avx2 {
             _mm256_storeu_ps(zrow.as_mut_ptr().add(tx), mn);
         }
         // Gradients [gx, gy]: four outputs per step (even / odd texel pairs).
+        let Some(grow) = grow else { return texels };
         let g = b.grad.as_ptr() as *const f64;
         for tx in (0..texels).step_by(4) {
             let eo = |r: usize| {
@@ -564,25 +579,35 @@ impl MotionPyramid {
         }
         data.resize(total, Bound::EMPTY.to_texel());
         zmin.resize(total, f32::INFINITY);
-        grad.resize(total, [f32::INFINITY; 2]);
+        // An empty gradient level 1: the pyramid has no gradient mipmap.
+        let with_grad = !grad.is_empty();
+        if with_grad {
+            debug_assert!(grad.len() >= n1);
+            grad.resize(total, [f32::INFINITY; 2]);
+        }
         for k in 1..levels.len() {
             let (prev, cur) = (levels[k - 1], levels[k]);
             let n = cur.w as usize * cur.h as usize;
             let (below, above) = data.split_at_mut(cur.off);
             let (zbelow, zabove) = zmin.split_at_mut(cur.off);
-            let (gbelow, gabove) = grad.split_at_mut(cur.off);
+            let (gbelow, gabove) = if with_grad { grad.split_at_mut(cur.off) } else { (&mut [][..], &mut [][..]) };
             let below = LevelTexels {
                 w: prev.w as usize,
                 h: prev.h as usize,
                 data: &below[prev.off..],
                 zmin: &zbelow[prev.off..],
-                grad: &gbelow[prev.off..],
+                grad: gbelow.get(prev.off..).unwrap_or_default(),
             };
             let cw = cur.w as usize;
+            let grows = if with_grad {
+                Either::Left(gabove[..n].par_chunks_mut(cw).map(Some))
+            } else {
+                Either::Right((0..cur.h).into_par_iter().map(|_| None))
+            };
             above[..n]
                 .par_chunks_mut(cw)
                 .zip(zabove[..n].par_chunks_mut(cw))
-                .zip(gabove[..n].par_chunks_mut(cw))
+                .zip(grows)
                 .enumerate()
                 .for_each(|(ty, ((row, zrow), grow))| level_row(&below, ty, row, zrow, grow, crate::simd::has_avx2()));
         }
@@ -698,9 +723,14 @@ impl MotionPyramid {
     }
 
     /// Component-wise largest [`cell_gradient`] over the cells a fetch at any point of the
-    /// inclusive pixel range can interpolate (same look-ups as [`Self::lookup_min_depth`]).
+    /// inclusive pixel range can interpolate (same look-ups as [`Self::lookup_min_depth`]);
+    /// `+inf` where the pyramid has no gradient mipmap (the layers after the first of
+    /// `PreparedLayer::prepare_stack`: the warp shortcuts only the first layer's seeds).
     #[inline]
     pub fn lookup_gradient(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> [f32; 2] {
+        if self.grad.is_empty() {
+            return [f32::INFINITY; 2];
+        }
         let level = self.level_for_range(ix0, iy0, ix1, iy1);
         let l = &self.levels[(level - 1) as usize];
         let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
@@ -1073,17 +1103,23 @@ mod tests {
             let grad: Vec<[f32; 2]> = (0..n).map(|_| [v(&mut rng), v(&mut rng)]).collect();
             let below = LevelTexels { w, h, data: &data, zmin: &zmin, grad: &grad };
             let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-            let run = |simd: bool| {
+            let run = |simd: bool, with_grad: bool| {
                 let (mut d, mut z, mut g) = (vec![[0f32; 4]; cw * ch], vec![0f32; cw * ch], vec![[0f32; 2]; cw * ch]);
+                let below = LevelTexels { grad: if with_grad { &grad } else { &[] }, ..below };
                 for ty in 0..ch {
                     let r = ty * cw..(ty + 1) * cw;
-                    level_row(&below, ty, &mut d[r.clone()], &mut z[r.clone()], &mut g[r], simd);
+                    level_row(&below, ty, &mut d[r.clone()], &mut z[r.clone()], with_grad.then(|| &mut g[r]), simd);
                 }
                 let bits = |x: &[f32]| x.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
                 (bits(d.as_flattened()), bits(&z), bits(g.as_flattened()))
             };
-            let (fast, portable) = (run(crate::simd::has_avx2()), run(false));
+            let (fast, portable) = (run(crate::simd::has_avx2(), true), run(false, true));
             assert!(fast == portable, "{w}x{h}");
+            // Without a gradient mipmap the other two are the same bits.
+            for simd in [crate::simd::has_avx2(), false] {
+                let (d, z, _) = run(simd, false);
+                assert!((d, z) == (portable.0.clone(), portable.1.clone()), "{w}x{h} without gradients");
+            }
             // And the fold is the union of the 2x2 block: spot-check the first texel.
             let (d, _, _) = portable;
             let mut b = Bound::EMPTY;

@@ -314,6 +314,34 @@ mod tests {
         }
     }
 
+    /// The first layer of a prepared stack carries the gradient mipmap (the one-seed shortcut
+    /// of `MotionPyramid::unique_solution`), the same as a pyramid built from its samples; the
+    /// layers behind it carry none, and their look-ups say `+inf` (never one solution).
+    #[test]
+    fn only_the_first_prepared_layer_has_a_gradient_mipmap() {
+        let (w, h) = (23u32, 14u32);
+        let d0 = Image::from_fn(w, h, |x, _| 0.3 + 0.01 * x as f32);
+        let d1 = Image::from_fn(w, h, |x, _| 0.6 + 0.01 * x as f32);
+        let m = |d: &Image<f32>| {
+            Image::from_fn(w, h, |x, y| Motion { v: Vec2::new(0.1 * x as f32, 0.05 * y as f32), depth: *d.get(x, y) })
+        };
+        let (m0, m1) = (m(&d0), m(&d1));
+        let layers = [WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }];
+        let stack = PreparedLayer::prepare_stack(&layers, BoundKind::Tight).unwrap();
+        let want =
+            MotionPyramid::from_samples(&validated_samples(&layers[0]).unwrap(), w, h, crate::BoundFrame::IDENTITY);
+        for (x0, y0, x1, y1) in [(0, 0, 0, 0), (3, 4, 9, 6), (0, 0, w - 1, h - 1)] {
+            let g = stack[0].pyramid().lookup_gradient(x0, y0, x1, y1);
+            assert_eq!(g, want.lookup_gradient(x0, y0, x1, y1));
+            assert!(g[0] < 0.05 && g[1] < 0.01, "{g:?}");
+            assert_eq!(stack[1].pyramid().lookup_gradient(x0, y0, x1, y1), [f32::INFINITY; 2]);
+        }
+        let b = stack[0].pyramid().global();
+        let (p_lo, p_hi) = (Vec2::new(5.5, 5.5), Vec2::new(8.5, 8.5));
+        assert!(stack[0].pyramid().unique_solution(p_lo, p_hi, &b, Vec2::ONE));
+        assert!(!stack[1].pyramid().unique_solution(p_lo, p_hi, &stack[1].pyramid().global(), Vec2::ONE));
+    }
+
     /// A stack prepared into recycled buffers equals a fresh one bit for bit (samples, frame,
     /// every mipmap texel and min-depth look-up), whether the recycled buffers are larger or
     /// smaller than needed, hold stale data from another scene, are fewer than the layers, or
@@ -390,8 +418,8 @@ mod tests {
                         assert_eq!(fresh[0].pyramid().frame().is_identity(), cross, "{w}x{h}");
                         assert!(!crate::bounds::pca_frame(&samples, w, h, 64).is_identity(), "{w}x{h}");
                     }
-                    let got = PreparedLayer::prepare_stack_recycling(&layers, bound, std::mem::take(&mut recycled))
-                        .unwrap();
+                    let got =
+                        PreparedLayer::prepare_stack_recycling(&layers, bound, std::mem::take(&mut recycled)).unwrap();
                     same(&got, &fresh);
                     recycled = got;
                 }

@@ -10,6 +10,7 @@
 //! (same arithmetic, bit-identical: min / max and selects only).
 
 use glam::Vec2;
+use rayon::iter::Either;
 use rayon::prelude::*;
 use zwarp_core::{Error, Motion, Result, EMPTY_DEPTH};
 
@@ -483,6 +484,8 @@ impl PreparedLayer {
     /// (walks may cross them) but do not widen its bounds or stop the pruning, so the later
     /// layer is searched only where it holds something new — the hidden ground. Any solution on
     /// a repeated sample is also a solution of the earlier layer, which searches it itself.
+    /// Only layer 0 gets the gradient mipmap (the warp's one-seed tiles are on the first layer,
+    /// `MotionPyramid::unique_solution`); the later layers' gradient look-ups are `+inf`.
     pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
         Self::prepare_stack_recycling(layers, bound, Vec::new())
     }
@@ -553,7 +556,10 @@ impl PreparedLayer {
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
         let input = RowInput { depth, motion, earlier, w: wu, frame: ob, with_ob: need_ob };
-        let mut grad = reuse_mip(grad, lw * lh, all, [0.0; 2]);
+        // The gradient mipmap serves the first layer's one-seed tiles only
+        // (`MotionPyramid::unique_solution`): the layers behind it go without.
+        let with_grad = earlier.is_empty();
+        let mut grad = if with_grad { reuse_mip(grad, lw * lh, all, [0.0; 2]) } else { Vec::new() };
         let hu = h as usize;
         // Tasks of GRAD_ROWS level-1 rows: each pair of image rows, then the gradient texels of
         // the pair before it while both are in cache (a cell spans the next pair's first row;
@@ -564,7 +570,7 @@ impl PreparedLayer {
                     [vx, vy, z]: [&mut [f32]; 3],
                     mut aab: Option<&mut [[f32; 4]]>,
                     zmin: &mut [f32],
-                    g: &mut [[f32; 2]],
+                    g: Option<&mut [[f32; 2]]>,
                     mut ob: Option<&mut [[f32; 4]]>| {
             let pairs = zmin.len() / lw;
             let mut st = RowStats::EMPTY;
@@ -583,6 +589,7 @@ impl PreparedLayer {
             fn p(q: &[f32], j: usize, wu: usize) -> &[f32] {
                 &q[(j * 2 * wu).min(q.len())..((j + 1) * 2 * wu).min(q.len())]
             }
+            let Some(g) = g else { return st };
             for j in 0..pairs {
                 let p = |q, j| p(q, j, wu);
                 let own = [p(vx, j), p(vy, j), p(z, j)];
@@ -607,7 +614,11 @@ impl PreparedLayer {
                 .zip(z.par_chunks_mut(cw))
                 .zip(aab[..lw * lh].par_chunks_mut(cl))
                 .zip(zmin[..lw * lh].par_chunks_mut(cl))
-                .zip(grad[..lw * lh].par_chunks_mut(cl));
+                .zip(if with_grad {
+                    Either::Left(grad[..lw * lh].par_chunks_mut(cl).map(Some))
+                } else {
+                    Either::Right((0..(lw * lh).div_ceil(cl)).into_par_iter().map(|_| None))
+                });
             let (wa, wo) = write;
             let stats = if need_ob {
                 rows.zip(obd[..lw * lh].par_chunks_mut(cl))
