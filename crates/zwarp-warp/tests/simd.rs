@@ -311,6 +311,32 @@ fn recycled_preparations_equal_fresh_ones_in_both_builds() {
     assert!(frames.contains(&true) && frames.contains(&false), "the fields must choose both frames: {frames:?}");
 }
 
+/// The row patterns of `synth` behind the multi-layer coverage tests (a seam between three
+/// layers' views of a wall, a ground layer seen through a gap, a wall that may continue behind
+/// a column): every build gives the same warp.
+#[test]
+fn avx2_warp_equals_the_portable_warp_on_the_layer_patterns() {
+    use zwarp_warp::synth::{continuation_layers, ground_gap_layers, seam_layers, BesideWall};
+    let far = WarpParams { n_seeds: 4, holes: HolePolicy::FarDepth, ..WarpParams::default() };
+    let mut cases = Vec::new();
+    for sliver in [true, false] {
+        cases.push((seam_layers(sliver), 4, WarpParams { cover_radius: 0.5, ..far }));
+    }
+    for (g, ground_layer) in [(0.8, true), (0.8, false), (0.95, true)] {
+        cases.push((ground_gap_layers(g), 2, WarpParams { ground_layer, ..far }));
+    }
+    for beside in [BesideWall::Column, BesideWall::Ends, BesideWall::SameDepth] {
+        cases.push((continuation_layers(beside), 3, far));
+    }
+    for (ls, n, params) in &cases {
+        for l in 1..=*n {
+            let layers: Vec<WarpLayer> = ls[..l].iter().map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
+            let (fast, portable) = both(&layers, params);
+            assert!(bits(&fast) == bits(&portable), "L = {l} of {n}, {params:?}");
+        }
+    }
+}
+
 fn field(w: u32, h: u32, c: [f32; 4]) -> (Image<f32>, Image<Motion>) {
     let depth = Image::from_fn(w, h, |x, y| {
         let (dx, dy) = (x as f32 - 0.3 * w as f32, y as f32 - 0.6 * h as f32);
