@@ -25,12 +25,10 @@
 //! and reading a bound back means rotating by `R^T` (paper: "reversing the motion coordinates").
 
 use glam::{Vec2, Vec4};
-use rayon::iter::Either;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
-use crate::sampling::Sampling;
-use crate::simd::{fmax, fmin};
+use crate::simd::fmin;
 
 /// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
 /// motion (see the module docs on which samples contribute).
@@ -182,22 +180,14 @@ struct LevelTexels<'a> {
     h: usize,
     data: &'a [[f32; 4]],
     zmin: &'a [f32],
-    grad: &'a [[f32; 2]],
 }
 
 /// Row `ty` of the next coarser level from `below` (Sec. 3.3's min-max mipmap, and the min
-/// depth and gradient mipmaps beside it): each texel is the union of the (up to) 2x2 texels
+/// depth mipmap beside it): each texel is the union of the (up to) 2x2 texels
 /// under it, folded from empty in the order upper-left, upper-right, lower-left, lower-right.
 /// `simd` takes the AVX2 build for the full 2x2 blocks (same compare-selects in the same
 /// order: the same bits).
-fn level_row(
-    below: &LevelTexels<'_>,
-    ty: usize,
-    row: &mut [[f32; 4]],
-    zrow: &mut [f32],
-    mut grow: Option<&mut [[f32; 2]]>,
-    simd: bool,
-) {
+fn level_row(below: &LevelTexels<'_>, ty: usize, row: &mut [[f32; 4]], zrow: &mut [f32], simd: bool) {
     let (pw, y0) = (below.w, ty * 2);
     let y1 = (y0 + 2).min(below.h);
     // Full 2x2 blocks first, then the texels at the right and bottom borders.
@@ -206,34 +196,20 @@ fn level_row(
     #[cfg(target_arch = "x86_64")]
     if simd && full > 0 {
         // SAFETY: `simd` is only set where the CPU has AVX2 (or by tests that check it).
-        done = unsafe {
-            level_row_avx2::blocks(
-                below,
-                y0,
-                &mut row[..full],
-                &mut zrow[..full],
-                grow.as_deref_mut().map(|g| &mut g[..full]),
-            )
-        };
+        done = unsafe { level_row_avx2::blocks(below, y0, &mut row[..full], &mut zrow[..full]) };
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = simd;
     for tx in done..row.len() {
         let (x0, x1) = (tx * 2, (tx * 2 + 2).min(pw));
-        let (mut b, mut z, mut g) = (Bound::EMPTY, f32::INFINITY, [f32::NEG_INFINITY; 2]);
+        let (mut b, mut z) = (Bound::EMPTY, f32::INFINITY);
         for y in y0..y1 {
             for i in y * pw + x0..y * pw + x1 {
                 b = b.union(&Bound::from_texel(&below.data[i]));
                 z = fmin(z, below.zmin[i]);
-                if let Some(bg) = below.grad.get(i) {
-                    g = [fmax(g[0], bg[0]), fmax(g[1], bg[1])];
-                }
             }
         }
         (row[tx], zrow[tx]) = (b.to_texel(), z);
-        if let Some(gr) = grow.as_deref_mut() {
-            gr[tx] = g;
-        }
     }
 }
 
@@ -244,19 +220,13 @@ mod level_row_avx2 {
     use std::arch::x86_64::*;
 
     /// The full blocks of a row pair from `y0` (both rows present, `row.len() <= w / 2`):
-    /// min-max texels two at a time, gradients four and min depths eight at a time; returns
+    /// min-max texels two at a time and min depths eight at a time; returns
     /// how many texels it wrote (a multiple of eight; the rest is left to the portable loop).
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn blocks(
-        b: &LevelTexels<'_>,
-        y0: usize,
-        row: &mut [[f32; 4]],
-        zrow: &mut [f32],
-        grow: Option<&mut [[f32; 2]]>,
-    ) -> usize {
+    pub(super) unsafe fn blocks(b: &LevelTexels<'_>, y0: usize, row: &mut [[f32; 4]], zrow: &mut [f32]) -> usize {
         let pw = b.w;
         // Multiples of eight texels: the min depths go eight at a time.
         let texels = row.len() / 8 * 8;
@@ -294,20 +264,6 @@ mod level_row_avx2 {
             let mn = _mm256_castpd_ps(_mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(mn)));
             _mm256_storeu_ps(zrow.as_mut_ptr().add(tx), mn);
         }
-        // Gradients [gx, gy]: four outputs per step (even / odd texel pairs).
-        let Some(grow) = grow else { return texels };
-        let g = b.grad.as_ptr() as *const f64;
-        for tx in (0..texels).step_by(4) {
-            let eo = |r: usize| {
-                let v0 = _mm256_loadu_pd(g.add(r + 2 * tx));
-                let v1 = _mm256_loadu_pd(g.add(r + 2 * tx + 4));
-                (_mm256_castpd_ps(_mm256_unpacklo_pd(v0, v1)), _mm256_castpd_ps(_mm256_unpackhi_pd(v0, v1)))
-            };
-            let ((a, bb), (c, d)) = (eo(up), eo(lo));
-            let (_, mx) = fold4(a, bb, c, d);
-            let mx = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_castps_pd(mx));
-            _mm256_storeu_pd(grow.as_mut_ptr().add(tx) as *mut f64, mx);
-        }
         texels
     }
 }
@@ -336,146 +292,6 @@ pub struct MotionPyramid {
     /// Minimal target depth of the valid samples per texel (`+inf` if none), same layout. Kept
     /// apart: only the pruning of later layers reads it.
     zmin: Vec<f32>,
-    /// Per texel the component-wise largest [`cell_gradient`] of the bilinear cells whose
-    /// top-left texel it covers, same layout: the unique-solution test of the tile stage
-    /// ([`Self::unique_solution`]).
-    grad: Vec<[f32; 2]>,
-}
-
-/// Squared norms of the rows of the Jacobian of the adaptive fetch's bilinear interpolant over
-/// the cell of texels `a b / c d` (each `[vx, vy, z]`, `z = +inf` for an empty texel), bounded
-/// per entry by the larger of the cell's two differences along its axis (the bilinear
-/// derivative lies between them): `[|dvx/dq|^2, |dvy/dq|^2]`. `+inf` where the depths alone
-/// stop the fetch from interpolating (an empty texel or a depth step,
-/// [`crate::sampling::continuous_cell`]). The motion part of that test depends on the motion
-/// scale, and a small gradient implies it ([`MotionPyramid::unique_solution`]).
-#[inline(always)]
-pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32; 2] {
-    let mut g = [0f32; 2];
-    for (i, g) in g.iter_mut().enumerate() {
-        let dx = fmax((b[i] - a[i]).abs(), (d[i] - c[i]).abs());
-        let dy = fmax((c[i] - a[i]).abs(), (d[i] - b[i]).abs());
-        *g = dx * dx + dy * dy;
-    }
-    let z_lo = fmin(fmin(a[2], b[2]), fmin(c[2], d[2]));
-    let z_hi = fmax(fmax(a[2], b[2]), fmax(c[2], d[2]));
-    if (z_hi - z_lo) < crate::sampling::DEPTH_CONTINUITY * (1.0 - z_hi) {
-        g
-    } else {
-        [f32::INFINITY; 2]
-    }
-}
-
-/// Bound on the squared Frobenius norm of the motion's Jacobian below which a search region
-/// holds one solution at most ([`MotionPyramid::unique_solution`]).
-pub const UNIQUE_GRADIENT: f32 = 0.5;
-
-/// One image row of sample planes: motion x, motion y, target depth (`+inf` where empty).
-pub(crate) type PlaneRow<'a> = [&'a [f32]; 3];
-
-/// One row of level 1 of the gradient mipmap: per texel the component-wise largest
-/// [`cell_gradient`] of the cells whose top-left texel lies in its 2x2 block. `rows` are the
-/// image rows `2 ty`, `2 ty + 1` and `2 ty + 2`, clamped to the image (the fetch clamps, so a
-/// cell at the bottom border repeats the border row); `two` is `false` where row `2 ty + 1`
-/// lies outside the image (its cells do not exist). Cells at the right border repeat the border
-/// texel. `scratch` holds two rows of cells.
-pub(crate) fn gradient_row(rows: [PlaneRow<'_>; 3], two: bool, scratch: &mut Vec<[f32; 2]>, out: &mut [[f32; 2]]) {
-    let wu = rows[0][0].len();
-    scratch.clear();
-    scratch.resize(2 * (wu + 1), [f32::NEG_INFINITY; 2]);
-    let (g0, g1) = scratch.split_at_mut(wu + 1);
-    for (dy, g) in [g0, g1].into_iter().enumerate() {
-        if dy == 1 && !two {
-            break;
-        }
-        let ([ax, ay, az], [cx, cy, cz]) = (rows[dy], rows[dy + 1]);
-        let n = wu - 1;
-        let (bx, by, bz) = (&ax[1..], &ay[1..], &az[1..]);
-        let (dx, dy_, dz) = (&cx[1..], &cy[1..], &cz[1..]);
-        let gn = &mut g[..n];
-        let mut i0 = 0;
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::has_avx2() {
-            // SAFETY: AVX2 checked; every slice holds at least `n` elements.
-            i0 = unsafe { cells8([ax, bx, cx, dx], [ay, by, cy, dy_], [az, bz, cz, dz], gn) };
-        }
-        for i in i0..n {
-            gn[i] = cell_gradient(
-                [ax[i], ay[i], az[i]],
-                [bx[i], by[i], bz[i]],
-                [cx[i], cy[i], cz[i]],
-                [dx[i], dy_[i], dz[i]],
-            );
-        }
-        // The last column: its right neighbour is itself.
-        let (a, c) = ([ax[n], ay[n], az[n]], [cx[n], cy[n], cz[n]]);
-        g[n] = cell_gradient(a, a, c, c);
-    }
-    let (r0, r1) = scratch.split_at(wu + 1);
-    for (tx, o) in out.iter_mut().enumerate() {
-        let i = 2 * tx;
-        // Spelled out: `[0, 1].map(..)` compiled to a call per element.
-        let m = |c: usize| fmax(fmax(r0[i][c], r0[i + 1][c]), fmax(r1[i][c], r1[i + 1][c]));
-        *o = [m(0), m(1)];
-    }
-}
-
-/// Level 1 of the gradient mipmap ([`gradient_row`] per row) from `w x h` sample planes into
-/// `out` (`ceil(w/2) x ceil(h/2)`).
-pub(crate) fn gradient_level1(w: u32, h: u32, (vx, vy, z): (&[f32], &[f32], &[f32]), out: &mut [[f32; 2]]) {
-    let (wu, hu) = (w as usize, h as usize);
-    let row = |y: usize| -> PlaneRow<'_> {
-        let r = y.min(hu - 1) * wu..(y.min(hu - 1) + 1) * wu;
-        [&vx[r.clone()], &vy[r.clone()], &z[r]]
-    };
-    out.par_chunks_mut(wu.div_ceil(2)).enumerate().for_each_init(Vec::new, |scratch, (ty, o)| {
-        gradient_row([row(2 * ty), row(2 * ty + 1), row(2 * ty + 2)], 2 * ty + 1 < hu, scratch, o)
-    });
-}
-
-/// [`cell_gradient`] eight cells at a time (bit-identical: compare-select min / max, no FMA,
-/// the same order of sums) for the cells `0..8 * floor(n / 8)` of one row, given per plane the
-/// cells' four texels `a b / c d` as slices of `n`; returns how many it wrote.
-///
-/// # Safety
-/// The CPU must support AVX2; every slice holds at least `out.len()` elements.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f32; 2]]) -> usize {
-    use std::arch::x86_64::*;
-    let n8 = out.len() / 8 * 8;
-    let sign = _mm256_set1_ps(-0.0);
-    let (one, inf) = (_mm256_set1_ps(1.0), _mm256_set1_ps(f32::INFINITY));
-    for i in (0..n8).step_by(8) {
-        let load = |s: &[&[f32]; 4]| {
-            [
-                _mm256_loadu_ps(s[0].as_ptr().add(i)),
-                _mm256_loadu_ps(s[1].as_ptr().add(i)),
-                _mm256_loadu_ps(s[2].as_ptr().add(i)),
-                _mm256_loadu_ps(s[3].as_ptr().add(i)),
-            ]
-        };
-        let [a, b, c, d] = load(&z);
-        let z_lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
-        let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
-        let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
-            _mm256_sub_ps(z_hi, z_lo),
-            _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
-        );
-        let row = |[a, b, c, d]: [__m256; 4]| {
-            let abs = |v: __m256| _mm256_andnot_ps(sign, v);
-            let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
-            let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
-            _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
-        };
-        let (gx, gy) = (row(load(&vx)), row(load(&vy)));
-        // Interleave into [gx, gy] pairs: lanes 0-3 and 4-7 of each.
-        let (lo, hi) = (_mm256_unpacklo_ps(gx, gy), _mm256_unpackhi_ps(gx, gy));
-        let p = out.as_mut_ptr().add(i) as *mut f32;
-        _mm256_storeu_ps(p, _mm256_permute2f128_ps::<0x20>(lo, hi));
-        _mm256_storeu_ps(p.add(8), _mm256_permute2f128_ps::<0x31>(lo, hi));
-    }
-    n8
 }
 
 /// `ceil(log2(n))` for `n >= 1`, 0 for `n <= 1`.
@@ -541,29 +357,19 @@ impl MotionPyramid {
                 }
             },
         );
-        let mut grad = vec![[0f32; 2]; lw as usize * lh as usize];
-        let planes = crate::sampling::SamplePlanes::from_motion(samples);
-        gradient_level1(w, h, (&planes.vx, &planes.vy, &planes.z), &mut grad);
-        Self::from_level1(w, h, frame, data, zmin, grad)
+        Self::from_level1(w, h, frame, data, zmin)
     }
 
     /// The texel buffers (every level), for reuse by the next preparation.
-    pub(crate) fn into_buffers(self) -> (Vec<[f32; 4]>, Vec<f32>, Vec<[f32; 2]>) {
-        (self.data, self.zmin, self.grad)
+    pub(crate) fn into_buffers(self) -> (Vec<[f32; 4]>, Vec<f32>) {
+        (self.data, self.zmin)
     }
 
     /// Builds levels `2..=top` over a given level 1 (the first `ceil(w / 2) x ceil(h / 2)`
-    /// min-max texels of `data` in `frame`, their min depths and their gradients; anything
+    /// min-max texels of `data` in `frame` and their min depths; anything
     /// after them is overwritten), e.g. from the fused pass of `PreparedLayer::prepare_stack`
     /// that validates the samples and reduces them at once.
-    pub(crate) fn from_level1(
-        w: u32,
-        h: u32,
-        frame: BoundFrame,
-        mut data: Vec<[f32; 4]>,
-        mut zmin: Vec<f32>,
-        mut grad: Vec<[f32; 2]>,
-    ) -> Self {
+    pub(crate) fn from_level1(w: u32, h: u32, frame: BoundFrame, mut data: Vec<[f32; 4]>, mut zmin: Vec<f32>) -> Self {
         let top = ceil_log2(w.max(h)).max(1);
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
         let n1 = lw as usize * lh as usize;
@@ -579,40 +385,26 @@ impl MotionPyramid {
         }
         data.resize(total, Bound::EMPTY.to_texel());
         zmin.resize(total, f32::INFINITY);
-        // An empty gradient level 1: the pyramid has no gradient mipmap.
-        let with_grad = !grad.is_empty();
-        if with_grad {
-            debug_assert!(grad.len() >= n1);
-            grad.resize(total, [f32::INFINITY; 2]);
-        }
         for k in 1..levels.len() {
             let (prev, cur) = (levels[k - 1], levels[k]);
             let n = cur.w as usize * cur.h as usize;
             let (below, above) = data.split_at_mut(cur.off);
             let (zbelow, zabove) = zmin.split_at_mut(cur.off);
-            let (gbelow, gabove) = if with_grad { grad.split_at_mut(cur.off) } else { (&mut [][..], &mut [][..]) };
             let below = LevelTexels {
                 w: prev.w as usize,
                 h: prev.h as usize,
                 data: &below[prev.off..],
                 zmin: &zbelow[prev.off..],
-                grad: gbelow.get(prev.off..).unwrap_or_default(),
             };
             let cw = cur.w as usize;
-            let grows = if with_grad {
-                Either::Left(gabove[..n].par_chunks_mut(cw).map(Some))
-            } else {
-                Either::Right((0..cur.h).into_par_iter().map(|_| None))
-            };
             above[..n]
                 .par_chunks_mut(cw)
                 .zip(zabove[..n].par_chunks_mut(cw))
-                .zip(grows)
                 .enumerate()
-                .for_each(|(ty, ((row, zrow), grow))| level_row(&below, ty, row, zrow, grow, crate::simd::has_avx2()));
+                .for_each(|(ty, (row, zrow))| level_row(&below, ty, row, zrow, crate::simd::has_avx2()));
         }
         debug_assert!(levels.last().map(|l| l.w == 1 && l.h == 1).unwrap_or(false));
-        MotionPyramid { width: w, height: h, frame, levels, data, zmin, grad }
+        MotionPyramid { width: w, height: h, frame, levels, data, zmin }
     }
 
     /// The raw layout for the AVX2 tightening: min-max texels, min-depth texels, and per level
@@ -722,55 +514,10 @@ impl MotionPyramid {
         z
     }
 
-    /// Component-wise largest [`cell_gradient`] over the cells a fetch at any point of the
-    /// inclusive pixel range can interpolate (same look-ups as [`Self::lookup_min_depth`]);
-    /// `+inf` where the pyramid has no gradient mipmap (the layers after the first of
-    /// `PreparedLayer::prepare_stack`: the warp shortcuts only the first layer's seeds).
-    #[inline]
-    pub fn lookup_gradient(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> [f32; 2] {
-        if self.grad.is_empty() {
-            return [f32::INFINITY; 2];
-        }
-        let level = self.level_for_range(ix0, iy0, ix1, iy1);
-        let l = &self.levels[(level - 1) as usize];
-        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
-        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
-        let mut g = [f32::NEG_INFINITY; 2];
-        for ty in ty0..=ty1 {
-            let row = &self.grad[l.off + ty as usize * l.w as usize..];
-            for t in &row[tx0 as usize..=tx1 as usize] {
-                g = [fmax(g[0], t[0]), fmax(g[1], t[1])];
-            }
-        }
-        g
-    }
-
-    /// `true` if every target position of the box `p_lo..=p_hi` has at most one solution in its
-    /// search region under motion bound `b` (frame coordinates), and a walk from a seed in that
-    /// region that converges finds it, for the warp of `scale * v` (`WarpParams::motion_scale`):
-    /// every cell the region's fetches read is continuous in depth and
-    /// `sx^2 max|dvx/dq|^2 + sy^2 max|dvy/dq|^2 < 1/2` ([`cell_gradient`]). That bounds the
-    /// Frobenius, hence the spectral, norm of the Jacobian of `scale * v` below `1/sqrt(2)`, so
-    /// `q -> p - scale v(q)` is a contraction on the region, which it maps into itself (every
-    /// motion there lies in `b`): Banach's theorem leaves exactly one fixed point, and N seeds
-    /// would all find the surface that one seed finds (seed 000 Sec. 3.2's seeds exist for
-    /// regions with several solutions). It also keeps every cell's motion range below
-    /// [`crate::sampling::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
-    /// component), so the adaptive fetch interpolates them all.
-    pub fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, b: &Bound, scale: Vec2) -> bool {
-        let (c_lo, c_hi) = self.frame_box(p_lo, p_hi);
-        let region = Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
-        let Some((x0, y0, x1, y1)) = self.pixel_range(&region, Sampling::Adaptive.footprint()) else {
-            return false;
-        };
-        let [gx, gy] = self.lookup_gradient(x0, y0, x1, y1);
-        scale.x * scale.x * gx + scale.y * scale.y * gy < UNIQUE_GRADIENT
-    }
-
     /// The box of target positions `p_lo..=p_hi` in frame coordinates (the bounding box of its
     /// rotated corners).
     #[inline]
-    fn frame_box(&self, p_lo: Vec2, p_hi: Vec2) -> (Vec2, Vec2) {
+    pub(crate) fn frame_box(&self, p_lo: Vec2, p_hi: Vec2) -> (Vec2, Vec2) {
         if self.frame.is_identity() {
             (p_lo, p_hi)
         } else if p_lo == p_hi {
@@ -1079,7 +826,7 @@ mod tests {
     }
 
     /// The AVX2 reduction of a mip level's full 2x2 blocks gives the portable fold's bits
-    /// (min-max texels, min depths, gradients), on random texels with empty ones (+-inf), signed
+    /// (min-max texels and min depths), on random texels with empty ones (+-inf), signed
     /// zeros and ties, at sizes that leave odd columns, odd rows and short rows to the portable
     /// loop.
     #[test]
@@ -1100,28 +847,21 @@ mod tests {
             let n = w * h;
             let data: Vec<[f32; 4]> = (0..n).map(|_| [v(&mut rng), v(&mut rng), v(&mut rng), v(&mut rng)]).collect();
             let zmin: Vec<f32> = (0..n).map(|_| v(&mut rng)).collect();
-            let grad: Vec<[f32; 2]> = (0..n).map(|_| [v(&mut rng), v(&mut rng)]).collect();
-            let below = LevelTexels { w, h, data: &data, zmin: &zmin, grad: &grad };
+            let below = LevelTexels { w, h, data: &data, zmin: &zmin };
             let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-            let run = |simd: bool, with_grad: bool| {
-                let (mut d, mut z, mut g) = (vec![[0f32; 4]; cw * ch], vec![0f32; cw * ch], vec![[0f32; 2]; cw * ch]);
-                let below = LevelTexels { grad: if with_grad { &grad } else { &[] }, ..below };
+            let run = |simd: bool| {
+                let (mut d, mut z) = (vec![[0f32; 4]; cw * ch], vec![0f32; cw * ch]);
                 for ty in 0..ch {
                     let r = ty * cw..(ty + 1) * cw;
-                    level_row(&below, ty, &mut d[r.clone()], &mut z[r.clone()], with_grad.then(|| &mut g[r]), simd);
+                    level_row(&below, ty, &mut d[r.clone()], &mut z[r], simd);
                 }
                 let bits = |x: &[f32]| x.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
-                (bits(d.as_flattened()), bits(&z), bits(g.as_flattened()))
+                (bits(d.as_flattened()), bits(&z))
             };
-            let (fast, portable) = (run(crate::simd::has_avx2(), true), run(false, true));
+            let (fast, portable) = (run(crate::simd::has_avx2()), run(false));
             assert!(fast == portable, "{w}x{h}");
-            // Without a gradient mipmap the other two are the same bits.
-            for simd in [crate::simd::has_avx2(), false] {
-                let (d, z, _) = run(simd, false);
-                assert!((d, z) == (portable.0.clone(), portable.1.clone()), "{w}x{h} without gradients");
-            }
             // And the fold is the union of the 2x2 block: spot-check the first texel.
-            let (d, _, _) = portable;
+            let (d, _) = portable;
             let mut b = Bound::EMPTY;
             for (y, x) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
                 if y < h && x < w {
@@ -1140,27 +880,35 @@ mod tests {
         })
     }
 
+    /// A prepared layer of motion `m` over a source depth of 0.5 (every sample valid where
+    /// `m` says so).
+    fn prepared(m: &Image<Motion>) -> crate::PreparedLayer {
+        let depth = Image::new(m.width(), m.height(), 0.5f32);
+        crate::PreparedLayer::new(&crate::WarpLayer { depth: &depth, motion: m }, crate::BoundKind::Tight).unwrap()
+    }
+
     /// The gradient mipmap of an affine field holds the squared rows of its matrix everywhere
     /// (bilinear interpolation of an affine field is the field), and the unique-solution test
     /// follows `sx^2 |row x|^2 + sy^2 |row y|^2 < 1/2`, the motion scale included.
     #[test]
     fn gradient_of_an_affine_field_is_its_jacobian() {
         let m = affine(37, 29, [[0.3, 0.1], [0.0, -0.2]], Vec2::new(-4.0, 2.0));
-        let pyr = MotionPyramid::build(&m).unwrap();
+        let layer = prepared(&m);
+        let pyr = layer.pyramid();
         let (w, h) = pyr.size();
         for (x0, y0, x1, y1) in [(0, 0, w - 1, h - 1), (3, 4, 9, 5), (20, 10, 20, 10)] {
-            let [gx, gy] = pyr.lookup_gradient(x0, y0, x1, y1);
+            let [gx, gy] = layer.lookup_gradient(x0, y0, x1, y1);
             assert!((gx - 0.1).abs() < 1e-5 && (gy - 0.04).abs() < 1e-5, "{gx} {gy}");
         }
         let (p_lo, p_hi) = (Vec2::new(12.5, 10.5), Vec2::new(15.5, 13.5));
         let b = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), 6, 0.5).unwrap().motion;
-        assert!(pyr.unique_solution(p_lo, p_hi, &b, Vec2::ONE));
+        assert!(layer.unique_solution(p_lo, p_hi, &b, Vec2::ONE));
         // 0.1 + 0.04 < 0.5, 4 (0.1 + 0.04) = 0.56 >= 0.5, 0.1 + 4 * 0.04 = 0.26 < 0.5.
-        assert!(!pyr.unique_solution(p_lo, p_hi, &b, Vec2::splat(2.0)));
-        assert!(pyr.unique_solution(p_lo, p_hi, &b, Vec2::new(1.0, 2.0)));
+        assert!(!layer.unique_solution(p_lo, p_hi, &b, Vec2::splat(2.0)));
+        assert!(layer.unique_solution(p_lo, p_hi, &b, Vec2::new(1.0, 2.0)));
         // A magnifying field (|Dv| = 0.6 per axis: 0.36 + 0.36 >= 0.5) has no such guarantee.
-        let zoom = MotionPyramid::build(&affine(37, 29, [[0.6, 0.0], [0.0, 0.6]], Vec2::ZERO)).unwrap();
-        assert!(!zoom.unique_solution(p_lo, p_hi, &zoom.global(), Vec2::ONE));
+        let zoom = prepared(&affine(37, 29, [[0.6, 0.0], [0.0, 0.6]], Vec2::ZERO));
+        assert!(!zoom.unique_solution(p_lo, p_hi, &zoom.pyramid().global(), Vec2::ONE));
     }
 
     /// A depth step or an empty texel in the region stops the unique-solution test (the fetch
@@ -1180,9 +928,9 @@ mod tests {
                     s
                 }
             });
-            let pyr = MotionPyramid::build(&m).unwrap();
+            let layer = prepared(&m);
             assert_eq!(
-                pyr.unique_solution(p_lo, p_hi, &bound(&pyr), Vec2::ONE),
+                layer.unique_solution(p_lo, p_hi, &bound(layer.pyramid()), Vec2::ONE),
                 want,
                 "step at {x_step}, depth {depth}"
             );

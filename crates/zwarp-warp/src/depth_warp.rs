@@ -315,8 +315,8 @@ mod tests {
     }
 
     /// The first layer of a prepared stack carries the gradient mipmap (the one-seed shortcut
-    /// of `MotionPyramid::unique_solution`), the same as a pyramid built from its samples; the
-    /// layers behind it carry none, and their look-ups say `+inf` (never one solution).
+    /// of `PreparedLayer::unique_solution`), the same as that layer prepared alone; the layers
+    /// behind it carry none, and their look-ups say `+inf` (never one solution).
     #[test]
     fn only_the_first_prepared_layer_has_a_gradient_mipmap() {
         let (w, h) = (23u32, 14u32);
@@ -328,18 +328,17 @@ mod tests {
         let (m0, m1) = (m(&d0), m(&d1));
         let layers = [WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }];
         let stack = PreparedLayer::prepare_stack(&layers, BoundKind::Tight).unwrap();
-        let want =
-            MotionPyramid::from_samples(&validated_samples(&layers[0]).unwrap(), w, h, crate::BoundFrame::IDENTITY);
+        let want = PreparedLayer::new(&layers[0], BoundKind::Tight).unwrap();
         for (x0, y0, x1, y1) in [(0, 0, 0, 0), (3, 4, 9, 6), (0, 0, w - 1, h - 1)] {
-            let g = stack[0].pyramid().lookup_gradient(x0, y0, x1, y1);
+            let g = stack[0].lookup_gradient(x0, y0, x1, y1);
             assert_eq!(g, want.lookup_gradient(x0, y0, x1, y1));
             assert!(g[0] < 0.05 && g[1] < 0.01, "{g:?}");
-            assert_eq!(stack[1].pyramid().lookup_gradient(x0, y0, x1, y1), [f32::INFINITY; 2]);
+            assert_eq!(stack[1].lookup_gradient(x0, y0, x1, y1), [f32::INFINITY; 2]);
         }
         let b = stack[0].pyramid().global();
         let (p_lo, p_hi) = (Vec2::new(5.5, 5.5), Vec2::new(8.5, 8.5));
-        assert!(stack[0].pyramid().unique_solution(p_lo, p_hi, &b, Vec2::ONE));
-        assert!(!stack[1].pyramid().unique_solution(p_lo, p_hi, &stack[1].pyramid().global(), Vec2::ONE));
+        assert!(stack[0].unique_solution(p_lo, p_hi, &b, Vec2::ONE));
+        assert!(!stack[1].unique_solution(p_lo, p_hi, &stack[1].pyramid().global(), Vec2::ONE));
     }
 
     /// A stack prepared into recycled buffers equals a fresh one bit for bit (samples, frame,

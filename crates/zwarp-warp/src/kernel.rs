@@ -98,7 +98,7 @@ pub(crate) struct StageBound {
     pub min_depth: f32,
     /// Layer 0 of a box not [`Self::resolved`]: every pixel's region holds at most one
     /// solution, which one seed at the region's centre finds wherever it converges
-    /// ([`crate::MotionPyramid::unique_solution`]); `false` elsewhere.
+    /// ([`crate::PreparedLayer::unique_solution`]); `false` elsewhere.
     pub unique: bool,
 }
 
@@ -230,7 +230,7 @@ impl<'a> Kernel<'a> {
         !(e.x <= 1.0 && e.y <= 1.0)
             && p.seeding == SeedStrategy::Stratified
             && p.sampling == crate::Sampling::Adaptive
-            && self.layers[0].pyramid().unique_solution(p_lo, p_hi, motion, p.motion_scale)
+            && self.layers[0].unique_solution(p_lo, p_hi, motion, p.motion_scale)
     }
 
     /// The warp of one target pixel over all layers, from layer `k0` on with the state the

@@ -33,6 +33,7 @@ pub mod depth_warp;
 pub mod floor;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod gradient;
 pub mod holes;
 mod kernel;
 mod prepare;

@@ -10,12 +10,12 @@
 //! (same arithmetic, bit-identical: min / max and selects only).
 
 use glam::Vec2;
-use rayon::iter::Either;
 use rayon::prelude::*;
 use zwarp_core::{Error, Motion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid};
-use crate::sampling::{LayerSampler, SamplePlanes};
+use crate::gradient::{GradientMip, UNIQUE_GRADIENT};
+use crate::sampling::{LayerSampler, SamplePlanes, Sampling};
 use crate::simd::{fmax, fmin};
 use crate::{BoundKind, WarpLayer, WarpParams};
 
@@ -361,59 +361,8 @@ mod avx2 {
     }
 }
 
-/// Scratch of [`gradient_pair`]: two rows of cells and the next image row's planes.
-#[derive(Default)]
-struct GradScratch {
-    cells: Vec<[f32; 2]>,
-    next: [Vec<f32>; 3],
-}
-
-/// Level-1 rows per task of the preparation: a task reads one image row of the next task's
-/// inputs for its last row of gradient texels.
-const GRAD_ROWS: usize = 8;
-
-/// The gradient texels of level-1 row `ty` ([`crate::bounds::gradient_row`]) from its image
-/// rows (`own`: motion x, motion y, target depth of one or two rows) and the next image row's
-/// planes (`next`), or, where the next row belongs to another task, that row validated here
-/// from the inputs as [`row`] validates it.
-fn gradient_pair(
-    input: &RowInput<'_>,
-    ty: usize,
-    h: usize,
-    own: [&[f32]; 3],
-    next: Option<[&[f32]; 3]>,
-    sc: &mut GradScratch,
-    out: &mut [[f32; 2]],
-) {
-    let w = input.w;
-    fn split(p: &[f32], r: usize, w: usize) -> &[f32] {
-        let r = r.min(p.len() / w - 1);
-        &p[r * w..(r + 1) * w]
-    }
-    let r0 = own.map(|p| split(p, 0, w));
-    let r1 = own.map(|p| split(p, 1, w));
-    let y2 = 2 * ty + 2;
-    let r2: [&[f32]; 3] = if let Some(n) = next {
-        n
-    } else if y2 < h {
-        let (d, m) = (&input.depth[y2 * w..(y2 + 1) * w], &input.motion[y2 * w..(y2 + 1) * w]);
-        let [nx, ny, nz] = &mut sc.next;
-        for v in [&mut *nx, &mut *ny, &mut *nz] {
-            v.resize(w, 0.0);
-        }
-        for ((((d, m), x), y), z) in d.iter().zip(m).zip(nx.iter_mut()).zip(ny.iter_mut()).zip(nz.iter_mut()) {
-            let finite_v = m.v.x.is_finite() & m.v.y.is_finite();
-            let valid = (*d < EMPTY_DEPTH) & (m.depth >= 0.0) & (m.depth < 1.0) & finite_v;
-            *x = if valid { m.v.x } else { 0.0 };
-            *y = if valid { m.v.y } else { 0.0 };
-            *z = if valid { m.depth } else { f32::INFINITY };
-        }
-        [&sc.next[0][..], &sc.next[1][..], &sc.next[2][..]]
-    } else {
-        r1
-    };
-    crate::bounds::gradient_row([r0, r1, r2], 2 * ty + 1 < h, &mut sc.cells, out);
-}
+/// Level-1 rows per task of the preparation.
+const TASK_ROWS: usize = 8;
 
 /// A layer ready to be warped: its validated samples ([`SamplePlanes`], empty ones with an
 /// infinite target depth) and the min-max motion mipmap in the frame chosen for the bound kind
@@ -424,6 +373,8 @@ pub struct PreparedLayer {
     h: u32,
     planes: SamplePlanes,
     pyramid: MotionPyramid,
+    /// The gradient mipmap of the first layer of a stack (computed where looked up).
+    gradient: Option<GradientMip>,
     bound: BoundKind,
     /// The level-1 buffer of the frame not chosen (kept for the next preparation).
     oriented: Vec<[f32; 4]>,
@@ -451,7 +402,7 @@ struct Spare {
     level1: Vec<[f32; 4]>,
     oriented: Vec<[f32; 4]>,
     zmin: Vec<f32>,
-    grad: Vec<[f32; 2]>,
+    gradient: Option<GradientMip>,
     hint: Option<bool>,
 }
 
@@ -486,7 +437,7 @@ impl PreparedLayer {
     /// layer is searched only where it holds something new — the hidden ground. Any solution on
     /// a repeated sample is also a solution of the earlier layer, which searches it itself.
     /// Only layer 0 gets the gradient mipmap (the warp's one-seed tiles are on the first layer,
-    /// `MotionPyramid::unique_solution`); the later layers' gradient look-ups are `+inf`.
+    /// [`Self::unique_solution`]); the later layers' gradient look-ups are `+inf`.
     pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
         Self::prepare_stack_recycling(layers, bound, Vec::new())
     }
@@ -546,7 +497,7 @@ impl PreparedLayer {
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
         let n = wu * h as usize;
-        let Spare { planes, level1, oriented, zmin, grad, hint } = spare;
+        let Spare { planes, level1, oriented, zmin, gradient, hint } = spare;
         let mut vx = zwarp_core::pages::reuse(planes.vx, n, 0.0);
         let mut vy = zwarp_core::pages::reuse(planes.vy, n, 0.0);
         let mut z = zwarp_core::pages::reuse(planes.z, n, 0.0);
@@ -557,21 +508,11 @@ impl PreparedLayer {
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
         let input = RowInput { depth, motion, earlier, w: wu, frame: ob, with_ob: need_ob };
-        // The gradient mipmap serves the first layer's one-seed tiles only
-        // (`MotionPyramid::unique_solution`): the layers behind it go without.
-        let with_grad = earlier.is_empty();
-        let mut grad = if with_grad { reuse_mip(grad, lw * lh, all, [0.0; 2]) } else { Vec::new() };
-        let hu = h as usize;
-        // Tasks of GRAD_ROWS level-1 rows: each pair of image rows, then the gradient texels of
-        // the pair before it while both are in cache (a cell spans the next pair's first row;
-        // only a task's last pair reads that row from the inputs).
-        let (cw, cl) = (GRAD_ROWS * 2 * wu, GRAD_ROWS * lw);
-        let task = |sc: &mut GradScratch,
-                    c: usize,
+        let (cw, cl) = (TASK_ROWS * 2 * wu, TASK_ROWS * lw);
+        let task = |c: usize,
                     [vx, vy, z]: [&mut [f32]; 3],
                     mut aab: Option<&mut [[f32; 4]]>,
                     zmin: &mut [f32],
-                    g: Option<&mut [[f32; 2]]>,
                     mut ob: Option<&mut [[f32; 4]]>| {
             let pairs = zmin.len() / lw;
             let mut st = RowStats::EMPTY;
@@ -585,17 +526,7 @@ impl PreparedLayer {
                     ob: ob.as_deref_mut().map(|o| &mut o[t.clone()]),
                     zmin: &mut zmin[t],
                 };
-                st = st.merge(row(&input, c * GRAD_ROWS + j, out));
-            }
-            fn p(q: &[f32], j: usize, wu: usize) -> &[f32] {
-                &q[(j * 2 * wu).min(q.len())..((j + 1) * 2 * wu).min(q.len())]
-            }
-            let Some(g) = g else { return st };
-            for j in 0..pairs {
-                let p = |q, j| p(q, j, wu);
-                let own = [p(vx, j), p(vy, j), p(z, j)];
-                let next = (j + 1 < pairs).then(|| [&p(vx, j + 1)[..wu], &p(vy, j + 1)[..wu], &p(z, j + 1)[..wu]]);
-                gradient_pair(&input, c * GRAD_ROWS + j, hu, own, next, sc, &mut g[j * lw..(j + 1) * lw]);
+                st = st.merge(row(&input, c * TASK_ROWS + j, out));
             }
             st
         };
@@ -614,25 +545,18 @@ impl PreparedLayer {
                 .zip(vy.par_chunks_mut(cw))
                 .zip(z.par_chunks_mut(cw))
                 .zip(aab[..lw * lh].par_chunks_mut(cl))
-                .zip(zmin[..lw * lh].par_chunks_mut(cl))
-                .zip(if with_grad {
-                    Either::Left(grad[..lw * lh].par_chunks_mut(cl).map(Some))
-                } else {
-                    Either::Right((0..(lw * lh).div_ceil(cl)).into_par_iter().map(|_| None))
-                });
+                .zip(zmin[..lw * lh].par_chunks_mut(cl));
             let (wa, wo) = write;
             let stats = if need_ob {
                 rows.zip(obd[..lw * lh].par_chunks_mut(cl))
                     .enumerate()
-                    .map_init(GradScratch::default, |sc, (c, ((((((vx, vy), z), aab), zmin), g), o))| {
-                        task(sc, c, [vx, vy, z], wa.then_some(aab), zmin, g, wo.then_some(o))
+                    .map(|(c, (((((vx, vy), z), aab), zmin), o))| {
+                        task(c, [vx, vy, z], wa.then_some(aab), zmin, wo.then_some(o))
                     })
                     .reduce(|| RowStats::EMPTY, RowStats::merge)
             } else {
                 rows.enumerate()
-                    .map_init(GradScratch::default, |sc, (c, (((((vx, vy), z), aab), zmin), g))| {
-                        task(sc, c, [vx, vy, z], Some(aab), zmin, g, None)
-                    })
+                    .map(|(c, ((((vx, vy), z), aab), zmin))| task(c, [vx, vy, z], Some(aab), zmin, None))
                     .reduce(|| RowStats::EMPTY, RowStats::merge)
             };
             if stats.flags & 1 != 0 {
@@ -650,12 +574,18 @@ impl PreparedLayer {
             write = (true, true);
         };
         let (pyramid, oriented) = if use_ob {
-            (MotionPyramid::from_level1(w, h, ob, obd, zmin, grad), aab)
+            (MotionPyramid::from_level1(w, h, ob, obd, zmin), aab)
         } else {
-            (MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin, grad), obd)
+            (MotionPyramid::from_level1(w, h, BoundFrame::IDENTITY, aab, zmin), obd)
         };
+        // The gradient mipmap serves the first layer's one-seed tiles only: the layers behind
+        // it go without, and it is computed where the warp looks it up.
+        let gradient = earlier.is_empty().then(|| {
+            let levels = pyramid.raw().2.collect();
+            GradientMip::new(w, h, levels, gradient)
+        });
         let surfaces = SurfaceMotion { lo: stats.surf_lo, hi: stats.surf_hi, all_finite: stats.flags & 4 == 0 };
-        Ok(PreparedLayer { w, h, planes: SamplePlanes { vx, vy, z }, pyramid, bound, oriented, surfaces })
+        Ok(PreparedLayer { w, h, planes: SamplePlanes { vx, vy, z }, pyramid, gradient, bound, oriented, surfaces })
     }
 
     /// Image size.
@@ -665,8 +595,8 @@ impl PreparedLayer {
     /// The large buffers, for [`Self::prepare_stack_recycling`].
     fn into_spare(self) -> Spare {
         let hint = Some(!self.pyramid.frame().is_identity());
-        let (level1, zmin, grad) = self.pyramid.into_buffers();
-        Spare { planes: self.planes, level1, oriented: self.oriented, zmin, grad, hint }
+        let (level1, zmin) = self.pyramid.into_buffers();
+        Spare { planes: self.planes, level1, oriented: self.oriented, zmin, gradient: self.gradient, hint }
     }
     /// The motion range of the layer's surfaces (see [`SurfaceMotion`]).
     pub fn surfaces(&self) -> SurfaceMotion {
@@ -675,6 +605,50 @@ impl PreparedLayer {
     /// The layer's motion mipmap.
     pub fn pyramid(&self) -> &MotionPyramid {
         &self.pyramid
+    }
+
+    /// Component-wise largest [`crate::gradient::cell_gradient`] over the cells a fetch at any
+    /// point of the inclusive pixel range can interpolate (the texels of [`MotionPyramid::level_for_range`]
+    /// that cover it, as [`MotionPyramid::lookup_min_depth`] reads them); `+inf` for the layers
+    /// after the first of [`Self::prepare_stack`], which have no gradient mipmap (the warp
+    /// shortcuts only the first layer's seeds).
+    pub fn lookup_gradient(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> [f32; 2] {
+        let Some(grad) = &self.gradient else { return [f32::INFINITY; 2] };
+        let level = self.pyramid.level_for_range(ix0, iy0, ix1, iy1);
+        let (lw, lh) = self.pyramid.level_size(level);
+        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(lw - 1));
+        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(lh - 1));
+        let mut g = [f32::NEG_INFINITY; 2];
+        for ty in ty0..=ty1 {
+            for tx in tx0..=tx1 {
+                let t = grad.texel(&self.planes, level, tx, ty);
+                g = [fmax(g[0], t[0]), fmax(g[1], t[1])];
+            }
+        }
+        g
+    }
+
+    /// `true` if every target position of the box `p_lo..=p_hi` has at most one solution in its
+    /// search region under motion bound `b` (frame coordinates), and a walk from a seed in that
+    /// region that converges finds it, for the warp of `scale * v` (`WarpParams::motion_scale`):
+    /// every cell the region's fetches read is continuous in depth and
+    /// `sx^2 max|dvx/dq|^2 + sy^2 max|dvy/dq|^2 < 1/2` ([`crate::gradient::cell_gradient`]).
+    /// That bounds the Frobenius, hence the spectral, norm of the Jacobian of `scale * v` below `1/sqrt(2)`, so
+    /// `q -> p - scale v(q)` is a contraction on the region, which it maps into itself (every
+    /// motion there lies in `b`): Banach's theorem leaves exactly one fixed point, and N seeds
+    /// would all find the surface that one seed finds (seed 000 Sec. 3.2's seeds exist for
+    /// regions with several solutions). It also keeps every cell's motion range below
+    /// [`crate::sampling::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
+    /// component), so the adaptive fetch interpolates them all. `false` on the layers after the
+    /// first of a stack.
+    pub fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, b: &Bound, scale: Vec2) -> bool {
+        let (c_lo, c_hi) = self.pyramid.frame_box(p_lo, p_hi);
+        let region = Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
+        let Some((x0, y0, x1, y1)) = self.pyramid.pixel_range(&region, Sampling::Adaptive.footprint()) else {
+            return false;
+        };
+        let [gx, gy] = self.lookup_gradient(x0, y0, x1, y1);
+        scale.x * scale.x * gx + scale.y * scale.y * gy < UNIQUE_GRADIENT
     }
     /// The bound kind the mipmap was built for.
     pub fn bound_kind(&self) -> BoundKind {

@@ -531,7 +531,7 @@ fn multisample_matches_cpu_bit_for_bit() {
     assert!(gpu.contains("divisible by 2"), "{gpu}");
 }
 
-/// Tiles whose region holds one solution (`MotionPyramid::unique_solution`: a walk toward a wall
+/// Tiles whose region holds one solution (`PreparedLayer::unique_solution`: a walk toward a wall
 /// past a box, `synth::approach_field`) take one seed at the centre of the region under the
 /// tile's bound on the GPU as on the CPU: bit for bit, for N = 4 and 16, axis-aligned and
 /// oriented bounds, and motion scales (the gradient test scales with them).

@@ -106,7 +106,7 @@ fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
     }
 }
 
-/// Tiles whose region holds one solution (`MotionPyramid::unique_solution`: a walk toward a wall
+/// Tiles whose region holds one solution (`PreparedLayer::unique_solution`: a walk toward a wall
 /// past a box, `synth::approach_field`) take one seed per lane; the AVX2 gradient texels and
 /// the lanes' one-seed pass equal the portable ones, with the box's tiles on the complete path.
 #[test]

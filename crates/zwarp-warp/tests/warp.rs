@@ -846,7 +846,7 @@ fn a_ground_layer_seen_through_a_disocclusion_in_front_of_a_far_surface_is_hidde
 /// A camera walking toward a tilted wall past a box (`synth::approach_field`): the wall's motion
 /// expands about the image centre by `s`, so its tiles' bounds span more than a pixel, but the
 /// field is a contraction there (`2 s^2 < 1/2`): tiles whose region holds only wall
-/// (`MotionPyramid::unique_solution` of the tile's bound) take one seed at the centre of the
+/// (`PreparedLayer::unique_solution` of the tile's bound) take one seed at the centre of the
 /// region under the tile's bound. Their pixels do not depend on N (they did with per-pixel
 /// seeds), converge wherever the wall's solution lies in the image, and solve `q + v(q) = p` to
 /// the threshold.
@@ -874,7 +874,7 @@ fn a_contracting_field_takes_one_seed_whatever_n() {
                 (Vec2::new(x0 as f32 + 0.5, y0 as f32 + 0.5), Vec2::new(x0 as f32 + 3.5, y0 as f32 + 3.5));
             let tile = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), params.bound_iterations, 0.5).unwrap().motion;
             let e = tile.extent();
-            if (e.x <= 1.0 && e.y <= 1.0) || !pyr.unique_solution(p_lo, p_hi, &tile, Vec2::ONE) {
+            if (e.x <= 1.0 && e.y <= 1.0) || !prepared[0].unique_solution(p_lo, p_hi, &tile, Vec2::ONE) {
                 continue;
             }
             unique += 1;

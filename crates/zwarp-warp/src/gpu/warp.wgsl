@@ -318,7 +318,7 @@ fn lookup_range(k: u32, r: vec4<u32>) -> vec4<f32> {
     return b;
 }
 
-// MotionPyramid::lookup_min_depth (.x) and MotionPyramid::lookup_gradient (.yz): the min-depth
+// MotionPyramid::lookup_min_depth (.x) and PreparedLayer::lookup_gradient (.yz): the min-depth
 // texels the range touches at its level, reduced by min and max.
 fn lookup_zmin(k: u32, r: vec4<u32>) -> vec3<f32> {
     let l = level_for_range(r);
@@ -389,7 +389,7 @@ fn frame_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>) -> vec4<f32> {
 }
 
 // Kernel::unique_solution for layer 0's tile bound b over [p_lo, p_hi]
-// (MotionPyramid::unique_solution): a bound wider than a pixel, stratified seeds, the adaptive
+// (PreparedLayer::unique_solution): a bound wider than a pixel, stratified seeds, the adaptive
 // fetch, and the scaled motion a contraction on the box's region.
 fn unique_solution(p_lo: vec2<f32>, p_hi: vec2<f32>, b: vec4<f32>) -> bool {
     let e = b.zw - b.xy;
