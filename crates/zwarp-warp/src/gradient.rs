@@ -270,31 +270,12 @@ impl GradientMip {
         let ninf = _mm256_castpd_ps(ninf);
         // Cells of rows (r0, r1) at columns x..x + 8, as [gx, gy] pairs: texel pairs 0-3 and 4-7.
         let cells = |r0: usize, r1: usize, x: usize| -> (__m256, __m256) {
-            let ld = |p: &[f32], r: usize, dx: usize| _mm256_loadu_ps(p.as_ptr().add(r * w + x + dx));
-            let (za, zb, zc, zd) =
-                (ld(&planes.z, r0, 0), ld(&planes.z, r0, 1), ld(&planes.z, r1, 0), ld(&planes.z, r1, 1));
-            let one = _mm256_set1_ps(1.0);
-            let z_lo = _mm256_min_ps(_mm256_min_ps(za, zb), _mm256_min_ps(zc, zd));
-            let z_hi = _mm256_max_ps(_mm256_max_ps(za, zb), _mm256_max_ps(zc, zd));
-            let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
-                _mm256_sub_ps(z_hi, z_lo),
-                _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
-            );
-            let sign = _mm256_set1_ps(-0.0);
-            let g = |p: &[f32]| {
-                let (a, b, c, d) = (ld(p, r0, 0), ld(p, r0, 1), ld(p, r1, 0), ld(p, r1, 1));
-                let abs = |v: __m256| _mm256_andnot_ps(sign, v);
-                let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
-                let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
-                _mm256_blendv_ps(
-                    _mm256_set1_ps(f32::INFINITY),
-                    _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
-                    cont,
-                )
+            let ld = |p: &[f32]| {
+                let at = |r: usize, dx: usize| _mm256_loadu_ps(p.as_ptr().add(r * w + x + dx));
+                [at(r0, 0), at(r0, 1), at(r1, 0), at(r1, 1)]
             };
-            let (gx, gy) = (g(&planes.vx), g(&planes.vy));
-            let (lo, hi) = (_mm256_unpacklo_ps(gx, gy), _mm256_unpackhi_ps(gx, gy));
-            (_mm256_permute2f128_ps::<0x20>(lo, hi), _mm256_permute2f128_ps::<0x31>(lo, hi))
+            let [a, b] = interleave(cell_lanes(ld(&planes.vx), ld(&planes.vy), ld(&planes.z)));
+            (a, b)
         };
         // Largest of adjacent [gx, gy] pairs (0, 1), (2, 3): the even pairs hold it.
         let pairs = |v: __m256| _mm256_max_ps(v, _mm256_castpd_ps(_mm256_permute_pd::<0b0101>(_mm256_castps_pd(v))));
@@ -413,38 +394,59 @@ fn cell_row(planes: &SamplePlanes, w: usize, h: usize, y: usize, x0: usize, out:
 unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f32; 2]]) -> usize {
     use std::arch::x86_64::*;
     let n8 = out.len() / 8 * 8;
-    let sign = _mm256_set1_ps(-0.0);
-    let (one, inf) = (_mm256_set1_ps(1.0), _mm256_set1_ps(f32::INFINITY));
     for i in (0..n8).step_by(8) {
-        let load = |s: &[&[f32]; 4]| {
-            [
-                _mm256_loadu_ps(s[0].as_ptr().add(i)),
-                _mm256_loadu_ps(s[1].as_ptr().add(i)),
-                _mm256_loadu_ps(s[2].as_ptr().add(i)),
-                _mm256_loadu_ps(s[3].as_ptr().add(i)),
-            ]
-        };
-        let [a, b, c, d] = load(&z);
-        let z_lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
-        let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
-        let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
-            _mm256_sub_ps(z_hi, z_lo),
-            _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
-        );
-        let row = |[a, b, c, d]: [__m256; 4]| {
-            let abs = |v: __m256| _mm256_andnot_ps(sign, v);
-            let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
-            let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
-            _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
-        };
-        let (gx, gy) = (row(load(&vx)), row(load(&vy)));
-        // Interleave into [gx, gy] pairs: lanes 0-3 and 4-7 of each.
-        let (lo, hi) = (_mm256_unpacklo_ps(gx, gy), _mm256_unpackhi_ps(gx, gy));
+        let load = |s: &[&[f32]; 4]| s.map(|s| _mm256_loadu_ps(s.as_ptr().add(i)));
+        let [lo, hi] = interleave(cell_lanes(load(&vx), load(&vy), load(&z)));
         let p = out.as_mut_ptr().add(i) as *mut f32;
-        _mm256_storeu_ps(p, _mm256_permute2f128_ps::<0x20>(lo, hi));
-        _mm256_storeu_ps(p.add(8), _mm256_permute2f128_ps::<0x31>(lo, hi));
+        _mm256_storeu_ps(p, lo);
+        _mm256_storeu_ps(p.add(8), hi);
     }
     n8
+}
+
+/// Eight cells' `(gx, gy)` as `[gx, gy]` pairs in cell order: cells 0-3, cells 4-7.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn interleave(
+    (gx, gy): (std::arch::x86_64::__m256, std::arch::x86_64::__m256),
+) -> [std::arch::x86_64::__m256; 2] {
+    use std::arch::x86_64::*;
+    let (lo, hi) = (_mm256_unpacklo_ps(gx, gy), _mm256_unpackhi_ps(gx, gy));
+    [_mm256_permute2f128_ps::<0x20>(lo, hi), _mm256_permute2f128_ps::<0x31>(lo, hi)]
+}
+
+/// [`cell_gradient`] of eight cells, given per plane their texels `a b / c d` (bit-identical:
+/// compare-select min / max, no FMA, the same order of sums): `(gx, gy)`.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn cell_lanes(
+    vx: [std::arch::x86_64::__m256; 4],
+    vy: [std::arch::x86_64::__m256; 4],
+    [a, b, c, d]: [std::arch::x86_64::__m256; 4],
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    let (one, inf, sign) = (_mm256_set1_ps(1.0), _mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(-0.0));
+    let z_lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
+    let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
+    let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
+        _mm256_sub_ps(z_hi, z_lo),
+        _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
+    );
+    let row = |[a, b, c, d]: [__m256; 4]| {
+        let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+        let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
+        let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
+        _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
+    };
+    (row(vx), row(vy))
 }
 
 #[cfg(test)]
