@@ -1,7 +1,10 @@
 //! Depth-warp benchmark (seed 000 Table 1/3 style) on a synthetic 1920x1080 city: ground plus
 //! 6x6 boxes ray cast analytically, peeled into 3 layers (the last = ground only), camera
 //! motion through `zwarp_core::motion_field`. Measures the backward warp for N in {1, 4, 16}
-//! and L in {1, 3}, the motion mipmap construction (MMC, part of the preparation, timed as an
+//! and L in {1, 3} on one preparation (as many warps of one source share it: the first
+//! layer's gradient texels, computed where the first warp looks them up, are then warm), the
+//! warp of a fresh preparation every frame (`frame_L*`: preparation and warp, the per-frame
+//! cost of a prediction without its hole protocol), the motion mipmap construction (MMC, part of the preparation, timed as an
 //! engine runs it: `PreparedLayer::prepare_stack_recycling` into last frame's buffers), the
 //! motion field itself (AVX2 and portable builds), the
 //! VFW / AFW forward baselines side by side, the AVX2 builds of the walks and of VFW beside
@@ -137,6 +140,17 @@ fn main() {
                     b.iter(|| warp_prepared_into(&prepared, &params, &mut out).unwrap())
                 });
             }
+            // A frame of an engine: last frame's preparation recycled for this frame's layers, and
+            // the warp on it (the gradient texels it asks for computed anew).
+            let params = WarpParams { n_seeds: 4, ..Default::default() };
+            let mut rec = Vec::new();
+            g.bench_with_input(BenchmarkId::new(format!("frame_L{l}"), 4), &4, |b, _| {
+                b.iter(|| {
+                    rec = PreparedLayer::prepare_stack_recycling(&ls, BoundKind::Oriented, std::mem::take(&mut rec))
+                        .unwrap();
+                    warp_prepared_into(&rec, &params, &mut out).unwrap()
+                })
+            });
             // The AVX2 builds of the walks and of VFW beside the AVX-512-enabled ones (where the
             // CPU has AVX-512; elsewhere both rows time the AVX2 build).
             let params = WarpParams { n_seeds: 16, ..Default::default() };
