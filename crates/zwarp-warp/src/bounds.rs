@@ -495,14 +495,22 @@ impl MotionPyramid {
         b
     }
 
+    /// The level [`Self::level_for_range`] picks for an inclusive pixel range and the texels
+    /// `[tx0, ty0, tx1, ty1]` (inclusive) the range touches there: what the look-ups of the
+    /// min-depth and gradient mipmaps (same layout) read.
+    #[inline]
+    pub(crate) fn texels_of_range(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> (u32, [u32; 4]) {
+        let level = self.level_for_range(ix0, iy0, ix1, iy1);
+        let l = &self.levels[(level - 1) as usize];
+        (level, [ix0 >> level, iy0 >> level, (ix1 >> level).min(l.w - 1), (iy1 >> level).min(l.h - 1)])
+    }
+
     /// Minimal target depth of the valid samples over the inclusive pixel range (same four
     /// corner look-ups as [`Self::lookup_range`]); `+inf` if none.
     #[inline]
     pub fn lookup_min_depth(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> f32 {
-        let level = self.level_for_range(ix0, iy0, ix1, iy1);
+        let (level, [tx0, ty0, tx1, ty1]) = self.texels_of_range(ix0, iy0, ix1, iy1);
         let l = &self.levels[(level - 1) as usize];
-        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(l.w - 1));
-        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(l.h - 1));
         let mut z = f32::INFINITY;
         crate::stats::count(crate::stats::Counter::DepthTexels, ((tx1 - tx0 + 1) * (ty1 - ty0 + 1)) as u64);
         for ty in ty0..=ty1 {

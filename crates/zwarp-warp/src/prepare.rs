@@ -614,10 +614,7 @@ impl PreparedLayer {
     /// shortcuts only the first layer's seeds).
     pub fn lookup_gradient(&self, ix0: u32, iy0: u32, ix1: u32, iy1: u32) -> [f32; 2] {
         let Some(grad) = &self.gradient else { return [f32::INFINITY; 2] };
-        let level = self.pyramid.level_for_range(ix0, iy0, ix1, iy1);
-        let (lw, lh) = self.pyramid.level_size(level);
-        let (tx0, tx1) = (ix0 >> level, (ix1 >> level).min(lw - 1));
-        let (ty0, ty1) = (iy0 >> level, (iy1 >> level).min(lh - 1));
+        let (level, [tx0, ty0, tx1, ty1]) = self.pyramid.texels_of_range(ix0, iy0, ix1, iy1);
         let mut g = [f32::NEG_INFINITY; 2];
         for ty in ty0..=ty1 {
             for tx in tx0..=tx1 {
