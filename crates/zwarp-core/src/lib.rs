@@ -31,7 +31,7 @@ pub use image::Image;
 pub use material::{linear_to_srgb, srgb_to_linear, ColorMap, Material, MeshPart, Texture, Wrap, DEFAULT_MATERIAL};
 pub use motion::{
     check_motion_inputs, motion_field, motion_field_into, motion_field_with, motion_field_with_into,
-    motion_planes_into, Motion,
+    motion_planes_into, Motion, ParallaxMotion,
 };
 pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
 pub use simd::SimdSwitch;

@@ -21,6 +21,65 @@ pub struct Motion {
     pub depth: f32,
 }
 
+/// A motion field that is a function of the stored depth alone: a view moved within its image
+/// plane (the sample eyes of an area light's rig, seed 000 Sec. 6; a lateral stereo offset)
+/// moves the point at linear view depth `z` by `shift * g(z)` pixels, `g(z) = 1 / z` for a
+/// translated perspective eye and `g(z) = z - pivot` for a directional light's shear about the
+/// pivot depth; every point keeps its stored depth (each such view measures the same view
+/// depth). Empty pixels (`d >= 1`) do not move and keep the empty depth.
+///
+/// [`ParallaxMotion::motion`] is the field's value: what `motion_field` computes between the
+/// two cameras up to rounding, at a multiply-add per texel. The warp's preparation evaluates it
+/// in its own pass (`zwarp_warp::PreparedLayer::new_parallax`) instead of reading a buffer of
+/// it, bit for bit the same samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParallaxMotion {
+    /// The pixel shift of a point at `g(z) = 1`.
+    pub shift: Vec2,
+    /// Near and far plane distances of the view (its stored depth -> linear depth).
+    pub near: f32,
+    /// See `near`.
+    pub far: f32,
+    /// `true` for a perspective view (`Camera::linear_depth`'s two projections).
+    pub perspective: bool,
+    /// `None`: `g(z) = 1 / z`; `Some(z0)`: `g(z) = z - z0`.
+    pub pivot: Option<f32>,
+}
+
+impl ParallaxMotion {
+    /// The field of `camera`'s view (its near / far / projection) for `shift` and `pivot`.
+    pub fn of_camera(camera: &Camera, shift: Vec2, pivot: Option<f32>) -> Self {
+        let perspective = matches!(camera.projection, crate::Projection::Perspective { .. });
+        ParallaxMotion { shift, near: camera.near, far: camera.far, perspective, pivot }
+    }
+
+    /// Linear view depth of stored depth `d` (`Camera::linear_depth`, the same operations).
+    #[inline]
+    pub fn linear_depth(&self, d: f32) -> f32 {
+        let (n, f) = (self.near, self.far);
+        if self.perspective {
+            f * n / (f - d * (f - n))
+        } else {
+            n + d * (f - n)
+        }
+    }
+
+    /// The motion sample of a pixel with stored depth `d`.
+    #[inline]
+    pub fn motion(&self, d: f32) -> Motion {
+        if d < crate::EMPTY_DEPTH {
+            let z = self.linear_depth(d);
+            let g = match self.pivot {
+                None => 1.0 / z,
+                Some(z0) => z - z0,
+            };
+            Motion { v: self.shift * g, depth: d }
+        } else {
+            Motion { v: Vec2::ZERO, depth: crate::EMPTY_DEPTH }
+        }
+    }
+}
+
 /// Reprojects source pixel centre `(x + 0.5, y + 0.5)` with stored depth `d` to the target:
 /// returns the [`Motion`] sample. `inv_a` = inverse view-projection of the source camera,
 /// `m` = `VP_b * object_delta`. Empty pixels (`d >= 1`) are treated as points on the source far

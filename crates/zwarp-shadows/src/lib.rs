@@ -290,8 +290,9 @@ pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> Pee
 /// view ([`light`]), that field is exactly linear in the emitter offset: `v_i(q) = K_i g(q)`.
 /// With [`ShadowParams::parallax_motion`] (default) the field towards a reference offset `o_ref`
 /// is computed **once per layer** — in closed form with the shared mipmap
-/// ([`LightRig::parallax_field`]: `K_ref g(z)` from the stored depth, no unproject + project),
-/// else with `motion_field` — and each sample's field is that field scaled per axis by
+/// ([`LightRig::parallax`]: `K_ref g(z)` from the stored depth, no unproject + project,
+/// evaluated inside the preparation's pass by `PreparedLayer::new_parallax`, so no motion
+/// buffer is written), else with `motion_field` — and each sample's field is that field scaled per axis by
 /// `K_i / K_ref`; without it, `motion_field` runs per layer and sample. A test checks they
 /// agree to 1e-3 px.
 ///
@@ -307,7 +308,8 @@ pub fn peel_options(scene: &Scene, rig: &LightRig, params: &ShadowParams) -> Pee
 pub struct ZwarpMaps<'a> {
     rig: &'a LightRig,
     layers: Vec<Layer>,
-    /// Per layer: motion to the reference offset camera (parallax mode, shared mipmap).
+    /// Per layer: motion to the reference offset camera (parallax mode without the shared
+    /// mipmap; empty otherwise).
     reference: Vec<Image<Motion>>,
     /// Per layer: the reference field prepared once (shared mipmap), else empty.
     shared: Vec<PreparedLayer>,
@@ -351,30 +353,34 @@ impl<'a> ZwarpMaps<'a> {
             warp_ms: 0.0,
         };
         if params.parallax_motion || params.shared_mipmap {
-            let t0 = Instant::now();
             let m = rig.max_offset();
             let (cam_ref, k_ref) = rig.offset_camera(Vec2::splat(if m > 0.0 { m } else { 1.0 }));
-            maps.reference = if params.shared_mipmap {
-                maps.layers.iter().map(|l| rig.parallax_field(&l.depth, k_ref)).collect::<Result<Vec<_>>>()?
+            maps.k_ref = k_ref;
+            if params.shared_mipmap {
+                // The reference field is the rig's parallax, a function of the depth alone: the
+                // preparation evaluates it in its pass, no motion buffer is written (its time is
+                // in `mipmap_ms`).
+                let t0 = Instant::now();
+                let field = rig.parallax(k_ref);
+                maps.shared = maps
+                    .layers
+                    .iter()
+                    .map(|l| {
+                        rig.check_map(&l.depth)?;
+                        PreparedLayer::new_parallax(&l.depth, &field, BoundKind::Tight)
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                maps.mipmap_ms += ms_since(t0);
             } else {
                 // The path before the shared mipmap, kept as it was measured: motion_field.
-                maps.layers
+                let t0 = Instant::now();
+                maps.reference = maps
+                    .layers
                     .iter()
                     .map(|l| zwarp_core::motion_field(&l.depth, Some(&l.items), &rig.center, &cam_ref, &[]))
-                    .collect::<Result<Vec<_>>>()?
-            };
-            maps.k_ref = k_ref;
-            maps.motion_ms += ms_since(t0);
-        }
-        if params.shared_mipmap {
-            let t0 = Instant::now();
-            maps.shared = maps
-                .layers
-                .iter()
-                .zip(&maps.reference)
-                .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, BoundKind::Tight))
-                .collect::<Result<Vec<_>>>()?;
-            maps.mipmap_ms += ms_since(t0);
+                    .collect::<Result<Vec<_>>>()?;
+                maps.motion_ms += ms_since(t0);
+            }
         }
         Ok(maps)
     }
@@ -384,10 +390,12 @@ impl<'a> ZwarpMaps<'a> {
         &self.layers
     }
 
-    /// Motion buffers of every layer to sample view `i` (see the type docs).
+    /// Motion buffers of every layer to sample view `i` (see the type docs): the reference
+    /// field scaled by `K_i / K_ref` (with the shared mipmap the rig's parallax field, built
+    /// here), or `motion_field` to the sample's camera.
     pub fn motions(&self, i: usize) -> Result<Vec<Image<Motion>>> {
         let cam = self.rig.cameras.get(i).ok_or_else(|| Error::invalid(format!("no light sample {i}")))?;
-        if self.reference.is_empty() {
+        if self.reference.is_empty() && !self.shares_mipmap() {
             return self
                 .layers
                 .iter()
@@ -395,14 +403,14 @@ impl<'a> ZwarpMaps<'a> {
                 .collect();
         }
         let ratio = self.rig.shifts[i] / self.k_ref;
-        self.reference
-            .iter()
-            .map(|m| {
-                let data: Vec<Motion> =
-                    m.data().par_iter().map(|s| Motion { v: s.v * ratio, depth: s.depth }).collect();
-                Image::from_vec(m.width(), m.height(), data)
-            })
-            .collect()
+        let scaled = |m: &Image<Motion>| {
+            let data: Vec<Motion> = m.data().par_iter().map(|s| Motion { v: s.v * ratio, depth: s.depth }).collect();
+            Image::from_vec(m.width(), m.height(), data)
+        };
+        if self.shares_mipmap() {
+            return self.layers.iter().map(|l| scaled(&self.rig.parallax_field(&l.depth, self.k_ref)?)).collect();
+        }
+        self.reference.iter().map(scaled).collect()
     }
 
     /// The layers of sample view `i` ready to warp: its motion buffers ([`ZwarpMaps::motions`])

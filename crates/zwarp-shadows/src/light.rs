@@ -20,7 +20,9 @@ use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
-use zwarp_core::{Aabb, AreaLight, Camera, Error, Image, LightShape, Motion, Projection, Result, Scene, EMPTY_DEPTH};
+use zwarp_core::{
+    Aabb, AreaLight, Camera, Error, Image, LightShape, Motion, ParallaxMotion, Projection, Result, Scene,
+};
 use zwarp_raster::{UmbraPeeling, ViewRegion};
 
 /// Largest number of light samples S accepted (memory and time guard).
@@ -367,7 +369,7 @@ impl LightRig {
     }
 
     /// The depth parameter `g` of the per-sample shift for a point at linear view depth `z`:
-    /// `1/z` for local lights, `z - z_0` for directional ones.
+    /// `1/z` for local lights, `z - z_0` for directional ones ([`ParallaxMotion`]'s `g`).
     #[inline]
     pub fn depth_param(&self, z: f32) -> f32 {
         if self.light.directional {
@@ -377,15 +379,54 @@ impl LightRig {
         }
     }
 
+    /// The rig's pure parallax towards the emitter point whose pixel shift is `k` (seed 000,
+    /// Sec. 3.1 motion, specialised to the rig): `v = k g(z)` with `z` the linear depth of the
+    /// centre map's stored depth, `g(z) = 1/z` for local lights and `z - z_0` for directional
+    /// ones, every sample map measuring the same view depth.
+    pub fn parallax(&self, k: Vec2) -> ParallaxMotion {
+        ParallaxMotion::of_camera(&self.center, k, self.light.directional.then_some(self.pivot))
+    }
+
     /// The motion field of a centre-map layer towards the emitter point whose pixel shift is
-    /// `k` (seed 000, Sec. 3.1 motion, specialised to the rig's pure parallax): `v = k g(z)`
-    /// with `z` the linear depth of the stored depth `d` ([`LightRig::depth_param`]), and the
-    /// target depth `d` itself — every sample map measures the same view depth. Empty texels
-    /// (`d >= 1`) get zero motion and the empty depth. What `zwarp_core::motion_field` computes
-    /// between the two cameras up to rounding, at a multiply-add per texel.
+    /// `k` ([`LightRig::parallax`] per texel): what `zwarp_core::motion_field` computes between
+    /// the two cameras up to rounding, at a multiply-add per texel. Empty texels (`d >= 1`) get
+    /// zero motion and the empty depth.
     ///
-    /// Errors: a map of another size than the rig's, or NaN depths.
+    /// Errors: a map of another size than the rig's, a non-finite shift or NaN depths.
     pub fn parallax_field(&self, depth: &Image<f32>, k: Vec2) -> Result<Image<Motion>> {
+        self.check_map(depth)?;
+        if !k.is_finite() {
+            return Err(Error::invalid(format!("parallax shift must be finite, got {k}")));
+        }
+        // One parallel pass writes the field into a huge-page-advised buffer (a 2048^2 map's
+        // field is 48 MB: fresh 4 KiB pages made faulting it in cost more than computing it)
+        // and finds NaN depths on the way.
+        const CHUNK: usize = 1 << 14;
+        let field = self.parallax(k);
+        let src = depth.data();
+        let mut data = zwarp_core::pages::uninit::<Motion>(src.len());
+        let nan = data.spare_capacity_mut()[..src.len()]
+            .par_chunks_mut(CHUNK)
+            .zip(src.par_chunks(CHUNK))
+            .map(|(out, d)| {
+                let mut nan = false;
+                for (o, &d) in out.iter_mut().zip(d) {
+                    nan |= d.is_nan();
+                    o.write(field.motion(d));
+                }
+                nan
+            })
+            .reduce(|| false, |a, b| a | b);
+        // SAFETY: every element of the first `src.len()` was written above.
+        unsafe { data.set_len(src.len()) };
+        if nan {
+            return Err(Error::invalid("layer depth holds NaN values"));
+        }
+        Image::from_vec(depth.width(), depth.height(), data)
+    }
+
+    /// Errors unless `depth` has the size of the rig's maps.
+    pub fn check_map(&self, depth: &Image<f32>) -> Result<()> {
         if depth.size() != (self.center.width, self.center.height) {
             return Err(Error::invalid(format!(
                 "layer is {}x{} but the light maps are {}x{}",
@@ -395,24 +436,7 @@ impl LightRig {
                 self.center.height
             )));
         }
-        if !k.is_finite() {
-            return Err(Error::invalid(format!("parallax shift must be finite, got {k}")));
-        }
-        if depth.data().iter().any(|d| d.is_nan()) {
-            return Err(Error::invalid("layer depth holds NaN values"));
-        }
-        let data = depth
-            .data()
-            .par_iter()
-            .map(|&d| {
-                if d < EMPTY_DEPTH {
-                    Motion { v: k * self.depth_param(self.center.linear_depth(d)), depth: d }
-                } else {
-                    Motion { v: Vec2::ZERO, depth: EMPTY_DEPTH }
-                }
-            })
-            .collect();
-        Image::from_vec(depth.width(), depth.height(), data)
+        Ok(())
     }
 
     /// World size of one shadow-map texel at linear depth `z` (the bias and PCSS unit).

@@ -11,7 +11,7 @@
 
 use glam::Vec2;
 use rayon::prelude::*;
-use zwarp_core::{Error, Motion, Result, EMPTY_DEPTH};
+use zwarp_core::{Error, Image, Motion, ParallaxMotion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid};
 use crate::gradient::{GradientMip, UNIQUE_GRADIENT};
@@ -62,11 +62,30 @@ impl RowStats {
 /// bound is wanted (the oriented frame is a candidate).
 pub(crate) struct RowInput<'a> {
     pub depth: &'a [f32],
-    pub motion: &'a [Motion],
+    pub motion: MotionIn<'a>,
     pub earlier: &'a [&'a [f32]],
     pub w: usize,
     pub frame: BoundFrame,
     pub with_ob: bool,
+}
+
+/// Where a layer's motion comes from: a buffer, or a field of the depth alone evaluated in the
+/// pass ([`PreparedLayer::new_parallax`]).
+#[derive(Clone, Copy)]
+pub(crate) enum MotionIn<'a> {
+    Buffer(&'a [Motion]),
+    Parallax(ParallaxMotion),
+}
+
+impl MotionIn<'_> {
+    /// The motion of pixel `i`, whose source depth is `d`.
+    #[inline(always)]
+    fn at(&self, i: usize, d: f32) -> Motion {
+        match self {
+            MotionIn::Buffer(m) => m[i],
+            MotionIn::Parallax(p) => p.motion(d),
+        }
+    }
 }
 
 /// Outputs of one level-1 row `ty`: the two image rows of samples, the axis-aligned texels and
@@ -122,7 +141,8 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
     for dy in 0..rows {
         let base = (2 * ty + dy) * w;
         for x in xs..w {
-            let (d, m) = (input.depth[base + x], input.motion[base + x]);
+            let d = input.depth[base + x];
+            let m = input.motion.at(base + x, d);
             let finite_v = m.v.x.is_finite() & m.v.y.is_finite();
             flags |= (!d.is_finite()) as u8
                 | ((m.v.x.is_nan() | m.v.y.is_nan() | m.depth.is_nan()) as u8) << 1
@@ -184,6 +204,32 @@ mod avx2 {
         _mm256_max_ps(a, b)
     }
 
+    /// [`ParallaxMotion::motion`] of eight source depths `d` as (x, y, depth) planes: the same
+    /// operations in the same order.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn parallax8(p: &ParallaxMotion, d: __m256) -> (__m256, __m256, __m256) {
+        let (n, f) = (p.near, p.far);
+        let one = _mm256_set1_ps(EMPTY_DEPTH);
+        let surface = _mm256_cmp_ps::<_CMP_LT_OQ>(d, one);
+        let step = _mm256_mul_ps(d, _mm256_set1_ps(f - n));
+        let z = if p.perspective {
+            _mm256_div_ps(_mm256_set1_ps(f * n), _mm256_sub_ps(_mm256_set1_ps(f), step))
+        } else {
+            _mm256_add_ps(_mm256_set1_ps(n), step)
+        };
+        let g = match p.pivot {
+            None => _mm256_div_ps(_mm256_set1_ps(1.0), z),
+            Some(z0) => _mm256_sub_ps(z, _mm256_set1_ps(z0)),
+        };
+        let zero = _mm256_setzero_ps();
+        (
+            _mm256_blendv_ps(zero, _mm256_mul_ps(_mm256_set1_ps(p.shift.x), g), surface),
+            _mm256_blendv_ps(zero, _mm256_mul_ps(_mm256_set1_ps(p.shift.y), g), surface),
+            _mm256_blendv_ps(one, d, surface),
+        )
+    }
+
     /// One image row's eight pixels: the texel contributions (lx, ly, hx, hy, z) of the
     /// axis-aligned and oriented frames, the plane values written, the flags and surface range.
     struct Px {
@@ -226,7 +272,10 @@ mod avx2 {
          -> Px {
             let i = (2 * ty + dy) * w + x;
             let d = _mm256_loadu_ps(input.depth.as_ptr().add(i));
-            let (mx, my, mz) = crate::simd::avx2::load_motion8(input.motion.as_ptr().add(i));
+            let (mx, my, mz) = match input.motion {
+                MotionIn::Buffer(m) => crate::simd::avx2::load_motion8(m.as_ptr().add(i)),
+                MotionIn::Parallax(p) => parallax8(&p, d),
+            };
             let fin = |v: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_and_ps(v, absmask), inf);
             let finite_v = _mm256_and_ps(fin(mx), fin(my));
             *flag_bad_d = _mm256_or_ps(*flag_bad_d, _mm256_cmp_ps::<_CMP_NLT_UQ>(_mm256_and_ps(d, absmask), inf));
@@ -426,7 +475,21 @@ impl PreparedLayer {
     /// smaller). A sample is valid iff its source depth is `< 1`, its target depth is in
     /// `[0, 1)` and its motion is finite (see [`crate::bounds`]).
     pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
-        Self::prepare(layer, &[], bound, Spare::default())
+        layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+        Self::prepare(layer.depth, MotionIn::Buffer(layer.motion.data()), &[], bound, Spare::default())
+    }
+
+    /// [`Self::new`] for a layer whose motion is a field of its depth alone (`motion`, e.g. a
+    /// light rig's parallax, seed 000 Sec. 6): the field is evaluated in the preparation's own
+    /// pass instead of being read from a buffer, so no motion buffer is written or read. The
+    /// result equals `Self::new` on the buffer of `motion.motion(d)` per pixel, bit for bit.
+    /// Errors: an empty depth buffer, NaN or infinite depths, a non-finite shift or planes.
+    pub fn new_parallax(depth: &Image<f32>, motion: &ParallaxMotion, bound: BoundKind) -> Result<Self> {
+        let finite = [motion.near, motion.far, motion.pivot.unwrap_or(0.0)].iter().all(|v| v.is_finite());
+        if !motion.shift.is_finite() || !finite {
+            return Err(Error::invalid(format!("parallax motion must be finite, got {motion:?}")));
+        }
+        Self::prepare(depth, MotionIn::Parallax(*motion), &[], bound, Spare::default())
     }
 
     /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
@@ -465,7 +528,9 @@ impl PreparedLayer {
                 }
             }
             let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
-            out.push(Self::prepare(layer, &earlier, bound, spares.next().unwrap_or_default())?);
+            layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
+            let motion = MotionIn::Buffer(layer.motion.data());
+            out.push(Self::prepare(layer.depth, motion, &earlier, bound, spares.next().unwrap_or_default())?);
         }
         Ok(out)
     }
@@ -476,14 +541,19 @@ impl PreparedLayer {
     /// both frames ([`crate::BoundKind::Oriented`]). Only the chosen frame's texels are kept:
     /// where `spare` remembers the last choice, the pass writes that frame's texels and only
     /// the other's global bound (a choice that changes takes a second pass writing both).
-    fn prepare(layer: &WarpLayer<'_>, earlier: &[&[f32]], bound: BoundKind, spare: Spare) -> Result<Self> {
-        layer.depth.check_nonempty("layer depth")?;
-        layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
-        let (w, h) = layer.depth.size();
-        let (depth, motion) = (layer.depth.data(), layer.motion.data());
+    fn prepare(
+        depth: &Image<f32>,
+        motion: MotionIn<'_>,
+        earlier: &[&[f32]],
+        bound: BoundKind,
+        spare: Spare,
+    ) -> Result<Self> {
+        depth.check_nonempty("layer depth")?;
+        let (w, h) = depth.size();
+        let depth = depth.data();
         // A sample enters the mipmap if valid and not a repeat of an earlier layer's sample.
         let fresh = |i: usize| {
-            let (d, m) = (depth[i], &motion[i]);
+            let (d, m) = (depth[i], motion.at(i, depth[i]));
             d < EMPTY_DEPTH
                 && m.depth >= 0.0
                 && m.depth < 1.0
@@ -491,13 +561,14 @@ impl PreparedLayer {
                 && !earlier.iter().any(|e| e[i] == depth[i])
         };
         let ob = match bound {
-            BoundKind::Oriented => pca_frame_by(w, h, 64, |i| fresh(i).then_some(motion[i].v)),
+            BoundKind::Oriented => pca_frame_by(w, h, 64, |i| fresh(i).then_some(motion.at(i, depth[i]).v)),
             BoundKind::Global | BoundKind::Tight => BoundFrame::IDENTITY,
         };
         let need_ob = !ob.is_identity();
         let (wu, lw, lh) = (w as usize, w.div_ceil(2) as usize, h.div_ceil(2) as usize);
         let n = wu * h as usize;
         let Spare { planes, level1, oriented, zmin, gradient, hint } = spare;
+        // The pass writes every sample: fresh planes are not filled first.
         let mut vx = zwarp_core::pages::reuse(planes.vx, n, 0.0);
         let mut vy = zwarp_core::pages::reuse(planes.vy, n, 0.0);
         let mut z = zwarp_core::pages::reuse(planes.z, n, 0.0);

@@ -7,7 +7,7 @@
 
 use glam::{Vec2, Vec3};
 use proptest::prelude::*;
-use zwarp_core::{motion_field, Camera, Image, Motion};
+use zwarp_core::{motion_field, Camera, Image, Motion, ParallaxMotion};
 use zwarp_warp::synth::{SynthBox, SynthScene};
 use zwarp_warp::*;
 
@@ -309,6 +309,51 @@ fn recycled_preparations_equal_fresh_ones_in_both_builds() {
     simd::set_simd(true);
     assert!(builds[0] == builds[1], "the AVX2 and portable preparations differ");
     assert!(frames.contains(&true) && frames.contains(&false), "the fields must choose both frames: {frames:?}");
+}
+
+/// A preparation from a parallax field (`PreparedLayer::new_parallax`: the field evaluated in
+/// the pass) equals the preparation of the buffer of that field (`ParallaxMotion::motion` per
+/// pixel) bit for bit, in both builds: perspective and orthographic views, `1/z` and pivoted
+/// parallax, empty pixels, widths with and without an AVX2 tail, every bound kind; and both
+/// builds agree.
+#[test]
+fn parallax_preparations_equal_the_preparation_of_their_field_in_both_builds() {
+    let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
+    let mut builds = Vec::new();
+    for simd in [true, false] {
+        simd::set_simd(simd);
+        let mut seen = Vec::new();
+        for (w, h) in [(64u32, 40u32), (83, 47), (5, 3)] {
+            let depth = Image::from_fn(w, h, |x, y| {
+                if (x * 7 + y * 3) % 11 == 0 {
+                    1.0
+                } else {
+                    0.05 + 0.9 * ((x * 13 + y * 29) % 97) as f32 / 97.0
+                }
+            });
+            for (perspective, pivot) in [(true, None), (false, Some(3.5)), (true, Some(0.7)), (false, None)] {
+                let p = ParallaxMotion { shift: Vec2::new(2.5, -1.75), near: 0.3, far: 40.0, perspective, pivot };
+                let motion = Image::from_fn(w, h, |x, y| p.motion(*depth.get(x, y)));
+                for bound in [BoundKind::Tight, BoundKind::Oriented, BoundKind::Global] {
+                    let direct = PreparedLayer::new_parallax(&depth, &p, bound).unwrap();
+                    let buffered = PreparedLayer::new(&WarpLayer { depth: &depth, motion: &motion }, bound).unwrap();
+                    let a = prep_bits(std::slice::from_ref(&direct));
+                    assert!(a == prep_bits(std::slice::from_ref(&buffered)), "{w}x{h} {p:?} {bound:?} simd {simd}");
+                    seen.push(a);
+                }
+            }
+        }
+        builds.push(seen);
+    }
+    simd::set_simd(true);
+    assert!(builds[0] == builds[1], "the AVX2 and portable parallax preparations differ");
+    let depth = Image::new(8, 8, 0.5f32);
+    let bad = ParallaxMotion { shift: Vec2::new(f32::NAN, 0.0), near: 0.3, far: 40.0, perspective: true, pivot: None };
+    let e = PreparedLayer::new_parallax(&depth, &bad, BoundKind::Tight).err().expect("a NaN shift is an error");
+    assert!(e.to_string().contains("parallax motion must be finite"), "{e}");
+    let nan_depth = Image::from_fn(8, 8, |x, _| if x == 3 { f32::NAN } else { 0.5 });
+    let ok = ParallaxMotion { shift: Vec2::ONE, ..bad };
+    assert!(PreparedLayer::new_parallax(&nan_depth, &ok, BoundKind::Tight).is_err());
 }
 
 /// The row patterns of `synth` behind the multi-layer coverage tests (a seam between three
