@@ -13,6 +13,10 @@
 //!
 //! Tile bounds are pure functions of the tile and the layer, computed on demand ([`TileBounds`]),
 //! so a dense warp, a sparse one ([`crate::warp_pixels`]) and the WGSL twin compute the same.
+//!
+//! **Lanes.** On AVX2 CPUs eight pixels go through the layers in lock step
+//! ([`Kernel::lanes_core`], the scalar [`Kernel::pixel`]'s steps per lane): a dense warp's 4x2
+//! groups share one tile's stages, a sparse warp's listed pixels each bring their own.
 
 use glam::Vec2;
 use zwarp_core::EMPTY_DEPTH;
@@ -100,6 +104,81 @@ pub(crate) struct StageBound {
     /// solution, which one seed at the region's centre finds wherever it converges
     /// ([`crate::PreparedLayer::unique_solution`]); `false` elsewhere.
     pub unique: bool,
+}
+
+/// Where the eight lanes of [`Kernel::lanes_core`] find their tiles' stages: one tile for all
+/// (the dense warp's 4x2 groups), or one per lane (a sparse warp's listed pixels).
+#[cfg(target_arch = "x86_64")]
+enum LaneStages<'a> {
+    /// `stages[k][t]`: tile `t` of a band, every lane.
+    Tile(&'a [Vec<Option<StageBound>>], usize),
+    /// `stages[k][i]`: lane `i`'s tile.
+    Lanes(&'a [[Option<StageBound>; 8]]),
+}
+
+/// One layer's stages of eight lanes as vectors: the lanes that have one, their min depths,
+/// bounds (`[lo.x, lo.y, hi.x, hi.y]`), and which are one-solution and resolved tiles.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct LaneStage {
+    present: u8,
+    min_depth: std::arch::x86_64::__m256,
+    bound: [std::arch::x86_64::__m256; 4],
+    unique: u8,
+    resolved: u8,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl LaneStages<'_> {
+    /// Lane `i`'s stage of layer `k`.
+    fn lane(&self, k: usize, i: usize) -> Option<StageBound> {
+        match self {
+            LaneStages::Tile(s, t) => s[k][*t],
+            LaneStages::Lanes(s) => s[k][i],
+        }
+    }
+
+    /// Layer `k`'s stages as vectors, `None` where no lane has one.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    unsafe fn layer(&self, k: usize) -> Option<LaneStage> {
+        use std::arch::x86_64::*;
+        match self {
+            LaneStages::Tile(s, t) => s[k][*t].map(|sk| LaneStage {
+                present: 0xff,
+                min_depth: _mm256_set1_ps(sk.min_depth),
+                bound: crate::simd_warp::splat_bound(&sk.motion),
+                unique: if sk.unique { 0xff } else { 0 },
+                resolved: if sk.resolved() { 0xff } else { 0 },
+            }),
+            LaneStages::Lanes(s) => {
+                let (mut present, mut unique, mut resolved) = (0u8, 0u8, 0u8);
+                let mut v = [[0f32; 8]; 5];
+                for (i, st) in s[k].iter().enumerate() {
+                    let Some(st) = st else { continue };
+                    present |= 1 << i;
+                    unique |= (st.unique as u8) << i;
+                    resolved |= (st.resolved() as u8) << i;
+                    let b = &st.motion;
+                    for (row, x) in v.iter_mut().zip([st.min_depth, b.lo.x, b.lo.y, b.hi.x, b.hi.y]) {
+                        row[i] = x;
+                    }
+                }
+                (present != 0).then(|| {
+                    let l = |r: &[f32; 8]| _mm256_loadu_ps(r.as_ptr());
+                    LaneStage {
+                        present,
+                        min_depth: l(&v[0]),
+                        bound: [l(&v[1]), l(&v[2]), l(&v[3]), l(&v[4])],
+                        unique,
+                        resolved,
+                    }
+                })
+            }
+        }
+    }
 }
 
 impl StageBound {
@@ -589,10 +668,14 @@ impl<'a> Kernel<'a> {
                 })
                 .collect();
             if let Some(pvs) = views {
+                // The listed pixels go through the dense warp's lanes eight at a time, each
+                // lane with its own tile's stages, where the warp uses what they implement.
+                let ls = self.lanes_apply().then(|| self.lane_search());
+                let mut lanes = Vec::new();
                 let mut i = 0;
                 while i < list.len() {
                     // SAFETY: AVX2 checked above.
-                    i = unsafe { self.stage_runs(&pvs, list, i, &mut memo, &mut seeds, out) };
+                    i = unsafe { self.stage_runs(&pvs, ls.as_ref(), list, i, &mut memo, &mut seeds, &mut lanes, out) };
                 }
                 return;
             }
@@ -616,13 +699,16 @@ impl<'a> Kernel<'a> {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
     unsafe fn stage_runs(
         &self,
         pvs: &[crate::simd_warp::PyramidView<'_>],
+        ls: Option<&crate::simd_warp::LaneSearch<'_>>,
         list: &[u32],
         i: usize,
         memo: &mut TileBounds,
         seeds: &mut [Vec2; MAX_SEEDS as usize],
+        lanes: &mut Vec<[Option<StageBound>; 8]>,
         out: &mut Vec<(f32, PixelState)>,
     ) -> usize {
         let tile_of = |p: u32| ((p % self.tw) / TILE * TILE, (p / self.tw) / TILE * TILE);
@@ -677,6 +763,25 @@ impl<'a> Kernel<'a> {
                 });
             }
         }
+        if let Some(ls) = ls {
+            // The runs' pixels in list order, eight lanes at a time.
+            let mut batch = [(0u32, 0usize); 8];
+            let mut filled = 0;
+            for (r, &(first, end, _)) in runs[..n].iter().enumerate() {
+                for &p in &list[first..end] {
+                    batch[filled] = (p, r);
+                    filled += 1;
+                    if filled == 8 {
+                        self.listed_lanes(ls, pvs, &batch, &stages, lanes, out);
+                        filled = 0;
+                    }
+                }
+            }
+            if filled > 0 {
+                self.listed_lanes(ls, pvs, &batch[..filled], &stages, lanes, out);
+            }
+            return j;
+        }
         for (r, &(first, end, x0)) in runs[..n].iter().enumerate() {
             memo.reset(x0, y0);
             for (m, s) in memo.memo.iter_mut().zip(&stages[r * nl..(r + 1) * nl]) {
@@ -690,13 +795,52 @@ impl<'a> Kernel<'a> {
         j
     }
 
+    /// Up to eight listed pixels `(index, run)` through [`Self::lanes_core`], lane `i` with the
+    /// stages of its run's tile (`stages[run * L + k]`), their `(depth, state)` appended to `out`
+    /// in order: what [`Self::pixel`] gives each (converged, or a hole at the far depth).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn listed_lanes(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        pvs: &[crate::simd_warp::PyramidView<'_>],
+        batch: &[(u32, usize)],
+        stages: &[Option<StageBound>],
+        lanes: &mut Vec<[Option<StageBound>; 8]>,
+        out: &mut Vec<(f32, PixelState)>,
+    ) {
+        use std::arch::x86_64::*;
+        let nl = self.layers.len();
+        lanes.clear();
+        lanes.resize(nl, [None; 8]);
+        let (mut xs, mut ys) = ([0i32; 8], [0i32; 8]);
+        for (i, &(p, r)) in batch.iter().enumerate() {
+            (xs[i], ys[i]) = ((p % self.tw) as i32, (p / self.tw) as i32);
+            for (k, l) in lanes.iter_mut().enumerate() {
+                l[i] = stages[r * nl + k];
+            }
+        }
+        let xi = _mm256_loadu_si256(xs.as_ptr() as *const __m256i);
+        let yi = _mm256_loadu_si256(ys.as_ptr() as *const __m256i);
+        let (px, py) = crate::simd_warp::positions(self.m, xi, yi);
+        let active = ((1u16 << batch.len()) - 1) as u8;
+        let (has, bz, ..) = self.lanes_core(ls, pvs, &LaneStages::Lanes(lanes), (xi, yi), active, (px, py));
+        let (mut z, hasb) = ([0f32; 8], _mm256_movemask_ps(has));
+        _mm256_storeu_ps(z.as_mut_ptr(), bz);
+        for (i, &z) in z.iter().enumerate().take(batch.len()) {
+            out.push(if hasb >> i & 1 != 0 { (z, PixelState::Converged) } else { (EMPTY_DEPTH, PixelState::Hole) });
+        }
+    }
+
     /// `true` if resolved tiles of layer 0 can take the AVX2 single-seed search
     /// ([`crate::simd_warp`]): the CPU has AVX2 and the warp uses what that build implements
-    /// (stratified seeds, adaptive or nearest sampling, unit motion scale).
+    /// (stratified seeds, adaptive or nearest sampling, any motion scale, no AWOC fill).
     fn lanes_apply(&self) -> bool {
         crate::simd::has_avx2()
             && self.params.seeding == SeedStrategy::Stratified
-            && self.params.motion_scale == Vec2::ONE
             && self.params.holes != HolePolicy::Awoc
     }
 
@@ -713,8 +857,13 @@ impl<'a> Kernel<'a> {
         let mut revealed = Vec::new();
         #[cfg(target_arch = "x86_64")]
         if self.lanes_apply() {
-            let views: Option<Vec<_>> =
-                self.layers.iter().map(|l| crate::simd_warp::PyramidView::new(l.pyramid())).collect();
+            let views: Option<Vec<_>> = self
+                .layers
+                .iter()
+                .map(|l| {
+                    crate::simd_warp::PyramidView::new(l.pyramid()).map(|v| v.with_scale(self.params.motion_scale))
+                })
+                .collect();
             if let Some(pvs) = views {
                 // SAFETY: `lanes_apply` checked AVX2.
                 unsafe { self.band_lanes(&self.lane_search(), &pvs, ty, depth, state, source, &mut revealed) };
@@ -891,6 +1040,8 @@ impl<'a> Kernel<'a> {
             first_converged: self.params.choice == crate::CandidateChoice::FirstConverged,
             nearest: self.params.sampling == crate::Sampling::Nearest,
             avx512: crate::simd::has_avx512(),
+            scale: (self.params.motion_scale != Vec2::ONE)
+                .then_some((self.params.motion_scale.x, self.params.motion_scale.y)),
         }
     }
 
@@ -988,9 +1139,38 @@ impl<'a> Kernel<'a> {
         y: u32,
         out: Rows<'_>,
     ) {
+        let (xi, yi, active, px, py) = self.group8(x0, x1, y, out.two);
+        let (has, bz, bqx, bqy, btag) =
+            self.lanes_core(ls, pvs, &LaneStages::Tile(stages, t), (xi, yi), active, (px, py));
+        self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
+    }
+
+    /// The body of [`Self::lanes8`] for any eight pixels (columns `xi`, rows `yi`, target
+    /// positions `px, py`, the `active` lanes), each with its own tile's stages (`stages`):
+    /// per lane whether it converged, its depth, source position and layer tag.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::type_complexity)]
+    unsafe fn lanes_core(
+        &self,
+        ls: &crate::simd_warp::LaneSearch<'_>,
+        pvs: &[crate::simd_warp::PyramidView<'_>],
+        stages: &LaneStages<'_>,
+        (xi, yi): (std::arch::x86_64::__m256i, std::arch::x86_64::__m256i),
+        active: u8,
+        (px, py): (std::arch::x86_64::__m256, std::arch::x86_64::__m256),
+    ) -> (
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256,
+        std::arch::x86_64::__m256i,
+    ) {
         use crate::simd_warp as sw;
         use std::arch::x86_64::*;
-        let (xi, yi, active, px, py) = self.group8(x0, x1, y, out.two);
         let expand = self.params.sampling.footprint();
         let zero = _mm256_setzero_ps();
         let mut has = zero;
@@ -1007,25 +1187,27 @@ impl<'a> Kernel<'a> {
         // Per lane the farthest sample of those failed walks (Kernel::behind_ground_disocclusion).
         let neg_inf = _mm256_set1_ps(f32::NEG_INFINITY);
         let mut farthest = neg_inf;
-        for k in 0..self.layers.len() {
-            let Some(sk) = stages[k][t] else { continue };
+        for (k, pv) in pvs.iter().enumerate().take(self.layers.len()) {
+            let Some(sk) = stages.layer(k) else { continue };
+            // The lanes whose tile has a stage for this layer.
+            let act = _mm256_and_ps(act, sw::lane_mask(sk.present));
+            let active = active & sk.present;
             let frame = self.layers[k].pyramid().frame();
             let iters = self.bound_iterations();
             // Lanes with a candidate: the pruning tests of a later layer (min depths over the
             // tile's region, the pixel's region under the tile's bound, the tightened region),
             // then the search from the tightened bound with the cross-layer seed.
             let with_best = _mm256_and_ps(act, has);
-            let mut go = _mm256_and_ps(with_best, _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(sk.min_depth), bz));
+            let mut go = _mm256_and_ps(with_best, _mm256_cmp_ps::<_CMP_LT_OQ>(sk.min_depth, bz));
             let mut later: Option<([__m256; 4], u8)> = None;
             if _mm256_movemask_ps(go) != 0 {
-                let pv = &pvs[k];
-                let (r, hit) = sw::pixel_range8(pv, &sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)), expand);
+                let (r, hit) = sw::pixel_range8(pv, &sw::region8(frame, px, py, &sk.bound), expand);
                 go = _mm256_and_ps(go, hit);
                 let z1 = sw::lookup_min_depth8(pv, &r, _mm256_castps_si256(go));
                 go = _mm256_and_ps(go, _mm256_cmp_ps::<_CMP_LT_OQ>(z1, bz));
                 let bits = _mm256_movemask_ps(go) as u8;
                 if bits != 0 {
-                    let (ok, _, region) = sw::tighten8(pv, px, py, bits, &sk.motion, iters, expand);
+                    let (ok, _, region) = sw::tighten8(pv, px, py, bits, &sk.bound, iters, expand);
                     let (r, hit) = sw::pixel_range8(pv, &region, expand);
                     let ok = _mm256_and_ps(sw::lane_mask(ok), hit);
                     let z2 = sw::lookup_min_depth8(pv, &r, _mm256_castps_si256(ok));
@@ -1036,11 +1218,12 @@ impl<'a> Kernel<'a> {
             // Lanes without a candidate: the resolved tile's region, or the pixel's tightened
             // bound.
             let mut searching = active & !(_mm256_movemask_ps(has) as u8);
-            if searching != 0 && sk.unique {
+            let unique = searching & sk.unique;
+            if unique != 0 {
                 // Kernel::pixel_from: one seed at the centre of the region under the tile's bound
                 // where it holds one solution at most; the lanes it fails take the complete search.
-                let region = sw::region8(frame, px, py, &sw::splat_bound(&sk.motion));
-                let r = sw::search8(ls, k, frame, px, py, xi, yi, searching, &region, None, 1);
+                let region = sw::region8(frame, px, py, &sk.bound);
+                let r = sw::search8(ls, k, frame, px, py, xi, yi, unique, &region, None, 1);
                 let now = r.converged;
                 pqx = _mm256_blendv_ps(pqx, r.qx, now);
                 pqy = _mm256_blendv_ps(pqy, r.qy, now);
@@ -1051,13 +1234,24 @@ impl<'a> Kernel<'a> {
                 has = _mm256_or_ps(has, now);
                 searching &= !(_mm256_movemask_ps(now) as u8);
             }
+            // Resolved tiles' lanes search the region under the tile's bound, the others their
+            // own tightened bound.
             let first = if searching == 0 {
                 None
-            } else if sk.resolved() {
-                Some((sw::region8(frame, px, py, &sw::splat_bound(&sk.motion)), searching))
             } else {
-                let (ok, _, region) = sw::tighten8(&pvs[k], px, py, searching, &sk.motion, iters, expand);
-                Some((region, ok))
+                let resolved = searching & sk.resolved;
+                let mut region = sw::region8(frame, px, py, &sk.bound);
+                let mut bits = resolved;
+                let tight = searching & !sk.resolved;
+                if tight != 0 {
+                    let (ok, _, r) = sw::tighten8(pv, px, py, tight, &sk.bound, iters, expand);
+                    let m = sw::lane_mask(tight);
+                    for (a, b) in region.iter_mut().zip(r) {
+                        *a = _mm256_blendv_ps(*a, b, m);
+                    }
+                    bits |= ok;
+                }
+                Some((region, bits))
             };
             for (pass, with_prev) in [(first, false), (later, true)] {
                 let Some((region, bits)) = pass else { continue };
@@ -1108,6 +1302,9 @@ impl<'a> Kernel<'a> {
         if deep != 0 {
             let (mut qx, mut qy, mut z, mut far, mut tags, mut pxs, mut pys) =
                 ([0f32; 8], [0f32; 8], [0f32; 8], [0f32; 8], [0i32; 8], [0f32; 8], [0f32; 8]);
+            let (mut xs, mut ys) = ([0i32; 8], [0i32; 8]);
+            _mm256_storeu_si256(xs.as_mut_ptr() as *mut __m256i, xi);
+            _mm256_storeu_si256(ys.as_mut_ptr() as *mut __m256i, yi);
             _mm256_storeu_ps(qx.as_mut_ptr(), bqx);
             _mm256_storeu_ps(qy.as_mut_ptr(), bqy);
             _mm256_storeu_ps(z.as_mut_ptr(), bz);
@@ -1120,8 +1317,8 @@ impl<'a> Kernel<'a> {
             for i in (0..8).filter(|i| deep >> i & 1 != 0) {
                 let mut c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
                 let p = Vec2::new(pxs[i], pys[i]);
-                let (lx, ly) = (x0 + i as u32 % 4, y + i as u32 / 4);
-                if let Some(f) = self.retry_front(lx, ly, p, &c, far[i], |k| stages[k][t], &mut seeds) {
+                let (lx, ly) = (xs[i] as u32, ys[i] as u32);
+                if let Some(f) = self.retry_front(lx, ly, p, &c, far[i], |k| stages.lane(k, i), &mut seeds) {
                     c = f;
                     (qx[i], qy[i], z[i], tags[i]) = (f.q.x, f.q.y, f.depth, f.tag as i32);
                 }
@@ -1133,7 +1330,7 @@ impl<'a> Kernel<'a> {
             bz = _mm256_loadu_ps(z.as_ptr());
             btag = _mm256_loadu_si256(tags.as_ptr() as *const __m256i);
         }
-        self.write_lanes(x0, x1, out, has, bz, bqx, bqy, btag)
+        (has, bz, bqx, bqy, btag)
     }
 
     /// Writes the results of eight lanes (two rows of up to four pixels from `x0`): the

@@ -47,6 +47,9 @@ pub(crate) struct LaneSearch<'a> {
     pub nearest: bool,
     /// The walks run their AVX-512 build ([`crate::simd::has_avx512`]).
     pub avx512: bool,
+    /// `WarpParams::motion_scale` where it is not one: every texel's motion is scaled as it is
+    /// read, before it is interpolated (`LayerSampler::with_scale`, the same products).
+    pub scale: Option<(f32, f32)>,
 }
 
 /// Results of eight lanes of one layer's search.
@@ -122,7 +125,7 @@ pub(crate) unsafe fn splat_bound(b: &Bound) -> [__m256; 4] {
     [splat(b.lo.x), splat(b.lo.y), splat(b.hi.x), splat(b.hi.y)]
 }
 
-/// Eight samples of [`crate::sampling::LayerSampler`] (adaptive, unit scale): where the lane has
+/// Eight samples of [`crate::sampling::LayerSampler`] (adaptive, its motion scale): where the lane has
 /// one, its motion, depth and Jacobian (zero for nearest samples).
 struct Smp8 {
     has: __m256,
@@ -138,11 +141,34 @@ struct Smp8 {
     smooth: __m256,
 }
 
-/// `LayerSampler::fetch_inside_scaled` (unit scale, adaptive or, with `nearest`, nearest
+/// Four texels' motion component times the factor `s` where there is one (`LayerSampler`'s
+/// `scale * m.v` per texel, before interpolation).
+#[inline(always)]
+unsafe fn scaled(s: Option<f32>, t: [__m256; 4]) -> [__m256; 4] {
+    match s {
+        None => t,
+        Some(s) => {
+            let f = _mm256_set1_ps(s);
+            t.map(|v| _mm256_mul_ps(f, v))
+        }
+    }
+}
+
+/// `LayerSampler::fetch_inside_scaled` (scaled by `scale` where given, adaptive or, with `nearest`, nearest
 /// sampling) for the `live` lanes, whose `q` lies inside the image. Part of [`walk8`]'s body
 /// (inlined into each of its builds, no target feature of its own).
 #[inline(always)]
-unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy: __m256, live: __m256) -> Smp8 {
+#[allow(clippy::too_many_arguments)]
+unsafe fn fetch8(
+    pl: &Planes<'_>,
+    w: u32,
+    h: u32,
+    nearest: bool,
+    scale: Option<(f32, f32)>,
+    qx: __m256,
+    qy: __m256,
+    live: __m256,
+) -> Smp8 {
     let live_i = _mm256_castps_si256(live);
     let (half, one, zero) = (splat(0.5), splat(1.0), _mm256_setzero_ps());
     let wm = _mm256_set1_epi32(w as i32 - 1);
@@ -164,8 +190,10 @@ unsafe fn fetch8(pl: &Planes<'_>, w: u32, h: u32, nearest: bool, qx: __m256, qy:
     let (i00, i10) = (_mm256_add_epi32(r0, x0), _mm256_add_epi32(r0, x1));
     let (i01, i11) = (_mm256_add_epi32(r1, x0), _mm256_add_epi32(r1, x1));
     let g = |p: &[f32], i: __m256i| _mm256_i32gather_ps::<4>(p.as_ptr(), i);
-    let (vx00, vx10, vx01, vx11) = (g(pl.vx, i00), g(pl.vx, i10), g(pl.vx, i01), g(pl.vx, i11));
-    let (vy00, vy10, vy01, vy11) = (g(pl.vy, i00), g(pl.vy, i10), g(pl.vy, i01), g(pl.vy, i11));
+    let [vx00, vx10, vx01, vx11] =
+        scaled(scale.map(|s| s.0), [g(pl.vx, i00), g(pl.vx, i10), g(pl.vx, i01), g(pl.vx, i11)]);
+    let [vy00, vy10, vy01, vy11] =
+        scaled(scale.map(|s| s.1), [g(pl.vy, i00), g(pl.vy, i10), g(pl.vy, i01), g(pl.vy, i11)]);
     let (z00, z10, z01, z11) = (g(pl.z, i00), g(pl.z, i10), g(pl.z, i01), g(pl.z, i11));
     let valid = |z: __m256| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(z, one));
     let all_valid = _mm256_and_ps(_mm256_and_ps(valid(z00), valid(z10)), _mm256_and_ps(valid(z01), valid(z11)));
@@ -592,8 +620,8 @@ unsafe fn first8(
         (0, 0)
     };
     let at = Texels { contiguous, a, b, w, x0, x1, y0, y1, wv: _mm256_set1_epi32(ls.w as i32) };
-    let [vx00, vx10, vx01, vx11] = at.read(pl.vx);
-    let [vy00, vy10, vy01, vy11] = at.read(pl.vy);
+    let [vx00, vx10, vx01, vx11] = scaled(ls.scale.map(|s| s.0), at.read(pl.vx));
+    let [vy00, vy10, vy01, vy11] = scaled(ls.scale.map(|s| s.1), at.read(pl.vy));
     let [z00, z10, z01, z11] = at.read(pl.z);
     // From here on the arithmetic of fetch8, without the Jacobian.
     let valid = |z: __m256| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(z, zero), _mm256_cmp_ps::<_CMP_LT_OQ>(z, one));
@@ -747,7 +775,7 @@ unsafe fn walk8_lanes(
         if _mm256_movemask_ps(live) == 0 {
             break;
         }
-        let mut s = fetch8(&ls.layers[k], ls.w, ls.h, ls.nearest, qx, qy, live);
+        let mut s = fetch8(&ls.layers[k], ls.w, ls.h, ls.nearest, ls.scale, qx, qy, live);
         let mut tag = _mm256_set1_epi32(k as i32);
         if ls.cross && k > 0 {
             // Empty landing: the second one fails; the first borrows the nearest non-empty layer
@@ -760,7 +788,7 @@ unsafe fn walk8_lanes(
                 if _mm256_movemask_ps(need) == 0 {
                     break;
                 }
-                let b = fetch8(&ls.layers[j], ls.w, ls.h, ls.nearest, qx, qy, need);
+                let b = fetch8(&ls.layers[j], ls.w, ls.h, ls.nearest, ls.scale, qx, qy, need);
                 let take = b.has;
                 s.vx = _mm256_blendv_ps(s.vx, b.vx, take);
                 s.vy = _mm256_blendv_ps(s.vy, b.vy, take);
@@ -1070,9 +1098,9 @@ pub(crate) unsafe fn lookup_min_depth8(pv: &PyramidView<'_>, r: &[__m256i; 4], l
     _mm256_min_ps(_mm256_min_ps(g(a), g(b)), _mm256_min_ps(g(c), g(d)))
 }
 
-/// `MotionPyramid::tight_bound_box_scaled` (unit scale) for eight boxes of target positions
+/// `MotionPyramid::tight_bound_box_scaled` (the view's scale) for eight boxes of target positions
 /// given by their frame-coordinate bounds `c = [lo.x, lo.y, hi.x, hi.y]` (a pixel: `lo = hi`),
-/// from the shared `start` bound: per lane the tightened bound and its search region, and the
+/// from each lane's `start` bound: per lane the tightened bound and its search region, and the
 /// lanes that have a bound at all (`None` lanes: the region misses the image or the
 /// intersection became empty). Same steps, same early exits per lane.
 ///
@@ -1083,14 +1111,14 @@ unsafe fn tighten8_box(
     pv: &PyramidView<'_>,
     c: &[__m256; 4],
     active: u8,
-    start: &Bound,
+    start: &[__m256; 4],
     iterations: u32,
     expand: f32,
 ) -> (u8, [__m256; 4], [__m256; 4]) {
     let region_of = |b: &[__m256; 4]| {
         [_mm256_sub_ps(c[0], b[2]), _mm256_sub_ps(c[1], b[3]), _mm256_sub_ps(c[2], b[0]), _mm256_sub_ps(c[3], b[1])]
     };
-    let mut b = splat_bound(start);
+    let mut b = *start;
     let mut region = region_of(&b);
     let (mut range, hit) = pixel_range8(pv, &region, expand);
     let mut ok = _mm256_and_ps(lane_mask(active), hit);
@@ -1153,7 +1181,7 @@ pub(crate) unsafe fn tighten8(
     px: __m256,
     py: __m256,
     active: u8,
-    start: &Bound,
+    start: &[__m256; 4],
     iterations: u32,
     expand: f32,
 ) -> (u8, [__m256; 4], [__m256; 4]) {
@@ -1217,7 +1245,7 @@ pub(crate) unsafe fn tile_stage8(
     if start.is_empty() {
         return [None; 8];
     }
-    let (mut ok, b, region) = tighten8_box(pv, &c, active, start, iterations, expand);
+    let (mut ok, b, region) = tighten8_box(pv, &c, active, &splat_bound(start), iterations, expand);
     let zmin = if with_depth {
         let (r, hit) = pixel_range8(pv, &region, expand);
         ok &= _mm256_movemask_ps(hit) as u8;
