@@ -7,7 +7,9 @@
 //! cost of a prediction without its hole protocol), the motion mipmap construction (MMC, part of the preparation, timed as an
 //! engine runs it: `PreparedLayer::prepare_stack_recycling` into last frame's buffers), the
 //! motion field itself (AVX2 and portable builds), the
-//! VFW / AFW forward baselines side by side, the AVX2 builds of the walks and of VFW beside
+//! VFW / AFW forward baselines side by side, a sparse warp of listed pixels with a motion scale
+//! (AVX2 lanes and the portable kernel), a layer prepared from a parallax field (directly and
+//! through a motion buffer), the AVX2 builds of the walks and of VFW beside
 //! their AVX-512-enabled builds, and the streaming floor of the same inputs
 //! (`floor::floor_pass`: one read of every layer, one write of the output).
 //!
@@ -23,7 +25,7 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion};
 use glam::{Vec2, Vec3};
-use zwarp_core::{motion_field, motion_field_into, Camera, Image, Motion};
+use zwarp_core::{motion_field, motion_field_into, Camera, Image, Motion, ParallaxMotion};
 use zwarp_warp::search::{effective_seeds, seed_key, stratified_seeds};
 use zwarp_warp::synth::SynthScene;
 use zwarp_warp::*;
@@ -169,6 +171,48 @@ fn main() {
             });
             g.bench_with_input(BenchmarkId::new("afw", l), &l, |b, _| {
                 b.iter(|| afw_layers_into(&ls, &mut fwd).unwrap())
+            });
+        }
+        // A sparse warp (`warp_pixels`) as the soft shadows run it per light sample: scattered
+        // listed texels, a motion scale on an axis-aligned preparation; the AVX2 lanes beside
+        // the portable kernel.
+        {
+            let ls = layers(&case, 1);
+            let prepared = PreparedLayer::prepare_stack(&ls, BoundKind::Tight).unwrap();
+            let list: Vec<u32> = (0..1920 * 1080).step_by(7).collect();
+            let params = WarpParams {
+                n_seeds: 4,
+                bound: BoundKind::Tight,
+                motion_scale: Vec2::new(0.8, 1.3),
+                holes: HolePolicy::FarDepth,
+                ..Default::default()
+            };
+            for (name, simd) in [("sparse_L1", true), ("sparse_L1_portable", false)] {
+                g.bench_function(name, |b| {
+                    zwarp_warp::simd::set_simd(simd);
+                    b.iter(|| warp_pixels(&prepared, &params, &list).unwrap());
+                    zwarp_warp::simd::set_simd(true);
+                });
+            }
+        }
+        // A layer whose motion is a parallax of its depth (a light rig's sample eye): prepared
+        // from the field directly, beside writing the field's buffer and preparing that.
+        {
+            let field = ParallaxMotion::of_camera(&case.cams.0, Vec2::new(3.0, -2.0), None);
+            let depth = &case.depth[0];
+            g.bench_function("prepare_parallax", |b| {
+                b.iter(|| PreparedLayer::new_parallax(depth, &field, BoundKind::Tight).unwrap())
+            });
+            g.bench_function("prepare_parallax_buffer", |b| {
+                b.iter(|| {
+                    let m = Image::from_vec(
+                        depth.width(),
+                        depth.height(),
+                        depth.data().iter().map(|&d| field.motion(d)).collect(),
+                    )
+                    .unwrap();
+                    PreparedLayer::new(&WarpLayer { depth, motion: &m }, BoundKind::Tight).unwrap()
+                })
             });
         }
         // The motion of layer 0 (Sec. 3.1) into a reused buffer: the AVX2 build and the portable one.
