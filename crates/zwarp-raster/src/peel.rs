@@ -111,12 +111,31 @@ impl UmbraPeeling {
     /// pixel `(px, py)` (continuous pixel coordinates of its centre) at linear depth `d`.
     /// Returns `f32::INFINITY` when the pixel quad hides the whole ray from every viewpoint.
     pub fn umbra_extent(&self, cam: &Camera, px: f32, py: f32, d: f32) -> f32 {
+        self.umbra_extent_with(cam, self.tangents(cam), px, py, d)
+    }
+
+    /// The tangents [`Self::umbra_extent`] needs, the same for every pixel of a view: of half
+    /// the vertical field of view (perspective views) and of the view region's `max_angle`
+    /// (direction regions); `0` where unused. Computed once per peeling pass.
+    fn tangents(&self, cam: &Camera) -> (f32, f32) {
+        let th = match cam.projection {
+            Projection::Perspective { fov_y } => (fov_y * 0.5).tan(),
+            Projection::Orthographic { .. } => 0.0,
+        };
+        let tn = match self.region {
+            ViewRegion::Directions { max_angle } => max_angle.tan(),
+            ViewRegion::Disc { .. } => 0.0,
+        };
+        (th, tn)
+    }
+
+    /// [`Self::umbra_extent`] with the view's [`Self::tangents`].
+    fn umbra_extent_with(&self, cam: &Camera, (th, tn): (f32, f32), px: f32, py: f32, d: f32) -> f32 {
         let (ndc_x, ndc_y) = cam.pixel_to_ndc(px, py);
         let aspect = cam.width as f32 / cam.height as f32;
         // Half side `s` of the pixel quad and the projector ray's lateral offset `r` at depth d.
         let (s, r, perspective) = match cam.projection {
-            Projection::Perspective { fov_y } => {
-                let th = (fov_y * 0.5).tan();
+            Projection::Perspective { .. } => {
                 let r = d * th * (ndc_x * ndc_x * aspect * aspect + ndc_y * ndc_y).sqrt();
                 (d * th / cam.height as f32, r, true)
             }
@@ -142,8 +161,7 @@ impl UmbraPeeling {
                     dc * s / denom
                 }
             }
-            ViewRegion::Directions { max_angle } => {
-                let tn = max_angle.tan();
+            ViewRegion::Directions { .. } => {
                 if tn <= 0.0 {
                     f32::INFINITY
                 } else {
@@ -158,15 +176,15 @@ impl UmbraPeeling {
 /// the next layer keeps fragments strictly behind it. Empty pixels get `+inf` (nothing behind
 /// the far plane); standard peeling uses `d` itself (bit-exact, no round trip through linear
 /// depth); umbra culling adds eq. (1)'s `x` in linear depth (never less than `d`).
-fn next_threshold(cam: &Camera, umbra: Option<&UmbraPeeling>, x: u32, y: u32, d: f32) -> f32 {
+fn next_threshold(cam: &Camera, umbra: Option<(&UmbraPeeling, (f32, f32))>, x: u32, y: u32, d: f32) -> f32 {
     if d >= 1.0 {
         return f32::INFINITY;
     }
-    let Some(u) = umbra else {
+    let Some((u, tangents)) = umbra else {
         return d;
     };
     let lin = cam.linear_depth(d);
-    let ext = u.umbra_extent(cam, x as f32 + 0.5, y as f32 + 0.5, lin);
+    let ext = u.umbra_extent_with(cam, tangents, x as f32 + 0.5, y as f32 + 0.5, lin);
     if ext.is_infinite() {
         f32::INFINITY
     } else {
@@ -216,11 +234,11 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
             );
         }
         // Threshold of the next pass (per pixel, rows in parallel).
-        let umbra = opts.umbra;
+        let umbra = opts.umbra.as_ref().map(|u| (u, u.tangents(cam)));
         threshold.data_mut().par_chunks_mut(w as usize).zip(depth.data().par_chunks(w as usize)).enumerate().for_each(
             |(y, (trow, drow))| {
                 for (x, (th, &d)) in trow.iter_mut().zip(drow).enumerate() {
-                    *th = next_threshold(cam, umbra.as_ref(), x as u32, y as u32, d);
+                    *th = next_threshold(cam, umbra, x as u32, y as u32, d);
                 }
             },
         );
