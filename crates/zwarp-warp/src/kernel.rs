@@ -652,22 +652,14 @@ impl<'a> Kernel<'a> {
     /// The warp of the listed target pixels (row-major indices; any order, repeats allowed)
     /// appended to `out` in list order: [`Self::pixel`]'s `(depth, state)` for each, bit for
     /// bit. Consecutive pixels of one tile share its tile stage; with AVX2 the stages of up to
-    /// eight such runs in one row of tiles are computed together ([`Self::stage_runs`]). Sparse
-    /// consumers (the soft shadows' look-ups, about 1.4 per tile) spend most of their time in
-    /// the tile stage.
+    /// eight such runs in one row of tiles are computed together ([`Self::stage_runs`]) and their
+    /// pixels go through the lanes eight at a time ([`Self::listed_lanes`]).
     pub fn pixels(&self, list: &[u32], out: &mut Vec<(f32, PixelState)>) {
         let mut memo = TileBounds::new(self.layers.len());
         let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];
         #[cfg(target_arch = "x86_64")]
         if crate::simd::has_avx2() {
-            let views: Option<Vec<_>> = self
-                .layers
-                .iter()
-                .map(|l| {
-                    crate::simd_warp::PyramidView::new(l.pyramid()).map(|v| v.with_scale(self.params.motion_scale))
-                })
-                .collect();
-            if let Some(pvs) = views {
+            if let Some(pvs) = self.pyramid_views() {
                 // The listed pixels go through the dense warp's lanes eight at a time, each
                 // lane with its own tile's stages, where the warp uses what they implement.
                 let ls = self.lanes_apply().then(|| self.lane_search());
@@ -835,6 +827,16 @@ impl<'a> Kernel<'a> {
         }
     }
 
+    /// The AVX2 views of every layer's mipmap, look-ups scaled by the warp's motion scale; `None`
+    /// if one is too deep or too large for 32-bit gathers (the scalar kernel then runs).
+    #[cfg(target_arch = "x86_64")]
+    fn pyramid_views(&self) -> Option<Vec<crate::simd_warp::PyramidView<'_>>> {
+        self.layers
+            .iter()
+            .map(|l| crate::simd_warp::PyramidView::new(l.pyramid()).map(|v| v.with_scale(self.params.motion_scale)))
+            .collect()
+    }
+
     /// `true` if resolved tiles of layer 0 can take the AVX2 single-seed search
     /// ([`crate::simd_warp`]): the CPU has AVX2 and the warp uses what that build implements
     /// (stratified seeds, adaptive or nearest sampling, any motion scale, no AWOC fill).
@@ -857,14 +859,7 @@ impl<'a> Kernel<'a> {
         let mut revealed = Vec::new();
         #[cfg(target_arch = "x86_64")]
         if self.lanes_apply() {
-            let views: Option<Vec<_>> = self
-                .layers
-                .iter()
-                .map(|l| {
-                    crate::simd_warp::PyramidView::new(l.pyramid()).map(|v| v.with_scale(self.params.motion_scale))
-                })
-                .collect();
-            if let Some(pvs) = views {
+            if let Some(pvs) = self.pyramid_views() {
                 // SAFETY: `lanes_apply` checked AVX2.
                 unsafe { self.band_lanes(&self.lane_search(), &pvs, ty, depth, state, source, &mut revealed) };
                 return revealed;
