@@ -233,7 +233,11 @@ pub fn render_layers(scene: &Scene, cam: &Camera, t: f32, opts: &PeelOptions) ->
                 Targets { depth: &mut depth, items: Some(&mut items), handles: None, threshold: thr, load: false },
             );
         }
-        // Threshold of the next pass (per pixel, rows in parallel).
+        // Threshold of the next pass (per pixel, rows in parallel); none after the last layer.
+        if k + 1 == opts.layers {
+            layers.push(Layer { depth, items });
+            break;
+        }
         let umbra = opts.umbra.as_ref().map(|u| (u, u.tangents(cam)));
         threshold.data_mut().par_chunks_mut(w as usize).zip(depth.data().par_chunks(w as usize)).enumerate().for_each(
             |(y, (trow, drow))| {
