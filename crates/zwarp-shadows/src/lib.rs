@@ -222,9 +222,11 @@ pub struct StageTimings {
     /// Shadow-map rendering: S rasterized maps (reference), the peeled centre layers (zwarp) or
     /// the one centre map (PCSS).
     pub render: f64,
-    /// Motion buffers centre -> sample (zwarp).
+    /// Motion buffers centre -> sample (zwarp; 0 with the shared mipmap, whose preparation
+    /// evaluates the rig's parallax itself).
     pub motion: f64,
-    /// Motion mipmaps (`PreparedLayer`: once with the shared mipmap, per sample otherwise).
+    /// Motion mipmaps (`PreparedLayer`: once with the shared mipmap, from the parallax field,
+    /// per sample otherwise).
     pub mipmap: f64,
     /// Warps (zwarp): the full maps, or the looked-up texels and hole neighbours.
     pub warp: f64,
@@ -315,9 +317,10 @@ pub struct ZwarpMaps<'a> {
     shared: Vec<PreparedLayer>,
     k_ref: Vec2,
     params: WarpParams,
-    /// Accumulated time of the motion buffers (ms).
+    /// Accumulated time of the motion buffers (ms; none with the shared mipmap).
     pub motion_ms: f64,
-    /// Accumulated time of the motion mipmaps (`PreparedLayer::new`, ms).
+    /// Accumulated time of the motion mipmaps (`PreparedLayer::new`, or `new_parallax` for the
+    /// shared one, which includes its field, ms).
     pub mipmap_ms: f64,
     /// Accumulated time of the warps (ms).
     pub warp_ms: f64,
