@@ -172,13 +172,8 @@ impl Camera {
     /// Linear view-space distance (along the view axis) of a stored depth value.
     #[inline]
     pub fn linear_depth(&self, depth: f32) -> f32 {
-        match self.projection {
-            Projection::Perspective { .. } => {
-                let (n, f) = (self.near, self.far);
-                f * n / (f - depth * (f - n))
-            }
-            Projection::Orthographic { .. } => self.near + depth * (self.far - self.near),
-        }
+        let perspective = matches!(self.projection, Projection::Perspective { .. });
+        linear_depth_of(perspective, self.near, self.far, depth)
     }
 
     /// Inverse of [`Camera::linear_depth`]: stored depth of a view-space distance.
@@ -215,6 +210,18 @@ pub fn unproject_with(inv_view_proj: &Mat4, width: u32, height: u32, px: f32, py
     let ny = 1.0 - py / height as f32 * 2.0;
     let p: Vec4 = *inv_view_proj * Vec4::new(nx, ny, depth, 1.0);
     p.truncate() / p.w
+}
+
+/// [`Camera::linear_depth`] of a view with planes `near`, `far` and a perspective (`true`) or
+/// orthographic projection: the one formula, also `ParallaxMotion`'s.
+#[inline]
+pub fn linear_depth_of(perspective: bool, near: f32, far: f32, depth: f32) -> f32 {
+    let (n, f) = (near, far);
+    if perspective {
+        f * n / (f - depth * (f - n))
+    } else {
+        n + depth * (f - n)
+    }
 }
 
 #[cfg(test)]

@@ -56,11 +56,15 @@ impl ParallaxMotion {
     /// Linear view depth of stored depth `d` (`Camera::linear_depth`, the same operations).
     #[inline]
     pub fn linear_depth(&self, d: f32) -> f32 {
-        let (n, f) = (self.near, self.far);
-        if self.perspective {
-            f * n / (f - d * (f - n))
-        } else {
-            n + d * (f - n)
+        crate::camera::linear_depth_of(self.perspective, self.near, self.far, d)
+    }
+
+    /// The depth parameter `g(z)` of linear depth `z`: `1 / z`, or `z - pivot`.
+    #[inline]
+    pub fn depth_param(&self, z: f32) -> f32 {
+        match self.pivot {
+            None => 1.0 / z,
+            Some(z0) => z - z0,
         }
     }
 
@@ -68,12 +72,7 @@ impl ParallaxMotion {
     #[inline]
     pub fn motion(&self, d: f32) -> Motion {
         if d < crate::EMPTY_DEPTH {
-            let z = self.linear_depth(d);
-            let g = match self.pivot {
-                None => 1.0 / z,
-                Some(z0) => z - z0,
-            };
-            Motion { v: self.shift * g, depth: d }
+            Motion { v: self.shift * self.depth_param(self.linear_depth(d)), depth: d }
         } else {
             Motion { v: Vec2::ZERO, depth: crate::EMPTY_DEPTH }
         }

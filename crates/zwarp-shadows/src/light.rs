@@ -369,14 +369,10 @@ impl LightRig {
     }
 
     /// The depth parameter `g` of the per-sample shift for a point at linear view depth `z`:
-    /// `1/z` for local lights, `z - z_0` for directional ones ([`ParallaxMotion`]'s `g`).
+    /// `1/z` for local lights, `z - z_0` for directional ones ([`ParallaxMotion::depth_param`]).
     #[inline]
     pub fn depth_param(&self, z: f32) -> f32 {
-        if self.light.directional {
-            z - self.pivot
-        } else {
-            1.0 / z
-        }
+        self.parallax(Vec2::ZERO).depth_param(z)
     }
 
     /// The rig's pure parallax towards the emitter point whose pixel shift is `k` (seed 000,
