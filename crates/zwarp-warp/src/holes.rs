@@ -83,30 +83,31 @@ pub fn fill_holes(depth: &mut Image<f32>, state: &mut Image<PixelState>, radius:
 
 /// The [`PixelState::Hole`] pixels of `state` (row-major indices, ascending).
 pub(crate) fn hole_list(state: &Image<PixelState>) -> Vec<u32> {
-    let w = state.width().max(1) as usize;
-    let lists: Vec<Vec<u32>> = state
-        .data()
-        .par_chunks(w * 16)
-        .enumerate()
-        .map(|(c, chunk)| {
-            let base = (c * w * 16) as u32;
-            // Holes are sparse: blocks of 64 states are tested with a branch-free (vectorised)
-            // fold first and only blocks holding a hole are listed pixel by pixel.
-            let mut list = Vec::new();
-            for (b, block) in chunk.chunks(64).enumerate() {
-                if block.iter().fold(false, |a, s| a | (*s == PixelState::Hole)) {
-                    let b0 = base + (b * 64) as u32;
-                    for (i, s) in block.iter().enumerate() {
-                        if *s == PixelState::Hole {
-                            list.push(b0 + i as u32);
-                        }
-                    }
+    let band = state.width().max(1) as usize * HOLE_BAND_ROWS;
+    let lists: Vec<Vec<u32>> =
+        state.data().par_chunks(band).enumerate().map(|(b, chunk)| holes_in(chunk, (b * band) as u32)).collect();
+    lists.concat()
+}
+
+/// Rows per parallel band of the hole passes ([`hole_list`], [`fill_background_with`]).
+const HOLE_BAND_ROWS: usize = 16;
+
+/// The [`PixelState::Hole`] pixels of `states`, a run of states starting at pixel index `base`,
+/// ascending. Holes are sparse: blocks of 64 states are tested with a branch-free (vectorised)
+/// fold first and only blocks holding a hole are listed pixel by pixel.
+fn holes_in(states: &[PixelState], base: u32) -> Vec<u32> {
+    let mut list = Vec::new();
+    for (b, block) in states.chunks(64).enumerate() {
+        if block.iter().fold(false, |a, s| a | (*s == PixelState::Hole)) {
+            let b0 = base + (b * 64) as u32;
+            for (i, s) in block.iter().enumerate() {
+                if *s == PixelState::Hole {
+                    list.push(b0 + i as u32);
                 }
             }
-            list
-        })
-        .collect();
-    lists.concat()
+        }
+    }
+    list
 }
 
 /// [`fill_holes`] of the listed holes (a superset of nothing else: every listed pixel must be a
@@ -529,14 +530,10 @@ pub fn fill_background_with(
             "fill_background: the source layers are not {m} x the {w}x{h} warped buffer on both axes"
         )));
     }
-    if w as u64 * h as u64 > SKY_MARK as u64 {
-        return Err(Error::invalid(format!("fill_background: {w}x{h} is more than 2^31 pixels")));
+    if w as u64 * h as u64 > u32::MAX as u64 {
+        return Err(Error::invalid(format!("fill_background: {w}x{h} is more than 2^32 pixels")));
     }
     check_revealed(&out.state, &out.revealed)?;
-    let mut holes = hole_list(&out.state);
-    if holes.is_empty() {
-        return Ok(());
-    }
     // 0. Lone revealed pixels become holes.
     let lone = lone_revealed(&out.depth, &out.state, &out.revealed);
     if !lone.is_empty() {
@@ -546,46 +543,57 @@ pub fn fill_background_with(
             sd[i as usize] = PixelState::Hole;
         }
         out.revealed.retain(|i| lone.binary_search(i).is_err());
-        holes.extend_from_slice(&lone);
-        holes.sort_unstable();
     }
-    // 1. Holes that see the source's empty background, marked in the list itself (its entries
-    // are pixel indices below 2^31) so that steps 2 and 3 narrow it in place.
+    // 1. Holes that see the source's empty background, decided band by band of rows: the band's
+    // holes listed, searched eight at a time, marked and narrowed while its rows are in cache
+    // (most holes are sky, in long runs along rows). What remains is the list of steps 2 and 3.
     let bg = EmptyBackground { layers, motion: layers[0].motion.data(), w: sw, h: sh };
     let mf = m as f32;
-    holes.par_chunks_mut(256).for_each(|chunk| {
-        let mut done = 0;
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::has_avx2() && layers.len() <= 8 {
-            let mut depths = [&[][..]; 8];
-            for (d, l) in depths.iter_mut().zip(layers) {
-                *d = l.depth.data();
-            }
-            let depths = &depths[..layers.len()];
-            while done + 8 <= chunk.len() {
-                let idx: [u32; 8] = chunk[done..done + 8].try_into().expect("eight");
-                // SAFETY: AVX2 checked; the buffers are sw * sh long.
-                let bits = unsafe { crate::simd_warp::background8(depths, bg.motion, sw, sh, w, mf, &idx, search) };
-                for (k, i) in chunk[done..done + 8].iter_mut().enumerate() {
-                    *i |= SKY_MARK * (bits >> k & 1) as u32;
+    let band = w as usize * HOLE_BAND_ROWS;
+    let bands: Vec<Vec<u32>> = out
+        .depth
+        .data_mut()
+        .par_chunks_mut(band)
+        .zip(out.state.data_mut().par_chunks_mut(band))
+        .enumerate()
+        .map(|(b, (dd, sd))| {
+            let base = (b * band) as u32;
+            let holes = holes_in(sd, base);
+            let mut rest = Vec::new();
+            let mut decide = |i: u32, sky: bool| {
+                if sky {
+                    let j = (i - base) as usize;
+                    dd[j] = EMPTY_DEPTH;
+                    sd[j] = PixelState::Converged;
+                } else {
+                    rest.push(i);
                 }
-                done += 8;
+            };
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::has_avx2() && layers.len() <= 8 {
+                let mut depths = [&[][..]; 8];
+                for (d, l) in depths.iter_mut().zip(layers) {
+                    *d = l.depth.data();
+                }
+                let depths = &depths[..layers.len()];
+                while done + 8 <= holes.len() {
+                    let idx: &[u32; 8] = holes[done..done + 8].try_into().expect("eight");
+                    // SAFETY: AVX2 checked; the buffers are sw * sh long.
+                    let bits = unsafe { crate::simd_warp::background8(depths, bg.motion, sw, sh, w, mf, idx, search) };
+                    for (k, &i) in idx.iter().enumerate() {
+                        decide(i, bits >> k & 1 != 0);
+                    }
+                    done += 8;
+                }
             }
-        }
-        for i in chunk.iter_mut().skip(done) {
-            let (x, y) = (*i % w, *i / w);
-            *i |= SKY_MARK * background_converges(&bg, x, y, mf, search) as u32;
-        }
-    });
-    {
-        let (dd, sd) = (out.depth.data_mut(), out.state.data_mut());
-        for &i in holes.iter().filter(|&&i| i & SKY_MARK != 0) {
-            let i = (i & !SKY_MARK) as usize;
-            dd[i] = EMPTY_DEPTH;
-            sd[i] = PixelState::Converged;
-        }
-    }
-    holes.retain(|&i| i & SKY_MARK == 0);
+            for &i in &holes[done..] {
+                decide(i, background_converges(&bg, i % w, i / w, mf, search));
+            }
+            rest
+        })
+        .collect();
+    let mut holes = bands.concat();
     // 2. Bracketed holes.
     fill_holes_listed(&mut out.depth, &mut out.state, &holes, limits.bracket, FillRule::Background);
     // 3. Holes open to the image border.
@@ -636,10 +644,6 @@ pub fn lone_revealed(depth: &Image<f32>, state: &Image<PixelState>, revealed: &[
         })
         .collect()
 }
-
-/// The mark of a hole list entry whose pixel sees the source's empty background (step 1 of
-/// [`fill_background`]); pixel indices stay below it.
-const SKY_MARK: u32 = 1 << 31;
 
 /// Step 1 of [`fill_background`] for target pixel `(x, y)`: does the search on the empty
 /// background converge? (Its candidate is always the far depth.)

@@ -1286,10 +1286,16 @@ pub(crate) unsafe fn background8(
     holes: &[u32; 8],
     search: &crate::search::SearchParams,
 ) -> u8 {
-    let xs: [i32; 8] = std::array::from_fn(|k| (holes[k] % tw) as i32);
-    let ys: [i32; 8] = std::array::from_fn(|k| (holes[k] / tw) as i32);
-    let xi = _mm256_loadu_si256(xs.as_ptr() as *const __m256i);
-    let yi = _mm256_loadu_si256(ys.as_ptr() as *const __m256i);
+    // A run of eight along one row (most holes: the sky) needs one division, not eight.
+    let (x0, y0) = (holes[0] % tw, holes[0] / tw);
+    let (xi, yi) = if holes[7] == holes[0] + 7 && x0 + 7 < tw {
+        let xi = _mm256_add_epi32(_mm256_set1_epi32(x0 as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        (xi, _mm256_set1_epi32(y0 as i32))
+    } else {
+        let xs: [i32; 8] = std::array::from_fn(|k| (holes[k] % tw) as i32);
+        let ys: [i32; 8] = std::array::from_fn(|k| (holes[k] / tw) as i32);
+        (_mm256_loadu_si256(xs.as_ptr() as *const __m256i), _mm256_loadu_si256(ys.as_ptr() as *const __m256i))
+    };
     let (px, py) = positions(mf, xi, yi);
     let mp = motion.as_ptr() as *const f32;
     let wv = _mm256_set1_epi32(w as i32);

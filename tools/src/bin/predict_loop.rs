@@ -92,6 +92,7 @@ fn main() {
         warp_prepared_into(&rec, &far, &mut out).unwrap();
         out.clone()
     };
+    let holes_in = warped.state.data().iter().filter(|&&s| s == PixelState::Hole).count();
     let mut floor_out = vec![0f32; w as usize * h as usize];
     let (mut tp, mut tf, mut tr) = (Vec::new(), Vec::new(), Vec::new());
     let mut scratch = warped.clone();
@@ -141,7 +142,7 @@ fn main() {
     let (f, flo, fhi) = stats(tf);
     let (r, rlo, rhi) = if tr.is_empty() { (f64::NAN, f64::NAN, f64::NAN) } else { stats(tr) };
     println!(
-        "{name} {w}x{h} L={l} N={n} {part}: {p:.2} ms [{plo:.2}, {phi:.2}]  floor {f:.2} ms [{flo:.2}, {fhi:.2}]  x floor {:.1}  render {r:.2} ms [{rlo:.2}, {rhi:.2}]  render/{part} {:.2}  hash {fp:016x}",
+        "{name} {w}x{h} L={l} N={n} {part}: {p:.2} ms [{plo:.2}, {phi:.2}]  floor {f:.2} ms [{flo:.2}, {fhi:.2}]  x floor {:.1}  render {r:.2} ms [{rlo:.2}, {rhi:.2}]  render/{part} {:.2}  holes {holes_in}  hash {fp:016x}",
         p / f,
         r / p
     );
