@@ -56,6 +56,30 @@ pub(crate) struct CoarsePrev {
     pub(crate) nan: bool,
 }
 
+/// The AVX2 build of [`reduce_prev`] (on where the CPU has AVX2; tests turn it off to compare).
+static AVX2: zwarp_core::SimdSwitch = zwarp_core::SimdSwitch::avx2();
+
+/// Enables (default) or disables the AVX2 build of the coarse reduction of the previous frame
+/// (`WocParams::downsample` > 1). Results are bit-identical either way; this exists for tests
+/// and for timing the portable build.
+#[doc(hidden)]
+pub fn set_simd(enabled: bool) {
+    AVX2.set(enabled);
+}
+
+/// What [`reduce_prev`] gathers over one coarse texel's footprint: the farthest pixel (depth,
+/// item) and the nearest and farthest pixels of objects (depth, fine x, fine y), each the first
+/// in row-major order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Acc {
+    best: (f32, u32),
+    near: (f32, u32, u32),
+    far: (f32, u32, u32),
+}
+
+/// An [`Acc`] before any pixel.
+const EMPTY_ACC: Acc = Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
+
 /// One pass over the fine previous buffers for the coarse culling resolution (seed 002
 /// Sec. VI): [`downsample_max`]'s conservative reduction, the near/far object pairs of
 /// [`coarse_internal_openings`] when `pairs_below` gives the object count, and the NaN check,
@@ -79,21 +103,23 @@ pub(crate) fn reduce_prev(
     // whole, so consecutive pixels update different columns' accumulators: no loop-carried
     // dependency through one running max (the per-texel loop was latency-bound, ~7 cycles per
     // fine pixel). Ties keep the first pixel in row-major order (strict comparisons).
-    #[derive(Clone, Copy)]
-    struct Acc {
-        best: (f32, u32),
-        near: (f32, u32, u32),
-        far: (f32, u32, u32),
-    }
-    const EMPTY_ACC: Acc =
-        Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
+    // Footprints four fine columns wide, one after another: the AVX2 build takes the coarse
+    // texels two at a time (eight fine columns per row load), the same bits.
+    let lanes = AVX2.active() && fw == 4 * cw && limit <= NO_ITEM as usize;
     let row = |cy: usize, od: &mut [f32], oi: &mut [u32], op: Option<&mut [Option<(Px, Px)>]>| -> bool {
         let (y0, y1) = footprint(cy as u32, fh, ch);
         let mut acc = vec![EMPTY_ACC; xs.len()];
         let mut nan = false;
+        let mut from = 0;
+        #[cfg(target_arch = "x86_64")]
+        if lanes {
+            // SAFETY: AVX2 checked; the rows hold `4 * acc.len()` fine pixels.
+            nan = unsafe { avx2::reduce_pairs(depth, items, (y0, y1), limit, &mut acc) };
+            from = acc.len() & !1;
+        }
         for y in y0..y1 {
             let (ds, is) = (depth.row(y), items.row(y));
-            for (a, &(x0, x1)) in acc.iter_mut().zip(&xs) {
+            for (a, &(x0, x1)) in acc.iter_mut().zip(&xs).skip(from) {
                 for x in x0..x1 {
                     let (d, id) = (ds[x as usize], is[x as usize]);
                     nan |= d.is_nan();
@@ -220,4 +246,184 @@ pub fn max_over_footprints(fine: &Image<f32>, (cw, ch): (u32, u32)) -> Image<f32
         }
     });
     out
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use super::{Acc, EMPTY_ACC};
+    use zwarp_core::{Image, EMPTY_DEPTH, NO_ITEM};
+
+    /// [`super::reduce_prev`]'s accumulators of fine rows `y0..y1` for the coarse texels of
+    /// `acc` taken two at a time (texel `c` covers fine columns `4c..4c + 4`; an odd last one
+    /// is left to the caller): per fine column the first row holding its farthest pixel and,
+    /// among pixels of objects (`depth < 1`, item below `limit`), its nearest and farthest,
+    /// then per texel the first of its four columns' candidates in row-major order. Returns
+    /// whether a depth was NaN (NaN never wins a comparison, as in the scalar loop).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2; `depth` and `items` must have `4 * acc.len()` or more
+    /// columns and rows `y0..y1`.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn reduce_pairs(
+        depth: &Image<f32>,
+        items: &Image<u32>,
+        (y0, y1): (u32, u32),
+        limit: usize,
+        acc: &mut [Acc],
+    ) -> bool {
+        let mut nan = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(EMPTY_DEPTH);
+        // `id < limit` as unsigned: `min(id, limit - 1) == id` (no id is below a limit of 0).
+        let below = |id: __m256i| -> __m256i {
+            if limit == 0 {
+                _mm256_setzero_si256()
+            } else {
+                _mm256_cmpeq_epi32(_mm256_min_epu32(id, _mm256_set1_epi32((limit - 1) as u32 as i32)), id)
+            }
+        };
+        for pair in 0..acc.len() / 2 {
+            let x = 8 * pair;
+            let mut bd = _mm256_set1_ps(f32::NEG_INFINITY);
+            let mut bi = _mm256_set1_epi32(NO_ITEM as i32);
+            let mut by = _mm256_setzero_si256();
+            let mut nd = _mm256_set1_ps(f32::INFINITY);
+            let mut ny = _mm256_setzero_si256();
+            let mut fd = _mm256_set1_ps(f32::NEG_INFINITY);
+            let mut fy = _mm256_setzero_si256();
+            for y in y0..y1 {
+                let d = _mm256_loadu_ps(depth.row(y).as_ptr().add(x));
+                let id = _mm256_loadu_si256(items.row(y).as_ptr().add(x) as *const __m256i);
+                let yv = _mm256_set1_epi32(y as i32);
+                nan = _mm256_or_ps(nan, _mm256_cmp_ps::<_CMP_UNORD_Q>(d, d));
+                let gt = _mm256_cmp_ps::<_CMP_GT_OQ>(d, bd);
+                bd = _mm256_blendv_ps(bd, d, gt);
+                bi = _mm256_blendv_epi8(bi, id, _mm256_castps_si256(gt));
+                by = _mm256_blendv_epi8(by, yv, _mm256_castps_si256(gt));
+                let valid = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(d, one), _mm256_castsi256_ps(below(id)));
+                let lt = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_LT_OQ>(d, nd));
+                nd = _mm256_blendv_ps(nd, d, lt);
+                ny = _mm256_blendv_epi8(ny, yv, _mm256_castps_si256(lt));
+                let gtv = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GT_OQ>(d, fd));
+                fd = _mm256_blendv_ps(fd, d, gtv);
+                fy = _mm256_blendv_epi8(fy, yv, _mm256_castps_si256(gtv));
+            }
+            let (mut bds, mut nds, mut fds) = ([0f32; 8], [0f32; 8], [0f32; 8]);
+            let (mut bis, mut bys, mut nys, mut fys) = ([0u32; 8], [0u32; 8], [0u32; 8], [0u32; 8]);
+            _mm256_storeu_ps(bds.as_mut_ptr(), bd);
+            _mm256_storeu_ps(nds.as_mut_ptr(), nd);
+            _mm256_storeu_ps(fds.as_mut_ptr(), fd);
+            _mm256_storeu_si256(bis.as_mut_ptr() as *mut __m256i, bi);
+            _mm256_storeu_si256(bys.as_mut_ptr() as *mut __m256i, by);
+            _mm256_storeu_si256(nys.as_mut_ptr() as *mut __m256i, ny);
+            _mm256_storeu_si256(fys.as_mut_ptr() as *mut __m256i, fy);
+            for t in 0..2 {
+                let cols = 4 * t..4 * t + 4;
+                // The first in row-major order among the columns whose candidate is `better`
+                // than every other's: earliest row, then leftmost column.
+                let first = |v: &[f32; 8], rows: &[u32; 8], better: fn(f32, f32) -> bool| -> Option<usize> {
+                    let mut pick: Option<usize> = None;
+                    for c in cols.clone() {
+                        pick = match pick {
+                            None => Some(c),
+                            Some(p) if better(v[c], v[p]) || (v[c] == v[p] && rows[c] < rows[p]) => Some(c),
+                            keep => keep,
+                        };
+                    }
+                    pick
+                };
+                let a = &mut acc[2 * pair + t];
+                *a = EMPTY_ACC;
+                let b = first(&bds, &bys, |u, v| u > v).expect("four columns");
+                if bds[b] > f32::NEG_INFINITY {
+                    a.best = (bds[b], bis[b]);
+                }
+                let n = first(&nds, &nys, |u, v| u < v).expect("four columns");
+                if nds[n] < f32::INFINITY {
+                    a.near = (nds[n], (x + n) as u32, nys[n]);
+                }
+                let f = first(&fds, &fys, |u, v| u > v).expect("four columns");
+                if fds[f] > f32::NEG_INFINITY {
+                    a.far = (fds[f], (x + f) as u32, fys[f]);
+                }
+            }
+        }
+        _mm256_movemask_ps(nan) != 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bits of everything [`reduce_prev`] returns.
+    type Bits = (Vec<u32>, Vec<u32>, Vec<Option<[u32; 8]>>, bool);
+
+    fn bits(r: &CoarsePrev) -> Bits {
+        let px = |p: &Px| [p.0.to_bits(), p.1, p.2, p.3];
+        (
+            r.depth.data().iter().map(|d| d.to_bits()).collect(),
+            r.items.data().to_vec(),
+            r.pairs
+                .iter()
+                .map(|p| {
+                    p.map(|(a, b)| {
+                        let (a, b) = (px(&a), px(&b));
+                        [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
+                    })
+                })
+                .collect(),
+            r.nan,
+        )
+    }
+
+    #[test]
+    fn avx2_reduction_equals_the_scalar_one() {
+        if !AVX2.active() {
+            eprintln!("note: no AVX2 on this CPU; both runs take the scalar code");
+        }
+        let mut state = 0x2545_f491_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        // Widths with an even and an odd number of texels, heights with whole and partial
+        // footprints (every fine row belongs to some texel either way).
+        for (cw, ch, fh) in [(6u32, 3u32, 12u32), (7, 4, 14), (1, 2, 8), (10, 5, 21)] {
+            let fw = 4 * cw;
+            for case in 0..6 {
+                // Few distinct depths and items so that ties, empty pixels and -0.0 / 0.0 occur.
+                let levels = [0.25f32, 0.5, 0.5, -0.0, 0.0, EMPTY_DEPTH, 0.75, 0.125];
+                let depth = Image::from_vec(
+                    fw,
+                    fh,
+                    (0..fw * fh)
+                        .map(|_| match next() % 41 {
+                            0 if case == 5 => f32::NAN,
+                            k => levels[k as usize % levels.len()],
+                        })
+                        .collect(),
+                )
+                .unwrap();
+                let items = Image::from_vec(
+                    fw,
+                    fh,
+                    (0..fw * fh).map(|_| if next() % 9 == 0 { NO_ITEM } else { next() % 5 }).collect(),
+                )
+                .unwrap();
+                for pairs in [None, Some(0), Some(3), Some(5)] {
+                    set_simd(true);
+                    let fast = reduce_prev(&depth, &items, (cw, ch), pairs);
+                    set_simd(false);
+                    let scalar = reduce_prev(&depth, &items, (cw, ch), pairs);
+                    set_simd(true);
+                    assert!(bits(&fast) == bits(&scalar), "{cw}x{ch} from {fw}x{fh}, case {case}, pairs {pairs:?}");
+                    assert_eq!(scalar.nan, case == 5 && depth.data().iter().any(|d| d.is_nan()));
+                }
+            }
+        }
+    }
 }
