@@ -48,10 +48,11 @@ pub(crate) struct CoarsePrev {
     pub(crate) depth: Image<f32>,
     /// [`downsample_max`]'s items.
     pub(crate) items: Image<u32>,
-    /// Per coarse texel, its nearest and farthest non-empty fine pixel when they belong to two
-    /// different objects (ids below the object count given), the nearer strictly nearer
-    /// (input of [`coarse_internal_openings`]); empty unless asked for.
-    pub(crate) pairs: Vec<Option<(Px, Px)>>,
+    /// The coarse texels (row-major index, ascending) whose nearest and farthest non-empty fine
+    /// pixels belong to two different objects (ids below the object count given), the nearer
+    /// strictly nearer, with those two pixels (input of [`coarse_internal_openings`]); empty
+    /// unless asked for. Listed sparsely: most texels lie on one object.
+    pub(crate) pairs: Vec<TexelPair>,
     /// A fine depth was NaN.
     pub(crate) nan: bool,
 }
@@ -96,7 +97,6 @@ pub(crate) fn reduce_prev(
     let (cwu, n) = (cw as usize, cw as usize * ch as usize);
     let mut out_d = vec![0.0f32; n];
     let mut out_i = vec![NO_ITEM; n];
-    let mut out_p: Vec<Option<(Px, Px)>> = if pairs_below.is_some() { vec![None; n] } else { Vec::new() };
     let limit = pairs_below.unwrap_or(0);
     // Per coarse column of one coarse row: farthest pixel (depth, item) and, for the pairs,
     // the nearest and farthest valid pixel (depth, fine x, fine y). The fine rows are walked
@@ -106,7 +106,7 @@ pub(crate) fn reduce_prev(
     // Footprints four fine columns wide, one after another: the AVX2 build takes the coarse
     // texels two at a time (eight fine columns per row load), the same bits.
     let lanes = AVX2.active() && fw == 4 * cw && limit <= NO_ITEM as usize;
-    let row = |cy: usize, od: &mut [f32], oi: &mut [u32], op: Option<&mut [Option<(Px, Px)>]>| -> bool {
+    let row = |cy: usize, od: &mut [f32], oi: &mut [u32], op: Option<&mut Vec<TexelPair>>| -> bool {
         let (y0, y1) = footprint(cy as u32, fh, ch);
         let mut acc = vec![EMPTY_ACC; xs.len()];
         let mut nan = false;
@@ -143,27 +143,29 @@ pub(crate) fn reduce_prev(
             oi[cx] = a.best.1;
         }
         if let Some(p) = op {
-            for (o, a) in p.iter_mut().zip(&acc) {
-                *o = (a.near.0 < a.far.0).then(|| {
-                    let near = (a.near.0, *items.get(a.near.1, a.near.2), a.near.1, a.near.2);
-                    let far = (a.far.0, *items.get(a.far.1, a.far.2), a.far.1, a.far.2);
-                    (near, far)
-                });
-                if o.is_some_and(|(n, f)| n.1 == f.1) {
-                    *o = None;
+            for (cx, a) in acc.iter().enumerate().filter(|(_, a)| a.near.0 < a.far.0) {
+                let near = (a.near.0, *items.get(a.near.1, a.near.2), a.near.1, a.near.2);
+                let far = (a.far.0, *items.get(a.far.1, a.far.2), a.far.1, a.far.2);
+                if near.1 != far.1 {
+                    p.push(((cy * cwu + cx) as u32, near, far));
                 }
             }
         }
         nan
     };
+    let mut out_p = Vec::new();
     let nan = if pairs_below.is_some() {
-        out_d
+        let rows: Vec<(bool, Vec<TexelPair>)> = out_d
             .par_chunks_mut(cwu)
             .zip(out_i.par_chunks_mut(cwu))
-            .zip(out_p.par_chunks_mut(cwu))
             .enumerate()
-            .map(|(cy, ((od, oi), op))| row(cy, od, oi, Some(op)))
-            .reduce(|| false, |a, b| a || b)
+            .map(|(cy, (od, oi))| {
+                let mut p = Vec::new();
+                (row(cy, od, oi, Some(&mut p)), p)
+            })
+            .collect();
+        out_p = rows.iter().flat_map(|(_, p)| p.iter().copied()).collect();
+        rows.iter().any(|(nan, _)| *nan)
     } else {
         out_d
             .par_chunks_mut(cwu)
@@ -179,6 +181,10 @@ pub(crate) fn reduce_prev(
         nan,
     }
 }
+
+/// A coarse texel of [`CoarsePrev::pairs`]: its row-major index, its nearest and farthest fine
+/// pixels of objects.
+pub(crate) type TexelPair = (u32, Px, Px);
 
 /// Coarse texels whose footprint holds an *internal opening*: two different objects (the
 /// nearest and the farthest fine pixel of the footprint) whose own screen motions, from
@@ -198,16 +204,27 @@ pub(crate) fn reduce_prev(
 /// [`reduce_prev`] (fine pixel coordinates in a `fw x fh` image).
 pub(crate) fn coarse_internal_openings(
     delta: impl Fn(u32) -> glam::Mat4 + Sync,
-    pairs: &[Option<(Px, Px)>],
+    pairs: &[TexelPair],
+    texels: usize,
     (fw, fh): (u32, u32),
     prev_cam: &Camera,
     cam: &Camera,
     min_separation: f32,
 ) -> Vec<bool> {
-    // Object matrices of the items involved, computed once each.
-    let mut ids: Vec<u32> = pairs.iter().flatten().flat_map(|(a, b)| [a.1, b.1]).collect();
-    ids.sort_unstable();
-    ids.dedup();
+    // Object matrices of the items involved, computed once each: the ids marked in a bit set
+    // (ids are below the object count), listed in increasing order.
+    let words = pairs.iter().map(|(_, a, b)| a.1.max(b.1) as usize / 64 + 1).max().unwrap_or(0);
+    let mut seen = vec![0u64; words];
+    for (_, a, b) in pairs {
+        for id in [a.1, b.1] {
+            seen[id as usize / 64] |= 1 << (id % 64);
+        }
+    }
+    let ids: Vec<u32> = seen
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &w)| (0..64).filter(move |b| w >> b & 1 != 0).map(move |b| (k * 64 + b) as u32))
+        .collect();
     let vp_b = cam.view_proj();
     let mats: Vec<glam::Mat4> = ids.par_iter().map(|&id| vp_b * delta(id)).collect();
     let mat = |id: u32| &mats[ids.binary_search(&id).expect("collected above")];
@@ -215,17 +232,21 @@ pub(crate) fn coarse_internal_openings(
     let motion = |p: &Px| {
         zwarp_core::motion::reproject_pixel(&inv_a, mat(p.1), (fw, fh), (cam.width, cam.height), p.2, p.3, p.0).v
     };
-    pairs
+    let open: Vec<u32> = pairs
         .par_iter()
-        .map(|pair| {
-            pair.is_some_and(|(near, far)| {
-                let rel = motion(&near) - motion(&far);
-                let dir = Vec2::new(near.2 as f32 - far.2 as f32, near.3 as f32 - far.3 as f32).normalize();
-                let len = rel.length();
-                len > min_separation && rel.dot(dir) > -0.5 * len
-            })
+        .filter(|(_, near, far)| {
+            let rel = motion(near) - motion(far);
+            let dir = Vec2::new(near.2 as f32 - far.2 as f32, near.3 as f32 - far.3 as f32).normalize();
+            let len = rel.length();
+            len > min_separation && rel.dot(dir) > -0.5 * len
         })
-        .collect()
+        .map(|(i, _, _)| *i)
+        .collect();
+    let mut flags = vec![false; texels];
+    for i in open {
+        flags[i as usize] = true;
+    }
+    flags
 }
 
 /// Depth-only twin of [`downsample_max`]: each of the `cw x ch` coarse pixels takes the max of
@@ -358,22 +379,14 @@ mod tests {
     use super::*;
 
     /// Bits of everything [`reduce_prev`] returns.
-    type Bits = (Vec<u32>, Vec<u32>, Vec<Option<[u32; 8]>>, bool);
+    type Bits = (Vec<u32>, Vec<u32>, Vec<(u32, [u32; 4], [u32; 4])>, bool);
 
     fn bits(r: &CoarsePrev) -> Bits {
         let px = |p: &Px| [p.0.to_bits(), p.1, p.2, p.3];
         (
             r.depth.data().iter().map(|d| d.to_bits()).collect(),
             r.items.data().to_vec(),
-            r.pairs
-                .iter()
-                .map(|p| {
-                    p.map(|(a, b)| {
-                        let (a, b) = (px(&a), px(&b));
-                        [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
-                    })
-                })
-                .collect(),
+            r.pairs.iter().map(|(i, a, b)| (*i, px(a), px(b))).collect(),
             r.nan,
         )
     }

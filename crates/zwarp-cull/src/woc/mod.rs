@@ -474,7 +474,8 @@ pub fn woc_objects(
     // Coarse culling: openings inside one coarse texel are invisible to the coarse rim test.
     let inner_open = match (params.open_rims, f > 1) {
         (Some(sep), true) => {
-            Some(coarse_internal_openings(delta, &pairs, prev.depth.size(), full_prev_cam, full_cam, sep))
+            let texels = prev_depth.len();
+            Some(coarse_internal_openings(delta, &pairs, texels, prev.depth.size(), full_prev_cam, full_cam, sep))
         }
         _ => None,
     };
