@@ -2,13 +2,10 @@
 //! last-frame depth, two-phase culling, the ideal screen-space test and REF (exact
 //! visibility from the item buffer).
 
-use super::{
-    check_time, cull_against_depth, ms, test_objects, Class, CullResult, CullStats, CullTimings, OBJECT_CHUNK,
-};
+use super::{check_time, cull_against_depth, ms, test_objects, Class, CullResult, CullStats, CullTimings};
 use crate::bounds::ObjectBounds;
 use crate::frustum::Frustum;
 use crate::maxdepth::{MaxDepthKind, MaxDepthMap};
-use rayon::prelude::*;
 use std::time::Instant;
 use zwarp_core::{Camera, Error, Image, Result, Scene, NO_ITEM};
 use zwarp_raster::{draw_into, render_frame, FrameOptions};
@@ -37,11 +34,7 @@ pub fn vfc_cull_with(scene: &Scene, bounds: &ObjectBounds, cam: &Camera, t: f32)
     let t0 = Instant::now();
     let frustum = Frustum::from_camera(cam);
     let n = scene.instances.len();
-    let visible: Vec<u32> = (0..n as u32)
-        .into_par_iter()
-        .with_min_len(OBJECT_CHUNK)
-        .filter(|&id| frustum.intersects(&bounds.at(scene, id, t)))
-        .collect();
+    let visible = frustum.filter_map_ids(n as u32, |id| bounds.at(scene, id, t), |id, _| Some(id));
     let stats = CullStats { objects: n, frustum_culled: n - visible.len(), ..CullStats::default() };
     let total = ms(t0);
     Ok(CullResult {

@@ -79,7 +79,8 @@ struct Acc {
 }
 
 /// An [`Acc`] before any pixel.
-const EMPTY_ACC: Acc = Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
+const EMPTY_ACC: Acc =
+    Acc { best: (f32::NEG_INFINITY, NO_ITEM), near: (f32::INFINITY, 0, 0), far: (f32::NEG_INFINITY, 0, 0) };
 
 /// One pass over the fine previous buffers for the coarse culling resolution (seed 002
 /// Sec. VI): [`downsample_max`]'s conservative reduction, the near/far object pairs of

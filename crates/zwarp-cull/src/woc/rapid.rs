@@ -99,14 +99,10 @@ pub(crate) const OBJECT_CHUNK: usize = 512;
 pub(crate) fn prepass(objects: &(impl CullObjects + ?Sized), cam: &Camera, rapid: &Rapid<'_>) -> Vec<Prepassed> {
     let frustum = Frustum::from_camera(cam);
     let vp = cam.view_proj();
-    (0..objects.len() as u32)
-        .into_par_iter()
-        .with_min_len(OBJECT_CHUNK)
-        .filter_map(|id| {
-            let aabb = objects.world_box(id);
-            if !frustum.intersects(&aabb) {
-                return None;
-            }
+    frustum.filter_map_ids(
+        objects.len() as u32,
+        |id| objects.world_box(id),
+        |id, aabb| {
             if let Some(thr) = rapid.threshold {
                 let moving = rapid.includes_camera || objects.is_animated(id);
                 if moving && object_screen_speed(objects, id, rapid.cam_a, rapid.cam_b) > thr {
@@ -119,8 +115,8 @@ pub(crate) fn prepass(objects: &(impl CullObjects + ?Sized), cam: &Camera, rapid
                 ScreenRect::Rect { rect, nearest } => Test::Rect(rect, nearest),
             };
             Some(Prepassed { id, aabb, test })
-        })
-        .collect()
+        },
+    )
 }
 
 /// The screen-space stage of [`woc`] over the [`prepass`]ed objects: ids (increasing) of those
