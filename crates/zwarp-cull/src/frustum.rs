@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use zwarp_core::{Aabb, Camera};
 
 use crate::woc::OBJECT_CHUNK;
+use crate::AVX2;
 
 /// The six clip planes of a camera as `(n, d)` with `n . x + d >= 0` inside, in world space.
 ///
@@ -160,16 +161,6 @@ impl Frustum {
     }
 }
 
-/// The AVX2 build of [`Frustum::intersects8`] (on where the CPU has AVX2).
-static AVX2: zwarp_core::SimdSwitch = zwarp_core::SimdSwitch::avx2();
-
-/// Enables (default) or disables the AVX2 build of [`Frustum::intersects8`]. Results are
-/// bit-identical either way; this exists for tests and for timing the portable build.
-#[doc(hidden)]
-pub fn set_simd(enabled: bool) {
-    AVX2.set(enabled);
-}
-
 /// View-frustum culling of many boxes (in parallel): ids (indices into `aabbs`) of the boxes
 /// that may be visible, in increasing order.
 pub fn vfc(aabbs: &[Aabb], cam: &Camera) -> Vec<u32> {
@@ -270,6 +261,7 @@ mod tests {
             Camera::perspective(Vec3::new(3.0, -2.0, 5.0), Vec3::new(-1.0, 0.5, -4.0), Vec3::Y, 0.7, 0.1, 80.0, 96, 54)
                 .unwrap(),
         ];
+        let _switch = crate::SIMD_TEST_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         for c in &cams {
             let f = Frustum::from_camera(c);
             let mut boxes = Vec::new();
@@ -303,7 +295,7 @@ mod tests {
             let want: Vec<bool> = boxes.iter().map(|b| f.intersects(b)).collect();
             assert!(want.iter().any(|&v| v) && want.iter().any(|&v| !v));
             for simd in [true, false] {
-                set_simd(simd);
+                crate::set_simd(simd);
                 for (chunk, w) in boxes.chunks(8).zip(want.chunks(8)) {
                     let mut eight = [Aabb::EMPTY; 8];
                     eight[..chunk.len()].copy_from_slice(chunk);
@@ -316,7 +308,7 @@ mod tests {
                 let expect: Vec<u32> = (0..boxes.len() as u32).filter(|&i| want[i as usize]).collect();
                 assert_eq!(ids, expect);
             }
-            set_simd(true);
+            crate::set_simd(true);
         }
     }
 }

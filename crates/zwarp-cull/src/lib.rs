@@ -31,6 +31,22 @@ pub mod screen;
 pub mod sequence;
 pub mod woc;
 
+/// The AVX2 builds of this crate (VFC's eight-box test, the coarse reduction of the previous
+/// frame): on where the CPU has AVX2.
+pub(crate) static AVX2: zwarp_core::SimdSwitch = zwarp_core::SimdSwitch::avx2();
+
+/// Enables (default) or disables this crate's AVX2 builds ([`Frustum::intersects8`], WOC's coarse
+/// reduction of the previous frame). Results are bit-identical either way; this exists for tests
+/// and for timing the portable builds.
+#[doc(hidden)]
+pub fn set_simd(enabled: bool) {
+    AVX2.set(enabled);
+}
+
+/// Held by the tests that flip [`set_simd`], so that each compares the two builds it means to.
+#[cfg(test)]
+pub(crate) static SIMD_TEST_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 pub use bounds::ObjectBounds;
 pub use diagnose::{culled_visible, CulledVisible};
 pub use frustum::{vfc, Frustum};

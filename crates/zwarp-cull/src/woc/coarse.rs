@@ -6,6 +6,8 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Camera, Error, Image, Result, EMPTY_DEPTH, NO_ITEM};
 
+use crate::AVX2;
+
 /// The same view volume rendered at `1/factor` of the resolution (rounded up): projection and
 /// view are unchanged, only the pixel grid is coarser.
 pub fn coarse_camera(cam: &Camera, factor: u32) -> Camera {
@@ -55,17 +57,6 @@ pub(crate) struct CoarsePrev {
     pub(crate) pairs: Vec<TexelPair>,
     /// A fine depth was NaN.
     pub(crate) nan: bool,
-}
-
-/// The AVX2 build of [`reduce_prev`] (on where the CPU has AVX2; tests turn it off to compare).
-static AVX2: zwarp_core::SimdSwitch = zwarp_core::SimdSwitch::avx2();
-
-/// Enables (default) or disables the AVX2 build of the coarse reduction of the previous frame
-/// (`WocParams::downsample` > 1). Results are bit-identical either way; this exists for tests
-/// and for timing the portable build.
-#[doc(hidden)]
-pub fn set_simd(enabled: bool) {
-    AVX2.set(enabled);
 }
 
 /// What [`reduce_prev`] gathers over one coarse texel's footprint: the farthest pixel (depth,
@@ -394,6 +385,7 @@ mod tests {
 
     #[test]
     fn avx2_reduction_equals_the_scalar_one() {
+        let _switch = crate::SIMD_TEST_LOCK.lock().unwrap_or_else(|e| e.into_inner());
         if !AVX2.active() {
             eprintln!("note: no AVX2 on this CPU; both runs take the scalar code");
         }
@@ -429,11 +421,11 @@ mod tests {
                 )
                 .unwrap();
                 for pairs in [None, Some(0), Some(3), Some(5)] {
-                    set_simd(true);
+                    crate::set_simd(true);
                     let fast = reduce_prev(&depth, &items, (cw, ch), pairs);
-                    set_simd(false);
+                    crate::set_simd(false);
                     let scalar = reduce_prev(&depth, &items, (cw, ch), pairs);
-                    set_simd(true);
+                    crate::set_simd(true);
                     assert!(bits(&fast) == bits(&scalar), "{cw}x{ch} from {fw}x{fh}, case {case}, pairs {pairs:?}");
                     assert_eq!(scalar.nan, case == 5 && depth.data().iter().any(|d| d.is_nan()));
                 }
