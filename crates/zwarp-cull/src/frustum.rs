@@ -72,9 +72,7 @@ impl Frustum {
         }
         true
     }
-}
 
-impl Frustum {
     /// [`Self::intersects`] of eight boxes: bit `i` set where `boxes[i]` may intersect. The AVX2
     /// build (where the CPU has it) tests the eight at once with the same operations in the same
     /// order, so the same bits.
@@ -88,6 +86,10 @@ impl Frustum {
         boxes.iter().enumerate().fold(0, |m, (i, b)| m | (self.intersects(b) as u8) << i)
     }
 
+    /// The AVX2 build of [`Self::intersects8`].
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn intersects8_avx2(&self, boxes: &[Aabb; 8]) -> u8 {
