@@ -143,23 +143,35 @@ impl Frustum {
         box_of: impl Fn(u32) -> Aabb + Sync,
         then: impl Fn(u32, Aabb) -> Option<T> + Sync,
     ) -> Vec<T> {
-        (0..n.div_ceil(8))
+        // One task per OBJECT_CHUNK ids, each filling its own list (a per-chunk iterator handed
+        // to rayon costs more than the eight tests it wraps).
+        let task = OBJECT_CHUNK as u32;
+        let lists: Vec<Vec<T>> = (0..n.div_ceil(task))
             .into_par_iter()
-            .with_min_len(OBJECT_CHUNK / 8)
-            .flat_map_iter(|c| {
-                let ids = 8 * c..(8 * c + 8).min(n);
-                let mut boxes = [Aabb::EMPTY; 8];
-                for (b, id) in boxes.iter_mut().zip(ids.clone()) {
-                    *b = box_of(id);
+            .map(|t| {
+                let mut out = Vec::new();
+                let end = (t * task + task).min(n);
+                for c0 in (t * task..end).step_by(8) {
+                    let ids = c0..(c0 + 8).min(end);
+                    let mut boxes = [Aabb::EMPTY; 8];
+                    for (b, id) in boxes.iter_mut().zip(ids.clone()) {
+                        *b = box_of(id);
+                    }
+                    let mask = self.intersects8(&boxes);
+                    for (i, id) in ids.enumerate() {
+                        if mask >> i & 1 != 0 {
+                            out.extend(then(id, boxes[i]));
+                        }
+                    }
                 }
-                let mask = self.intersects8(&boxes);
-                let then = &then;
-                ids.zip(boxes)
-                    .enumerate()
-                    .filter(move |(i, _)| mask >> i & 1 != 0)
-                    .filter_map(move |(_, (id, b))| then(id, b))
+                out
             })
-            .collect()
+            .collect();
+        let mut all = Vec::with_capacity(lists.iter().map(Vec::len).sum());
+        for l in lists {
+            all.extend(l);
+        }
+        all
     }
 }
 
