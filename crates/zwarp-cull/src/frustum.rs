@@ -10,8 +10,12 @@ use glam::{Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Aabb, Camera};
 
-use crate::woc::OBJECT_CHUNK;
 use crate::AVX2;
+
+/// Objects handed to the parallel per-object loops in runs of at least this many (one rayon
+/// task per object costs more than the test of a culled one): [`Frustum::filter_map_ids`] and
+/// WOC's screen-space tests.
+pub(crate) const OBJECT_CHUNK: usize = 512;
 
 /// The six clip planes of a camera as `(n, d)` with `n . x + d >= 0` inside, in world space.
 ///

@@ -2,7 +2,7 @@
 //! threshold are drawn exactly into the predicted depth instead of being warped.
 
 use super::{hull_hides, max_over_footprints, WocParams, DEPTH_TOLERANCE};
-use crate::frustum::Frustum;
+use crate::frustum::{Frustum, OBJECT_CHUNK};
 use crate::maxdepth::MaxDepthQuery;
 use crate::objects::{corner_speed, object_screen_speed, CullObjects};
 use crate::screen::{screen_rect_with, PixelRect, ScreenRect};
@@ -86,10 +86,6 @@ impl<'a> Rapid<'a> {
         }
     }
 }
-
-/// Objects handed to the parallel per-object loops in runs of at least this many (one rayon
-/// task per object costs more than the test of a culled one).
-pub(crate) const OBJECT_CHUNK: usize = 512;
 
 /// The per-object pass of [`woc`] before the occlusion map exists: current boxes, VFC, the
 /// rapid-motion speed (thesis Sec. IV.1) and the box's screen rectangle for `cam` (the culling
