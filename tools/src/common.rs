@@ -68,7 +68,7 @@ impl CullArgs {
         };
         let loaded = load_scene(spec, &SceneOptions { scale: self.scale, ..SceneOptions::default() })?;
         let path = match path {
-            Some(p) => zwarp_scene::CameraPath::from_json_file(p)?,
+            Some(p) => zwarp_scene::CameraPath::from_json_file_at(p, loaded.scene.origin)?,
             None => loaded.path_or_default(),
         };
         Ok((loaded, path))
@@ -149,7 +149,7 @@ impl LoopArgs {
         let path = if a[2] == "-" {
             loaded.path_or_default()
         } else {
-            zwarp_scene::CameraPath::from_json_file(&a[2]).unwrap_or_else(|e| {
+            zwarp_scene::CameraPath::from_json_file_at(&a[2], loaded.scene.origin).unwrap_or_else(|e| {
                 eprintln!("error: {e}");
                 std::process::exit(1)
             })

@@ -73,8 +73,16 @@ impl SceneArgs {
         let opts = SceneOptions { seed: self.seed, scale: self.scale, ..SceneOptions::default() };
         let LoadedScene { scene, path } =
             zwarp_scene::load_scene(&self.scene, &opts).with_context(|| format!("loading scene '{}'", self.scene))?;
+        if scene.origin != glam::DVec3::ZERO {
+            let o = scene.origin;
+            eprintln!(
+                "note: scene '{}' lies far from its file's origin: moved by -({}, {}, {}) for f32 precision; --path keys are read in the file's coordinates",
+                self.scene, o.x, o.y, o.z
+            );
+        }
         let path = match &self.path {
-            Some(p) => CameraPath::from_json_file(p)?,
+            // Paths are written in the coordinates of the scene's file.
+            Some(p) => CameraPath::from_json_file_at(p, scene.origin)?,
             None => path.unwrap_or_else(|| CameraPath::default_for(&scene)),
         };
         Ok(Loaded { scene, path })

@@ -1180,3 +1180,81 @@ fn vr_with_transparency_gives_rows_with_and_without_the_a_buffer() {
     assert!(ok, "{err}");
     assert!(json_rows(&j).iter().all(|r| r["abuffer"] == true));
 }
+
+/// An OBJ of a ground quad and three boxes (one object each), every coordinate a multiple of
+/// 0.25 so that it stays exact in `f32` when moved by `offset` (x, z) up to 2^22, with its
+/// bounds centred on the origin; and a two-key camera path walking past them, moved likewise.
+fn offset_scene(dir: &std::path::Path, name: &str, offset: (f64, f64)) -> (String, String) {
+    let mut obj = String::new();
+    let mut base = 1;
+    let mut cuboid = |obj: &mut String, name: &str, lo: [f64; 3], hi: [f64; 3]| {
+        obj.push_str(&format!("o {name}\n"));
+        for k in 0..8 {
+            let c = |i: usize| if k >> i & 1 == 0 { lo[i] } else { hi[i] };
+            obj.push_str(&format!("v {} {} {}\n", c(0) + offset.0, c(1), c(2) + offset.1));
+        }
+        for f in [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]] {
+            obj.push_str(&format!("f {} {} {} {}\n", base + f[0], base + f[1], base + f[2], base + f[3]));
+        }
+        base += 8;
+    };
+    cuboid(&mut obj, "ground", [-20.0, -0.5, -20.0], [20.0, 0.0, 20.0]);
+    cuboid(&mut obj, "a", [-3.25, 0.0, -2.0], [-1.0, 4.5, 0.75]);
+    cuboid(&mut obj, "b", [1.5, 0.0, 2.25], [3.75, 2.5, 4.0]);
+    cuboid(&mut obj, "c", [-6.0, 0.0, 5.5], [-4.75, 7.25, 6.5]);
+    let key = |t: f64, eye: [f64; 3], target: [f64; 3]| {
+        format!(
+            r#"{{"t": {t}, "eye": [{}, {}, {}], "target": [{}, {}, {}]}}"#,
+            eye[0] + offset.0,
+            eye[1],
+            eye[2] + offset.1,
+            target[0] + offset.0,
+            target[1],
+            target[2] + offset.1
+        )
+    };
+    let path = format!(
+        r#"{{"fov_y_deg": 60, "near": 0.1, "far": 200, "up": [0, 1, 0], "fps": 30, "keys": [{}, {}]}}"#,
+        key(0.0, [-12.5, 2.0, -14.25], [0.5, 1.5, 0.0]),
+        key(1.0, [-8.5, 2.0, -15.0], [1.0, 1.5, 0.5])
+    );
+    let (o, p) = (dir.join(format!("{name}.obj")), dir.join(format!("{name}.path.json")));
+    std::fs::write(&o, obj).unwrap();
+    std::fs::write(&p, path).unwrap();
+    (o.to_str().unwrap().to_string(), p.to_str().unwrap().to_string())
+}
+
+#[test]
+fn a_scene_far_from_its_files_origin_renders_as_at_the_origin() {
+    // Geo-referenced coordinates (4,000 km east, 2,500 km north): without recentring, f32 depth
+    // pushed every pixel beyond the far plane (0 % covered).
+    let (_dir, d) = tmp("offset");
+    let mut outs = Vec::new();
+    for (name, offset) in [("here", (0.0, 0.0)), ("there", (4.0e6, 2.5e6))] {
+        let (obj, path) = offset_scene(&d, name, offset);
+        let out_dir = d.join(format!("out_{name}"));
+        let (ok, out, err) = zwarp(&[
+            "render",
+            "--scene",
+            &obj,
+            "--path",
+            &path,
+            "--frame",
+            "1",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(ok, "{err}");
+        let covered: f32 = out.split("% covered").next().and_then(|s| s.rsplit(' ').next()).unwrap().parse().unwrap();
+        assert!(covered > 50.0, "{name}: {out}");
+        outs.push(out_dir);
+    }
+    for f in ["depth.exr", "items.png", "motion.exr", "color.exr"] {
+        let (a, b) = (std::fs::read(outs[0].join(f)).unwrap(), std::fs::read(outs[1].join(f)).unwrap());
+        assert!(a == b, "{f} differs between the scene at its origin and the one 4000 km away");
+    }
+}

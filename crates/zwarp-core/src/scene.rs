@@ -1,7 +1,7 @@
 //! Scene description: meshes, instances (with optional animation), lights.
 //! Loaders and procedural generators live in `zwarp-scene`; this is only the data.
 
-use glam::{Mat4, Quat, Vec2, Vec3};
+use glam::{DMat4, DVec3, Mat4, Quat, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::material::{Material, MeshPart, DEFAULT_MATERIAL};
@@ -363,11 +363,25 @@ pub struct Scene {
     pub lights: Vec<AreaLight>,
     /// World up axis (glTF/OBJ: +Y; Sponza, Munich and the procedural scenes: +Z).
     pub up: Vec3,
+    /// Where this scene's coordinate origin lies in the coordinates it was given in (a file's
+    /// geo-referenced metres, say), in `f64`: [`Scene::recentre`] moves a scene that lies far
+    /// from its file's origin next to it, since `f32` depth, motion and rasterisation lose
+    /// their precision on large coordinates (at 4,000 km an `f32` steps by 0.5 m), and camera
+    /// paths written in the file's coordinates are moved by it when read. Zero for a scene
+    /// used as given.
+    pub origin: DVec3,
 }
 
 impl Default for Scene {
     fn default() -> Self {
-        Scene { name: String::new(), meshes: Vec::new(), instances: Vec::new(), lights: Vec::new(), up: Vec3::Z }
+        Scene {
+            name: String::new(),
+            meshes: Vec::new(),
+            instances: Vec::new(),
+            lights: Vec::new(),
+            up: Vec3::Z,
+            origin: DVec3::ZERO,
+        }
     }
 }
 
@@ -418,6 +432,42 @@ impl Scene {
     pub fn object_deltas(&self, t_a: f32, t_b: f32) -> Vec<Mat4> {
         self.instances.iter().map(|i| i.delta(t_a, t_b)).collect()
     }
+    /// Moves the whole scene by `-offset` (its coordinates become relative to `offset`) and
+    /// adds `offset` to [`Scene::origin`]. Meshes that only identity-transformed instances use
+    /// (world-space meshes: every file loader's) have the offset subtracted from their
+    /// positions, in `f64`; every other instance's transform is composed with the translation
+    /// in `f64`, so an `offset` exactly representable in `f32` (whole units below 2^24) cancels
+    /// a translation equal to it exactly. Animations (world-space matrices) are left as they
+    /// are: call it before animating. Errors on a non-finite offset.
+    pub fn recentre(&mut self, offset: DVec3) -> Result<()> {
+        if !offset.is_finite() {
+            return Err(Error::invalid(format!("scene '{}': recentring offset {offset:?} is not finite", self.name)));
+        }
+        let mut baked = vec![true; self.meshes.len()];
+        for inst in &self.instances {
+            if inst.transform != Mat4::IDENTITY {
+                baked[inst.mesh as usize] = false;
+            }
+        }
+        let shift = |p: Vec3| (p.as_dvec3() - offset).as_vec3();
+        for (m, _) in self.meshes.iter_mut().zip(&baked).filter(|(_, &b)| b) {
+            m.positions.iter_mut().for_each(|p| *p = shift(*p));
+            m.compute_bounds();
+        }
+        let to_local = DMat4::from_translation(-offset);
+        for inst in &mut self.instances {
+            if !baked[inst.mesh as usize] {
+                inst.transform = (to_local * inst.transform.as_dmat4()).as_mat4();
+            }
+        }
+        for l in &mut self.lights {
+            l.center = shift(l.center);
+            l.target = shift(l.target);
+        }
+        self.origin += offset;
+        self.update_bounds();
+        Ok(())
+    }
     /// Errors if the scene has nothing to draw.
     pub fn check_nonempty(&self) -> Result<()> {
         // Stops at the first instance with triangles (a full `triangle_count` visits every
@@ -433,6 +483,45 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recentring_moves_world_space_meshes_transforms_and_lights_exactly() {
+        // Whole metres below 2^24 are exact in f32: the offset cancels them to the bit.
+        let far = Vec3::new(4.0e6, 12.0, -2.5e6);
+        let offset = far.as_dvec3();
+        let mut s = Scene { name: "far".into(), ..Scene::default() };
+        // A world-space mesh (identity instance) and a mesh placed by a translation, instanced
+        // twice, once also rotated.
+        let tri = [Vec3::new(0.25, 0.0, 0.5), Vec3::new(1.75, 0.0, 0.5), Vec3::new(0.25, 2.0, 0.5)];
+        let world = s.add_mesh(Mesh::new(tri.map(|p| p + far).to_vec(), vec![[0, 1, 2]]).unwrap());
+        let local = s.add_mesh(Mesh::new(tri.to_vec(), vec![[0, 1, 2]]).unwrap());
+        s.add_instance(world, Mat4::IDENTITY, Vec3::ONE, Animation::Static, false);
+        let placed = Mat4::from_translation(far + Vec3::new(3.0, 0.0, -8.0));
+        s.add_instance(local, placed, Vec3::ONE, Animation::Static, false);
+        let turned = Mat4::from_translation(far) * Mat4::from_rotation_y(0.5);
+        s.add_instance(local, turned, Vec3::ONE, Animation::Static, false);
+        s.lights.push(AreaLight {
+            center: far + Vec3::Y * 10.0,
+            target: far,
+            up: Vec3::Z,
+            shape: LightShape::Disc { radius: 1.0 },
+            directional: false,
+        });
+        s.recentre(offset).unwrap();
+        assert_eq!(s.origin, offset);
+        assert_eq!(s.meshes[world as usize].positions, tri.to_vec());
+        assert_eq!(s.meshes[local as usize].positions, tri.to_vec(), "an instanced mesh is not moved");
+        assert_eq!(s.instances[1].transform, Mat4::from_translation(Vec3::new(3.0, 0.0, -8.0)));
+        assert!(s.instances[2].transform.abs_diff_eq(Mat4::from_rotation_y(0.5), 1e-7));
+        assert_eq!((s.lights[0].center, s.lights[0].target), (Vec3::Y * 10.0, Vec3::ZERO));
+        assert_eq!(s.instances[0].world_aabb, s.meshes[world as usize].bounds, "bounds follow");
+        // Twice: origins add up.
+        s.recentre(DVec3::new(1.0, 0.0, 0.0)).unwrap();
+        assert_eq!(s.origin, offset + DVec3::X);
+        assert_eq!(s.instances[1].transform, Mat4::from_translation(Vec3::new(2.0, 0.0, -8.0)));
+        let e = s.recentre(DVec3::new(f64::NAN, 0.0, 0.0)).unwrap_err().to_string();
+        assert!(e.contains("not finite") && !e.contains('\n'), "{e}");
+    }
 
     #[test]
     fn a_scene_is_empty_until_an_instance_has_triangles() {

@@ -27,8 +27,8 @@ pub mod soup;
 
 use std::path::Path;
 
-use glam::Vec3;
-use zwarp_core::{Error, Result, Scene};
+use glam::{DVec3, Vec3};
+use zwarp_core::{Aabb, Error, Result, Scene};
 
 pub use path::{motion_profile, street_level_path, CameraPath, MotionProfile, PathKey};
 
@@ -123,7 +123,37 @@ pub fn load_scene(spec: &str, opts: &SceneOptions) -> Result<LoadedScene> {
     if scene.instances.is_empty() || scene.triangle_count() == 0 {
         return Err(Error::parse(path, "scene is empty (no triangles)"));
     }
+    let mut scene = scene;
+    if let Some(offset) = recentring_offset(&scene.bounds()) {
+        scene.recentre(offset).map_err(|e| Error::parse(path, e.to_string()))?;
+    }
     Ok(LoadedScene { scene, path: None })
+}
+
+/// Distance from the origin (scene units) from which an `f32` coordinate steps by 2^-9 (2 mm in
+/// metres) or more; a file scene whose bounds reach it along an axis is moved next to the origin
+/// along that axis ([`recentring_offset`]).
+pub const FAR_FROM_ORIGIN: f32 = 16384.0;
+
+/// The offset [`load_scene`] moves a file scene by ([`Scene::recentre`]): per axis along which
+/// `bounds` reach [`FAR_FROM_ORIGIN`], the bounds' centre rounded to a whole unit (exact in
+/// `f32` below 2^24, so a file's own round offsets cancel exactly); `None` when no axis does
+/// (every procedural scene, Sponza, Munich) or the bounds are empty. Geo-referenced data (UTM
+/// metres: 10^5-10^7) would otherwise lose the depth test: at 4,000 km the depth of a point 80 m
+/// away varies by more than the whole range between it and the far plane.
+pub fn recentring_offset(bounds: &Aabb) -> Option<DVec3> {
+    if bounds.is_empty() {
+        return None;
+    }
+    let offset = far_offset(bounds.min.as_dvec3(), bounds.max.as_dvec3());
+    (offset != DVec3::ZERO).then_some(offset)
+}
+
+/// [`recentring_offset`] of the bounds `lo..hi` in `f64` (file coordinates read in `f64`):
+/// zero along the axes that stay within [`FAR_FROM_ORIGIN`].
+pub(crate) fn far_offset(lo: DVec3, hi: DVec3) -> DVec3 {
+    let far = lo.abs().max(hi.abs()).cmpge(DVec3::splat(FAR_FROM_ORIGIN as f64));
+    DVec3::select(far, ((lo + hi) * 0.5).round(), DVec3::ZERO)
 }
 
 /// `true` if an object or file name marks ground geometry ("ground" or "terrain", any case).

@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 use rayon::prelude::*;
 use zwarp_core::{
     srgb_to_linear, Animation, ColorMap, Error, Image, Material, Mesh, MeshPart, Result, Scene, Texture, Wrap,
@@ -69,6 +69,32 @@ pub(crate) struct Part {
 pub(crate) struct FileObjects {
     pub meshes: Vec<Mesh>,
     pub parts: Vec<Part>,
+    /// Where the meshes' coordinate origin lies in the file's coordinates: zero, except for
+    /// files read in `f64` (OBJ) that lie far from their origin ([`crate::far_offset`]), whose
+    /// `f32` positions are kept relative to it.
+    pub anchor: DVec3,
+}
+
+impl FileObjects {
+    /// Moves the meshes from this file's anchor to `origin` (a scene's: whole units, like the
+    /// anchor, so the shift is exact in `f32` and the positions stay small).
+    fn move_to(&mut self, origin: DVec3) {
+        let d = self.anchor - origin;
+        if d != DVec3::ZERO {
+            let d = d.as_vec3();
+            for m in &mut self.meshes {
+                m.positions.iter_mut().for_each(|p| *p += d);
+                m.compute_bounds();
+            }
+        }
+        self.anchor = origin;
+    }
+
+    /// The file-coordinate bounds of the meshes, in `f64`: `(lo, hi)`, `None` without vertices.
+    fn file_bounds(&self) -> Option<(DVec3, DVec3)> {
+        let b = self.meshes.iter().fold(zwarp_core::Aabb::EMPTY, |b, m| b.union(m.bounds));
+        (!b.is_empty()).then(|| (b.min.as_dvec3() + self.anchor, b.max.as_dvec3() + self.anchor))
+    }
 }
 
 /// Turns an `Error::Invalid` from mesh validation into a parse error naming `path`.
@@ -125,13 +151,22 @@ pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
     };
     let mut textures: HashMap<PathBuf, Arc<Texture>> = HashMap::new();
     let mut built: HashMap<usize, Material> = HashMap::new();
-    let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new() };
+    // Positions are read in f64 and kept relative to the file's anchor: geo-referenced files
+    // (UTM metres) would otherwise step by up to 0.5 m in f32.
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for c in models.iter().flat_map(|m| m.mesh.positions.chunks_exact(3)) {
+        let p = DVec3::new(c[0], c[1], c[2]);
+        (lo, hi) = (lo.min(p), hi.max(p));
+    }
+    let anchor = if lo.cmple(hi).all() { crate::far_offset(lo, hi) } else { DVec3::ZERO };
+    let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new(), anchor };
     for model in models {
         let m = &model.mesh;
         if m.positions.len() % 3 != 0 || m.indices.len() % 3 != 0 {
             return Err(Error::parse(path, format!("OBJ model '{}' has malformed arrays", model.name)));
         }
-        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let positions: Vec<Vec3> =
+            m.positions.chunks_exact(3).map(|c| (DVec3::new(c[0], c[1], c[2]) - anchor).as_vec3()).collect();
         let indices: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         if indices.is_empty() {
             continue;
@@ -139,12 +174,12 @@ pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
         let in_model = |e: Error| Error::parse(path, format!("OBJ model '{}': {}", model.name, strip(e)));
         let mut mesh = Mesh::new(positions, indices).map_err(in_model)?;
         if !m.normals.is_empty() {
-            let n = m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+            let n = m.normals.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2]).as_vec3()).collect();
             mesh = mesh.with_normals(n).map_err(in_model)?;
         }
         if !m.texcoords.is_empty() {
             // OBJ's v runs up from the bottom of the image; zwarp's UVs are glTF's (top-left origin).
-            let uv = m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect();
+            let uv = m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0] as f32, (1.0 - c[1]) as f32)).collect();
             mesh = mesh.with_uvs(uv).map_err(in_model)?;
         }
         let material = match m.material_id.filter(|&i| i < materials.len()) {
@@ -176,7 +211,7 @@ pub(crate) fn load_obj(path: &Path) -> Result<FileObjects> {
 /// An OBJ material: `Kd` (white if absent) times `map_Kd` (path relative to the `.mtl`; the
 /// last word of the statement when the whole is not a file, so `-o`/`-s` options are skipped).
 fn obj_material(m: &tobj::Material, mtl: &Path, cache: &mut HashMap<PathBuf, Arc<Texture>>) -> Result<Material> {
-    let kd = m.diffuse.map(Vec3::from_array).filter(|c| c.is_finite()).unwrap_or(Vec3::ONE);
+    let kd = m.diffuse.map(|d| DVec3::from_array(d).as_vec3()).filter(|c| c.is_finite()).unwrap_or(Vec3::ONE);
     let Some(map) = m.diffuse_texture.as_deref().map(str::trim).filter(|s| !s.is_empty()) else {
         return Ok(Material::pattern(kd));
     };
@@ -284,7 +319,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
 
     let mut mesh_slot: HashMap<usize, usize> = HashMap::new();
     let mut textures = GltfTextures { base, buffers: &buffers, cache: HashMap::new() };
-    let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new() };
+    let mut out = FileObjects { meshes: Vec::new(), parts: Vec::new(), anchor: DVec3::ZERO };
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(s) => s.nodes().collect(),
         None => {
@@ -505,6 +540,7 @@ pub(crate) fn load_file_objects(path: &Path, kind: Kind) -> Result<FileObjects> 
             let m = load_ply(path)?;
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             Ok(FileObjects {
+                anchor: DVec3::ZERO,
                 meshes: vec![m],
                 parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material: false, piece: false }],
             })
@@ -513,7 +549,9 @@ pub(crate) fn load_file_objects(path: &Path, kind: Kind) -> Result<FileObjects> 
 }
 
 /// Adds file objects to a scene; ground is detected by the part name or the file name.
-pub(crate) fn add_objects(scene: &mut Scene, file: &Path, objs: FileObjects) {
+/// The meshes move from the file's anchor to the scene's origin.
+pub(crate) fn add_objects(scene: &mut Scene, file: &Path, mut objs: FileObjects) {
+    objs.move_to(scene.origin);
     let file_ground = is_ground_name(&file.to_string_lossy());
     let base = scene.meshes.len() as u32;
     scene.meshes.extend(objs.meshes);
@@ -562,7 +600,7 @@ fn split_single(objs: FileObjects, opts: &SceneOptions) -> FileObjects {
             piece: k > 0,
         })
         .collect();
-    FileObjects { meshes, parts }
+    FileObjects { meshes, parts, anchor: objs.anchor }
 }
 
 /// Loads a single mesh file as a scene; a PLY (one soup) is split into objects by
@@ -575,6 +613,7 @@ pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> 
         add_soup(&mut scene, path, m.positions, m.normals, m.indices, ground, opts)?;
     } else {
         let objs = split_single(load_file_objects(path, kind)?, opts);
+        scene.origin = objs.anchor;
         // Only the file name decides "ground", not the folders above it.
         add_objects(&mut scene, Path::new(&display_name(path)), objs);
     }
@@ -627,8 +666,16 @@ pub(crate) fn load_folder(dir: &Path, opts: &SceneOptions) -> Result<Scene> {
     // Parse in parallel (Munich: 2367 files), then add in sorted order so ids are stable.
     let loaded: Vec<Result<(PathBuf, FileObjects)>> =
         files.par_iter().map(|(f, k)| load_file_objects(f, *k).map(|o| (f.clone(), merge_parts(o)))).collect();
-    for r in loaded {
-        let (f, objs) = r?;
+    let loaded: Vec<(PathBuf, FileObjects)> = loaded.into_iter().collect::<Result<_>>()?;
+    // One origin for all files: the far axes of their union's centre, as for one file.
+    let (lo, hi) = loaded
+        .iter()
+        .filter_map(|(_, o)| o.file_bounds())
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (a, b)| (lo.min(a), hi.max(b)));
+    if lo.cmple(hi).all() && loaded.iter().any(|(_, o)| o.anchor != DVec3::ZERO) {
+        scene.origin = crate::far_offset(lo, hi);
+    }
+    for (f, objs) in loaded {
         if objs.parts.is_empty() {
             continue;
         }
@@ -703,6 +750,7 @@ fn merge_parts(objs: FileObjects) -> FileObjects {
     FileObjects {
         meshes: vec![mesh],
         parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material, piece: false }],
+        anchor: objs.anchor,
     }
 }
 

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use zwarp_core::{Camera, Error, Result, Scene};
 
@@ -44,35 +44,102 @@ pub struct CameraPath {
     pub keys: Vec<PathKey>,
 }
 
+/// The JSON form of a [`CameraPath`] with its key positions in `f64`: paths are written in the
+/// coordinates of their scene's file, which [`Scene::recentre`](zwarp_core::Scene::recentre)
+/// may have moved far from the scene's `f32` coordinates.
+#[derive(Serialize, Deserialize)]
+struct PathJson {
+    fov_y_deg: f32,
+    near: f32,
+    far: f32,
+    up: Vec3,
+    fps: f32,
+    keys: Vec<KeyJson>,
+}
+
+/// One key of [`PathJson`].
+#[derive(Serialize, Deserialize)]
+struct KeyJson {
+    t: f32,
+    eye: [f64; 3],
+    target: [f64; 3],
+}
+
 impl CameraPath {
-    /// Reads and validates a JSON path file.
+    /// Reads and validates a JSON path file whose positions are in the scene's own coordinates
+    /// ([`CameraPath::from_json_file_at`] with origin zero).
     pub fn from_json_file(path: impl AsRef<Path>) -> Result<Self> {
+        Self::from_json_file_at(path, DVec3::ZERO)
+    }
+
+    /// Reads and validates a JSON path file written in the coordinates of a scene's file, for
+    /// the scene whose [`origin`](zwarp_core::Scene::origin) is `origin`: key positions are
+    /// read in `f64` and moved by `-origin` before they become `f32`.
+    pub fn from_json_file_at(path: impl AsRef<Path>, origin: DVec3) -> Result<Self> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Self::from_json_str(&text).map_err(|e| match e {
+        Self::from_json_str_at(&text, origin).map_err(|e| match e {
             Error::Invalid(msg) => Error::parse(path, msg),
             other => other,
         })
     }
 
-    /// Parses and validates a JSON path.
+    /// Parses and validates a JSON path in the scene's own coordinates.
     pub fn from_json_str(text: &str) -> Result<Self> {
-        let p: CameraPath =
+        Self::from_json_str_at(text, DVec3::ZERO)
+    }
+
+    /// Parses and validates a JSON path written in the coordinates of a scene's file (see
+    /// [`CameraPath::from_json_file_at`]).
+    pub fn from_json_str_at(text: &str, origin: DVec3) -> Result<Self> {
+        let j: PathJson =
             serde_json::from_str(text).map_err(|e| Error::invalid(format!("bad camera path JSON: {e}")))?;
+        let local = |v: [f64; 3]| (DVec3::from_array(v) - origin).as_vec3();
+        let p = CameraPath {
+            fov_y_deg: j.fov_y_deg,
+            near: j.near,
+            far: j.far,
+            up: j.up,
+            fps: j.fps,
+            keys: j.keys.iter().map(|k| PathKey { t: k.t, eye: local(k.eye), target: local(k.target) }).collect(),
+        };
         p.validate()?;
         Ok(p)
     }
 
-    /// Pretty JSON in the documented format.
+    /// Pretty JSON in the documented format, in the scene's own coordinates.
     pub fn to_json(&self) -> String {
-        // Serializing plain f32/Vec3 fields cannot fail.
-        serde_json::to_string_pretty(self).unwrap_or_default()
+        self.to_json_at(DVec3::ZERO)
+    }
+
+    /// Pretty JSON in the documented format, in the coordinates of the file of a scene whose
+    /// [`origin`](zwarp_core::Scene::origin) is `origin` (what [`CameraPath::from_json_str_at`]
+    /// reads back).
+    pub fn to_json_at(&self, origin: DVec3) -> String {
+        // Each f32 as its shortest decimal (what it was read from), then moved in f64.
+        let short = |x: f32| x.to_string().parse::<f64>().unwrap_or(x as f64);
+        let file = |v: Vec3| (DVec3::new(short(v.x), short(v.y), short(v.z)) + origin).to_array();
+        let j = PathJson {
+            fov_y_deg: self.fov_y_deg,
+            near: self.near,
+            far: self.far,
+            up: self.up,
+            fps: self.fps,
+            keys: self.keys.iter().map(|k| KeyJson { t: k.t, eye: file(k.eye), target: file(k.target) }).collect(),
+        };
+        // Serializing plain numbers cannot fail.
+        serde_json::to_string_pretty(&j).unwrap_or_default()
     }
 
     /// Writes [`CameraPath::to_json`] to a file.
     pub fn write_json_file(&self, path: impl AsRef<Path>) -> Result<()> {
+        self.write_json_file_at(path, DVec3::ZERO)
+    }
+
+    /// Writes [`CameraPath::to_json_at`] to a file.
+    pub fn write_json_file_at(&self, path: impl AsRef<Path>, origin: DVec3) -> Result<()> {
         let path = path.as_ref();
-        std::fs::write(path, self.to_json()).map_err(|e| Error::io(path, e))
+        std::fs::write(path, self.to_json_at(origin)).map_err(|e| Error::io(path, e))
     }
 
     /// Checks: >= 2 keys, strictly increasing finite `t`, finite eyes/targets, eye != target,

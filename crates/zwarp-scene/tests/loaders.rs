@@ -600,3 +600,72 @@ fn a_one_object_file_is_split_into_connected_objects_for_culling() {
     assert_eq!(s2.instances.len(), 2);
     assert_ne!(s2.instances[0].albedo, s2.instances[1].albedo);
 }
+
+#[test]
+fn a_file_far_from_its_origin_is_recentred_and_its_paths_follow() {
+    use glam::DVec3;
+    use zwarp_core::Aabb;
+    use zwarp_scene::{recentring_offset, FAR_FROM_ORIGIN};
+    // Near the origin (every shipped scene) nothing moves; each far axis moves by its rounded
+    // centre, the others stay (the up axis of a geo-referenced model keeps its heights).
+    let b = |lo: [f32; 3], hi: [f32; 3]| Aabb { min: Vec3::from_array(lo), max: Vec3::from_array(hi) };
+    assert_eq!(recentring_offset(&b([-806.0, -689.0, 0.0], [670.0, 517.0, 99.0])), None);
+    assert_eq!(recentring_offset(&Aabb::EMPTY), None);
+    let f = FAR_FROM_ORIGIN;
+    assert_eq!(
+        recentring_offset(&b([f, 0.0, -10.0], [f + 100.0, 40.0, 10.0])),
+        Some(DVec3::new(f as f64 + 50.0, 0.0, 0.0))
+    );
+    assert_eq!(
+        recentring_offset(&b([689_990.5, 5_334_000.0, 510.0], [690_400.0, 5_334_999.0, 600.0])),
+        Some(DVec3::new(690_195.0, 5_334_500.0, 0.0)) // 690195.25 and 5334499.5 rounded
+    );
+
+    // A geo-referenced OBJ (UTM-like metres, Y up): loaded next to the origin, its path read in
+    // the file's coordinates lands on the same local eye, written back it is the file's again.
+    let (_dir, d) = temp_dir("far");
+    let obj = d.join("far.obj");
+    let (ox, oz) = (690_000.0f64, 5_334_000.0f64);
+    let mut text = String::from("o block\n");
+    for (x, y, z) in [(-4.0, 0.0, -2.0), (4.0, 0.0, -2.0), (4.0, 6.0, 2.0), (-4.0, 6.0, 2.0), (0.13, 3.0, 1.37)] {
+        text += &format!("v {} {y} {}\n", ox + x, oz + z);
+    }
+    text += "f 1 2 3\nf 1 3 4\nf 1 2 5\n";
+    std::fs::write(&obj, text).unwrap();
+    let s = load_scene(obj.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.origin, DVec3::new(ox, 0.0, oz));
+    assert_eq!(s.bounds(), b([-4.0, 0.0, -2.0], [4.0, 6.0, 2.0]));
+    // Read in f64: the centimetres survive (in f32, 5,334,001.37 is 5,334,001.5).
+    let p = s.meshes.iter().flat_map(|m| &m.positions).find(|p| p.y == 3.0).unwrap();
+    assert_eq!((p.x, p.z), (0.13, 1.37));
+    let json = format!(
+        r#"{{"fov_y_deg": 60, "near": 0.1, "far": 100, "up": [0, 1, 0], "fps": 30,
+            "keys": [{{"t": 0, "eye": [{}, 1.7, {}], "target": [{ox}, 1.5, {oz}]}},
+                     {{"t": 1, "eye": [{}, 1.7, {}], "target": [{ox}, 1.5, {oz}]}}]}}"#,
+        ox - 10.37,
+        oz - 20.5,
+        ox - 9.62,
+        oz - 20.5
+    );
+    let p = CameraPath::from_json_str_at(&json, s.origin).unwrap();
+    // f64 before f32: the local eye is what "-10.37" parses to, not the f32 step at 690 km.
+    assert_eq!(p.keys[0].eye, Vec3::new(-10.37, 1.7, -20.5));
+    assert_eq!(p.keys[1].eye.x, -9.62);
+    let back: serde_json::Value = serde_json::from_str(&p.to_json_at(s.origin)).unwrap();
+    assert_eq!(back["keys"][0]["eye"][0].as_f64(), Some(ox - 10.37));
+    assert_eq!(CameraPath::from_json_str_at(&p.to_json_at(s.origin), s.origin).unwrap(), p);
+    // A folder of such files (tiles 2 km apart): one origin, the tiles keep their spacing.
+    let tiles = d.join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    for (k, dx) in [0.0f64, 2000.0].iter().enumerate() {
+        let v = |x: f64, y: f64, z: f64| format!("v {} {y} {}\n", ox + dx + x, oz + z);
+        let text = format!("o tile\n{}{}{}f 1 2 3\n", v(0.25, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.25, 2.0, 0.5));
+        std::fs::write(tiles.join(format!("t{k}.obj")), text).unwrap();
+    }
+    let s = load_scene(tiles.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.origin, DVec3::new(ox + 1001.0, 0.0, oz), "centre 1000.625 rounded");
+    let firsts: Vec<Vec3> = s.instances.iter().map(|i| s.meshes[i.mesh as usize].positions[0]).collect();
+    assert_eq!(firsts, vec![Vec3::new(-1000.75, 0.0, 0.0), Vec3::new(999.25, 0.0, 0.0)]);
+    // Read as if local (origin zero), the same file is 690 km away.
+    assert!(CameraPath::from_json_str(&json).unwrap().keys[0].eye.x > 689_000.0);
+}

@@ -46,7 +46,8 @@ use zwarp_warp::{warp_pixels, warp_prepared, BoundKind, HolePolicy, PreparedLaye
 
 pub use eval::{evaluate, evaluate_with, EvalConfig, EvalRow};
 pub use light::{
-    default_light, light_from_json_str, light_samples, light_to_json, load_light, validate_light, LightRig, MAX_SAMPLES,
+    default_light, light_from_json_str, light_from_json_str_at, light_samples, light_to_json, load_light,
+    load_light_at, validate_light, LightRig, MAX_SAMPLES,
 };
 pub use lookups::{GroupCounts, HotReceivers, ReceiverGroups, SparseMap, TexelSet};
 pub use pcss::{pcss_visibility, PcssParams};

@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use glam::{Mat4, Vec2, Vec3, Vec4};
+use glam::{DVec3, Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{
     Aabb, AreaLight, Camera, Error, Image, LightShape, Motion, ParallaxMotion, Projection, Result, Scene,
@@ -60,16 +60,39 @@ pub fn validate_light(light: &AreaLight) -> Result<()> {
 /// `{"center": [x,y,z], "target": [x,y,z], "up": [x,y,z], "shape": {"kind": "disc", "radius": r}
 /// | {"kind": "rect", "width": w, "height": h}, "directional": false}` and validates it.
 pub fn light_from_json_str(text: &str) -> Result<AreaLight> {
-    let light: AreaLight = serde_json::from_str(text).map_err(|e| Error::invalid(format!("bad light JSON: {e}")))?;
+    light_from_json_str_at(text, DVec3::ZERO)
+}
+
+/// [`light_from_json_str`] for a light written in the coordinates of the file of a scene whose
+/// [`origin`](zwarp_core::Scene::origin) is `origin`: `center` and `target` are read in `f64`
+/// and moved by `-origin` before they become `f32`.
+pub fn light_from_json_str_at(text: &str, origin: DVec3) -> Result<AreaLight> {
+    let bad = |e: serde_json::Error| Error::invalid(format!("bad light JSON: {e}"));
+    let mut v: serde_json::Value = serde_json::from_str(text).map_err(bad)?;
+    for key in ["center", "target"] {
+        if let Some(a) = v.get_mut(key).and_then(|p| p.as_array_mut()).filter(|a| a.len() == 3) {
+            for (x, o) in a.iter_mut().zip(origin.to_array()) {
+                if let Some(f) = x.as_f64() {
+                    *x = serde_json::json!(f - o);
+                }
+            }
+        }
+    }
+    let light: AreaLight = serde_json::from_value(v).map_err(bad)?;
     validate_light(&light)?;
     Ok(light)
 }
 
 /// Reads a light file (see [`light_from_json_str`]); errors name the file.
 pub fn load_light(path: impl AsRef<Path>) -> Result<AreaLight> {
+    load_light_at(path, DVec3::ZERO)
+}
+
+/// Reads a light file in the coordinates of a scene's file (see [`light_from_json_str_at`]).
+pub fn load_light_at(path: impl AsRef<Path>, origin: DVec3) -> Result<AreaLight> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    light_from_json_str(&text).map_err(|e| match e {
+    light_from_json_str_at(&text, origin).map_err(|e| match e {
         Error::Invalid(msg) => Error::parse(path, msg),
         other => other,
     })

@@ -486,3 +486,16 @@ fn the_ground_layer_rule_follows_the_kept_ground_layer() {
     assert_eq!(alone.layers().len(), 1);
     assert!(!alone.sample_params(0).unwrap().ground_layer);
 }
+
+#[test]
+fn a_light_in_file_coordinates_moves_with_its_scene() {
+    let origin = glam::DVec3::new(690_000.0, 0.0, 5_334_000.0);
+    let json = r#"{"center": [690003.37, 12.5, 5334001.25], "target": [690000.0, 0, 5334000.0], "up": [0, 0, 1],
+                   "shape": {"kind": "disc", "radius": 0.5}}"#;
+    let l = light_from_json_str_at(json, origin).unwrap();
+    // f64 before f32: 690003.37 in f32 would be 690003.375.
+    assert_eq!((l.center, l.target), (Vec3::new(3.37, 12.5, 1.25), Vec3::ZERO));
+    assert_eq!(light_from_json_str(json).unwrap().center.x, 690_003.37f64 as f32, "read as f32 first: .375");
+    let e = light_from_json_str_at(r#"{"center": "x"}"#, origin).unwrap_err().to_string();
+    assert!(e.contains("bad light JSON") && !e.contains('\n'), "{e}");
+}

@@ -37,7 +37,11 @@ fn main() {
     }
     let loaded = load_scene(spec, &SceneOptions::default()).unwrap();
     let scene = &loaded.scene;
-    let path = if pathf == "-" { loaded.path_or_default() } else { CameraPath::from_json_file(pathf).unwrap() };
+    let path = if pathf == "-" {
+        loaded.path_or_default()
+    } else {
+        CameraPath::from_json_file_at(pathf, scene.origin).unwrap()
+    };
     let speed: f32 = std::env::var("SPEED").map_or(1.0, |s| s.parse().unwrap());
     let total = path.frame_count_at(speed);
     let last = total - 2;

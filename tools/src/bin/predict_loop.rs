@@ -41,7 +41,7 @@ fn main() {
 
     let loaded = zwarp_scene::load_scene(&name, &SceneOptions::default()).unwrap();
     let path = match args.opt("path") {
-        Some(p) => zwarp_scene::CameraPath::from_json_file(p).unwrap(),
+        Some(p) => zwarp_scene::CameraPath::from_json_file_at(p, loaded.scene.origin).unwrap(),
         None => loaded.path_or_default(),
     };
     let scene = loaded.scene;

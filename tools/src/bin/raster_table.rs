@@ -123,7 +123,7 @@ fn is_sponza_folder(spec: &str) -> bool {
 /// The camera path of a job and a short label of where it came from.
 fn camera_path(job: &Job, recorded: Option<&CameraPath>, scene: &Scene) -> Result<(CameraPath, String)> {
     if let Some(f) = &job.path {
-        return Ok((CameraPath::from_json_file(f)?, f.display().to_string()));
+        return Ok((CameraPath::from_json_file_at(f, scene.origin)?, f.display().to_string()));
     }
     if let Some(p) = recorded {
         return Ok((p.clone(), "recorded".into()));

@@ -59,7 +59,7 @@ fn main() {
         let s = last.unwrap();
         let sc = &s.scene;
         let path = match (&path_file, &s.path) {
-            (Some(f), _) => CameraPath::from_json_file(f).unwrap_or_else(|e| {
+            (Some(f), _) => CameraPath::from_json_file_at(f, sc.origin).unwrap_or_else(|e| {
                 eprintln!("error: {e}");
                 std::process::exit(1)
             }),
@@ -95,7 +95,7 @@ fn main() {
         );
         if let Some(dir) = &write_paths {
             let f = std::path::Path::new(dir).join(format!("{}.path.json", sc.name));
-            path.write_json_file(&f).expect("write path");
+            path.write_json_file_at(&f, sc.origin).expect("write path");
         }
     }
 }

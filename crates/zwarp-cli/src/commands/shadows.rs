@@ -14,7 +14,7 @@ use clap::Args;
 use serde::Serialize;
 use zwarp_core::Image;
 use zwarp_shadows::{
-    default_light, light_to_json, load_light, EvalConfig, EvalRow, Grouping, Method, ShadowParams, ShadowResult,
+    default_light, light_to_json, load_light_at, EvalConfig, EvalRow, Grouping, Method, ShadowParams, ShadowResult,
 };
 
 use crate::args::{parse_list, Backend, SceneArgs, SizeArgs};
@@ -149,7 +149,8 @@ pub fn run(a: ShadowsArgs) -> Result<()> {
     })?;
     let Frame { t, cam, .. } = frames.frame(a.frame)?;
     let light = match &a.light {
-        Some(p) => load_light(p)?,
+        // Written in the coordinates of the scene's file, as camera paths are.
+        Some(p) => load_light_at(p, scene.origin)?,
         None => default_light(scene)?,
     };
     let grouping = match a.grouping.to_ascii_lowercase().as_str() {
