@@ -70,8 +70,8 @@ pub(crate) struct FileObjects {
     pub meshes: Vec<Mesh>,
     pub parts: Vec<Part>,
     /// Where the meshes' coordinate origin lies in the file's coordinates: zero, except for
-    /// files read in `f64` (OBJ) that lie far from their origin ([`crate::far_offset`]), whose
-    /// `f32` positions are kept relative to it.
+    /// files read in `f64` (OBJ, PLY) that lie far from their origin, whose `f32` positions are
+    /// kept relative to it.
     pub anchor: DVec3,
 }
 
@@ -105,13 +105,14 @@ fn at(path: &Path) -> impl Fn(Error) -> Error + '_ {
     }
 }
 
-/// Loads a PLY file as one mesh (no object structure in PLY).
-pub(crate) fn load_ply(path: &Path) -> Result<Mesh> {
+/// Loads a PLY file as one mesh (no object structure in PLY), with its positions' anchor
+/// ([`ply::PlyMesh::anchor`]).
+pub(crate) fn load_ply(path: &Path) -> Result<(Mesh, DVec3)> {
     let m = ply::read_ply(path)?;
     let mesh = Mesh::new(m.positions, m.indices).map_err(at(path))?;
     match m.normals {
-        Some(n) => mesh.with_normals(n).map_err(at(path)),
-        None => Ok(mesh),
+        Some(n) => Ok((mesh.with_normals(n).map_err(at(path))?, m.anchor)),
+        None => Ok((mesh, m.anchor)),
     }
 }
 
@@ -537,10 +538,10 @@ pub(crate) fn load_file_objects(path: &Path, kind: Kind) -> Result<FileObjects> 
         Kind::Gltf => load_gltf(path),
         Kind::Obj => load_obj(path),
         Kind::Ply => {
-            let m = load_ply(path)?;
+            let (m, anchor) = load_ply(path)?;
             let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
             Ok(FileObjects {
-                anchor: DVec3::ZERO,
+                anchor,
                 meshes: vec![m],
                 parts: vec![Part { name, mesh_key: 0, transform: Mat4::IDENTITY, has_material: false, piece: false }],
             })
@@ -609,6 +610,7 @@ pub(crate) fn load_single_file(path: &Path, kind: Kind, opts: &SceneOptions) -> 
     let mut scene = Scene { name: display_name(path), up: up_of(kind), ..Default::default() };
     if kind == Kind::Ply {
         let m = ply::read_ply(path)?;
+        scene.origin = m.anchor;
         let ground = is_ground_name(&display_name(path));
         add_soup(&mut scene, path, m.positions, m.normals, m.indices, ground, opts)?;
     } else {

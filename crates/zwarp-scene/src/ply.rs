@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use zwarp_core::{Error, Result};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,8 +74,14 @@ struct Element {
 /// Positions, optional normals and fan-triangulated faces of one PLY file.
 #[derive(Clone, Debug, Default)]
 pub struct PlyMesh {
-    /// Vertex positions as stored (no up-axis change).
+    /// Vertex positions as stored (no up-axis change), relative to `anchor`.
     pub positions: Vec<Vec3>,
+    /// Where `positions`' origin lies in the file's coordinates: zero, except along the axes on
+    /// which the first vertex lies [`crate::FAR_FROM_ORIGIN`] or farther from the file's origin,
+    /// where it is that vertex's coordinate rounded to a whole unit (vertices are read in `f64`
+    /// and moved by it before they become `f32`: geo-referenced `double` vertices keep their
+    /// precision).
+    pub anchor: DVec3,
     /// Vertex normals (`nx, ny, nz`) when the vertex element has all three, as stored.
     pub normals: Option<Vec<Vec3>>,
     /// Triangles.
@@ -143,7 +149,10 @@ pub fn parse_ply(bytes: &[u8]) -> std::result::Result<PlyMesh, String> {
                             Property::List { count, item, .. } => reader.skip_list(*count, *item)?,
                         }
                     }
-                    let q = Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32);
+                    if v == 0 {
+                        out.anchor = crate::far_offset(DVec3::from_array(p), DVec3::from_array(p));
+                    }
+                    let q = (DVec3::from_array(p) - out.anchor).as_vec3();
                     if !q.is_finite() {
                         return Err(format!("vertex {v} is not finite ({}, {}, {})", p[0], p[1], p[2]));
                     }

@@ -666,6 +666,16 @@ fn a_file_far_from_its_origin_is_recentred_and_its_paths_follow() {
     assert_eq!(s.origin, DVec3::new(ox + 1001.0, 0.0, oz), "centre 1000.625 rounded");
     let firsts: Vec<Vec3> = s.instances.iter().map(|i| s.meshes[i.mesh as usize].positions[0]).collect();
     assert_eq!(firsts, vec![Vec3::new(-1000.75, 0.0, 0.0), Vec3::new(999.25, 0.0, 0.0)]);
+    // A PLY with double vertices (Z up): anchored at its first vertex's whole metres.
+    let ply = d.join("far.ply");
+    let v = |x: f64, y: f64, z: f64| format!("{} {} {z}\n", ox + x, oz + y);
+    let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    std::fs::write(&ply, format!("{header}{}{}{}3 0 1 2\n", v(0.25, 0.0, 0.0), v(3.13, 0.0, 0.0), v(0.5, 1.37, 9.0)))
+        .unwrap();
+    let s = load_scene(ply.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    assert_eq!(s.origin, DVec3::new(ox, oz, 0.0));
+    let m = &s.meshes[s.instances[0].mesh as usize];
+    assert_eq!(m.positions, vec![Vec3::new(0.25, 0.0, 0.0), Vec3::new(3.13, 0.0, 0.0), Vec3::new(0.5, 1.37, 9.0)]);
     // Read as if local (origin zero), the same file is 690 km away.
     assert!(CameraPath::from_json_str(&json).unwrap().keys[0].eye.x > 689_000.0);
 }
