@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
+use glam::{DMat4, DQuat, DVec3, Mat3, Mat4, Vec2, Vec3};
 use rayon::prelude::*;
 use zwarp_core::{
     srgb_to_linear, Animation, ColorMap, Error, Image, Material, Mesh, MeshPart, Result, Scene, Texture, Wrap,
@@ -76,15 +76,22 @@ pub(crate) struct FileObjects {
 }
 
 impl FileObjects {
-    /// Moves the meshes from this file's anchor to `origin` (a scene's: whole units, like the
-    /// anchor, so the shift is exact in `f32` and the positions stay small).
+    /// Moves the objects from this file's anchor to `origin` (a scene's: whole units, like the
+    /// anchor, so the shift is exact in `f32` and the coordinates stay small): the positions of
+    /// meshes only untransformed parts use, the transforms of the other parts (in `f64`).
     fn move_to(&mut self, origin: DVec3) {
         let d = self.anchor - origin;
         if d != DVec3::ZERO {
-            let d = d.as_vec3();
-            for m in &mut self.meshes {
-                m.positions.iter_mut().for_each(|p| *p += d);
+            let mut bake = vec![true; self.meshes.len()];
+            for p in &self.parts {
+                bake[p.mesh_key] &= p.transform == Mat4::IDENTITY;
+            }
+            for (m, _) in self.meshes.iter_mut().zip(&bake).filter(|(_, &b)| b) {
+                m.positions.iter_mut().for_each(|p| *p = (p.as_dvec3() + d).as_vec3());
                 m.compute_bounds();
+            }
+            for p in self.parts.iter_mut().filter(|p| !bake[p.mesh_key]) {
+                p.transform = (DMat4::from_translation(d) * p.transform.as_dmat4()).as_mat4();
             }
         }
         self.anchor = origin;
@@ -330,14 +337,28 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
             doc.nodes().filter(|n| !children.contains(&n.index())).collect()
         }
     };
+    // The nodes' transforms in f64 as the file writes them (gltf parses them into f32, which
+    // steps by 0.5 m at 4,000 km: geo-referenced files place their objects that way).
+    let exact = gltf_node_transforms(path)?;
+    let local_of = |node: &gltf::Node| {
+        exact
+            .get(node.index())
+            .copied()
+            .flatten()
+            .unwrap_or_else(|| Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4())
+    };
+    // World transforms in f64 beside each part, for the file's anchor.
+    let mut worlds: Vec<DMat4> = Vec::new();
     // Iterative DFS with a depth guard: glTF forbids cycles but a malformed file could hold one.
-    let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
-    while let Some((node, parent, depth)) = stack.pop() {
+    let mut stack: Vec<(gltf::Node, Mat4, DMat4, usize)> =
+        roots.into_iter().map(|n| (n, Mat4::IDENTITY, DMat4::IDENTITY, 0)).collect();
+    while let Some((node, parent, parent_d, depth)) = stack.pop() {
         if depth > 256 {
             return Err(Error::parse(path, "glTF node hierarchy deeper than 256 (cycle?)"));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if !world.is_finite() {
+        let world_d = parent_d * local_of(&node);
+        if !world.is_finite() || !world_d.is_finite() {
             return Err(Error::parse(path, format!("glTF node {} has a non-finite transform", node.index())));
         }
         if let Some(mesh) = node.mesh() {
@@ -358,13 +379,73 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
                 let has_material = mesh.primitives().any(|p| p.material().index().is_some());
                 let name = node.name().or(mesh.name()).unwrap_or("").to_string();
                 out.parts.push(Part { name, mesh_key: slot, transform: world, has_material, piece: false });
+                worlds.push(world_d);
             }
         }
         for c in node.children() {
-            stack.push((c, world, depth + 1));
+            stack.push((c, world, world_d, depth + 1));
+        }
+    }
+    // Objects placed far from the file's origin: their transforms relative to the anchor, from
+    // the f64 ones (near the origin the f32 walk stands, as it always did).
+    let (lo, hi) = worlds
+        .iter()
+        .map(|w| w.w_axis.truncate())
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
+    if lo.cmple(hi).all() {
+        out.anchor = crate::far_offset(lo, hi);
+    }
+    if out.anchor != DVec3::ZERO {
+        let to_anchor = DMat4::from_translation(-out.anchor);
+        for (p, w) in out.parts.iter_mut().zip(&worlds) {
+            p.transform = (to_anchor * *w).as_mat4();
         }
     }
     Ok(out)
+}
+
+/// Every node's local transform as the file writes it, read in `f64` from the glTF JSON (the
+/// `.gltf` file or a `.glb`'s JSON chunk): `matrix`, or `translation` x `rotation` x `scale`;
+/// `None` for a node whose numbers are not all there (the caller falls back to gltf's `f32`).
+fn gltf_node_transforms(path: &Path) -> Result<Vec<Option<DMat4>>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let json: &[u8] = if bytes.starts_with(b"glTF") {
+        // GLB: 12-byte header, then the JSON chunk (length, type "JSON", data).
+        let len = bytes.get(12..16).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+        match len.and_then(|n| bytes.get(20..20 + n)) {
+            Some(j) if bytes.get(16..20) == Some(b"JSON") => j,
+            _ => return Ok(Vec::new()), // gltf has read it: anything else is its business
+        }
+    } else {
+        &bytes
+    };
+    let Ok(root) = serde_json::from_slice::<serde_json::Value>(json) else { return Ok(Vec::new()) };
+    let nums = |v: Option<&serde_json::Value>, n: usize| -> Option<Vec<f64>> {
+        let a = v?.as_array()?;
+        (a.len() == n).then(|| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>()).flatten()
+    };
+    let nodes = root.get("nodes").and_then(|n| n.as_array()).map(|n| n.as_slice()).unwrap_or(&[]);
+    Ok(nodes
+        .iter()
+        .map(|n| {
+            if n.get("matrix").is_some() {
+                return nums(n.get("matrix"), 16).map(|m| DMat4::from_cols_slice(&m));
+            }
+            let t = match n.get("translation") {
+                Some(v) => DVec3::from_slice(&nums(Some(v), 3)?),
+                None => DVec3::ZERO,
+            };
+            let r = match n.get("rotation") {
+                Some(v) => DQuat::from_slice(&nums(Some(v), 4)?),
+                None => DQuat::IDENTITY,
+            };
+            let s = match n.get("scale") {
+                Some(v) => DVec3::from_slice(&nums(Some(v), 3)?),
+                None => DVec3::ONE,
+            };
+            Some(DMat4::from_scale_rotation_translation(s, r, t))
+        })
+        .collect())
 }
 
 /// Base-colour textures of one glTF file, decoded on first use.

@@ -679,3 +679,49 @@ fn a_file_far_from_its_origin_is_recentred_and_its_paths_follow() {
     // Read as if local (origin zero), the same file is 690 km away.
     assert!(CameraPath::from_json_str(&json).unwrap().keys[0].eye.x > 689_000.0);
 }
+
+#[test]
+fn a_gltf_placing_its_objects_far_away_keeps_their_placement_to_the_centimetre() {
+    use glam::DVec3;
+    // One triangle mesh, placed by three nodes at UTM-like translations (a `matrix` node, a
+    // decomposed one with a rotation, and a child of a far parent), the way geo-referenced glTF
+    // exports place buildings: gltf's f32 would put them on a 0.5 m grid.
+    let mut b: Vec<u8> = Vec::new();
+    for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        p.iter().for_each(|v| b.extend_from_slice(&v.to_le_bytes()));
+    }
+    for i in [0u16, 1, 2, 0] {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    let (ox, oz) = (690_000.0f64, 5_334_000.0f64);
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [
+            {"mesh": 0, "translation": [ox + 0.13, 2.0, oz + 1.37]},
+            {"mesh": 0, "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, ox + 10.5, 0, oz + 1.37, 1]},
+            {"translation": [ox + 20.0, 0.0, oz], "rotation": [0, std::f64::consts::FRAC_1_SQRT_2, 0, std::f64::consts::FRAC_1_SQRT_2], "children": [3]},
+            {"mesh": 0, "translation": [0.25, 0.0, 0.0]}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{"byteLength": b.len(), "uri": format!("data:application/octet-stream;base64,{}", encode_b64(&b))}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+        ]
+    });
+    let (_dir, d) = temp_dir("gltf-far");
+    let f = d.join("far.gltf");
+    std::fs::write(&f, serde_json::to_string(&json).unwrap()).unwrap();
+    let s = load_scene(f.to_str().unwrap(), &SceneOptions::default()).unwrap().scene;
+    // Translations x 0.13 .. 20, z 0 .. 1.37 (Y up): the anchor is their rounded centre.
+    assert_eq!(s.origin, DVec3::new(ox + 10.0, 0.0, oz + 1.0));
+    let t: Vec<Vec3> = s.instances.iter().map(|i| i.transform.w_axis.truncate()).collect();
+    assert!(t.contains(&Vec3::new(-9.87, 2.0, 0.37)), "{t:?}");
+    assert!(t.contains(&Vec3::new(0.5, 0.0, 0.37)), "{t:?}");
+    // The child: the parent's quarter turn about y takes its +x offset to -z.
+    let child = t.iter().find(|p| p.x > 9.0).unwrap();
+    assert!((*child - Vec3::new(10.0, 0.0, -1.25)).abs().max_element() < 1e-6, "{child:?}");
+}
