@@ -9,7 +9,9 @@
 //! (neighbouring texels move apart by more than the threshold). [`Sampling::Adaptive`] follows
 //! Bowles Sec. 3.4 / Fig. 4: bilinear between the four texels around `q` when all are valid and
 //! their motions differ by less than one pixel (the convergence condition `rho < 1` between
-//! neighbours), nearest otherwise. It is the default.
+//! neighbours) or their depths by less than [`SURFACE_DEPTH_STEP`] (one surface, magnified:
+//! the Newton step converges where plain iteration would not), nearest otherwise. It is the
+//! default.
 //!
 //! A sample carries what the search needs besides the motion: the target depth (the candidate
 //! choice), the Jacobian where the neighbourhood is smooth (the Newton step) and a tag (the
@@ -55,7 +57,8 @@ pub enum Sampling {
     /// The texel containing `q` (`floor(q)`).
     Nearest,
     /// Bilinear where the 2x2 neighbourhood is valid and continuous ([`continuous_cell`]:
-    /// motion range < 1 px, no large depth step), nearest elsewhere (Bowles Fig. 4).
+    /// motion range < 1 px or a depth step below [`SURFACE_DEPTH_STEP`], no large depth step),
+    /// nearest elsewhere (Bowles Fig. 4).
     #[default]
     Adaptive,
 }
@@ -85,15 +88,29 @@ pub const CONTINUITY_PX: f32 = 1.0;
 /// its normal (a few percent per texel).
 pub const DEPTH_CONTINUITY: f32 = 2.0;
 
+/// Relative depth step across a 2x2 cell (measured as for [`DEPTH_CONTINUITY`]) below which the
+/// cell is one surface whatever its motion range. A surface near the camera under fast motion is
+/// magnified (`|dv/dq| >= 1`: neighbouring texels move apart by a pixel or more); sampled
+/// nearest, each texel would cover its own 1x1 footprint and leave the pixels between the
+/// footprints without a fixed point (a camera skimming a wall 0.5 m away at 0.55 m per frame
+/// converged on 30 % of the wall it saw), while its bilinear interpolant has one that the
+/// Newton step reaches. 5 % keeps interpolating planes seen up to ~88° from their normal at
+/// 960 px (a grazing plane's step per texel is the pixel angle times `tan` of that angle) and
+/// stops at most object edges; an edge whose sides lie within 5 % in depth and move apart by
+/// a pixel or more is read as one stretched surface (its sliver gets a depth between them).
+pub const SURFACE_DEPTH_STEP: f32 = 0.05;
+
 /// Whether a 2x2 cell of valid texels is one surface, so that the adaptive fetch interpolates
 /// it (Bowles Fig. 4): its motions differ by less than [`CONTINUITY_PX`] (the convergence
-/// condition `rho < 1`) and its depths by less than [`DEPTH_CONTINUITY`] (relative; the
-/// geometric test of Mark et al. that Bowles Sec. 3.4 cites, for what motion alone cannot
-/// see). `motion_range` is the larger per-axis range of the four motions, `z_lo` / `z_hi` the
-/// smallest / largest target depth. Scalar twin of the AVX2 and WGSL fetches.
+/// condition `rho < 1`) or its depths by less than [`SURFACE_DEPTH_STEP`] (a magnified surface),
+/// and its depths by less than [`DEPTH_CONTINUITY`] (relative; the geometric test of Mark et
+/// al. that Bowles Sec. 3.4 cites, for what motion alone cannot see). `motion_range` is the
+/// larger per-axis range of the four motions, `z_lo` / `z_hi` the smallest / largest target
+/// depth. Scalar twin of the AVX2 and WGSL fetches.
 #[inline(always)]
 pub fn continuous_cell(motion_range: f32, z_lo: f32, z_hi: f32) -> bool {
-    (motion_range < CONTINUITY_PX) & ((z_hi - z_lo) < DEPTH_CONTINUITY * (1.0 - z_hi))
+    let (step, room) = (z_hi - z_lo, 1.0 - z_hi);
+    ((motion_range < CONTINUITY_PX) | (step < SURFACE_DEPTH_STEP * room)) & (step < DEPTH_CONTINUITY * room)
 }
 
 /// Validated samples of one layer as three planes (structure of arrays, so that a row of
@@ -426,13 +443,30 @@ mod tests {
         let planes = SamplePlanes::from_motion(&m);
         let n = LayerSampler::new(&planes, 16, 16, Sampling::Nearest, 0).fetch(Vec2::new(3.0, 3.5)).unwrap();
         assert_eq!(n.v.x, 1.5);
-        // A 5 px motion jump: no interpolation.
-        let m: Vec<Motion> =
-            (0..256).map(|i| Motion { v: Vec2::new(if i % 16 < 8 { 5.0 } else { 0.0 }, 0.0), depth: 0.5 }).collect();
+        // A 5 px motion jump between surfaces 15 and 16 m away (an edge): no interpolation.
+        let jump = |i: usize| {
+            let near = i % 16 < 8;
+            Motion { v: Vec2::new(if near { 5.0 } else { 0.0 }, 0.0), depth: ndc(if near { 15.0 } else { 16.0 }) }
+        };
+        let m: Vec<Motion> = (0..256).map(jump).collect();
         let planes = SamplePlanes::from_motion(&m);
         let s = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0);
         assert_eq!(s.fetch(Vec2::new(7.9, 2.5)).unwrap().v.x, 5.0);
         assert_eq!(s.fetch(Vec2::new(8.1, 2.5)).unwrap().v.x, 0.0);
+        // The same motion ramp over one surface 1 % farther per texel (a wall beside a fast
+        // camera, magnified): interpolated, with its Jacobian.
+        let wall = |i: usize| Motion {
+            v: Vec2::new((i % 16) as f32 * 1.5, 0.0),
+            depth: ndc(0.5 * 1.01f32.powi((i % 16) as i32)),
+        };
+        let m: Vec<Motion> = (0..256).map(wall).collect();
+        let planes = SamplePlanes::from_motion(&m);
+        let a = LayerSampler::new(&planes, 16, 16, Sampling::Adaptive, 0).fetch(Vec2::new(8.0, 2.5)).unwrap();
+        assert!(a.smooth && (a.v.x - 11.25).abs() < 1e-5 && (a.dv[0].x - 1.5).abs() < 1e-6, "{a:?}");
+        // The rule: a 5 % step is where motion decides again.
+        assert!(continuous_cell(7.0, ndc(10.0), ndc(10.4)));
+        assert!(!continuous_cell(7.0, ndc(10.0), ndc(10.6)));
+        assert!(continuous_cell(0.5, ndc(10.0), ndc(10.6)));
     }
 
     /// Depth of a point `d` metres away under a near 0.1 / far 1000 projection.

@@ -293,9 +293,14 @@ unsafe fn continuous8(rmax: __m256, [z00, z10, z01, z11]: [__m256; 4]) -> __m256
     let z_lo = _mm256_min_ps(_mm256_min_ps(z00, z10), _mm256_min_ps(z01, z11));
     let z_hi = _mm256_max_ps(_mm256_max_ps(z00, z10), _mm256_max_ps(z01, z11));
     let step = _mm256_sub_ps(z_hi, z_lo);
-    let limit = _mm256_mul_ps(splat(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(splat(1.0), z_hi));
+    let room = _mm256_sub_ps(splat(1.0), z_hi);
+    let limit = _mm256_mul_ps(splat(crate::sampling::DEPTH_CONTINUITY), room);
+    let surface = _mm256_mul_ps(splat(crate::sampling::SURFACE_DEPTH_STEP), room);
     _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, splat(crate::sampling::CONTINUITY_PX)),
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_LT_OQ>(rmax, splat(crate::sampling::CONTINUITY_PX)),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(step, surface),
+        ),
         _mm256_cmp_ps::<_CMP_LT_OQ>(step, limit),
     )
 }

@@ -220,8 +220,10 @@ pub enum BesideWall {
     Column,
     /// A far surface (0.95, moving -3 px): the wall visibly ends at texel 12.
     Ends,
-    /// A surface at the wall's depth (0.61) moving -20 px: the wall, or something at its depth,
-    /// is seen where its continuation would land on the gap, though none of it does.
+    /// A surface at about the wall's depth (0.63; the step is above
+    /// `sampling::SURFACE_DEPTH_STEP`, so the fetch does not read the two as one stretched
+    /// surface) moving -20 px: the wall, or something at its depth, is seen where its
+    /// continuation would land on the gap, though none of it does.
     SameDepth,
 }
 
@@ -242,7 +244,7 @@ pub fn continuation_layers(beside: BesideWall) -> Vec<(Image<f32>, Image<Motion>
         row_layer(|x| match (x, beside) {
             (12..20, BesideWall::Column) => along_x(-20.0, 0.3),
             (12..20, BesideWall::Ends) => far,
-            (12..20, BesideWall::SameDepth) => along_x(-20.0, 0.61),
+            (12..20, BesideWall::SameDepth) => along_x(-20.0, 0.63),
             _ => wall,
         }),
         row_layer(|x| match (x, beside) {

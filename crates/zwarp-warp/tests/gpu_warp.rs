@@ -108,7 +108,7 @@ fn near_wall_coverage_matches_cpu() {
     let k = WarpKernel::new(&ctx).unwrap();
     let (w, h) = (160, 96);
     let scene = SynthScene::near_wall();
-    let (a, b) = (SynthScene::near_wall_camera(0.0, w, h).unwrap(), SynthScene::near_wall_camera(0.4, w, h).unwrap());
+    let (a, b) = (SynthScene::near_wall_camera(0.0, w, h).unwrap(), SynthScene::near_wall_camera(0.5, w, h).unwrap());
     let src = scene.render(&a, 0.0, 4, true);
     let deltas = scene.object_deltas(0.0, 0.0);
     let m: Vec<Image<Motion>> =

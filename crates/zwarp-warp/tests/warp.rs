@@ -764,29 +764,34 @@ fn wall_disagreement(step: f32, cover_radius: f32) -> (usize, usize) {
 #[test]
 fn deeper_layers_do_not_show_through_a_near_wall() {
     // At walking speed (5-10 cm per frame, the wall 1.2 m away) every wall pixel converges at
-    // L = 1 and L = 4 agrees.
+    // L = 1 and L = 4 agrees; at 40 cm per frame too (the magnified part of the wall is
+    // interpolated, `sampling::SURFACE_DEPTH_STEP`, and layer 0 converges on all of it).
     assert_eq!(wall_disagreement(0.1, 3.5), (0, 0));
-    // At 40 cm per frame the wall's nearest part magnifies strongly and layer 0's search fails on
-    // ~1 % of it; without the coverage test (Sec. 3.4's plain nearest candidate) the surfaces
-    // behind the wall converge there and win (speckles of far depth on the wall).
     let (differ, behind) = wall_disagreement(0.4, 0.0);
-    assert!(differ > 50 && behind > 50, "{differ} {behind}");
+    assert!(differ <= 5 && behind <= 5, "{differ} {behind}");
+    // At 50 cm per frame layer 0's search fails on part of the wall's nearest stretch; without
+    // the coverage test (Sec. 3.4's plain nearest candidate) the surfaces behind the wall
+    // converge there and win (speckles of far depth on the wall).
+    let (differ, behind) = wall_disagreement(0.5, 0.0);
+    assert!(differ > 50 && behind > 10, "{differ} {behind}");
     // With it the front layer's failed walks, which came within a few pixels of the pixel, keep
     // them hidden: L = 4 gives L = 1's answer on all but a handful of the ~10K wall pixels.
-    let (differ, behind) = wall_disagreement(0.4, WarpParams::default().cover_radius);
+    let (differ, behind) = wall_disagreement(0.5, WarpParams::default().cover_radius);
     assert!(differ <= 5 && behind <= 5, "{differ} {behind}");
 }
 
 /// A camera walking along a wall 1.2 m away at a grazing angle (the near-wall paths of Sponza
-/// and Munich, synthetic): at 5 and 10 cm per frame (1.5 and 3 m/s at 30 Hz) one layer and four
-/// seeds converge on every wall pixel the source saw — the part of the wall nearest the camera
-/// magnifies fastest, where a loose bound or seeds outside the basin would fail first. Pixels
+/// and Munich, synthetic): at 5 and 10 cm per frame (1.5 and 3 m/s at 30 Hz) and at 40 cm one
+/// layer and four seeds converge on every wall pixel the source saw — the part of the wall
+/// nearest the camera magnifies fastest, where a loose bound or seeds outside the basin would
+/// fail first, and at 40 cm its texels move apart by more than a pixel (176 of 9376 failed
+/// while such cells were sampled nearest). Pixels
 /// the source did not see (their reference point hidden or outside the source view) cannot
 /// converge with one layer and are left out.
 #[test]
 fn a_single_layer_converges_on_a_near_wall_the_source_saw() {
     let (w, h) = (160, 96);
-    for step in [0.05, 0.1] {
+    for step in [0.05, 0.1, 0.4] {
         let (depths, motions, reference, cam, src_cam) = near_wall_case(w, h, step);
         let layers = [WarpLayer { depth: &depths[0], motion: &motions[0] }];
         let out = warp_depth(&layers, &WarpParams { n_seeds: 4, ..Default::default() }).unwrap();

@@ -70,9 +70,10 @@ const CONTINUATION_MIN_DET: f32 = 0.25;
 // search::STRADDLE_SPAN and search::STRADDLE_DEPTH_RATIO.
 const STRADDLE_SPAN: f32 = 16.0;
 const STRADDLE_DEPTH_RATIO: f32 = 1.5;
-// zwarp_warp::sampling::CONTINUITY_PX and DEPTH_CONTINUITY.
+// zwarp_warp::sampling::CONTINUITY_PX, DEPTH_CONTINUITY and SURFACE_DEPTH_STEP.
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
+const SURFACE_DEPTH_STEP: f32 = 0.05;
 // zwarp_warp::bounds::UNIQUE_GRADIENT.
 const UNIQUE_GRADIENT: f32 = 0.5;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
@@ -493,10 +494,13 @@ fn fetch(k: u32, q: vec2<f32>) -> Smp {
             let lo = min(min(s00.xy, s10.xy), min(s01.xy, s11.xy));
             let hi = max(max(s00.xy, s10.xy), max(s01.xy, s11.xy));
             let d = hi - lo;
-            // sampling::continuous_cell: motions within a pixel, no large relative depth step.
+            // sampling::continuous_cell: motions within a pixel or one surface (a small relative
+            // depth step), and no large relative depth step.
             let z_lo = min(min(s00.z, s10.z), min(s01.z, s11.z));
             let z_hi = max(max(s00.z, s10.z), max(s01.z, s11.z));
-            if (max(d.x, d.y) < CONTINUITY && z_hi - z_lo < DEPTH_CONTINUITY * (1.0 - z_hi)) {
+            let step = z_hi - z_lo;
+            let room = 1.0 - z_hi;
+            if ((max(d.x, d.y) < CONTINUITY || step < SURFACE_DEPTH_STEP * room) && step < DEPTH_CONTINUITY * room) {
                 let top_v = lerp2(s00.xy, s10.xy, ax);
                 let bot_v = lerp2(s01.xy, s11.xy, ax);
                 let top_d = s00.z + (s10.z - s00.z) * ax;
