@@ -33,7 +33,7 @@ pub use motion::{
     check_motion_inputs, motion_field, motion_field_into, motion_field_with, motion_field_with_into,
     motion_planes_into, Motion, ParallaxMotion,
 };
-pub use scene::{Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
+pub use scene::{translate_placed, Animation, AreaLight, Instance, LightShape, Mesh, Scene, NO_ITEM};
 pub use simd::SimdSwitch;
 
 /// Depth value that means "no surface here" (the far plane).

@@ -350,6 +350,26 @@ pub struct AreaLight {
     pub directional: bool,
 }
 
+/// Moves placed meshes by `d`, in `f64`: each placement is a mesh index and the transform that
+/// places it. A mesh that only identity placements use (world-space geometry) has `d` added to
+/// its positions and its bounds recomputed; every other placement is composed with the
+/// translation. So `d` cancels a placement's or a position's own translation exactly when both
+/// are whole units below 2^24. [`Scene::recentre`] and the loaders' file anchors use it.
+pub fn translate_placed(meshes: &mut [Mesh], placements: &mut [(u32, &mut Mat4)], d: DVec3) {
+    let mut bake = vec![true; meshes.len()];
+    for (mesh, transform) in placements.iter() {
+        bake[*mesh as usize] &= **transform == Mat4::IDENTITY;
+    }
+    for (m, _) in meshes.iter_mut().zip(&bake).filter(|(_, &b)| b) {
+        m.positions.iter_mut().for_each(|p| *p = (p.as_dvec3() + d).as_vec3());
+        m.compute_bounds();
+    }
+    let by = DMat4::from_translation(d);
+    for (_, transform) in placements.iter_mut().filter(|(mesh, _)| !bake[*mesh as usize]) {
+        **transform = (by * transform.as_dmat4()).as_mat4();
+    }
+}
+
 /// A whole scene: meshes, instances, lights. Camera paths live beside it (`zwarp-scene`).
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -443,23 +463,9 @@ impl Scene {
         if !offset.is_finite() {
             return Err(Error::invalid(format!("scene '{}': recentring offset {offset:?} is not finite", self.name)));
         }
-        let mut baked = vec![true; self.meshes.len()];
-        for inst in &self.instances {
-            if inst.transform != Mat4::IDENTITY {
-                baked[inst.mesh as usize] = false;
-            }
-        }
+        let mut placed: Vec<(u32, &mut Mat4)> = self.instances.iter_mut().map(|i| (i.mesh, &mut i.transform)).collect();
+        translate_placed(&mut self.meshes, &mut placed, -offset);
         let shift = |p: Vec3| (p.as_dvec3() - offset).as_vec3();
-        for (m, _) in self.meshes.iter_mut().zip(&baked).filter(|(_, &b)| b) {
-            m.positions.iter_mut().for_each(|p| *p = shift(*p));
-            m.compute_bounds();
-        }
-        let to_local = DMat4::from_translation(-offset);
-        for inst in &mut self.instances {
-            if !baked[inst.mesh as usize] {
-                inst.transform = (to_local * inst.transform.as_dmat4()).as_mat4();
-            }
-        }
         for l in &mut self.lights {
             l.center = shift(l.center);
             l.target = shift(l.target);

@@ -78,21 +78,14 @@ pub(crate) struct FileObjects {
 impl FileObjects {
     /// Moves the objects from this file's anchor to `origin` (a scene's: whole units, like the
     /// anchor, so the shift is exact in `f32` and the coordinates stay small): the positions of
-    /// meshes only untransformed parts use, the transforms of the other parts (in `f64`).
+    /// meshes only untransformed parts use, the transforms of the other parts
+    /// ([`zwarp_core::translate_placed`]).
     fn move_to(&mut self, origin: DVec3) {
         let d = self.anchor - origin;
         if d != DVec3::ZERO {
-            let mut bake = vec![true; self.meshes.len()];
-            for p in &self.parts {
-                bake[p.mesh_key] &= p.transform == Mat4::IDENTITY;
-            }
-            for (m, _) in self.meshes.iter_mut().zip(&bake).filter(|(_, &b)| b) {
-                m.positions.iter_mut().for_each(|p| *p = (p.as_dvec3() + d).as_vec3());
-                m.compute_bounds();
-            }
-            for p in self.parts.iter_mut().filter(|p| !bake[p.mesh_key]) {
-                p.transform = (DMat4::from_translation(d) * p.transform.as_dmat4()).as_mat4();
-            }
+            let mut placed: Vec<(u32, &mut Mat4)> =
+                self.parts.iter_mut().map(|p| (p.mesh_key as u32, &mut p.transform)).collect();
+            zwarp_core::translate_placed(&mut self.meshes, &mut placed, d);
         }
         self.anchor = origin;
     }
@@ -319,7 +312,8 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
     if !path.is_file() {
         return Err(Error::parse(path, "file not found"));
     }
-    let g = gltf::Gltf::open(path).map_err(|e| Error::parse(path, format!("glTF: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let g = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::parse(path, format!("glTF: {e}")))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let doc = g.document;
     let buffers =
@@ -339,7 +333,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
     };
     // The nodes' transforms in f64 as the file writes them (gltf parses them into f32, which
     // steps by 0.5 m at 4,000 km: geo-referenced files place their objects that way).
-    let exact = gltf_node_transforms(path)?;
+    let exact = gltf_node_transforms(&bytes);
     let local_of = |node: &gltf::Node| {
         exact
             .get(node.index())
@@ -405,27 +399,27 @@ pub(crate) fn load_gltf(path: &Path) -> Result<FileObjects> {
 }
 
 /// Every node's local transform as the file writes it, read in `f64` from the glTF JSON (the
-/// `.gltf` file or a `.glb`'s JSON chunk): `matrix`, or `translation` x `rotation` x `scale`;
-/// `None` for a node whose numbers are not all there (the caller falls back to gltf's `f32`).
-fn gltf_node_transforms(path: &Path) -> Result<Vec<Option<DMat4>>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+/// `.gltf` file's `bytes` or a `.glb`'s JSON chunk): `matrix`, or `translation` x `rotation` x
+/// `scale`; `None` for a node whose numbers are not all there (the caller falls back to gltf's
+/// `f32`), none at all where gltf accepted what this does not parse.
+fn gltf_node_transforms(bytes: &[u8]) -> Vec<Option<DMat4>> {
     let json: &[u8] = if bytes.starts_with(b"glTF") {
         // GLB: 12-byte header, then the JSON chunk (length, type "JSON", data).
         let len = bytes.get(12..16).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
         match len.and_then(|n| bytes.get(20..20 + n)) {
             Some(j) if bytes.get(16..20) == Some(b"JSON") => j,
-            _ => return Ok(Vec::new()), // gltf has read it: anything else is its business
+            _ => return Vec::new(), // gltf has read it: anything else is its business
         }
     } else {
-        &bytes
+        bytes
     };
-    let Ok(root) = serde_json::from_slice::<serde_json::Value>(json) else { return Ok(Vec::new()) };
+    let Ok(root) = serde_json::from_slice::<serde_json::Value>(json) else { return Vec::new() };
     let nums = |v: Option<&serde_json::Value>, n: usize| -> Option<Vec<f64>> {
         let a = v?.as_array()?;
         (a.len() == n).then(|| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>()).flatten()
     };
     let nodes = root.get("nodes").and_then(|n| n.as_array()).map(|n| n.as_slice()).unwrap_or(&[]);
-    Ok(nodes
+    nodes
         .iter()
         .map(|n| {
             if n.get("matrix").is_some() {
@@ -445,7 +439,7 @@ fn gltf_node_transforms(path: &Path) -> Result<Vec<Option<DMat4>>> {
             };
             Some(DMat4::from_scale_rotation_translation(s, r, t))
         })
-        .collect())
+        .collect()
 }
 
 /// Base-colour textures of one glTF file, decoded on first use.
