@@ -42,7 +42,9 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{AreaLight, Camera, Error, Image, Motion, Result, Scene};
 use zwarp_raster::{render_depth, render_frame, render_layers, FrameOptions, Layer, PeelOptions};
-use zwarp_warp::{warp_pixels, warp_prepared, BoundKind, HolePolicy, PreparedLayer, WarpLayer, WarpOutput, WarpParams};
+use zwarp_warp::{
+    warp_pixels, warp_prepared, BoundKind, HolePolicy, MotionScales, PreparedLayer, WarpLayer, WarpOutput, WarpParams,
+};
 
 pub use eval::{evaluate, evaluate_with, EvalConfig, EvalRow};
 pub use light::{
@@ -371,7 +373,7 @@ impl<'a> ZwarpMaps<'a> {
                     .iter()
                     .map(|l| {
                         rig.check_map(&l.depth)?;
-                        PreparedLayer::new_parallax(&l.depth, &field, BoundKind::Tight)
+                        PreparedLayer::new_parallax(&l.depth, &field, BoundKind::Tight, MotionScales::Any)
                     })
                     .collect::<Result<Vec<_>>>()?;
                 maps.mipmap_ms += ms_since(t0);

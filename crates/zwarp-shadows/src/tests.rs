@@ -450,7 +450,10 @@ fn shared_mipmap_equals_per_sample_scaled_mipmaps() {
                 .layers()
                 .iter()
                 .zip(&motions)
-                .map(|(l, m)| PreparedLayer::new(&WarpLayer { depth: &l.depth, motion: m }, BoundKind::Tight).unwrap())
+                .map(|(l, m)| {
+                    let layer = WarpLayer { depth: &l.depth, motion: m };
+                    PreparedLayer::new_for(&layer, BoundKind::Tight, MotionScales::Any).unwrap()
+                })
                 .collect();
             let wp = WarpParams { bound: BoundKind::Tight, ..p.warp_params() };
             let full = warp_prepared(&own, &wp).unwrap();

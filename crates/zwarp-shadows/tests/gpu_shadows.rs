@@ -13,7 +13,7 @@ use zwarp_shadows::{
     ZwarpMaps,
 };
 use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel};
-use zwarp_warp::WarpLayer;
+use zwarp_warp::{MotionScales, WarpLayer};
 
 const W: u32 = 128;
 const H: u32 = 96;
@@ -271,8 +271,9 @@ fn accumulate_rejects_bad_inputs() {
 
 #[test]
 fn prepared_warps_equal_one_shot_warps() {
-    // WarpKernel::encode_prepare once + encode_prepared per sample (what GpuShadows::zwarp_lit
-    // runs) gives WarpKernel::encode's output bit for bit at every sample's motion_scale.
+    // WarpKernel::encode_prepare_for (MotionScales::Any) once + encode_prepared per sample
+    // (what GpuShadows::zwarp_lit runs) gives a preparation per sample's output bit for bit at
+    // every sample's motion_scale.
     let Some(ctx) = test_context() else { return };
     let (scene, rig, _, p) = setup(4);
     let maps = ZwarpMaps::new(&scene, &rig, 0.0, &p).unwrap();
@@ -286,13 +287,14 @@ fn prepared_warps_equal_one_shot_warps() {
     let views: Vec<GpuWarpLayer<'_>> =
         bufs.iter().map(|(d, m)| GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let prepared = kernel.encode_prepare(&mut enc, &views, SM, SM, &base).unwrap();
+    let prepared = kernel.encode_prepare_for(&mut enc, &views, SM, SM, &base, MotionScales::Any).unwrap();
     ctx.queue.submit([enc.finish()]);
     assert_eq!(prepared.size(), (SM, SM));
     for &shift in &rig.shifts {
         let wp = sample_warp_params(&p, shift, k);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        let one = kernel.encode(&mut enc, &views, SM, SM, &wp).unwrap();
+        let own = kernel.encode_prepare_for(&mut enc, &views, SM, SM, &wp, MotionScales::Any).unwrap();
+        let one = kernel.encode_prepared(&mut enc, &own, wp.motion_scale).unwrap();
         let two = kernel.encode_prepared(&mut enc, &prepared, wp.motion_scale).unwrap();
         ctx.queue.submit([enc.finish()]);
         let (a, b) = (one.read(&ctx).unwrap(), two.read(&ctx).unwrap());

@@ -201,7 +201,7 @@ fn main() {
             let field = ParallaxMotion::of_camera(&case.cams.0, Vec2::new(3.0, -2.0), None);
             let depth = &case.depth[0];
             g.bench_function("prepare_parallax", |b| {
-                b.iter(|| PreparedLayer::new_parallax(depth, &field, BoundKind::Tight).unwrap())
+                b.iter(|| PreparedLayer::new_parallax(depth, &field, BoundKind::Tight, MotionScales::Any).unwrap())
             });
             g.bench_function("prepare_parallax_buffer", |b| {
                 b.iter(|| {

@@ -15,6 +15,14 @@
 //! which `zwarp_core::motion_field` marks with depth 1) are invisible in the target and are
 //! excluded for the same reason.
 //!
+//! **Samples that leave the image.** A sample whose target lies beyond the image can be no
+//! pixel's solution, but its motion still widens every bound over it: a wall or floor beside a
+//! camera moving forward moves hundreds to thousands of pixels off the view, and the bounds of
+//! the pixels that see the rest of that surface grow to match (the seeds scatter over the whole
+//! image and the search fails). A preparation for [`MotionScales::AtLeastOne`] therefore enters
+//! such a sample into the mipmap as if it landed [`CLIP_MARGIN`] px beyond the image
+//! ([`ImageClip`]); the bounds stay exact for every solution in the image (see there).
+//!
 //! **Odd sizes.** Level `l` has `ceil(w / 2^l) x ceil(h / 2^l)` texels; texel `(i, j)` covers the
 //! pixels `[i 2^l, (i+1) 2^l) x [j 2^l, (j+1) 2^l)` clipped to the image, so every pixel is
 //! covered at every level, for every image size (no edge row or column is dropped).
@@ -75,6 +83,95 @@ impl BoundFrame {
     pub fn from_frame(&self, u: Vec2) -> Vec2 {
         let (c, s) = (self.axis.x, self.axis.y);
         Vec2::new(c * u.x - s * u.y, s * u.x + c * u.y)
+    }
+}
+
+/// How far beyond the image, in source samples, a sample's target may lie and still enter the
+/// motion bounds as it is ([`ImageClip`]). Any margin of one sample or more keeps the bounds
+/// exact; four leave room for the search's convergence threshold.
+pub const CLIP_MARGIN: f32 = 4.0;
+
+/// The motion scales ([`crate::WarpParams::motion_scale`]) a preparation serves, which decides
+/// whether its motion bounds clip the samples that leave the image (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MotionScales {
+    /// `motion_scale >= 1` on both axes: the motion as given (depth prediction, culling, VR,
+    /// colour warps) or extrapolated. Samples whose target lies more than [`CLIP_MARGIN`] beyond
+    /// the image enter the bounds at that margin ([`ImageClip`]).
+    #[default]
+    AtLeastOne,
+    /// Any scale, e.g. one preparation shared by the soft-shadow samples' warps of one field
+    /// scaled by factors of either sign: the bounds of the motion as it is.
+    Any,
+}
+
+impl MotionScales {
+    /// The range a preparation for warps with `motion_scale` needs: [`Self::AtLeastOne`] where
+    /// both factors are `>= 1`, else [`Self::Any`].
+    pub fn for_scale(motion_scale: Vec2) -> Self {
+        if motion_scale.x >= 1.0 && motion_scale.y >= 1.0 {
+            MotionScales::AtLeastOne
+        } else {
+            MotionScales::Any
+        }
+    }
+
+    /// `true` if a preparation for this range serves warps with `motion_scale`.
+    pub fn serves(self, motion_scale: Vec2) -> bool {
+        self == MotionScales::Any || Self::for_scale(motion_scale) == MotionScales::AtLeastOne
+    }
+}
+
+/// Where the motion bounds of one [`BoundFrame`] clip a sample's target: the frame-coordinate
+/// box of a `w x h` image widened by [`CLIP_MARGIN`] (or everything, [`Self::NONE`]).
+///
+/// Exactness, per frame axis: a solution `q` of `q + v(q) = p`, `p` in the image, lies in a cell
+/// whose texels `i` (centres `q_i = q + d_i`, `|d_i| <= 1`) have targets `t_i = q_i + v_i`, and
+/// `p = sum w_i (t_i - d_i)` with convex weights (bilinear; a nearest sample is one texel), so
+/// some texel has `t_i - d_i >= p`. Clipping replaces a `t_i` beyond the box's far side by the
+/// side itself (`>= p + margin`), one beyond the near side likewise: the largest `t_i - d_i`
+/// stays `>= p` and the smallest `<= p`, so `p - q` stays within the clipped texels' motion
+/// range, which is what the bound needs. At a scale `s >= 1` a clipped target `q_i + s v_i` is
+/// still beyond the same side (the scaled bounds stay exact); below 1 it may not be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ImageClip {
+    pub lo: Vec2,
+    pub hi: Vec2,
+}
+
+impl ImageClip {
+    /// No clip ([`MotionScales::Any`]).
+    pub const NONE: ImageClip = ImageClip { lo: Vec2::NEG_INFINITY, hi: Vec2::INFINITY };
+
+    /// The clip of a `w x h` image in `frame` for `scales`.
+    pub fn new(w: u32, h: u32, frame: BoundFrame, scales: MotionScales) -> Self {
+        if scales == MotionScales::Any {
+            return Self::NONE;
+        }
+        let (wf, hf) = (w as f32, h as f32);
+        let corners =
+            [Vec2::ZERO, Vec2::new(wf, 0.0), Vec2::new(0.0, hf), Vec2::new(wf, hf)].map(|c| frame.to_frame(c));
+        let lo = corners.iter().fold(Vec2::INFINITY, |a, &c| a.min(c));
+        let hi = corners.iter().fold(Vec2::NEG_INFINITY, |a, &c| a.max(c));
+        ImageClip { lo: lo - CLIP_MARGIN, hi: hi + CLIP_MARGIN }
+    }
+
+    /// The motion `u` (frame coordinates) of the sample whose pixel centre is `rq` (frame
+    /// coordinates) as it enters the bounds: unchanged unless its target `rq + u` lies beyond
+    /// the box, then the motion to the box's side.
+    #[inline(always)]
+    pub fn clip(&self, rq: Vec2, u: Vec2) -> Vec2 {
+        let t = rq + u;
+        let axis = |t: f32, u: f32, q: f32, lo: f32, hi: f32| {
+            if t > hi {
+                hi - q
+            } else if t < lo {
+                lo - q
+            } else {
+                u
+            }
+        };
+        Vec2::new(axis(t.x, u.x, rq.x, self.lo.x, self.hi.x), axis(t.y, u.y, rq.y, self.lo.y, self.hi.y))
     }
 }
 
@@ -323,11 +420,12 @@ impl MotionPyramid {
         if !frame.axis.is_finite() || (frame.axis.length() - 1.0).abs() > 1e-3 {
             return Err(Error::invalid(format!("bound frame axis must be a unit vector, got {:?}", frame.axis)));
         }
-        Ok(Self::from_samples(motion.data(), motion.width(), motion.height(), frame))
+        Ok(Self::from_samples(motion.data(), motion.width(), motion.height(), frame, ImageClip::NONE))
     }
 
-    /// Builds from raw samples (already validated, `w * h` long, `w, h >= 1`).
-    pub(crate) fn from_samples(samples: &[Motion], w: u32, h: u32, frame: BoundFrame) -> Self {
+    /// Builds from raw samples (already validated, `w * h` long, `w, h >= 1`), their motion
+    /// clipped by `clip` (in `frame`).
+    pub(crate) fn from_samples(samples: &[Motion], w: u32, h: u32, frame: BoundFrame, clip: ImageClip) -> Self {
         debug_assert_eq!(samples.len(), w as usize * h as usize);
         // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
@@ -345,9 +443,12 @@ impl MotionPyramid {
                     let mut b = Bound::EMPTY;
                     let mut z = f32::INFINITY;
                     for y in y0..y1 {
-                        for m in &samples[y * w as usize + x0..y * w as usize + x1] {
+                        for (x, m) in (x0..x1).zip(&samples[y * w as usize + x0..y * w as usize + x1]) {
                             if is_valid_sample(m) {
-                                b.include(if identity { m.v } else { frame.to_frame(m.v) });
+                                let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                                let (rq, u) =
+                                    if identity { (q, m.v) } else { (frame.to_frame(q), frame.to_frame(m.v)) };
+                                b.include(clip.clip(rq, u));
                                 z = z.min(m.depth);
                             }
                         }
@@ -716,17 +817,22 @@ impl MotionPyramid {
     }
 }
 
-/// Global bound of the valid samples in `frame` (one parallel pass). The reference the fused
-/// preparation (`PreparedLayer::prepare_stack`) is tested against.
-#[cfg(test)]
-pub(crate) fn global_bound(samples: &[Motion], frame: BoundFrame) -> Bound {
+/// Global bound of the valid samples of a `w`-wide image in `frame`, their motion clipped by
+/// `clip` (one parallel pass): the union of the texels the fused preparation
+/// (`PreparedLayer::prepare_stack_for`) writes, which is tested against it.
+#[cfg(any(test, feature = "gpu"))]
+pub(crate) fn global_bound(samples: &[Motion], w: u32, frame: BoundFrame, clip: ImageClip) -> Bound {
+    const CHUNK: usize = 4096;
     samples
-        .par_chunks(4096)
-        .map(|c| {
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, ms)| {
             let mut b = Bound::EMPTY;
-            for m in c {
+            for (j, m) in ms.iter().enumerate() {
                 if is_valid_sample(m) {
-                    b.include(frame.to_frame(m.v));
+                    let i = c * CHUNK + j;
+                    let q = Vec2::new((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
+                    b.include(clip.clip(frame.to_frame(q), frame.to_frame(m.v)));
                 }
             }
             b
@@ -782,10 +888,17 @@ pub(crate) fn pca_frame_by(w: u32, h: u32, n: u32, motion: impl Fn(usize) -> Opt
     BoundFrame::from_angle(0.5 * (2.0 * sxy).atan2(sxx - syy))
 }
 
-/// Picks the frame for a layer under `kind`: identity for Global/Tight; for Oriented the PCA
-/// frame if its global bound has a smaller area than the axis-aligned one (per frame, Sec. 3.3).
-#[cfg(test)]
-pub(crate) fn choose_frame(samples: &[Motion], w: u32, h: u32, kind: crate::BoundKind) -> BoundFrame {
+/// Picks the frame for a layer of `w x h` samples (invalid ones: not in the mipmap) under
+/// `kind`: identity for Global/Tight; for Oriented the PCA frame if its global bound (clipped for
+/// `scales`) has a smaller area than the axis-aligned one (per frame, Sec. 3.3).
+#[cfg(any(test, feature = "gpu"))]
+pub(crate) fn choose_frame(
+    samples: &[Motion],
+    w: u32,
+    h: u32,
+    kind: crate::BoundKind,
+    scales: MotionScales,
+) -> BoundFrame {
     match kind {
         crate::BoundKind::Global | crate::BoundKind::Tight => BoundFrame::IDENTITY,
         crate::BoundKind::Oriented => {
@@ -793,8 +906,8 @@ pub(crate) fn choose_frame(samples: &[Motion], w: u32, h: u32, kind: crate::Boun
             if ob.is_identity() {
                 return ob;
             }
-            let a_aab = global_bound(samples, BoundFrame::IDENTITY).pixel_area();
-            let a_ob = global_bound(samples, ob).pixel_area();
+            let area = |f: BoundFrame| global_bound(samples, w, f, ImageClip::new(w, h, f, scales)).pixel_area();
+            let (a_aab, a_ob) = (area(BoundFrame::IDENTITY), area(ob));
             if a_ob < a_aab {
                 ob
             } else {
@@ -1170,11 +1283,11 @@ mod tests {
         let ang = f.axis.y.atan2(f.axis.x);
         let d = (ang - std::f32::consts::FRAC_PI_4).abs().min((ang + 3.0 * std::f32::consts::FRAC_PI_4).abs());
         assert!(d < 0.05, "angle {ang}");
-        let chosen = choose_frame(m.data(), 32, 32, crate::BoundKind::Oriented);
+        let chosen = choose_frame(m.data(), 32, 32, crate::BoundKind::Oriented, MotionScales::Any);
         assert!(!chosen.is_identity());
         assert!(
-            global_bound(m.data(), chosen).pixel_area()
-                < 0.5 * global_bound(m.data(), BoundFrame::IDENTITY).pixel_area()
+            global_bound(m.data(), 32, chosen, ImageClip::NONE).pixel_area()
+                < 0.5 * global_bound(m.data(), 32, BoundFrame::IDENTITY, ImageClip::NONE).pixel_area()
         );
         // Round trip of the frame.
         let u = Vec2::new(3.0, -2.0);
@@ -1200,5 +1313,61 @@ mod tests {
                 prop_assert!(got.hi.x >= want.hi.x && got.hi.y >= want.hi.y);
             }
         }
+
+        /// The image clip keeps the bounds exact: a point `q` of a cell whose bilinear motion
+        /// takes it (at a scale `s >= 1`) to within the convergence threshold of a point of
+        /// the image has its motion `p - q` inside the min-max of the cell's clipped texel
+        /// motions (scaled), in any frame, whatever the texels' own targets (some of them
+        /// thousands of pixels away).
+        #[test]
+        fn the_image_clip_keeps_every_solution_in_the_bound(
+            cx in 0u32..48, cy in 0u32..32, ax in 0.0f32..=1.0, ay in 0.0f32..=1.0,
+            v in proptest::array::uniform8(-3000.0f32..3000.0), big in proptest::array::uniform4(0.0f32..1.0),
+            angle in -3.2f32..3.2, scale in 1.0f32..3.0) {
+            let (w, h) = (48u32, 32u32);
+            let frame = if angle > 2.5 { BoundFrame::IDENTITY } else { BoundFrame::from_angle(angle) };
+            let clip = ImageClip::new(w, h, frame, MotionScales::AtLeastOne);
+            // The cell's texels (centres x + 0.5), clamped at the image border like the fetch.
+            let xs = [cx.min(w - 1), (cx + 1).min(w - 1)];
+            let ys = [cy.min(h - 1), (cy + 1).min(h - 1)];
+            let centre = |i: usize| Vec2::new(xs[i % 2] as f32 + 0.5, ys[i / 2] as f32 + 0.5);
+            // Motions of a few pixels, or (where `big`) thousands.
+            let mv = |i: usize| {
+                let m = Vec2::new(v[2 * i], v[2 * i + 1]);
+                if big[i] < 0.5 { m / 300.0 } else { m }
+            };
+            let q = Vec2::new(cx as f32 + 0.5 + ax, cy as f32 + 0.5 + ay);
+            let wts = [(1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay];
+            let vq = (0..4).fold(Vec2::ZERO, |a, i| a + wts[i] * mv(i));
+            let p = q + scale * vq;
+            let inside = |p: Vec2| p.x >= -0.5 && p.y >= -0.5 && p.x <= w as f32 + 0.5 && p.y <= h as f32 + 0.5;
+            if inside(p) {
+                let mut b = Bound::EMPTY;
+                for i in 0..4 {
+                    b.include(clip.clip(frame.to_frame(centre(i)), frame.to_frame(mv(i))));
+                }
+                let b = b.scaled(Vec2::splat(scale));
+                let u = frame.to_frame(p - q);
+                let eps = 1e-3 * (1.0 + u.abs().max_element());
+                prop_assert!(u.x >= b.lo.x - eps && u.x <= b.hi.x + eps && u.y >= b.lo.y - eps && u.y <= b.hi.y + eps,
+                    "p {p} q {q} u {u} bound {b:?}");
+            }
+        }
+    }
+
+    /// Samples that leave the image enter the bounds at the clip's margin; the others as they are.
+    #[test]
+    fn the_image_clip_moves_only_targets_beyond_the_margin() {
+        let clip = ImageClip::new(100, 50, BoundFrame::IDENTITY, MotionScales::AtLeastOne);
+        let q = Vec2::new(90.5, 10.5);
+        assert_eq!(clip.clip(q, Vec2::new(13.0, -14.0)), Vec2::new(13.0, -14.0));
+        assert_eq!(clip.clip(q, Vec2::new(2500.0, -900.0)), Vec2::new(100.0 + CLIP_MARGIN - 90.5, -CLIP_MARGIN - 10.5));
+        assert_eq!(ImageClip::new(100, 50, BoundFrame::IDENTITY, MotionScales::Any), ImageClip::NONE);
+        assert_eq!(ImageClip::NONE.clip(q, Vec2::splat(1e30)), Vec2::splat(1e30));
+        assert!(
+            MotionScales::AtLeastOne.serves(Vec2::new(1.0, 2.5))
+                && !MotionScales::AtLeastOne.serves(Vec2::new(1.0, 0.5))
+        );
+        assert!(MotionScales::Any.serves(Vec2::new(-1.0, 0.5)));
     }
 }

@@ -21,6 +21,7 @@
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result, EMPTY_DEPTH};
 
+use crate::bounds::MotionScales;
 use crate::holes::{fill_holes, FillRule, HolePolicy};
 use crate::kernel::{Kernel, TILE};
 pub use crate::prepare::{PreparedLayer, SurfaceMotion};
@@ -47,7 +48,8 @@ pub fn warp_depth(layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpO
     if layers.is_empty() {
         return Err(Error::invalid("warp_depth needs at least one layer"));
     }
-    let prepared = PreparedLayer::prepare_stack(layers, params.bound)?;
+    let scales = MotionScales::for_scale(params.motion_scale);
+    let prepared = PreparedLayer::prepare_stack_for(layers, params.bound, scales, Vec::new())?;
     warp_prepared(&prepared, params)
 }
 
@@ -79,7 +81,8 @@ pub fn predict_into(
         _ => None,
     };
     let warp_params = if fill.is_some() { WarpParams { holes: HolePolicy::FarDepth, ..*params } } else { *params };
-    let prepared = PreparedLayer::prepare_stack_recycling(layers, warp_params.bound, recycled)?;
+    let scales = MotionScales::for_scale(params.motion_scale);
+    let prepared = PreparedLayer::prepare_stack_for(layers, warp_params.bound, scales, recycled)?;
     warp_prepared_into(&prepared, &warp_params, out)?;
     if let Some(radius) = fill {
         let (w, h) = out.depth.size();
@@ -222,9 +225,16 @@ pub fn target_size(w: u32, h: u32, m: u32) -> Result<(u32, u32)> {
 }
 
 /// A non-uniform [`WarpParams::motion_scale`] does not commute with the rotation of an
-/// oriented bound frame, so the prepared mipmap would not bound the scaled motion.
+/// oriented bound frame, so the prepared mipmap would not bound the scaled motion; nor does a
+/// scale below one bound it where the preparation clipped the samples that leave the image
+/// ([`MotionScales`]).
 fn check_motion_scale(layers: &[PreparedLayer], params: &WarpParams) -> Result<()> {
     let s = params.motion_scale;
+    if let Some(k) = layers.iter().position(|l| !l.scales().serves(s)) {
+        return Err(Error::invalid(format!(
+            "motion_scale {s} is below 1, but layer {k} was prepared for scales >= 1 (prepare with MotionScales::Any)"
+        )));
+    }
     if s.x != s.y {
         if let Some(k) = layers.iter().position(|l| !l.pyramid().frame().is_identity()) {
             return Err(Error::invalid(format!(
@@ -260,7 +270,7 @@ mod tests {
     /// with empty pixels, repeated ground samples, odd sizes and diagonal motion (PCA frame).
     #[test]
     fn fused_preparation_equals_separate_passes() {
-        use crate::bounds::choose_frame;
+        use crate::bounds::{choose_frame, ImageClip};
         let (w, h) = (37u32, 22u32);
         let d0 = Image::from_fn(w, h, |x, y| if (x + y) % 7 == 0 { 1.0 } else { 0.3 + 0.01 * x as f32 });
         // Layer 1 repeats layer 0's depth on a third of the pixels (a ground layer).
@@ -272,8 +282,13 @@ mod tests {
         let m0 = Image::from_fn(w, h, |x, y| m(x, y, *d0.get(x, y)));
         let m1 = Image::from_fn(w, h, |x, y| m(x, y, *d1.get(x, y)));
         let layers = [WarpLayer { depth: &d0, motion: &m0 }, WarpLayer { depth: &d1, motion: &m1 }];
-        for bound in [BoundKind::Global, BoundKind::Tight, BoundKind::Oriented] {
-            let fused = PreparedLayer::prepare_stack(&layers, bound).unwrap();
+        // Both ways of treating the samples that leave the image (the motion reaches 11 px on
+        // a 37 px wide image: the right columns' targets lie beyond the clip's margin).
+        let cases = [BoundKind::Global, BoundKind::Tight, BoundKind::Oriented]
+            .into_iter()
+            .flat_map(|b| [(b, MotionScales::AtLeastOne), (b, MotionScales::Any)]);
+        for (bound, scales) in cases {
+            let fused = PreparedLayer::prepare_stack_for(&layers, bound, scales, Vec::new()).unwrap();
             for (k, got) in fused.iter().enumerate() {
                 let samples = validated_samples(&layers[k]).unwrap();
                 let mip: Vec<Motion> = samples
@@ -287,11 +302,11 @@ mod tests {
                         }
                     })
                     .collect();
-                let frame = choose_frame(&mip, w, h, bound);
+                let frame = choose_frame(&mip, w, h, bound, scales);
                 if bound == BoundKind::Oriented {
                     assert!(!frame.is_identity(), "the test needs a rotated frame");
                 }
-                let want = MotionPyramid::from_samples(&mip, w, h, frame);
+                let want = MotionPyramid::from_samples(&mip, w, h, frame, ImageClip::new(w, h, frame, scales));
                 assert_eq!(
                     plane_bits(got.planes()),
                     plane_bits(&SamplePlanes::from_motion(&samples)),

@@ -13,7 +13,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, ParallaxMotion, Result, EMPTY_DEPTH};
 
-use crate::bounds::{pca_frame_by, Bound, BoundFrame, MotionPyramid};
+use crate::bounds::{pca_frame_by, Bound, BoundFrame, ImageClip, MotionPyramid, MotionScales};
 use crate::gradient::{GradientMip, UNIQUE_GRADIENT};
 use crate::sampling::{LayerSampler, SamplePlanes, Sampling};
 use crate::simd::{fmax, fmin};
@@ -67,6 +67,9 @@ pub(crate) struct RowInput<'a> {
     pub w: usize,
     pub frame: BoundFrame,
     pub with_ob: bool,
+    /// The image clip of the axis-aligned texels and of the oriented ones (in `frame`).
+    pub clip: ImageClip,
+    pub clip_ob: ImageClip,
 }
 
 /// Where a layer's motion comes from: a buffer, or a field of the depth alone evaluated in the
@@ -160,13 +163,17 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
             zs[o] = if valid { m.depth } else { inf };
             let repeat = input.earlier.iter().any(|e| e[base + x] == d);
             let fresh = valid & !repeat;
-            let a = if fresh { (m.v.x, m.v.y, m.v.x, m.v.y) } else { (inf, inf, ninf, ninf) };
+            let q = Vec2::new(x as f32 + 0.5, (2 * ty + dy) as f32 + 0.5);
+            let cv = input.clip.clip(q, m.v);
+            let a = if fresh { (cv.x, cv.y, cv.x, cv.y) } else { (inf, inf, ninf, ninf) };
             fold(aab.as_deref_mut().map_or(&mut ga, |t| &mut t[x >> 1]), a);
             let z = &mut zmin[x >> 1];
             *z = fmin(*z, if fresh { m.depth } else { inf });
             if input.with_ob {
                 // `BoundFrame::to_frame`: the same products and sums.
                 let u = Vec2::new(c * m.v.x + s * m.v.y, -s * m.v.x + c * m.v.y);
+                let rq = Vec2::new(c * q.x + s * q.y, -s * q.x + c * q.y);
+                let u = input.clip_ob.clip(rq, u);
                 let o = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
                 fold(ob.as_deref_mut().map_or(&mut go, |t| &mut t[x >> 1]), o);
             }
@@ -230,6 +237,17 @@ mod avx2 {
         )
     }
 
+    /// [`ImageClip::clip`] of eight motions `u` at pixel centres `q` (one axis): the same
+    /// comparisons and differences.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn clip8(q: __m256, u: __m256, lo: f32, hi: f32) -> __m256 {
+        let t = _mm256_add_ps(q, u);
+        let (lo, hi) = (_mm256_set1_ps(lo), _mm256_set1_ps(hi));
+        let r = _mm256_blendv_ps(u, _mm256_sub_ps(hi, q), _mm256_cmp_ps::<_CMP_GT_OQ>(t, hi));
+        _mm256_blendv_ps(r, _mm256_sub_ps(lo, q), _mm256_cmp_ps::<_CMP_LT_OQ>(t, lo))
+    }
+
     /// One image row's eight pixels: the texel contributions (lx, ly, hx, hy, z) of the
     /// axis-aligned and oriented frames, the plane values written, the flags and surface range.
     struct Px {
@@ -259,6 +277,7 @@ mod avx2 {
         let (mut slox, mut sloy, mut shix, mut shiy) = (inf, inf, ninf, ninf);
         let mut gl = [inf, inf, ninf, ninf];
         let mut go = [inf, inf, ninf, ninf];
+        let centres = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
         let empty_px = Px { aab: [inf, inf, ninf, ninf], ob: [inf, inf, ninf, ninf], z: inf };
         let pixels = |dy: usize,
                       x: usize,
@@ -304,15 +323,23 @@ mod avx2 {
                 repeat = _mm256_or_ps(repeat, _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_loadu_ps(e.as_ptr().add(i)), d));
             }
             let fresh = _mm256_andnot_ps(repeat, valid);
+            // Pixel centres (exact small integers plus a half, as the portable row computes them).
+            let qx = _mm256_add_ps(_mm256_set1_ps(x as f32), centres);
+            let qy = _mm256_set1_ps((2 * ty + dy) as f32 + 0.5);
+            let (clip, clip_ob) = (input.clip, input.clip_ob);
+            let (cx, cy) = (clip8(qx, mx, clip.lo.x, clip.hi.x), clip8(qy, my, clip.lo.y, clip.hi.y));
             let aab = [
-                _mm256_blendv_ps(inf, mx, fresh),
-                _mm256_blendv_ps(inf, my, fresh),
-                _mm256_blendv_ps(ninf, mx, fresh),
-                _mm256_blendv_ps(ninf, my, fresh),
+                _mm256_blendv_ps(inf, cx, fresh),
+                _mm256_blendv_ps(inf, cy, fresh),
+                _mm256_blendv_ps(ninf, cx, fresh),
+                _mm256_blendv_ps(ninf, cy, fresh),
             ];
             let obv = if with_ob {
                 let ux = _mm256_add_ps(_mm256_mul_ps(c, mx), _mm256_mul_ps(s, my));
                 let uy = _mm256_add_ps(_mm256_mul_ps(ns, mx), _mm256_mul_ps(c, my));
+                let rqx = _mm256_add_ps(_mm256_mul_ps(c, qx), _mm256_mul_ps(s, qy));
+                let rqy = _mm256_add_ps(_mm256_mul_ps(ns, qx), _mm256_mul_ps(c, qy));
+                let (ux, uy) = (clip8(rqx, ux, clip_ob.lo.x, clip_ob.hi.x), clip8(rqy, uy, clip_ob.lo.y, clip_ob.hi.y));
                 [
                     _mm256_blendv_ps(inf, ux, fresh),
                     _mm256_blendv_ps(inf, uy, fresh),
@@ -425,6 +452,8 @@ pub struct PreparedLayer {
     /// The gradient mipmap of the first layer of a stack (computed where looked up).
     gradient: Option<GradientMip>,
     bound: BoundKind,
+    /// The motion scales its bounds serve.
+    scales: MotionScales,
     /// The level-1 buffer of the frame not chosen (kept for the next preparation).
     oriented: Vec<[f32; 4]>,
     surfaces: SurfaceMotion,
@@ -473,23 +502,37 @@ impl PreparedLayer {
     /// Validates `layer` (non-zero size, equal sizes, no NaN/infinite depth, no NaN motion) and
     /// builds its mipmap for `bound` (Oriented: AAB or PCA frame, whichever global bound is
     /// smaller). A sample is valid iff its source depth is `< 1`, its target depth is in
-    /// `[0, 1)` and its motion is finite (see [`crate::bounds`]).
+    /// `[0, 1)` and its motion is finite (see [`crate::bounds`]). Serves
+    /// [`MotionScales::AtLeastOne`] (the motion as given).
     pub fn new(layer: &WarpLayer<'_>, bound: BoundKind) -> Result<Self> {
+        Self::new_for(layer, bound, MotionScales::AtLeastOne)
+    }
+
+    /// [`Self::new`] for the motion scales `scales` (see [`crate::bounds`] on samples that
+    /// leave the image).
+    pub fn new_for(layer: &WarpLayer<'_>, bound: BoundKind, scales: MotionScales) -> Result<Self> {
         layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
-        Self::prepare(layer.depth, MotionIn::Buffer(layer.motion.data()), &[], bound, Spare::default())
+        Self::prepare(layer.depth, MotionIn::Buffer(layer.motion.data()), &[], bound, scales, Spare::default())
     }
 
     /// [`Self::new`] for a layer whose motion is a field of its depth alone (`motion`, e.g. a
     /// light rig's parallax, seed 000 Sec. 6): the field is evaluated in the preparation's own
     /// pass instead of being read from a buffer, so no motion buffer is written or read. The
-    /// result equals `Self::new` on the buffer of `motion.motion(d)` per pixel, bit for bit.
+    /// result equals [`Self::prepare_stack_for`] of one layer on the buffer of `motion.motion(d)`
+    /// per pixel, bit for bit, for the same `scales` (a field shared by scaled warps, like the
+    /// soft-shadow samples', needs [`MotionScales::Any`]).
     /// Errors: an empty depth buffer, NaN or infinite depths, a non-finite shift or planes.
-    pub fn new_parallax(depth: &Image<f32>, motion: &ParallaxMotion, bound: BoundKind) -> Result<Self> {
+    pub fn new_parallax(
+        depth: &Image<f32>,
+        motion: &ParallaxMotion,
+        bound: BoundKind,
+        scales: MotionScales,
+    ) -> Result<Self> {
         let finite = [motion.near, motion.far, motion.pivot.unwrap_or(0.0)].iter().all(|v| v.is_finite());
         if !motion.shift.is_finite() || !finite {
             return Err(Error::invalid(format!("parallax motion must be finite, got {motion:?}")));
         }
-        Self::prepare(depth, MotionIn::Parallax(*motion), &[], bound, Spare::default())
+        Self::prepare(depth, MotionIn::Parallax(*motion), &[], bound, scales, Spare::default())
     }
 
     /// Prepares a stack of layers (nearest first). Like [`PreparedLayer::new`] per layer, except
@@ -500,7 +543,8 @@ impl PreparedLayer {
     /// layer is searched only where it holds something new — the hidden ground. Any solution on
     /// a repeated sample is also a solution of the earlier layer, which searches it itself.
     /// Only layer 0 gets the gradient mipmap (the warp's one-seed tiles are on the first layer,
-    /// [`Self::unique_solution`]); the later layers' gradient look-ups are `+inf`.
+    /// [`Self::unique_solution`]); the later layers' gradient look-ups are `+inf`. Serves
+    /// [`MotionScales::AtLeastOne`] (the motion as given).
     pub fn prepare_stack(layers: &[WarpLayer<'_>], bound: BoundKind) -> Result<Vec<Self>> {
         Self::prepare_stack_recycling(layers, bound, Vec::new())
     }
@@ -509,10 +553,23 @@ impl PreparedLayer {
     /// k's buffers for layer k): an engine's steady state. The result is the same bit for bit;
     /// what it saves is faulting in and zeroing fresh pages every frame and, under
     /// [`BoundKind::Oriented`], the texels of the frame layer k did not choose last time.
-    /// Buffers too small for this frame's layers are replaced.
+    /// Buffers too small for this frame's layers are replaced. Serves
+    /// [`MotionScales::AtLeastOne`].
     pub fn prepare_stack_recycling(
         layers: &[WarpLayer<'_>],
         bound: BoundKind,
+        recycled: Vec<PreparedLayer>,
+    ) -> Result<Vec<Self>> {
+        Self::prepare_stack_for(layers, bound, MotionScales::AtLeastOne, recycled)
+    }
+
+    /// [`Self::prepare_stack_recycling`] for the motion scales `scales`
+    /// ([`crate::WarpParams::motion_scale`] of the warps that will read it; see
+    /// [`crate::bounds`] on samples that leave the image).
+    pub fn prepare_stack_for(
+        layers: &[WarpLayer<'_>],
+        bound: BoundKind,
+        scales: MotionScales,
         recycled: Vec<PreparedLayer>,
     ) -> Result<Vec<Self>> {
         let mut spares = recycled.into_iter().map(PreparedLayer::into_spare);
@@ -530,7 +587,7 @@ impl PreparedLayer {
             let earlier: Vec<&[f32]> = layers[..k].iter().map(|l| l.depth.data()).collect();
             layer.depth.check_same_size(layer.motion, "layer depth vs motion")?;
             let motion = MotionIn::Buffer(layer.motion.data());
-            out.push(Self::prepare(layer.depth, motion, &earlier, bound, spares.next().unwrap_or_default())?);
+            out.push(Self::prepare(layer.depth, motion, &earlier, bound, scales, spares.next().unwrap_or_default())?);
         }
         Ok(out)
     }
@@ -546,6 +603,7 @@ impl PreparedLayer {
         motion: MotionIn<'_>,
         earlier: &[&[f32]],
         bound: BoundKind,
+        scales: MotionScales,
         spare: Spare,
     ) -> Result<Self> {
         depth.check_nonempty("layer depth")?;
@@ -578,7 +636,16 @@ impl PreparedLayer {
         let mut aab = reuse_mip(level1, lw * lh, all, empty);
         let mut obd = if need_ob { reuse_mip(oriented, lw * lh, all, empty) } else { oriented };
         let mut zmin = reuse_mip(zmin, lw * lh, all, 0.0);
-        let input = RowInput { depth, motion, earlier, w: wu, frame: ob, with_ob: need_ob };
+        let input = RowInput {
+            depth,
+            motion,
+            earlier,
+            w: wu,
+            frame: ob,
+            with_ob: need_ob,
+            clip: ImageClip::new(w, h, BoundFrame::IDENTITY, scales),
+            clip_ob: ImageClip::new(w, h, ob, scales),
+        };
         let (cw, cl) = (TASK_ROWS * 2 * wu, TASK_ROWS * lw);
         let task = |c: usize,
                     [vx, vy, z]: [&mut [f32]; 3],
@@ -656,12 +723,27 @@ impl PreparedLayer {
             GradientMip::new(w, h, levels, gradient)
         });
         let surfaces = SurfaceMotion { lo: stats.surf_lo, hi: stats.surf_hi, all_finite: stats.flags & 4 == 0 };
-        Ok(PreparedLayer { w, h, planes: SamplePlanes { vx, vy, z }, pyramid, gradient, bound, oriented, surfaces })
+        Ok(PreparedLayer {
+            w,
+            h,
+            planes: SamplePlanes { vx, vy, z },
+            pyramid,
+            gradient,
+            bound,
+            scales,
+            oriented,
+            surfaces,
+        })
     }
 
     /// Image size.
     pub fn size(&self) -> (u32, u32) {
         (self.w, self.h)
+    }
+
+    /// The motion scales ([`crate::WarpParams::motion_scale`]) its bounds serve.
+    pub fn scales(&self) -> MotionScales {
+        self.scales
     }
     /// The large buffers, for [`Self::prepare_stack_recycling`].
     fn into_spare(self) -> Spare {

@@ -10,8 +10,8 @@ use zwarp_gpu::{test_context, FrameOptions, GpuScene, PeelOptions, Renderer};
 use zwarp_warp::gpu::WarpKernel;
 use zwarp_warp::synth::SynthScene;
 use zwarp_warp::{
-    warp_depth, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput,
-    WarpParams,
+    warp_depth, warp_prepared, BoundKind, CandidateChoice, HolePolicy, MotionScales, PixelState, PreparedLayer,
+    Sampling, SeedStrategy, WarpLayer, WarpOutput, WarpParams,
 };
 
 /// The bar between backends: warped-depth SSIM >= 0.999 and converged masks equal on >= 99.5 %
@@ -92,7 +92,7 @@ fn city_single_and_multi_layer_match_cpu() {
             eprintln!(
                 "L={nl} {name}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?} frames {:?}",
                 cpu.counts(),
-                WarpKernel::frames(&layers, p.bound)
+                WarpKernel::frames(&layers, p.bound, MotionScales::for_scale(p.motion_scale))
             );
             // The warp did real work: most pixels converged.
             assert!(cpu.counts().0 > cpu.depth.len() / 2, "{name}");
@@ -101,14 +101,15 @@ fn city_single_and_multi_layer_match_cpu() {
 }
 
 /// The multi-layer coverage test (`WarpParams::cover_radius`) where it decides most: a fast walk
-/// along a near wall, four peeled layers (seed 000 Sec. 3.4).
+/// along a near wall (80 cm per frame: wall texels leave the view by hundreds of pixels, so the
+/// image clip of the bounds takes part), four peeled layers (seed 000 Sec. 3.4).
 #[test]
 fn near_wall_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
     let (w, h) = (160, 96);
     let scene = SynthScene::near_wall();
-    let (a, b) = (SynthScene::near_wall_camera(0.0, w, h).unwrap(), SynthScene::near_wall_camera(0.5, w, h).unwrap());
+    let (a, b) = (SynthScene::near_wall_camera(0.0, w, h).unwrap(), SynthScene::near_wall_camera(0.8, w, h).unwrap());
     let src = scene.render(&a, 0.0, 4, true);
     let deltas = scene.object_deltas(0.0, 0.0);
     let m: Vec<Image<Motion>> =
@@ -128,11 +129,33 @@ fn near_wall_coverage_matches_cpu() {
     }
 }
 
-/// The CPU warp of the row-pattern layers `ls` (`zwarp_warp::synth`), after checking that the
-/// GPU gives the same states, depths and revealed pixels.
-fn rows_match_cpu(k: &WarpKernel, ls: &[(Image<f32>, Image<Motion>)], p: &WarpParams, what: &str) -> WarpOutput {
+/// The CPU warp of the row-pattern layers `ls` (`zwarp_warp::synth`) prepared for `scales`
+/// (the patterns' motion takes some texels 25 px past the 32 px image: clipped or not), after
+/// checking that the GPU gives the same states, depths and revealed pixels.
+fn rows_match_cpu(
+    ctx: &zwarp_gpu::GpuContext,
+    k: &WarpKernel,
+    ls: &[(Image<f32>, Image<Motion>)],
+    p: &WarpParams,
+    scales: MotionScales,
+    what: &str,
+) -> WarpOutput {
     let layers: Vec<WarpLayer<'_>> = ls.iter().map(|(depth, motion)| WarpLayer { depth, motion }).collect();
-    let (cpu, gpu) = (warp_depth(&layers, p).unwrap(), k.warp(&layers, p).unwrap());
+    let cpu =
+        warp_prepared(&PreparedLayer::prepare_stack_for(&layers, p.bound, scales, Vec::new()).unwrap(), p).unwrap();
+    let bufs = k.upload(&layers, p).unwrap();
+    let views: Vec<zwarp_warp::gpu::GpuWarpLayer> = bufs
+        .iter()
+        .zip(WarpKernel::frames(&layers, p.bound, scales))
+        .map(|((d, m), axis)| zwarp_warp::gpu::GpuWarpLayer { depth: d, motion: m, axis })
+        .collect();
+    let (w, h) = layers[0].depth.size();
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let prepared = k.encode_prepare_for(&mut enc, &views, w, h, p, scales).unwrap();
+    let out = k.encode_prepared(&mut enc, &prepared, p.motion_scale).unwrap();
+    ctx.queue.submit([enc.finish()]);
+    let gpu = out.read(ctx).unwrap();
+    let what = format!("{what} {scales:?}");
     assert_eq!(gpu.state, cpu.state, "{what}");
     assert_eq!(gpu.depth, cpu.depth, "{what}");
     assert_eq!(gpu.revealed, cpu.revealed, "{what}");
@@ -140,15 +163,21 @@ fn rows_match_cpu(k: &WarpKernel, ls: &[(Image<f32>, Image<Motion>)], p: &WarpPa
 }
 
 /// The coverage test's fixed-point step (`synth::seam_layers`): the GPU hides the far layer
-/// seen through the seam between three layers' views of a wall, as the CPU does.
+/// seen through the seam between three layers' views of a wall, as the CPU does (bounds of the
+/// motion as it is; clipped to the image, the second search finds the wall's sliver on every
+/// row, on both).
 #[test]
 fn seam_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
     for sliver in [true, false] {
         let p = WarpParams { n_seeds: 4, cover_radius: 0.5, ..base() };
-        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::seam_layers(sliver), &p, &format!("sliver {sliver}"));
+        let layers = zwarp_warp::synth::seam_layers(sliver);
+        let what = format!("sliver {sliver}");
+        let cpu = rows_match_cpu(&ctx, &k, &layers, &p, MotionScales::Any, &what);
         assert_eq!(*cpu.state.get(10, 1), if sliver { PixelState::Hole } else { PixelState::Converged });
+        let clipped = rows_match_cpu(&ctx, &k, &layers, &p, MotionScales::AtLeastOne, &what);
+        assert_eq!(*clipped.state.get(10, 1), PixelState::Converged);
     }
 }
 
@@ -162,9 +191,12 @@ fn continuation_coverage_matches_cpu() {
     use zwarp_warp::synth::BesideWall;
     for beside in [BesideWall::Column, BesideWall::Ends, BesideWall::SameDepth] {
         let p = WarpParams { n_seeds: 4, ..base() };
-        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::continuation_layers(beside), &p, &format!("{beside:?}"));
         let far = if beside == BesideWall::Ends { PixelState::Converged } else { PixelState::Hole };
-        assert_eq!(*cpu.state.get(6, 1), far, "{beside:?}");
+        for scales in [MotionScales::Any, MotionScales::AtLeastOne] {
+            let layers = zwarp_warp::synth::continuation_layers(beside);
+            let cpu = rows_match_cpu(&ctx, &k, &layers, &p, scales, &format!("{beside:?}"));
+            assert_eq!(*cpu.state.get(6, 1), far, "{beside:?} {scales:?}");
+        }
     }
 }
 
@@ -178,11 +210,13 @@ fn ground_layer_matches_cpu() {
     for (far, ground_layer) in [(0.8, true), (0.8, false), (0.95, true)] {
         let p = WarpParams { n_seeds: 4, ground_layer, ..base() };
         let what = format!("far {far} ground_layer {ground_layer}");
-        let cpu = rows_match_cpu(&k, &zwarp_warp::synth::ground_gap_layers(far), &p, &what);
         let hidden = ground_layer && far < 0.95;
-        assert_eq!(*cpu.state.get(8, 1), if hidden { PixelState::Hole } else { PixelState::Converged });
-        // Where kept, the ground's candidate is one the deeper layer revealed.
-        assert_eq!(cpu.revealed.contains(&(cpu.depth.width() + 8)), !hidden, "{what}");
+        for scales in [MotionScales::Any, MotionScales::AtLeastOne] {
+            let cpu = rows_match_cpu(&ctx, &k, &zwarp_warp::synth::ground_gap_layers(far), &p, scales, &what);
+            assert_eq!(*cpu.state.get(8, 1), if hidden { PixelState::Hole } else { PixelState::Converged });
+            // Where kept, the ground's candidate is one the deeper layer revealed.
+            assert_eq!(cpu.revealed.contains(&(cpu.depth.width() + 8)), !hidden, "{what} {scales:?}");
+        }
     }
 }
 
@@ -203,10 +237,15 @@ fn rendered_frame_pair_matches_cpu() {
     let k = WarpKernel::new(&ctx).unwrap();
     for (nl, p) in [(1usize, base()), (2, base()), (2, WarpParams { bound: BoundKind::Tight, ..base() })] {
         let layers = layers_of(&d[..nl], &m[..nl]);
-        // The host-side frame choice is the CPU's (PreparedLayer::prepare_stack).
+        // The host-side frame choice is the CPU's (PreparedLayer::prepare_stack_for), with
+        // the bounds clipped to the image or not.
+        for scales in [MotionScales::Any, MotionScales::AtLeastOne] {
+            let prepared = zwarp_warp::PreparedLayer::prepare_stack_for(&layers, p.bound, scales, Vec::new()).unwrap();
+            let axes: Vec<Vec2> = prepared.iter().map(|l| l.pyramid().frame().axis).collect();
+            assert_eq!(WarpKernel::frames(&layers, p.bound, scales), axes, "{scales:?}");
+        }
         let prepared = zwarp_warp::PreparedLayer::prepare_stack(&layers, p.bound).unwrap();
         let cpu_axes: Vec<Vec2> = prepared.iter().map(|l| l.pyramid().frame().axis).collect();
-        assert_eq!(WarpKernel::frames(&layers, p.bound), cpu_axes);
         if p.bound == BoundKind::Oriented {
             assert!(cpu_axes.iter().all(|a| *a != Vec2::X), "this pair exercises oriented bounds");
         }
@@ -217,7 +256,7 @@ fn rendered_frame_pair_matches_cpu() {
             "rendered L={nl} {:?}: ssim {s:.6} mask {mask:.5} exact {exact:.5} cpu {:?} frames {:?}",
             p.bound,
             cpu.counts(),
-            WarpKernel::frames(&layers, p.bound)
+            cpu_axes
         );
     }
 }
@@ -378,7 +417,7 @@ fn motion_scale_matches_cpu() {
         }
     }
     let layers = layers_of(&d[..1], &m[..1]);
-    if WarpKernel::frames(&layers, BoundKind::Oriented)[0] != Vec2::X {
+    if WarpKernel::frames(&layers, BoundKind::Oriented, MotionScales::Any)[0] != Vec2::X {
         let p = WarpParams { motion_scale: Vec2::new(1.0, 0.5), ..base() };
         assert!(matches!(k.warp(&layers, &p), Err(Error::Invalid(_))));
         assert!(matches!(warp_depth(&layers, &p), Err(Error::Invalid(_))));
@@ -576,7 +615,7 @@ fn multisample_prepared_warps_match_cpu() {
     let views: Vec<zwarp_warp::gpu::GpuWarpLayer> =
         gpu_layers.iter().map(|(d, m)| zwarp_warp::gpu::GpuWarpLayer { depth: d, motion: m, axis: Vec2::X }).collect();
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    let prepared = k.encode_prepare(&mut enc, &views, tw * m, th * m, &p).unwrap();
+    let prepared = k.encode_prepare_for(&mut enc, &views, tw * m, th * m, &p, MotionScales::Any).unwrap();
     assert_eq!((prepared.size(), prepared.target_size()), ((tw * m, th * m), (tw, th)));
     let scales = [Vec2::ONE, Vec2::new(0.5, -0.75)];
     let outs: Vec<zwarp_warp::gpu::GpuWarpOutput> =
@@ -584,7 +623,8 @@ fn multisample_prepared_warps_match_cpu() {
     ctx.queue.submit([enc.finish()]);
     for (out, &s) in outs.iter().zip(&scales) {
         assert_eq!((out.width, out.height), (tw, th));
-        let cpu = warp_depth(&layers, &WarpParams { motion_scale: s, ..p }).unwrap();
+        let cpu_prepared = PreparedLayer::prepare_stack_for(&layers, p.bound, MotionScales::Any, Vec::new()).unwrap();
+        let cpu = warp_prepared(&cpu_prepared, &WarpParams { motion_scale: s, ..p }).unwrap();
         assert_bits(&out.read(&ctx).unwrap(), &cpu, &format!("prepared m={m} scale {s}"));
     }
     // A source size not divisible by m.

@@ -171,7 +171,8 @@ fn avx2_sparse_warp_equals_the_portable_one_with_a_motion_scale() {
                 let _switch = SWITCH.lock().unwrap_or_else(|e| e.into_inner());
                 let sparse = |simd: bool| {
                     simd::set_simd(simd);
-                    let prepared = PreparedLayer::prepare_stack(&layers, params.bound).unwrap();
+                    let scales = MotionScales::for_scale(s);
+                    let prepared = PreparedLayer::prepare_stack_for(&layers, params.bound, scales, Vec::new()).unwrap();
                     let r = warp_pixels(&prepared, &params, &tiled).unwrap();
                     r.iter().map(|(z, st)| (z.to_bits(), *st as u8)).collect::<Vec<_>>()
                 };
@@ -335,11 +336,14 @@ fn parallax_preparations_equal_the_preparation_of_their_field_in_both_builds() {
                 let p = ParallaxMotion { shift: Vec2::new(2.5, -1.75), near: 0.3, far: 40.0, perspective, pivot };
                 let motion = Image::from_fn(w, h, |x, y| p.motion(*depth.get(x, y)));
                 for bound in [BoundKind::Tight, BoundKind::Oriented, BoundKind::Global] {
-                    let direct = PreparedLayer::new_parallax(&depth, &p, bound).unwrap();
-                    let buffered = PreparedLayer::new(&WarpLayer { depth: &depth, motion: &motion }, bound).unwrap();
-                    let a = prep_bits(std::slice::from_ref(&direct));
-                    assert!(a == prep_bits(std::slice::from_ref(&buffered)), "{w}x{h} {p:?} {bound:?} simd {simd}");
-                    seen.push(a);
+                    for scales in [MotionScales::AtLeastOne, MotionScales::Any] {
+                        let direct = PreparedLayer::new_parallax(&depth, &p, bound, scales).unwrap();
+                        let layer = [WarpLayer { depth: &depth, motion: &motion }];
+                        let buffered = PreparedLayer::prepare_stack_for(&layer, bound, scales, Vec::new()).unwrap();
+                        let a = prep_bits(std::slice::from_ref(&direct));
+                        assert!(a == prep_bits(&buffered), "{w}x{h} {p:?} {bound:?} {scales:?} simd {simd}");
+                        seen.push(a);
+                    }
                 }
             }
         }
@@ -349,11 +353,13 @@ fn parallax_preparations_equal_the_preparation_of_their_field_in_both_builds() {
     assert!(builds[0] == builds[1], "the AVX2 and portable parallax preparations differ");
     let depth = Image::new(8, 8, 0.5f32);
     let bad = ParallaxMotion { shift: Vec2::new(f32::NAN, 0.0), near: 0.3, far: 40.0, perspective: true, pivot: None };
-    let e = PreparedLayer::new_parallax(&depth, &bad, BoundKind::Tight).err().expect("a NaN shift is an error");
+    let e = PreparedLayer::new_parallax(&depth, &bad, BoundKind::Tight, MotionScales::Any)
+        .err()
+        .expect("a NaN shift is an error");
     assert!(e.to_string().contains("parallax motion must be finite"), "{e}");
     let nan_depth = Image::from_fn(8, 8, |x, _| if x == 3 { f32::NAN } else { 0.5 });
     let ok = ParallaxMotion { shift: Vec2::ONE, ..bad };
-    assert!(PreparedLayer::new_parallax(&nan_depth, &ok, BoundKind::Tight).is_err());
+    assert!(PreparedLayer::new_parallax(&nan_depth, &ok, BoundKind::Tight, MotionScales::Any).is_err());
 }
 
 /// The row patterns of `synth` behind the multi-layer coverage tests (a seam between three

@@ -27,7 +27,7 @@ use zwarp_core::{motion_field, Image, Motion, Result};
 use zwarp_gpu::{DepthTarget, GpuContext, GpuScene, GpuTimer, PeelOptions, Renderer, TimingStats};
 use zwarp_tools::common;
 use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel};
-use zwarp_warp::{warp_depth, PixelState, WarpLayer, WarpParams};
+use zwarp_warp::{warp_depth, MotionScales, PixelState, WarpLayer, WarpParams};
 
 fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
@@ -75,7 +75,7 @@ fn main() -> Result<()> {
             depths.iter().zip(&motions).map(|(depth, motion)| WarpLayer { depth, motion }).collect();
         let bufs = k.upload(&layers, &params)?;
         // The oriented bound frame per layer (a CPU pass over the motion, done once here).
-        let frames = WarpKernel::frames(&layers, params.bound);
+        let frames = WarpKernel::frames(&layers, params.bound, MotionScales::for_scale(params.motion_scale));
         let views: Vec<GpuWarpLayer> =
             bufs.iter().zip(&frames).map(|((d, m), &axis)| GpuWarpLayer { depth: d, motion: m, axis }).collect();
         let (mut gw, mut gr, mut cw, mut cr) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -41,7 +41,7 @@ use zwarp_gpu::render::{DepthTarget, FrameOptions, GpuScene, LayerTargets, PeelO
 use zwarp_gpu::GpuContext;
 use zwarp_raster::{Frame, ViewRegion};
 use zwarp_warp::gpu::{GpuWarpLayer, WarpKernel, MAX_GPU_LAYERS};
-use zwarp_warp::{BoundKind, WarpParams};
+use zwarp_warp::{BoundKind, MotionScales, WarpParams};
 
 use crate::{peel_options, EvalConfig, EvalRow, LightRig, Method, Receivers, ShadowParams, ShadowResult, StageTimings};
 
@@ -460,12 +460,13 @@ impl GpuShadows {
         // One preparation (samples + min-max mipmaps of the reference field) for all samples:
         // only WarpParams::motion_scale differs between them.
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        let prepared = self.warp.encode_prepare(
+        let prepared = self.warp.encode_prepare_for(
             &mut enc,
             &views,
             w,
             h,
             &WarpParams { ground_layer: layers.ground_layer, ..sample_warp_params(params, layers.k_ref, layers.k_ref) },
+            MotionScales::Any,
         )?;
         self.ctx.queue.submit([enc.finish()]);
         for &shift in &rig.shifts {

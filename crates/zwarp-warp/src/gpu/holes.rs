@@ -16,6 +16,7 @@ use zwarp_gpu::readback::read_buffer;
 use zwarp_gpu::GpuContext;
 
 use super::{GpuWarpLayer, GpuWarpOutput};
+use crate::bounds::MotionScales;
 use crate::holes::BackgroundLimits;
 use crate::{HolePolicy, PixelState, SearchParams, WarpLayer, WarpOutput};
 
@@ -430,7 +431,7 @@ pub fn predict(
     let (tw, th) = super::WarpKernel::target_size(w, h, params.multisample)?;
     // The CPU's errors for the background protocol (non-finite motion, radius).
     BackgroundLimits::of_multisampled(layers, tw, th, params.multisample, radius)?;
-    let frames = super::WarpKernel::frames(layers, params.bound);
+    let frames = super::WarpKernel::frames(layers, params.bound, MotionScales::for_scale(params.motion_scale));
     let views: Vec<GpuWarpLayer<'_>> =
         buffers.iter().zip(frames).map(|((d, m), axis)| GpuWarpLayer { depth: d, motion: m, axis }).collect();
     let mut enc = fill.ctx.device.create_command_encoder(&Default::default());

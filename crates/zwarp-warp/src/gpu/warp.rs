@@ -39,10 +39,10 @@ use zwarp_gpu::readback::read_buffer;
 use zwarp_gpu::GpuContext;
 
 use super::pyramid_level_sizes;
-use crate::bounds::{is_valid_sample, pca_frame};
+use crate::bounds::{choose_frame, ImageClip, MotionScales};
 use crate::{
-    Bound, BoundFrame, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer,
-    WarpOutput, WarpParams,
+    BoundFrame, BoundKind, CandidateChoice, HolePolicy, PixelState, Sampling, SeedStrategy, WarpLayer, WarpOutput,
+    WarpParams,
 };
 
 /// Largest number of layers L the GPU warp takes in one call.
@@ -78,6 +78,8 @@ struct Params {
     cover2: f32,
     levels: [[u32; 4]; MAX_LEVELS],
     axes: [[f32; 4]; MAX_GPU_LAYERS],
+    /// `bounds::ImageClip` per layer in its frame: `(lo.x, lo.y, hi.x, hi.y)`.
+    clips: [[f32; 4]; MAX_GPU_LAYERS],
 }
 
 const FLAG_CROSS: u32 = 1;
@@ -157,6 +159,7 @@ pub struct GpuPreparedWarp {
     base: Params,
     holes: HolePolicy,
     layers: usize,
+    scales: MotionScales,
 }
 
 impl GpuPreparedWarp {
@@ -284,10 +287,9 @@ impl WarpKernel {
     }
 
     /// The first half of [`Self::encode`]: records the per-layer `prepare` pass and the
-    /// min-max motion mipmaps (Sec. 3.3), which do not depend on `WarpParams::motion_scale`,
-    /// so one preparation serves many warps with different scales ([`Self::encode_prepared`]),
-    /// e.g. the S light-sample views of a soft shadow (seed 000 Sec. 6), each the reference
-    /// parallax field scaled by `K_i / K_ref`. Errors as [`Self::encode`].
+    /// min-max motion mipmaps (Sec. 3.3) for the scales `params.motion_scale` needs
+    /// ([`MotionScales::for_scale`], as `crate::warp_depth` prepares). See
+    /// [`Self::encode_prepare_for`].
     pub fn encode_prepare(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -295,6 +297,23 @@ impl WarpKernel {
         width: u32,
         height: u32,
         params: &WarpParams,
+    ) -> Result<GpuPreparedWarp> {
+        let scales = MotionScales::for_scale(params.motion_scale);
+        self.encode_prepare_for(encoder, layers, width, height, params, scales)
+    }
+
+    /// [`Self::encode_prepare`] for the motion scales `scales`: the mipmaps serve every
+    /// warp whose `WarpParams::motion_scale` they serve ([`Self::encode_prepared`]), e.g. under
+    /// [`MotionScales::Any`] the S light-sample views of a soft shadow (seed 000 Sec. 6), each
+    /// the reference parallax field scaled by `K_i / K_ref`. Errors as [`Self::encode`].
+    pub fn encode_prepare_for(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        layers: &[GpuWarpLayer<'_>],
+        width: u32,
+        height: u32,
+        params: &WarpParams,
+        scales: MotionScales,
     ) -> Result<GpuPreparedWarp> {
         Self::check_params(params)?;
         if layers.is_empty() {
@@ -312,6 +331,7 @@ impl WarpKernel {
         let (tw, th) = Self::target_size(width, height, params.multisample)?;
         let wh = width as u64 * height as u64;
         let mut axes = [[1.0f32, 0.0, 0.0, 0.0]; MAX_GPU_LAYERS];
+        let mut clips = [[0.0f32; 4]; MAX_GPU_LAYERS];
         for (k, l) in layers.iter().enumerate() {
             if l.depth.size() < wh * 4 || l.motion.size() < wh * 12 {
                 return Err(Error::invalid(format!("layer {k}: GPU buffers are too small for {width}x{height}")));
@@ -326,6 +346,9 @@ impl WarpKernel {
             if params.bound == BoundKind::Oriented {
                 axes[k] = [l.axis.x, l.axis.y, 0.0, 0.0];
             }
+            let frame = BoundFrame { axis: Vec2::new(axes[k][0], axes[k][1]) };
+            let clip = ImageClip::new(width, height, frame, scales);
+            clips[k] = [clip.lo.x, clip.lo.y, clip.hi.x, clip.hi.y];
         }
         // The CPU's check (crate::warp_prepared): per-axis motion scaling does not commute
         // with a rotated bound frame.
@@ -406,6 +429,7 @@ impl WarpKernel {
             cover2: params.cover_radius * params.cover_radius,
             levels,
             axes,
+            clips,
         };
         let samples = self.storage(nl as u64 * wh * 16, "zwarp warp samples")?;
         let mip = self.storage(nl as u64 * total as u64 * 16, "zwarp warp mipmap")?;
@@ -435,14 +459,15 @@ impl WarpKernel {
                 );
             }
         }
-        Ok(GpuPreparedWarp { samples, mip, zmin, base, holes: params.holes, layers: layers.len() })
+        Ok(GpuPreparedWarp { samples, mip, zmin, base, holes: params.holes, layers: layers.len(), scales })
     }
 
     /// The second half of [`Self::encode`]: records the warp (and the hole pass) of layers
     /// prepared by [`Self::encode_prepare`] with `WarpParams::motion_scale = motion_scale`
     /// (every other parameter as prepared); the output is exactly [`Self::encode`]'s with those
     /// parameters. The prepared buffers are only read, so any number of warps may follow one
-    /// preparation. Errors on a non-finite scale, or a non-uniform one with oriented frames.
+    /// preparation. Errors on a non-finite scale, a non-uniform one with oriented frames, or
+    /// one the preparation does not serve ([`MotionScales`]).
     pub fn encode_prepared(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -451,6 +476,11 @@ impl WarpKernel {
     ) -> Result<GpuWarpOutput> {
         if !motion_scale.is_finite() {
             return Err(Error::invalid(format!("motion_scale must be finite, got {motion_scale}")));
+        }
+        if !prepared.scales.serves(motion_scale) {
+            return Err(Error::invalid(format!(
+                "motion_scale {motion_scale} is below 1, but the layers were prepared for scales >= 1 (prepare with MotionScales::Any)"
+            )));
         }
         let base = Params { motion_scale: motion_scale.to_array(), ..prepared.base };
         let sc = motion_scale;
@@ -494,7 +524,7 @@ impl WarpKernel {
     /// waits and reads the result back. `WarpOutput::source` is `None`.
     pub fn warp(&self, layers: &[WarpLayer<'_>], params: &WarpParams) -> Result<WarpOutput> {
         let gpu = self.upload(layers, params)?;
-        let frames = Self::frames(layers, params.bound);
+        let frames = Self::frames(layers, params.bound, MotionScales::for_scale(params.motion_scale));
         let views: Vec<GpuWarpLayer<'_>> =
             gpu.iter().zip(frames).map(|((d, m), axis)| GpuWarpLayer { depth: d, motion: m, axis }).collect();
         let (w, h) = layers[0].depth.size();
@@ -505,12 +535,12 @@ impl WarpKernel {
     }
 
     /// The bound frame axis per layer that `crate::warp_depth` uses (Sec. 3.3): `Vec2::X`
-    /// unless `bound` is `Oriented`; then, like `PreparedLayer::prepare_stack`, the PCA frame of
-    /// the layer's valid samples (for layers `k > 0` only the samples that do not repeat an
-    /// earlier layer) when its global bound has a smaller `(ex + 1)(ey + 1)` than the
-    /// axis-aligned one. Layers must be valid and of equal size (see [`Self::warp`]). A CPU pass
+    /// unless `bound` is `Oriented`; then, like `PreparedLayer::prepare_stack_for` with `scales`,
+    /// the PCA frame of the layer's valid samples (for layers `k > 0` only the samples that do
+    /// not repeat an earlier layer) when its global bound (clipped for `scales`) has a smaller
+    /// `(ex + 1)(ey + 1)` than the axis-aligned one. Layers must be valid and of equal size (see [`Self::warp`]). A CPU pass
     /// over the buffers; an engine can reuse the axes of the previous frame.
-    pub fn frames(layers: &[WarpLayer<'_>], bound: BoundKind) -> Vec<Vec2> {
+    pub fn frames(layers: &[WarpLayer<'_>], bound: BoundKind, scales: MotionScales) -> Vec<Vec2> {
         if bound != BoundKind::Oriented {
             return vec![Vec2::X; layers.len()];
         }
@@ -533,22 +563,7 @@ impl WarpKernel {
                         }
                     })
                     .collect();
-                let ob = pca_frame(&samples, w, h, 64);
-                if ob.is_identity() {
-                    return Vec2::X;
-                }
-                let area = |f: BoundFrame| {
-                    let mut b = Bound::EMPTY;
-                    for m in samples.iter().filter(|m| is_valid_sample(m)) {
-                        b.include(f.to_frame(m.v));
-                    }
-                    b.pixel_area()
-                };
-                if area(ob) < area(BoundFrame::IDENTITY) {
-                    ob.axis
-                } else {
-                    Vec2::X
-                }
+                choose_frame(&samples, w, h, bound, scales).axis
             })
             .collect()
     }

@@ -45,6 +45,8 @@ struct Params {
     levels: array<vec4<u32>, 16>,
     // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
     axes: array<vec4<f32>, 8>,
+    // bounds::ImageClip per layer in its frame: (lo.x, lo.y, hi.x, hi.y), +-inf for none.
+    clips: array<vec4<f32>, 8>,
 };
 
 const FLAG_CROSS: u32 = 1u;
@@ -142,6 +144,24 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     samples_out[params.layer * wh + i] = s;
 }
 
+// bounds::ImageClip::clip: the motion u (frame coordinates) of the sample whose pixel centre
+// is rq as it enters the bounds.
+fn image_clip(box: vec4<f32>, rq: vec2<f32>, u: vec2<f32>) -> vec2<f32> {
+    let t = rq + u;
+    var r = u;
+    if (t.x > box.z) {
+        r.x = box.z - rq.x;
+    } else if (t.x < box.x) {
+        r.x = box.x - rq.x;
+    }
+    if (t.y > box.w) {
+        r.y = box.w - rq.y;
+    } else if (t.y < box.y) {
+        r.y = box.y - rq.y;
+    }
+    return r;
+}
+
 // MotionPyramid::from_samples level 1 for layer params.layer, over the samples of
 // PreparedLayer::prepare_stack: a sample of layer k > 0 whose source depth equals an earlier
 // layer's at the same pixel is left out of the mipmap.
@@ -173,9 +193,12 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 if (keep) {
                     var u = s.xy;
+                    var rq = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
                     if (!is_identity(k)) {
                         u = to_frame(k, s.xy);
+                        rq = to_frame(k, rq);
                     }
+                    u = image_clip(params.clips[k], rq, u);
                     lo = min(lo, u);
                     hi = max(hi, u);
                     z = min(z, s.z);
