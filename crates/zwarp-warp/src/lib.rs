@@ -45,7 +45,7 @@ pub mod stats;
 pub mod synth;
 
 pub use baselines::{afw, afw_layers, afw_layers_into, vfw, vfw_layers, vfw_layers_into, FORWARD_SUPPORT_EXPANSION};
-pub use bounds::{Bound, BoundFrame, MotionPyramid, MotionScales, TightBound, CLIP_MARGIN};
+pub use bounds::{clip_margin, Bound, BoundFrame, MotionPyramid, MotionScales, TightBound, CLIP_MARGIN};
 pub use depth_warp::{
     predict_into, target_size, warp_depth, warp_pixels, warp_prepared, warp_prepared_into, PreparedLayer,
     SurfaceMotion, WarpLayer,

@@ -129,8 +129,7 @@ fn near_wall_coverage_matches_cpu() {
     }
 }
 
-/// The CPU warp of the row-pattern layers `ls` (`zwarp_warp::synth`) prepared for `scales`
-/// (the patterns' motion takes some texels 25 px past the 32 px image: clipped or not), after
+/// The CPU warp of the row-pattern layers `ls` (`zwarp_warp::synth`) prepared for `scales`, after
 /// checking that the GPU gives the same states, depths and revealed pixels.
 fn rows_match_cpu(
     ctx: &zwarp_gpu::GpuContext,
@@ -164,8 +163,7 @@ fn rows_match_cpu(
 
 /// The coverage test's fixed-point step (`synth::seam_layers`): the GPU hides the far layer
 /// seen through the seam between three layers' views of a wall, as the CPU does (bounds of the
-/// motion as it is; clipped to the image, the second search finds the wall's sliver on every
-/// row, on both).
+/// motion as it is).
 #[test]
 fn seam_coverage_matches_cpu() {
     let Some(ctx) = test_context() else { return };
@@ -176,6 +174,8 @@ fn seam_coverage_matches_cpu() {
         let what = format!("sliver {sliver}");
         let cpu = rows_match_cpu(&ctx, &k, &layers, &p, MotionScales::Any, &what);
         assert_eq!(*cpu.state.get(10, 1), if sliver { PixelState::Hole } else { PixelState::Converged });
+        // Clipped to the image (the column's texels leave the 32 px image by up to 25 px) the
+        // seam pixel's bound is narrower and the second search finds the wall's sliver.
         let clipped = rows_match_cpu(&ctx, &k, &layers, &p, MotionScales::AtLeastOne, &what);
         assert_eq!(*clipped.state.get(10, 1), PixelState::Converged);
     }
