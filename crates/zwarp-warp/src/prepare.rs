@@ -164,7 +164,9 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
             let repeat = input.earlier.iter().any(|e| e[base + x] == d);
             let fresh = valid & !repeat;
             let q = Vec2::new(x as f32 + 0.5, (2 * ty + dy) as f32 + 0.5);
-            let cv = input.clip.clip(q, m.v);
+            // No clip (MotionScales::Any) leaves every motion as it is: skip its arithmetic.
+            let clipping = input.clip != ImageClip::NONE;
+            let cv = if clipping { input.clip.clip(q, m.v) } else { m.v };
             let a = if fresh { (cv.x, cv.y, cv.x, cv.y) } else { (inf, inf, ninf, ninf) };
             fold(aab.as_deref_mut().map_or(&mut ga, |t| &mut t[x >> 1]), a);
             let z = &mut zmin[x >> 1];
@@ -172,8 +174,8 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
             if input.with_ob {
                 // `BoundFrame::to_frame`: the same products and sums.
                 let u = Vec2::new(c * m.v.x + s * m.v.y, -s * m.v.x + c * m.v.y);
-                let rq = Vec2::new(c * q.x + s * q.y, -s * q.x + c * q.y);
-                let u = input.clip_ob.clip(rq, u);
+                let u =
+                    if clipping { input.clip_ob.clip(Vec2::new(c * q.x + s * q.y, -s * q.x + c * q.y), u) } else { u };
                 let o = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
                 fold(ob.as_deref_mut().map_or(&mut go, |t| &mut t[x >> 1]), o);
             }
@@ -278,6 +280,8 @@ mod avx2 {
         let mut gl = [inf, inf, ninf, ninf];
         let mut go = [inf, inf, ninf, ninf];
         let centres = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
+        // No clip (MotionScales::Any) leaves every motion as it is: skip its arithmetic.
+        let clipping = input.clip != ImageClip::NONE;
         let empty_px = Px { aab: [inf, inf, ninf, ninf], ob: [inf, inf, ninf, ninf], z: inf };
         let pixels = |dy: usize,
                       x: usize,
@@ -327,7 +331,11 @@ mod avx2 {
             let qx = _mm256_add_ps(_mm256_set1_ps(x as f32), centres);
             let qy = _mm256_set1_ps((2 * ty + dy) as f32 + 0.5);
             let (clip, clip_ob) = (input.clip, input.clip_ob);
-            let (cx, cy) = (clip8(qx, mx, clip.lo.x, clip.hi.x), clip8(qy, my, clip.lo.y, clip.hi.y));
+            let (cx, cy) = if clipping {
+                (clip8(qx, mx, clip.lo.x, clip.hi.x), clip8(qy, my, clip.lo.y, clip.hi.y))
+            } else {
+                (mx, my)
+            };
             let aab = [
                 _mm256_blendv_ps(inf, cx, fresh),
                 _mm256_blendv_ps(inf, cy, fresh),
@@ -337,9 +345,13 @@ mod avx2 {
             let obv = if with_ob {
                 let ux = _mm256_add_ps(_mm256_mul_ps(c, mx), _mm256_mul_ps(s, my));
                 let uy = _mm256_add_ps(_mm256_mul_ps(ns, mx), _mm256_mul_ps(c, my));
-                let rqx = _mm256_add_ps(_mm256_mul_ps(c, qx), _mm256_mul_ps(s, qy));
-                let rqy = _mm256_add_ps(_mm256_mul_ps(ns, qx), _mm256_mul_ps(c, qy));
-                let (ux, uy) = (clip8(rqx, ux, clip_ob.lo.x, clip_ob.hi.x), clip8(rqy, uy, clip_ob.lo.y, clip_ob.hi.y));
+                let (ux, uy) = if clipping {
+                    let rqx = _mm256_add_ps(_mm256_mul_ps(c, qx), _mm256_mul_ps(s, qy));
+                    let rqy = _mm256_add_ps(_mm256_mul_ps(ns, qx), _mm256_mul_ps(c, qy));
+                    (clip8(rqx, ux, clip_ob.lo.x, clip_ob.hi.x), clip8(rqy, uy, clip_ob.lo.y, clip_ob.hi.y))
+                } else {
+                    (ux, uy)
+                };
                 [
                     _mm256_blendv_ps(inf, ux, fresh),
                     _mm256_blendv_ps(inf, uy, fresh),
