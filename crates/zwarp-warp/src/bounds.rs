@@ -36,7 +36,7 @@ use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, Result};
 
-use crate::simd::fmin;
+use crate::simd::{fmax, fmin};
 
 /// `true` if a motion sample can be a warp solution: target depth in `[0, 1)` and finite
 /// motion (see the module docs on which samples contribute).
@@ -134,6 +134,10 @@ impl MotionScales {
 /// Where the motion bounds of one [`BoundFrame`] clip a sample's target: the frame-coordinate
 /// box of a `w x h` image widened by [`clip_margin`] (or everything, [`Self::NONE`]).
 ///
+/// The mipmap clips each level-1 texel as a whole ([`Self::clip_texel`]) rather than each of
+/// its samples: a quarter of the work in the preparation's one pass, and a bound that contains
+/// the per-sample clip of the texel's samples, so exact by the argument below.
+///
 /// Exactness, per frame axis: a solution `q` of `q + v(q) = p`, `p` in the image, lies in a cell
 /// whose texels `i` (centres `q_i = q + d_i`, `|d_i| <= 1` per image axis, `<= sqrt 2` per
 /// frame axis) have targets `t_i = q_i + v_i`, and
@@ -169,9 +173,10 @@ impl ImageClip {
     }
 
     /// The motion `u` (frame coordinates) of the sample whose pixel centre is `rq` (frame
-    /// coordinates) as it enters the bounds: unchanged unless its target `rq + u` lies beyond
-    /// the box, then the motion to the box's side.
-    #[inline(always)]
+    /// coordinates) as the exactness argument clips it: unchanged unless its target `rq + u`
+    /// lies beyond the box, then the motion to the box's side. The mipmap clips whole texels
+    /// ([`Self::clip_texel`], which contains this).
+    #[cfg(test)]
     pub fn clip(&self, rq: Vec2, u: Vec2) -> Vec2 {
         let t = rq + u;
         let axis = |t: f32, u: f32, q: f32, lo: f32, hi: f32| {
@@ -184,6 +189,57 @@ impl ImageClip {
             }
         };
         Vec2::new(axis(t.x, u.x, rq.x, self.lo.x, self.hi.x), axis(t.y, u.y, rq.y, self.lo.y, self.hi.y))
+    }
+
+    /// The frame-coordinate box `(lo, hi)` of the sample centres of level-1 block `(tx, ty)`
+    /// (image pixels `2 tx + {0, 1}`, `2 ty + {0, 1}`, also where the block is cut by the
+    /// image's edge): the first centre in the frame plus the frame's extent of the unit
+    /// square ([`BlockExtent`]). Every build computes it with these operations.
+    #[inline(always)]
+    pub fn block_centres(frame: BoundFrame, ext: &BlockExtent, tx: usize, ty: usize) -> (Vec2, Vec2) {
+        let r0 = frame.to_frame(Vec2::new(2.0 * tx as f32 + 0.5, 2.0 * ty as f32 + 0.5));
+        (r0 + ext.lo, r0 + ext.hi)
+    }
+
+    /// The level-1 texel `[lo.x, lo.y, hi.x, hi.y]` (frame coordinates, the unclipped minima
+    /// and maxima of its samples' motion) as it enters the mipmap, for a block whose sample
+    /// centres lie in `[rq_lo, rq_hi]`: `lo` clamped to `[self.lo - rq_hi, self.hi - rq_hi]`,
+    /// `hi` to `[self.lo - rq_lo, self.hi - rq_lo]` (compare-select max then min); an empty
+    /// texel stays empty. Contains the per-sample clip of the same samples: `clip` is monotone
+    /// in the motion and in `-rq`, so the min over the samples of `clip(rq_i, u_i)` is at least
+    /// the clamp of `min u_i` to the box seen from the largest centre, and likewise for `hi`.
+    #[inline(always)]
+    pub fn clip_texel(&self, rq_lo: Vec2, rq_hi: Vec2, t: [f32; 4]) -> [f32; 4] {
+        if t[0] > t[2] {
+            return t;
+        }
+        let clamp = |v: f32, a: f32, b: f32| fmin(fmax(v, a), b);
+        [
+            clamp(t[0], self.lo.x - rq_hi.x, self.hi.x - rq_hi.x),
+            clamp(t[1], self.lo.y - rq_hi.y, self.hi.y - rq_hi.y),
+            clamp(t[2], self.lo.x - rq_lo.x, self.hi.x - rq_lo.x),
+            clamp(t[3], self.lo.y - rq_lo.y, self.hi.y - rq_lo.y),
+        ]
+    }
+}
+
+/// The frame-coordinate extent of the unit square `[0, 1]^2` in a [`BoundFrame`]: what the
+/// centres of a 2x2 block of samples span beyond its first one ([`ImageClip::block_centres`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct BlockExtent {
+    pub lo: Vec2,
+    pub hi: Vec2,
+}
+
+impl BlockExtent {
+    /// The extent in `frame`: per frame axis, the sums of the negative (positive) parts of the
+    /// axis' two components (`(0, 0)` and `(1, 1)` in the identity frame).
+    pub fn new(frame: BoundFrame) -> Self {
+        let (c, s) = (frame.axis.x, frame.axis.y);
+        let (rx, ry) = ([c, s], [-s, c]);
+        let neg = |r: [f32; 2]| fmin(r[0], 0.0) + fmin(r[1], 0.0);
+        let pos = |r: [f32; 2]| fmax(r[0], 0.0) + fmax(r[1], 0.0);
+        BlockExtent { lo: Vec2::new(neg(rx), neg(ry)), hi: Vec2::new(pos(rx), pos(ry)) }
     }
 }
 
@@ -442,6 +498,7 @@ impl MotionPyramid {
         // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
         let identity = frame.is_identity();
+        let ext = BlockExtent::new(frame);
         // Motion min-max and min depth in one pass over the samples (one read of the buffer).
         let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
         let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
@@ -455,17 +512,15 @@ impl MotionPyramid {
                     let mut b = Bound::EMPTY;
                     let mut z = f32::INFINITY;
                     for y in y0..y1 {
-                        for (x, m) in (x0..x1).zip(&samples[y * w as usize + x0..y * w as usize + x1]) {
+                        for m in &samples[y * w as usize + x0..y * w as usize + x1] {
                             if is_valid_sample(m) {
-                                let q = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                                let (rq, u) =
-                                    if identity { (q, m.v) } else { (frame.to_frame(q), frame.to_frame(m.v)) };
-                                b.include(clip.clip(rq, u));
+                                b.include(if identity { m.v } else { frame.to_frame(m.v) });
                                 z = z.min(m.depth);
                             }
                         }
                     }
-                    *out = b.to_texel();
+                    let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &ext, tx, ty);
+                    *out = clip.clip_texel(rq_lo, rq_hi, b.to_texel());
                     *zout = z;
                 }
             },
@@ -829,25 +884,33 @@ impl MotionPyramid {
     }
 }
 
-/// Global bound of the valid samples of a `w`-wide image in `frame`, their motion clipped by
-/// `clip` (one parallel pass): the union of the texels the fused preparation
-/// (`PreparedLayer::prepare_stack_for`) writes, which is tested against it.
+/// Global bound of the valid samples of a `w`-wide image in `frame`, their level-1 texels
+/// clipped by `clip` ([`ImageClip::clip_texel`]; one parallel pass): the union of the texels
+/// the fused preparation (`PreparedLayer::prepare_stack_for`) writes, which is tested against
+/// it.
 #[cfg(any(test, feature = "gpu"))]
 pub(crate) fn global_bound(samples: &[Motion], w: u32, frame: BoundFrame, clip: ImageClip) -> Bound {
-    const CHUNK: usize = 4096;
+    let wu = w as usize;
+    let identity = frame.is_identity();
+    let ext = BlockExtent::new(frame);
     samples
-        .par_chunks(CHUNK)
+        .par_chunks(2 * wu)
         .enumerate()
-        .map(|(c, ms)| {
-            let mut b = Bound::EMPTY;
-            for (j, m) in ms.iter().enumerate() {
-                if is_valid_sample(m) {
-                    let i = c * CHUNK + j;
-                    let q = Vec2::new((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
-                    b.include(clip.clip(frame.to_frame(q), frame.to_frame(m.v)));
+        .map(|(ty, rows)| {
+            let mut g = Bound::EMPTY;
+            for tx in 0..wu.div_ceil(2) {
+                let mut b = Bound::EMPTY;
+                for row in rows.chunks(wu) {
+                    for m in &row[2 * tx..(2 * tx + 2).min(wu)] {
+                        if is_valid_sample(m) {
+                            b.include(if identity { m.v } else { frame.to_frame(m.v) });
+                        }
+                    }
                 }
+                let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &ext, tx, ty);
+                g = g.union(&Bound::from_texel(&clip.clip_texel(rq_lo, rq_hi, b.to_texel())));
             }
-            b
+            g
         })
         .reduce(|| Bound::EMPTY, |a, b| a.union(&b))
 }
@@ -1367,6 +1430,44 @@ mod tests {
         }
     }
 
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// The texel clip of a level-1 block contains the per-sample clip of its samples (so
+        /// the exactness above holds for the mipmap), in any frame, for blocks cut by the
+        /// image's edge and with samples missing; an empty block stays empty.
+        #[test]
+        fn the_texel_clip_contains_the_sample_clips(
+            tx in 0usize..25, ty in 0usize..17, v in proptest::array::uniform8(-3000.0f32..3000.0),
+            big in proptest::array::uniform4(0.0f32..1.0), present in proptest::array::uniform4(proptest::bool::ANY),
+            angle in -3.2f32..3.2) {
+            let (w, h) = (49u32, 33u32);
+            let frame = if angle > 2.5 { BoundFrame::IDENTITY } else { BoundFrame::from_angle(angle) };
+            let clip = ImageClip::new(w, h, frame, MotionScales::AtLeastOne);
+            let (mut per_sample, mut raw) = (Bound::EMPTY, Bound::EMPTY);
+            for i in 0..4 {
+                let (x, y) = (2 * tx + i % 2, 2 * ty + i / 2);
+                if !present[i] || x >= w as usize || y >= h as usize {
+                    continue;
+                }
+                let m = Vec2::new(v[2 * i], v[2 * i + 1]);
+                let m = if big[i] < 0.5 { m / 300.0 } else { m };
+                let rq = frame.to_frame(Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+                per_sample.include(clip.clip(rq, frame.to_frame(m)));
+                raw.include(frame.to_frame(m));
+            }
+            let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &BlockExtent::new(frame), tx, ty);
+            let t = Bound::from_texel(&clip.clip_texel(rq_lo, rq_hi, raw.to_texel()));
+            if per_sample.is_empty() {
+                prop_assert_eq!(t, Bound::EMPTY);
+            } else {
+                let eps = 1e-3;
+                prop_assert!(t.lo.x <= per_sample.lo.x + eps && t.lo.y <= per_sample.lo.y + eps
+                    && t.hi.x >= per_sample.hi.x - eps && t.hi.y >= per_sample.hi.y - eps,
+                    "texel {t:?} samples {per_sample:?}");
+            }
+        }
+    }
+
     /// Samples that leave the image enter the bounds at the clip's margin; the others as they are.
     #[test]
     fn the_image_clip_moves_only_targets_beyond_the_margin() {
@@ -1376,6 +1477,17 @@ mod tests {
         let m = clip_margin(1000, 50);
         assert_eq!((m, clip_margin(100, 50)), (1000.0 / 64.0, CLIP_MARGIN));
         assert_eq!(clip.clip(q, Vec2::new(2500.0, -900.0)), Vec2::new(1000.0 + m - 990.5, -m - 10.5));
+        // A whole texel: a block whose samples all move 2500 px right enters at the margin,
+        // spanning the block's centres; one moving a few pixels is left as it is.
+        let ext = BlockExtent::new(BoundFrame::IDENTITY);
+        assert_eq!((ext.lo, ext.hi), (Vec2::ZERO, Vec2::ONE));
+        let (rq_lo, rq_hi) = ImageClip::block_centres(BoundFrame::IDENTITY, &ext, 495, 5);
+        assert_eq!((rq_lo, rq_hi), (Vec2::new(990.5, 10.5), Vec2::new(991.5, 11.5)));
+        let far = clip.clip_texel(rq_lo, rq_hi, [2500.0, 3.0, 2600.0, 4.0]);
+        assert_eq!(far, [1000.0 + m - 991.5, 3.0, 1000.0 + m - 990.5, 4.0]);
+        assert_eq!(clip.clip_texel(rq_lo, rq_hi, [-3.0, 3.0, 8.0, 4.0]), [-3.0, 3.0, 8.0, 4.0]);
+        let empty = Bound::EMPTY.to_texel();
+        assert_eq!(clip.clip_texel(rq_lo, rq_hi, empty), empty);
         assert_eq!(ImageClip::new(100, 50, BoundFrame::IDENTITY, MotionScales::Any), ImageClip::NONE);
         assert_eq!(ImageClip::NONE.clip(q, Vec2::splat(1e30)), Vec2::splat(1e30));
         assert!(

@@ -13,7 +13,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, ParallaxMotion, Result, EMPTY_DEPTH};
 
-use crate::bounds::{pca_frame_by, Bound, BoundFrame, ImageClip, MotionPyramid, MotionScales};
+use crate::bounds::{pca_frame_by, BlockExtent, Bound, BoundFrame, ImageClip, MotionPyramid, MotionScales};
 use crate::gradient::{GradientMip, UNIQUE_GRADIENT};
 use crate::sampling::{LayerSampler, SamplePlanes, Sampling};
 use crate::simd::{fmax, fmin};
@@ -118,20 +118,34 @@ pub(crate) fn row(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>) -> RowSta
 /// The portable reduction of columns `xs..w` of level-1 row `ty` (`xs` even): the whole row,
 /// or the columns right of the AVX2 build's multiple of 8.
 fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> RowStats {
-    let RowOutput { vx, vy, z: zs, mut aab, mut ob, zmin } = out;
+    let RowOutput { vx, vy, z: zs, aab, ob, zmin } = out;
     let w = input.w;
     let (inf, ninf) = (f32::INFINITY, f32::NEG_INFINITY);
     let empty = [inf, inf, ninf, ninf];
     let ts = xs / 2;
-    if let Some(a) = aab.as_deref_mut() {
-        a[ts..].fill(empty);
+    let lw = zmin.len();
+    // The texels of a frame that is not written still make its global bound: reduced in a
+    // buffer of the row's own.
+    let (mut own_a, mut own_o) = (Vec::new(), Vec::new());
+    let aab: &mut [[f32; 4]] = match aab {
+        Some(a) => a,
+        None => {
+            own_a.resize(lw, empty);
+            &mut own_a
+        }
+    };
+    let ob: &mut [[f32; 4]] = match (ob, input.with_ob) {
+        (Some(o), _) => o,
+        (None, true) => {
+            own_o.resize(lw, empty);
+            &mut own_o
+        }
+        (None, false) => &mut [],
+    };
+    aab[ts..].fill(empty);
+    if input.with_ob {
+        ob[ts..].fill(empty);
     }
-    if let Some(o) = ob.as_deref_mut() {
-        o[ts..].fill(empty);
-    }
-    // The global bounds of frames whose texels are not written, folded per pixel (the same
-    // minima and maxima as the union of the texels).
-    let (mut ga, mut go) = (empty, empty);
     let fold = |t: &mut [f32; 4], (lx, ly, hx, hy): (f32, f32, f32, f32)| {
         *t = [fmin(t[0], lx), fmin(t[1], ly), fmax(t[2], hx), fmax(t[3], hy)];
     };
@@ -163,32 +177,34 @@ fn row_impl(input: &RowInput<'_>, ty: usize, out: RowOutput<'_>, xs: usize) -> R
             zs[o] = if valid { m.depth } else { inf };
             let repeat = input.earlier.iter().any(|e| e[base + x] == d);
             let fresh = valid & !repeat;
-            let q = Vec2::new(x as f32 + 0.5, (2 * ty + dy) as f32 + 0.5);
-            // No clip (MotionScales::Any) leaves every motion as it is: skip its arithmetic.
-            let clipping = input.clip != ImageClip::NONE;
-            let cv = if clipping { input.clip.clip(q, m.v) } else { m.v };
-            let a = if fresh { (cv.x, cv.y, cv.x, cv.y) } else { (inf, inf, ninf, ninf) };
-            fold(aab.as_deref_mut().map_or(&mut ga, |t| &mut t[x >> 1]), a);
+            let a = if fresh { (m.v.x, m.v.y, m.v.x, m.v.y) } else { (inf, inf, ninf, ninf) };
+            fold(&mut aab[x >> 1], a);
             let z = &mut zmin[x >> 1];
             *z = fmin(*z, if fresh { m.depth } else { inf });
             if input.with_ob {
                 // `BoundFrame::to_frame`: the same products and sums.
                 let u = Vec2::new(c * m.v.x + s * m.v.y, -s * m.v.x + c * m.v.y);
-                let u =
-                    if clipping { input.clip_ob.clip(Vec2::new(c * q.x + s * q.y, -s * q.x + c * q.y), u) } else { u };
                 let o = if fresh { (u.x, u.y, u.x, u.y) } else { (inf, inf, ninf, ninf) };
-                fold(ob.as_deref_mut().map_or(&mut go, |t| &mut t[x >> 1]), o);
+                fold(&mut ob[x >> 1], o);
             }
         }
     }
-    let union = |texels: Option<&[[f32; 4]]>, mut u: [f32; 4]| {
-        for t in texels.unwrap_or_default() {
+    // The image clip of each texel (none under MotionScales::Any: skip its arithmetic), then
+    // the frame's part of the global bound.
+    let clip_union = |texels: &mut [[f32; 4]], clip: ImageClip, frame: BoundFrame| {
+        let ext = BlockExtent::new(frame);
+        let mut u = empty;
+        for (tx, t) in texels.iter_mut().enumerate().skip(ts) {
+            if clip != ImageClip::NONE {
+                let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &ext, tx, ty);
+                *t = clip.clip_texel(rq_lo, rq_hi, *t);
+            }
             u = [fmin(u[0], t[0]), fmin(u[1], t[1]), fmax(u[2], t[2]), fmax(u[3], t[3])];
         }
         Bound { lo: Vec2::new(u[0], u[1]), hi: Vec2::new(u[2], u[3]) }
     };
-    let aab = union(aab.as_deref().map(|a| &a[ts..]), ga);
-    let ob = if input.with_ob { union(ob.as_deref().map(|o| &o[ts..]), go) } else { Bound::EMPTY };
+    let aab = clip_union(aab, input.clip, BoundFrame::IDENTITY);
+    let ob = if input.with_ob { clip_union(ob, input.clip_ob, input.frame) } else { Bound::EMPTY };
     RowStats { flags, surf_lo: Vec2::from(slo), surf_hi: Vec2::from(shi), aab, ob }
 }
 
@@ -239,15 +255,33 @@ mod avx2 {
         )
     }
 
-    /// [`ImageClip::clip`] of eight motions `u` at pixel centres `q` (one axis): the same
-    /// comparisons and differences.
+    /// [`ImageClip::clip_texel`] of the texels `t` (`[lo.x, lo.y, hi.x, hi.y]`, one per lane)
+    /// whose blocks' first sample centres are `(r0x, r0y)` in the clip's frame: the same sums,
+    /// compare-select max then min, empty texels kept.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn clip8(q: __m256, u: __m256, lo: f32, hi: f32) -> __m256 {
-        let t = _mm256_add_ps(q, u);
-        let (lo, hi) = (_mm256_set1_ps(lo), _mm256_set1_ps(hi));
-        let r = _mm256_blendv_ps(u, _mm256_sub_ps(hi, q), _mm256_cmp_ps::<_CMP_GT_OQ>(t, hi));
-        _mm256_blendv_ps(r, _mm256_sub_ps(lo, q), _mm256_cmp_ps::<_CMP_LT_OQ>(t, lo))
+    unsafe fn clip_texels8(
+        clip: &ImageClip,
+        ext: &BlockExtent,
+        r0x: __m256,
+        r0y: __m256,
+        t: [__m256; 4],
+    ) -> [__m256; 4] {
+        let (lo_x, lo_y) = (_mm256_add_ps(r0x, _mm256_set1_ps(ext.lo.x)), _mm256_add_ps(r0y, _mm256_set1_ps(ext.lo.y)));
+        let (hi_x, hi_y) = (_mm256_add_ps(r0x, _mm256_set1_ps(ext.hi.x)), _mm256_add_ps(r0y, _mm256_set1_ps(ext.hi.y)));
+        let clamp = |v: __m256, side_lo: f32, side_hi: f32, rq: __m256| {
+            let a = _mm256_sub_ps(_mm256_set1_ps(side_lo), rq);
+            let b = _mm256_sub_ps(_mm256_set1_ps(side_hi), rq);
+            vmin(vmax(v, a), b)
+        };
+        let c = [
+            clamp(t[0], clip.lo.x, clip.hi.x, hi_x),
+            clamp(t[1], clip.lo.y, clip.hi.y, hi_y),
+            clamp(t[2], clip.lo.x, clip.hi.x, lo_x),
+            clamp(t[3], clip.lo.y, clip.hi.y, lo_y),
+        ];
+        let nonempty = _mm256_cmp_ps::<_CMP_LE_OQ>(t[0], t[2]);
+        [0, 1, 2, 3].map(|k| _mm256_blendv_ps(t[k], c[k], nonempty))
     }
 
     /// One image row's eight pixels: the texel contributions (lx, ly, hx, hy, z) of the
@@ -279,8 +313,12 @@ mod avx2 {
         let (mut slox, mut sloy, mut shix, mut shiy) = (inf, inf, ninf, ninf);
         let mut gl = [inf, inf, ninf, ninf];
         let mut go = [inf, inf, ninf, ninf];
-        let centres = _mm256_setr_ps(0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5);
-        // No clip (MotionScales::Any) leaves every motion as it is: skip its arithmetic.
+        // The first sample centres of the blocks of each lane pair (exact small integers plus a
+        // half, as ImageClip::block_centres computes them), in both frames.
+        let centres = _mm256_setr_ps(0.5, 0.5, 2.5, 2.5, 4.5, 4.5, 6.5, 6.5);
+        let qy0 = _mm256_set1_ps((2 * ty) as f32 + 0.5);
+        let (ext, ext_ob) = (BlockExtent::new(BoundFrame::IDENTITY), BlockExtent::new(input.frame));
+        // No clip (MotionScales::Any) leaves every texel as it is: skip its arithmetic.
         let clipping = input.clip != ImageClip::NONE;
         let empty_px = Px { aab: [inf, inf, ninf, ninf], ob: [inf, inf, ninf, ninf], z: inf };
         let pixels = |dy: usize,
@@ -327,31 +365,15 @@ mod avx2 {
                 repeat = _mm256_or_ps(repeat, _mm256_cmp_ps::<_CMP_EQ_OQ>(_mm256_loadu_ps(e.as_ptr().add(i)), d));
             }
             let fresh = _mm256_andnot_ps(repeat, valid);
-            // Pixel centres (exact small integers plus a half, as the portable row computes them).
-            let qx = _mm256_add_ps(_mm256_set1_ps(x as f32), centres);
-            let qy = _mm256_set1_ps((2 * ty + dy) as f32 + 0.5);
-            let (clip, clip_ob) = (input.clip, input.clip_ob);
-            let (cx, cy) = if clipping {
-                (clip8(qx, mx, clip.lo.x, clip.hi.x), clip8(qy, my, clip.lo.y, clip.hi.y))
-            } else {
-                (mx, my)
-            };
             let aab = [
-                _mm256_blendv_ps(inf, cx, fresh),
-                _mm256_blendv_ps(inf, cy, fresh),
-                _mm256_blendv_ps(ninf, cx, fresh),
-                _mm256_blendv_ps(ninf, cy, fresh),
+                _mm256_blendv_ps(inf, mx, fresh),
+                _mm256_blendv_ps(inf, my, fresh),
+                _mm256_blendv_ps(ninf, mx, fresh),
+                _mm256_blendv_ps(ninf, my, fresh),
             ];
             let obv = if with_ob {
                 let ux = _mm256_add_ps(_mm256_mul_ps(c, mx), _mm256_mul_ps(s, my));
                 let uy = _mm256_add_ps(_mm256_mul_ps(ns, mx), _mm256_mul_ps(c, my));
-                let (ux, uy) = if clipping {
-                    let rqx = _mm256_add_ps(_mm256_mul_ps(c, qx), _mm256_mul_ps(s, qy));
-                    let rqy = _mm256_add_ps(_mm256_mul_ps(ns, qx), _mm256_mul_ps(c, qy));
-                    (clip8(rqx, ux, clip_ob.lo.x, clip_ob.hi.x), clip8(rqy, uy, clip_ob.lo.y, clip_ob.hi.y))
-                } else {
-                    (ux, uy)
-                };
                 [
                     _mm256_blendv_ps(inf, ux, fresh),
                     _mm256_blendv_ps(inf, uy, fresh),
@@ -394,10 +416,33 @@ mod avx2 {
                 vmax(p0.aab[2], p1.aab[2]),
                 vmax(p0.aab[3], p1.aab[3]),
             ];
+            // The blocks' first sample centres (frame coordinates: `BoundFrame::to_frame`'s
+            // products and sums).
+            let qx0 = _mm256_add_ps(_mm256_set1_ps(x as f32), centres);
+            let texels = |t: [__m256; 4], clip: &ImageClip, ext: &BlockExtent, rotated: bool| {
+                if !clipping {
+                    return t;
+                }
+                let (r0x, r0y) = if rotated {
+                    (
+                        _mm256_add_ps(_mm256_mul_ps(c, qx0), _mm256_mul_ps(s, qy0)),
+                        _mm256_add_ps(_mm256_mul_ps(ns, qx0), _mm256_mul_ps(c, qy0)),
+                    )
+                } else {
+                    (qx0, qy0)
+                };
+                clip_texels8(clip, ext, r0x, r0y, t)
+            };
             gl = match aab.as_deref_mut() {
                 Some(out) => {
                     let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
+                    let t = texels(t, &input.clip, &ext, false);
                     store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+                    [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])]
+                }
+                None if clipping => {
+                    let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
+                    let t = texels(t, &input.clip, &ext, false);
                     [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])]
                 }
                 None => [vmin(gl[0], a[0]), vmin(gl[1], a[1]), vmax(gl[2], a[2]), vmax(gl[3], a[3])],
@@ -414,7 +459,13 @@ mod avx2 {
                 go = match ob.as_deref_mut() {
                     Some(out) => {
                         let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
+                        let t = texels(t, &input.clip_ob, &ext_ob, true);
                         store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+                        [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])]
+                    }
+                    None if clipping => {
+                        let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
+                        let t = texels(t, &input.clip_ob, &ext_ob, true);
                         [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])]
                     }
                     None => [vmin(go[0], o[0]), vmin(go[1], o[1]), vmax(go[2], o[2]), vmax(go[3], o[3])],

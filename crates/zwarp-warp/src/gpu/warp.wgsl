@@ -144,22 +144,28 @@ fn prepare(@builtin(global_invocation_id) gid: vec3<u32>) {
     samples_out[params.layer * wh + i] = s;
 }
 
-// bounds::ImageClip::clip: the motion u (frame coordinates) of the sample whose pixel centre
-// is rq as it enters the bounds.
-fn image_clip(box: vec4<f32>, rq: vec2<f32>, u: vec2<f32>) -> vec2<f32> {
-    let t = rq + u;
-    var r = u;
-    if (t.x > box.z) {
-        r.x = box.z - rq.x;
-    } else if (t.x < box.x) {
-        r.x = box.x - rq.x;
+// bounds::ImageClip::block_centres: the frame-coordinate box (lo, hi) of the sample centres of
+// level-1 block b of layer k (its first centre plus BlockExtent, the frame's extent of the unit
+// square).
+fn block_centres(k: u32, b: vec2<u32>) -> vec4<f32> {
+    var r0 = vec2<f32>(2.0 * f32(b.x) + 0.5, 2.0 * f32(b.y) + 0.5);
+    if (!is_identity(k)) {
+        r0 = to_frame(k, r0);
     }
-    if (t.y > box.w) {
-        r.y = box.w - rq.y;
-    } else if (t.y < box.y) {
-        r.y = box.y - rq.y;
+    let c = params.axes[k].x;
+    let s = params.axes[k].y;
+    let ext_lo = vec2<f32>(min(c, 0.0) + min(s, 0.0), min(-s, 0.0) + min(c, 0.0));
+    let ext_hi = vec2<f32>(max(c, 0.0) + max(s, 0.0), max(-s, 0.0) + max(c, 0.0));
+    return vec4<f32>(r0 + ext_lo, r0 + ext_hi);
+}
+
+// bounds::ImageClip::clip_texel: the level-1 texel (lo, hi) of a block whose sample centres lie
+// in rq = (lo, hi) as it enters the mipmap; an empty texel stays empty.
+fn clip_texel(box: vec4<f32>, rq: vec4<f32>, lo: vec2<f32>, hi: vec2<f32>) -> vec4<f32> {
+    if (lo.x > hi.x) {
+        return vec4<f32>(lo, hi);
     }
-    return r;
+    return vec4<f32>(min(max(lo, box.xy - rq.zw), box.zw - rq.zw), min(max(hi, box.xy - rq.xy), box.zw - rq.xy));
 }
 
 // MotionPyramid::from_samples level 1 for layer params.layer, over the samples of
@@ -193,12 +199,9 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 if (keep) {
                     var u = s.xy;
-                    var rq = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
                     if (!is_identity(k)) {
                         u = to_frame(k, s.xy);
-                        rq = to_frame(k, rq);
                     }
-                    u = image_clip(params.clips[k], rq, u);
                     lo = min(lo, u);
                     hi = max(hi, u);
                     z = min(z, s.z);
@@ -225,7 +228,7 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let o = k * params.level_total + lv.x + gid.y * lv.y + gid.x;
-    mip[o] = vec4<f32>(lo, hi);
+    mip[o] = clip_texel(params.clips[k], block_centres(k, gid.xy), lo, hi);
     zmin[o] = vec4<f32>(z, g, 0.0);
 }
 
