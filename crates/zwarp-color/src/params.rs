@@ -67,6 +67,8 @@ impl HeuristicParams {
     pub(crate) fn search(&self) -> SearchParams {
         SearchParams {
             iterations: self.iterations,
+            // Seed 001 walks exactly T (its GPU twin too).
+            extra_iterations: 0,
             threshold: self.threshold,
             choice: CandidateChoice::FirstConverged,
             accelerate: false,

@@ -111,6 +111,8 @@ impl RobustParams {
     fn search(&self) -> SearchParams {
         SearchParams {
             iterations: self.iterations,
+            // Seed 001 walks exactly T (its GPU twin too).
+            extra_iterations: 0,
             threshold: self.threshold,
             choice: CandidateChoice::FirstConverged,
             accelerate: self.accelerate,

@@ -82,12 +82,7 @@ fn traffic_per_pixel(prep: &PreparedLayer, params: &WarpParams) -> (f64, f64) {
     let (w, h) = prep.size();
     let fetches = Cell::new(0u64);
     let src = Counting(prep.sampler(params, 0), &fetches);
-    let sp = SearchParams {
-        iterations: params.iterations,
-        threshold: params.threshold,
-        choice: params.choice,
-        accelerate: params.accelerate,
-    };
+    let sp = params.search();
     let mut lookups = 0u64;
     let mut seeds_total = 0u64;
     let mut seeds = [Vec2::ZERO; MAX_SEEDS as usize];

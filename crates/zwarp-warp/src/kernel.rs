@@ -1029,6 +1029,7 @@ impl<'a> Kernel<'a> {
             max_q: self.max_q(),
             thr2: self.params.threshold * self.params.threshold,
             iterations: self.params.iterations,
+            extra_iterations: self.params.extra_iterations,
             accelerate: self.params.accelerate,
             cross: self.params.cross_layer,
             n_seeds: self.params.n_seeds,

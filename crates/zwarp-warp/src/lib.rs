@@ -105,6 +105,14 @@ pub struct SourcePos {
     pub layer: u32,
 }
 
+/// The default of [`WarpParams::extra_iterations`]: with T = 3, a walk may take six samples
+/// if each step at least halves (measured on a camera moving 0.5 m per frame along a wall
+/// half a metre away, 960x540, N = 4: the walks that fail at T = 3 converge by the fifth).
+pub const EXTRA_ITERATIONS: u32 = 3;
+
+/// The most [`WarpParams::extra_iterations`] accepted.
+pub const MAX_EXTRA_ITERATIONS: u32 = 64;
+
 /// How much farther than a covering front surface (in linear depth, `WarpParams::cover_radius`)
 /// a deeper layer's candidate must be to count as hidden behind it.
 pub const COVER_DEPTH_RATIO: f32 = 1.1;
@@ -158,6 +166,12 @@ pub struct WarpParams {
     /// Newton-accelerated fixed-point iteration (see [`search::fixed_point_search`]): converges
     /// under strong magnification where plain iteration needs many more than T iterations.
     pub accelerate: bool,
+    /// Up to this many iterations beyond T for a walk whose steps still at least halve
+    /// ([`search::EXTRA_STEP_RATIO`]): a surface magnified so strongly that Newton's steps from
+    /// a distant seed need four or five iterations converges instead of leaving the pixel to a
+    /// deeper layer or the hole fill. Default [`EXTRA_ITERATIONS`]; 0 runs exactly T (the
+    /// paper's). The background hole fill's sky test walks exactly T.
+    pub extra_iterations: u32,
     /// Per-axis factor applied to every motion fetch: the warp follows `motion_scale * v(q)`
     /// (component-wise) instead of `v(q)`, and every motion bound of Sec. 3.3 is scaled alike
     /// (min and max swap for a negative factor); the samples' target depths are unchanged.
@@ -238,6 +252,7 @@ impl Default for WarpParams {
             cross_layer: true,
             record_source: false,
             accelerate: true,
+            extra_iterations: EXTRA_ITERATIONS,
             motion_scale: glam::Vec2::ONE,
             multisample: 1,
             cover_radius: 3.5,
@@ -252,6 +267,7 @@ impl WarpParams {
     pub fn search(&self) -> SearchParams {
         SearchParams {
             iterations: self.iterations,
+            extra_iterations: self.extra_iterations,
             threshold: self.threshold,
             choice: self.choice,
             accelerate: self.accelerate,
@@ -265,6 +281,12 @@ impl WarpParams {
         }
         if self.iterations == 0 {
             return Err(Error::invalid("iterations (T) must be at least 1"));
+        }
+        if self.extra_iterations > MAX_EXTRA_ITERATIONS {
+            return Err(Error::invalid(format!(
+                "extra iterations must be at most {MAX_EXTRA_ITERATIONS}, got {}",
+                self.extra_iterations
+            )));
         }
         if !(self.threshold.is_finite() && self.threshold > 0.0) {
             return Err(Error::invalid(format!("convergence threshold must be > 0, got {}", self.threshold)));

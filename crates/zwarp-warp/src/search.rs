@@ -48,6 +48,10 @@ pub enum SeedStrategy {
 pub struct SearchParams {
     /// T: iterations per seed.
     pub iterations: u32,
+    /// Up to this many iterations after the T-th for a walk that is still contracting: each
+    /// one only while the last smooth step shrank to at most half the one before
+    /// ([`EXTRA_STEP_RATIO`]); 0 runs exactly T.
+    pub extra_iterations: u32,
     /// Convergence threshold in pixels.
     pub threshold: f32,
     /// Candidate choice among converged seeds.
@@ -70,7 +74,9 @@ pub struct Candidate {
 }
 
 /// The fixed-point search of Fig. 3 for target position `p` from each of `seeds`: at most
-/// `params.iterations` (T) samples per seed, converged when `|q_{i+1} - q_i| < threshold`; the
+/// `params.iterations` (T) samples per seed (and up to `params.extra_iterations` more while the
+/// walk's steps keep halving, [`EXTRA_STEP_RATIO`]), converged when `|q_{i+1} - q_i| <
+/// threshold`; the
 /// candidate is the sample at `q_i` (no extra "polishing" sample: measured neutral for quality
 /// on the procedural scenes and ~10 % of the warp's cost).
 ///
@@ -139,6 +145,16 @@ pub fn straddles(step_a: Vec2, za: f32, step_b: Vec2, zb: f32) -> bool {
         && 1.0 - lo < STRADDLE_DEPTH_RATIO * (1.0 - hi)
 }
 
+/// The largest ratio of a walk's squared step to the previous smooth sample's for the walk to
+/// take one more of [`SearchParams::extra_iterations`] after T: the step at least halved.
+///
+/// Why: on a surface the warp magnifies strongly (a wall rushing past a camera that moves along
+/// it), the bound of a pixel spans hundreds of pixels and Newton's steps from a distant seed
+/// need four or five iterations, each at least halving the step, where T = 3 gives up; the
+/// failed front layer then lets a deeper layer's surface win the pixel (more layers, worse
+/// answer). A walk that is not contracting (a disocclusion, a fold) stops at T as before.
+pub const EXTRA_STEP_RATIO: f32 = 0.25;
+
 /// [`fixed_point_search`], also returning the closest approach of its walks. A failed search
 /// whose walk came within a few pixels of `p` found the layer's surface mapping next to `p`:
 /// the multi-layer warp's coverage test ([`crate::WarpParams::cover_radius`]).
@@ -161,7 +177,9 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
         let mut prev: Option<(Vec2, f32)> = None;
         let mut pair = f32::INFINITY;
         let mut converged = false;
-        for it in 0..params.iterations {
+        // The squared step of the previous smooth sample (0: none), for the extra iterations.
+        let mut last_r2 = 0.0;
+        for it in 0..params.iterations + params.extra_iterations {
             pair = f32::INFINITY;
             let Some(s) = src.sample(q, &mut walk) else { break };
             let w = p - s.v;
@@ -198,6 +216,10 @@ pub fn fixed_point_search_closest<S: MotionSource + ?Sized>(
                 }
                 break;
             }
+            if it + 1 >= params.iterations && (!s.smooth || r2 >= EXTRA_STEP_RATIO * last_r2) {
+                break;
+            }
+            last_r2 = if s.smooth { r2 } else { 0.0 };
             // Next iterate: the plain step `w`, or with `accelerate` the Newton step on
             // F(q) = q + v(q) - p with the sample's Jacobian, solving (I + Dv) d = p - v(q) - q.
             // Plain iteration contracts only by rho = |Dv| per step and diverges where the warp
@@ -328,7 +350,13 @@ mod tests {
     }
 
     fn sp(t: u32) -> SearchParams {
-        SearchParams { iterations: t, threshold: 0.5, choice: CandidateChoice::MinDepth, accelerate: false }
+        SearchParams {
+            iterations: t,
+            extra_iterations: 0,
+            threshold: 0.5,
+            choice: CandidateChoice::MinDepth,
+            accelerate: false,
+        }
     }
 
     #[test]
@@ -384,6 +412,33 @@ mod tests {
         let first = SearchParams { choice: CandidateChoice::FirstConverged, ..sp(3) };
         let c = fixed_point_search(&s, p, &seeds, &first).unwrap();
         assert_eq!((c.depth, c.seed), (0.8, 0));
+    }
+
+    /// Plain iteration on the linear field `v.x = a (x - 128)`: each step shrinks by `a`. From
+    /// 100 px away at a = 0.4 the walk needs eight samples; T = 3 gives up, five extra
+    /// iterations (each step well under half the last) finish it, three are not enough. At
+    /// a = 0.6 the steps do not halve: the walk stops at T whatever the extra allowance.
+    #[test]
+    fn extra_iterations_finish_only_walks_whose_steps_halve() {
+        let (w, h) = (256u32, 4u32);
+        let field = |a: f32| -> Vec<Motion> {
+            (0..w * h)
+                .map(|i| Motion { v: Vec2::new(a * ((i % w) as f32 + 0.5 - 128.0), 0.0), depth: 0.5 })
+                .collect()
+        };
+        let p = Vec2::new(150.5, 1.5);
+        for (a, extra, converges) in [(0.4, 0, false), (0.4, 3, false), (0.4, 5, true), (0.6, 5, false), (0.6, 0, false)]
+        {
+            let planes = SamplePlanes::from_motion(&field(a));
+            let s = LayerSampler::new(&planes, w, h, Sampling::Adaptive, 0);
+            let solution = (p.x + 128.0 * a) / (1.0 + a);
+            let seed = Vec2::new(solution - 100.0, 1.5);
+            let c = fixed_point_search(&s, p, &[seed], &SearchParams { extra_iterations: extra, ..sp(3) });
+            assert_eq!(c.is_some(), converges, "a {a} extra {extra}");
+            if let Some(c) = c {
+                assert!((c.q.x - solution).abs() < 0.5, "{c:?}");
+            }
+        }
     }
 
     /// A source that never converges and counts its samples.

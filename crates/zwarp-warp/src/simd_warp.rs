@@ -34,6 +34,8 @@ pub(crate) struct LaneSearch<'a> {
     pub max_q: glam::Vec2,
     pub thr2: f32,
     pub iterations: u32,
+    /// `SearchParams::extra_iterations`.
+    pub extra_iterations: u32,
     pub accelerate: bool,
     /// Cross-layer seeding (Fig. 6): an empty landing of layer k borrows once from the layers
     /// above.
@@ -769,7 +771,10 @@ unsafe fn walk8_lanes(
     let mut closest = (splat(f32::INFINITY), splat(f32::INFINITY));
     // Whether the walk already borrowed once (StackSampler's count of empty landings).
     let mut borrowed = zero;
-    for it in 0..ls.iterations {
+    // The squared step of the previous smooth sample (0: none), for the extra iterations.
+    let mut last_r2 = zero;
+    let ratio = splat(crate::search::EXTRA_STEP_RATIO);
+    for it in 0..ls.iterations + ls.extra_iterations {
         pair = _mm256_blendv_ps(pair, inf, live);
         // StackSampler: outside the image fails the seed.
         let inside = _mm256_and_ps(
@@ -855,6 +860,17 @@ unsafe fn walk8_lanes(
         if _mm256_movemask_ps(live) == 0 {
             break;
         }
+        // After T: only the walks whose smooth step at least halved go on.
+        if it + 1 >= ls.iterations {
+            live = _mm256_and_ps(
+                live,
+                _mm256_and_ps(smooth, _mm256_cmp_ps::<_CMP_LT_OQ>(r2, _mm256_mul_ps(ratio, last_r2))),
+            );
+            if _mm256_movemask_ps(live) == 0 {
+                break;
+            }
+        }
+        last_r2 = _mm256_and_ps(smooth, r2);
         // Next iterate: w, or the Newton step where |det(I + Dv)| > 0.05 (newton_step).
         let (mut nx, mut ny) = (wx, wy);
         if ls.accelerate {

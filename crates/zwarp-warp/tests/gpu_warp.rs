@@ -115,13 +115,19 @@ fn near_wall_coverage_matches_cpu() {
     let m: Vec<Image<Motion>> =
         src.depth.iter().zip(&src.items).map(|(d, it)| motion_field(d, Some(it), &a, &b, &deltas).unwrap()).collect();
     let layers = layers_of(&src.depth, &m);
-    let on = WarpParams { n_seeds: 4, ..base() };
+    // Exactly T iterations, where the front layer fails most and the coverage test decides most.
+    let on = WarpParams { n_seeds: 4, extra_iterations: 0, ..base() };
     let off = WarpParams { cover_radius: 0.0, ..on };
     let (cpu_on, cpu_off) = (warp_depth(&layers, &on).unwrap(), warp_depth(&layers, &off).unwrap());
     // The test decides pixels here: the two CPU warps differ.
     let decided = cpu_on.state.data().iter().zip(cpu_off.state.data()).filter(|(x, y)| x != y).count();
     assert!(decided > 50, "{decided}");
-    for (p, cpu, what) in [(&on, &cpu_on, "coverage"), (&off, &cpu_off, "no coverage")] {
+    // The extra iterations of the walks still contracting after T decide pixels here too.
+    let extra = WarpParams { extra_iterations: 3, ..on };
+    let cpu_extra = warp_depth(&layers, &extra).unwrap();
+    let walked = cpu_extra.state.data().iter().zip(cpu_on.state.data()).filter(|(x, y)| x != y).count();
+    assert!(walked > 20, "{walked}");
+    for (p, cpu, what) in [(&on, &cpu_on, "coverage"), (&off, &cpu_off, "no coverage"), (&extra, &cpu_extra, "extra")] {
         let gpu = k.warp(&layers, p).unwrap();
         assert_same(&gpu, cpu, what);
         let differ = gpu.state.data().iter().zip(cpu.state.data()).filter(|(x, y)| x != y).count();

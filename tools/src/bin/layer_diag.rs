@@ -297,7 +297,13 @@ fn main() {
         let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
         let planes = SamplePlanes::from_motion(single.1.data());
         let ls = LayerSampler::new(&planes, w, h, Sampling::Adaptive, 0);
-        let pyr = zwarp_warp::MotionPyramid::build(&single.1).unwrap();
+        // The preparation's pyramid (identity frame, image clip), as the warp's.
+        let prepared = zwarp_warp::PreparedLayer::new(
+            &WarpLayer { depth: &single.0, motion: &single.1 },
+            zwarp_warp::BoundKind::Tight,
+        )
+        .unwrap();
+        let pyr = prepared.pyramid();
         let tb = pyr.tight_bound(p, 6, 0.5);
         println!("TRACE p {p:?} tight {:?}", tb.map(|t| (t.motion, t.region)));
         let extra: Vec<glam::Vec2> = std::env::var("SEEDS")

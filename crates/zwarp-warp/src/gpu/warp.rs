@@ -76,6 +76,9 @@ struct Params {
     multisample: f32,
     /// `WarpParams::cover_radius` squared.
     cover2: f32,
+    /// `WarpParams::extra_iterations`, then padding to the arrays' 16-byte alignment.
+    extra_iterations: u32,
+    pad: [u32; 3],
     levels: [[u32; 4]; MAX_LEVELS],
     axes: [[f32; 4]; MAX_GPU_LAYERS],
     /// `bounds::ImageClip` per layer in its frame: `(lo.x, lo.y, hi.x, hi.y)`.
@@ -427,6 +430,8 @@ impl WarpKernel {
             target: [tw, th],
             multisample: params.multisample as f32,
             cover2: params.cover_radius * params.cover_radius,
+            extra_iterations: params.extra_iterations,
+            pad: [0; 3],
             levels,
             axes,
             clips,

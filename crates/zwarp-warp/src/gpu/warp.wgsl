@@ -41,6 +41,11 @@ struct Params {
     multisample: f32,
     // WarpParams::cover_radius squared.
     cover2: f32,
+    // WarpParams::extra_iterations (and padding to the arrays' 16-byte alignment).
+    extra_iterations: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
     // Per level l - 1: (offset within a layer's block, width, height, 0).
     levels: array<vec4<u32>, 16>,
     // Bound frame axis (c, s) per layer in .xy ((1, 0) = axis-aligned).
@@ -731,7 +736,9 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
         var prev_step = vec2<f32>(0.0);
         var prev_z = 0.0;
         var pair = params.inf.x;
-        for (var it = 0u; it < params.iterations; it++) {
+        // The squared step of the previous smooth sample (0: none), for the extra iterations.
+        var last_r2 = 0.0;
+        for (var it = 0u; it < params.iterations + params.extra_iterations; it++) {
             pair = params.inf.x;
             let s = stack_sample(k, q, &empties);
             if (!s.ok) {
@@ -777,6 +784,12 @@ fn search_seeds(k: u32, x: u32, y: u32, p: vec2<f32>, region: vec4<f32>, ns: u32
                 done = true;
                 break;
             }
+            // search::EXTRA_STEP_RATIO: after T only a walk whose smooth step at least halved
+            // goes on.
+            if (it + 1u >= params.iterations && (!s.bilinear || r2 >= 0.25 * last_r2)) {
+                break;
+            }
+            last_r2 = select(0.0, r2, s.bilinear);
             q = next;
         }
         if (!done) {
