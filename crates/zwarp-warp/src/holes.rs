@@ -931,13 +931,7 @@ mod tests {
         let layers = [WarpLayer { depth: d, motion: m }];
         let params = crate::WarpParams { holes: HolePolicy::FarDepth, ..Default::default() };
         let mut out = crate::warp_depth(&layers, &params).unwrap();
-        let search = SearchParams {
-            iterations: 3,
-            extra_iterations: 0,
-            threshold: 0.5,
-            choice: Default::default(),
-            accelerate: true,
-        };
+        let search = crate::WarpParams::default().search();
         fill_background(&layers, &mut out, 4, &search).unwrap();
         out
     }
@@ -1044,13 +1038,7 @@ mod tests {
             let mut got = crate::warp_depth(&layers, &params).unwrap();
             let limits = BackgroundLimits::of_multisampled(&layers, *w, *h, ms, 4).unwrap();
             assert_eq!(limits, BackgroundLimits::of(&[WarpLayer { depth: &d, motion: &m }], *w, *h, 4).unwrap());
-            let search = SearchParams {
-                iterations: 3,
-                extra_iterations: 0,
-                threshold: 0.5,
-                choice: Default::default(),
-                accelerate: true,
-            };
+            let search = crate::WarpParams::default().search();
             fill_background(&layers, &mut got, 4, &search).unwrap();
             if i < 2 {
                 assert_eq!(got, want, "scene {i}");
@@ -1072,13 +1060,7 @@ mod tests {
         let (d, m) = shifted_layer(8, 4, |_, _| (0.5, 0.0));
         let mut out = background_fill(&d, &m);
         let (d2, m2) = shifted_layer(7, 4, |_, _| (0.5, 0.0));
-        let search = SearchParams {
-            iterations: 3,
-            extra_iterations: 0,
-            threshold: 0.5,
-            choice: Default::default(),
-            accelerate: true,
-        };
+        let search = crate::WarpParams::default().search();
         let err = fill_background(&[WarpLayer { depth: &d2, motion: &m2 }], &mut out, 4, &search).unwrap_err();
         assert!(err.to_string().contains("7x4"), "{err}");
         // A multiple of the width but not of the height is no multisampled source.
@@ -1121,13 +1103,7 @@ mod tests {
     fn a_lone_revealed_pixel_joins_the_holes() {
         let (mut out, d, m) = lone_revealed_case();
         assert_eq!(lone_revealed(&out.depth, &out.state, &out.revealed), vec![23]);
-        let search = SearchParams {
-            iterations: 3,
-            extra_iterations: 0,
-            threshold: 0.5,
-            choice: Default::default(),
-            accelerate: true,
-        };
+        let search = crate::WarpParams::default().search();
         fill_background(&[WarpLayer { depth: &d, motion: &m }], &mut out, 64, &search).unwrap();
         // Row 2: the lone far pixel became a hole, and the row takes the surface around it.
         for x in 3..7 {

@@ -422,7 +422,7 @@ impl<'a> Kernel<'a> {
             best = None;
         }
         if let Some(c) = best {
-            if let Some(f) = self.retry_front(x, y, p, &c, farthest, |k| self.start(b, k), seeds) {
+            if let Some(f) = self.retry_nearer(x, y, p, &c, farthest, |k| self.start(b, k), seeds) {
                 best = Some(f);
             }
         }
@@ -457,13 +457,15 @@ impl<'a> Kernel<'a> {
 
     /// A deeper candidate `c` that lies [`crate::hidden_behind`] `farthest` (the far side of the
     /// failed walks of the layers in front of it) is the surface behind a disocclusion only if
-    /// the front layers really have nothing at `p`: they search again, from their tightened
-    /// bound under their tile stage (`stage(k)`, [`Self::start`]) with [`crate::RETRY_SEED_FACTOR`]
-    /// times N seeds (at most [`MAX_SEEDS`]), and the nearest front candidate found replaces
-    /// `c`. Rare (disocclusion pixels behind a far side); `None` when nothing was searched or
-    /// found.
+    /// the front layers really have nothing at `p` and its own layer nothing nearer: they
+    /// search again, from their tightened bound under their tile stage (`stage(k)`,
+    /// [`Self::start`]) with [`crate::RETRY_SEED_FACTOR`] times N seeds (at most
+    /// [`MAX_SEEDS`]); the nearest front candidate found, or else a candidate of `c`'s layer
+    /// nearer than `c` (its N seeds missed a nearer solution, e.g. a surface seen in the source
+    /// only through two occluders), replaces `c`. Rare (disocclusion pixels behind a far
+    /// side); `None` when nothing was searched or found.
     #[allow(clippy::too_many_arguments)]
-    pub fn retry_front(
+    pub fn retry_nearer(
         &self,
         x: u32,
         y: u32,
@@ -479,14 +481,25 @@ impl<'a> Kernel<'a> {
         let n = (self.params.n_seeds * crate::RETRY_SEED_FACTOR).min(MAX_SEEDS);
         let (expand, scale) = (self.params.sampling.footprint(), self.params.motion_scale);
         let mut found: Option<Candidate> = None;
-        for k in 0..(c.tag as usize).min(self.layers.len()) {
+        let own = c.tag as usize;
+        for k in 0..=own.min(self.layers.len() - 1) {
+            if k == own && found.is_some() {
+                break;
+            }
             let Some(s) = stage(k) else { continue };
             let pyr = self.layers[k].pyramid();
-            let Some(tb) = pyr.tight_bound_box_scaled(p, p, s.motion, self.bound_iterations(), expand, scale) else {
-                continue;
+            let iters = self.bound_iterations();
+            let tb = if k < own {
+                pyr.tight_bound_box_scaled(p, p, s.motion, iters, expand, scale)
+            } else {
+                // c's own layer only matters if a sample of its region is nearer than c (the
+                // min-depth mipmap, as for later layers: exact).
+                pyr.tight_bound_box_with_depth_scaled(p, p, s.motion, iters, expand, scale)
+                    .filter(|tb| tb.min_depth < c.depth)
             };
+            let Some(tb) = tb else { continue };
             if let (Some(f), _) = self.search_layer(k, x, y, p, &tb, None, n, seeds) {
-                if found.is_none_or(|g| f.depth < g.depth) {
+                if found.is_none_or(|g| f.depth < g.depth) && (k < own || f.depth < c.depth) {
                     found = Some(f);
                 }
             }
@@ -1314,7 +1327,7 @@ impl<'a> Kernel<'a> {
                 let mut c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
                 let p = Vec2::new(pxs[i], pys[i]);
                 let (lx, ly) = (xs[i] as u32, ys[i] as u32);
-                if let Some(f) = self.retry_front(lx, ly, p, &c, far[i], |k| stages.lane(k, i), &mut seeds) {
+                if let Some(f) = self.retry_nearer(lx, ly, p, &c, far[i], |k| stages.lane(k, i), &mut seeds) {
                     c = f;
                     (qx[i], qy[i], z[i], tags[i]) = (f.q.x, f.q.y, f.depth, f.tag as i32);
                 }

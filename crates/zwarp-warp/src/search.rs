@@ -422,12 +422,11 @@ mod tests {
     fn extra_iterations_finish_only_walks_whose_steps_halve() {
         let (w, h) = (256u32, 4u32);
         let field = |a: f32| -> Vec<Motion> {
-            (0..w * h)
-                .map(|i| Motion { v: Vec2::new(a * ((i % w) as f32 + 0.5 - 128.0), 0.0), depth: 0.5 })
-                .collect()
+            (0..w * h).map(|i| Motion { v: Vec2::new(a * ((i % w) as f32 + 0.5 - 128.0), 0.0), depth: 0.5 }).collect()
         };
         let p = Vec2::new(150.5, 1.5);
-        for (a, extra, converges) in [(0.4, 0, false), (0.4, 3, false), (0.4, 5, true), (0.6, 5, false), (0.6, 0, false)]
+        for (a, extra, converges) in
+            [(0.4, 0, false), (0.4, 3, false), (0.4, 5, true), (0.6, 5, false), (0.6, 0, false)]
         {
             let planes = SamplePlanes::from_motion(&field(a));
             let s = LayerSampler::new(&planes, w, h, Sampling::Adaptive, 0);

@@ -165,7 +165,7 @@ proptest! {
         let (ds, ms) = background_scene(w, h, seed, Vec2::new(px, py));
         let src: Vec<WarpLayer> = ds.iter().zip(&ms).take(layers).map(|(d, m)| WarpLayer { depth: d, motion: m }).collect();
         let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
-        let search = zwarp_warp::SearchParams { iterations: 3, extra_iterations: 0, threshold: 0.5, choice: Default::default(), accelerate };
+        let search = zwarp_warp::SearchParams { accelerate, ..zwarp_warp::WarpParams::default().search() };
         fill_background_agrees(&k, &src, &warped, &search, &format!("{w}x{h} seed {seed}"));
     }
 }
@@ -195,7 +195,7 @@ proptest! {
         let d = Image::new(w, h, 0.5f32);
         let m = Image::from_fn(w, h, |x, _| Motion { v: Vec2::new(0.25 * (x % 5) as f32, 0.0), depth: 0.5 });
         let src = [WarpLayer { depth: &d, motion: &m }];
-        let search = zwarp_warp::SearchParams { iterations: 3, extra_iterations: 0, threshold: 0.5, choice: Default::default(), accelerate: true };
+        let search = zwarp_warp::WarpParams::default().search();
         let cpu = fill_background_agrees(&k, &src, &warped, &search, &format!("{w}x{h} seed {seed}"));
         prop_assert_eq!(cpu.revealed.len() + lone.len(), warped.revealed.len());
     }
@@ -212,13 +212,7 @@ fn background_fill_analytic_pan() {
     let m = d.map(|&z| Motion { v: Vec2::new(3.0, 0.0), depth: z });
     let src = [WarpLayer { depth: &d, motion: &m }];
     let warped = zwarp_warp::warp_depth(&src, &WarpParams::default()).unwrap();
-    let search = zwarp_warp::SearchParams {
-        iterations: 3,
-        extra_iterations: 0,
-        threshold: 0.5,
-        choice: Default::default(),
-        accelerate: true,
-    };
+    let search = zwarp_warp::WarpParams::default().search();
     let gpu = k.fill_background(&src, &warped, 4, &search).unwrap();
     let (gd, gs) = (&gpu.depth, &gpu.state);
     for y in 0..12 {
@@ -257,13 +251,7 @@ fn background_fill_of_a_multisampled_source_equals_the_cpu() {
             assert_eq!(warped.depth.size(), (w, h));
             assert_eq!(wk.warp(&src, &params).unwrap(), warped, "GPU warp {w}x{h} L={layers}");
             for accelerate in [false, true] {
-                let search = zwarp_warp::SearchParams {
-                    iterations: 3,
-                    extra_iterations: 0,
-                    threshold: 0.5,
-                    choice: Default::default(),
-                    accelerate,
-                };
+                let search = zwarp_warp::SearchParams { accelerate, ..zwarp_warp::WarpParams::default().search() };
                 let gpu = k.fill_background(&src, &warped, 64, &search).unwrap();
                 let (gd, gs) = (gpu.depth, gpu.state);
                 let mut cpu = warped.clone();
@@ -294,13 +282,7 @@ fn background_fill_of_a_multisampled_source_equals_the_cpu() {
         source: None,
         revealed: Vec::new(),
     };
-    let search = zwarp_warp::SearchParams {
-        iterations: 3,
-        extra_iterations: 0,
-        threshold: 0.5,
-        choice: Default::default(),
-        accelerate: true,
-    };
+    let search = zwarp_warp::WarpParams::default().search();
     let gpu = k.fill_background(&src, &out, 4, &search).unwrap_err().to_string();
     let mut cpu_out = out.clone();
     let cpu = zwarp_warp::holes::fill_background(&src, &mut cpu_out, 4, &search).unwrap_err().to_string();
@@ -426,13 +408,7 @@ fn limits_of_non_finite_motion_stay_bounded() {
         let views = [GpuWarpLayer { depth: &bufs[0].0, motion: &bufs[0].1, axis: Vec2::X }];
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let warped = WarpKernel::new(&ctx).unwrap().encode(&mut enc, &views, w, h, &WarpParams::default()).unwrap();
-        let search = zwarp_warp::SearchParams {
-            iterations: 3,
-            extra_iterations: 0,
-            threshold: 0.5,
-            choice: Default::default(),
-            accelerate: true,
-        };
+        let search = zwarp_warp::WarpParams::default().search();
         let out = k.encode_background(&mut enc, &warped, &views, 7, &search).unwrap();
         ctx.queue.submit([enc.finish()]);
         assert_eq!(out.read(&ctx).unwrap().depth.size(), (w, h));
