@@ -456,8 +456,11 @@ impl<'a> Kernel<'a> {
     }
 
     /// A deeper candidate `c` that lies [`crate::hidden_behind`] `farthest` (the far side of the
-    /// failed walks of the layers in front of it) is the surface behind a disocclusion only if
-    /// the front layers really have nothing at `p` and its own layer nothing nearer: they
+    /// failed walks of the layers in front of it), or whose front layers' walks sampled nothing
+    /// after their first step (`farthest = -inf`: every seed left the image or landed empty at
+    /// once, no sign of a disocclusion at all), is the surface behind a disocclusion only if
+    /// the front layers really have nothing at `p` (in the latter case: nothing nearer than
+    /// `c`) and its own layer nothing nearer: they
     /// search again, from their tightened bound under their tile stage (`stage(k)`,
     /// [`Self::start`]) with [`crate::RETRY_SEED_FACTOR`] times N seeds (at most
     /// [`MAX_SEEDS`]); the nearest front candidate found, or else a candidate of `c`'s layer
@@ -475,7 +478,10 @@ impl<'a> Kernel<'a> {
         mut stage: impl FnMut(usize) -> Option<StageBound>,
         seeds: &mut [Vec2; MAX_SEEDS as usize],
     ) -> Option<Candidate> {
-        if c.tag == 0 || !(farthest > f32::NEG_INFINITY && crate::hidden_behind(c.depth, farthest)) {
+        // Without front walk samples there is no sign of a front surface either: a front
+        // candidate must then also be nearer than c.
+        let unseen = farthest == f32::NEG_INFINITY;
+        if c.tag == 0 || !(unseen || crate::hidden_behind(c.depth, farthest)) {
             return None;
         }
         let n = (self.params.n_seeds * crate::RETRY_SEED_FACTOR).min(MAX_SEEDS);
@@ -499,7 +505,7 @@ impl<'a> Kernel<'a> {
             };
             let Some(tb) = tb else { continue };
             if let (Some(f), _) = self.search_layer(k, x, y, p, &tb, None, n, seeds) {
-                if found.is_none_or(|g| f.depth < g.depth) && (k < own || f.depth < c.depth) {
+                if found.is_none_or(|g| f.depth < g.depth) && ((k < own && !unseen) || f.depth < c.depth) {
                     found = Some(f);
                 }
             }

@@ -747,9 +747,10 @@ fn near_wall_case(w: u32, h: u32, step: f32) -> (Vec<Image<f32>>, Vec<Image<Moti
     (src.depth, motions, reference, b, a)
 }
 
-/// Wall pixels (4 px or more from the image border) where the L = 4 warp's depth differs from the
-/// L = 1 warp's by more than 1 % in linear depth, and how many of those L = 4 put behind the
-/// wall.
+/// Wall pixels (4 px or more from the image border) that the L = 1 warp gets right (within 1 %
+/// of the reference in linear depth) and the L = 4 warp wrong (off by more than 2 %), and those
+/// where L = 4 differs from L = 1 (by more than 1 %) with a surface behind the wall it converged
+/// on (more than 2 % farther than the reference).
 fn wall_disagreement(step: f32, cover_radius: f32, extra_iterations: u32) -> (usize, usize) {
     let (w, h) = (160, 96);
     let (depths, motions, reference, cam, _) = near_wall_case(w, h, step);
@@ -768,10 +769,10 @@ fn wall_disagreement(step: f32, cover_radius: f32, extra_iterations: u32) -> (us
                 cam.linear_depth(*multi.depth.get(x, y)),
                 cam.linear_depth(*reference.depth[0].get(x, y)),
             );
-            if (a - b).abs() > 0.01 * a.min(b) {
-                differ += 1;
-                behind += (*multi.state.get(x, y) == PixelState::Converged && b > 1.02 * r) as usize;
-            }
+            differ += ((a - r).abs() <= 0.01 * r && (b - r).abs() > 0.02 * r) as usize;
+            behind += ((a - b).abs() > 0.01 * a.min(b)
+                && *multi.state.get(x, y) == PixelState::Converged
+                && b > 1.02 * r) as usize;
         }
     }
     (differ, behind)
@@ -790,19 +791,15 @@ fn deeper_layers_do_not_show_through_a_near_wall() {
         assert!(differ <= 5 && behind <= 5, "{step}: {differ} {behind}");
     }
     // At 80 cm per frame layer 0's search fails on part of the wall's nearest stretch when it
-    // walks exactly T = 3 iterations; without the coverage test (Sec. 3.4's plain nearest
-    // candidate) the surfaces behind the wall converge there and win (speckles of far depth on
-    // the wall).
-    let (differ_t, behind_t) = wall_disagreement(0.8, 0.0, 0);
-    assert!(differ_t > 100 && behind_t > 10, "{differ_t} {behind_t}");
-    // The extra iterations of the walks still contracting after T converge on most of it.
-    let (differ, behind) = wall_disagreement(0.8, 0.0, extra);
-    assert!(2 * differ < differ_t && behind <= behind_t, "{differ} {behind}");
-    // With the coverage test too, the front layer's failed walks, which came within a few
-    // pixels of the pixel, keep the rest hidden: L = 4 gives L = 1's answer on all but a
-    // handful of the ~10K wall pixels.
-    let (differ, behind) = wall_disagreement(0.8, WarpParams::default().cover_radius, extra);
-    assert!(differ <= 15 && behind <= 15, "{differ} {behind}");
+    // walks exactly T = 3 iterations, and the surfaces behind the wall converge there; they do
+    // not win, even without the coverage test: where the front layer's walks show nothing (they
+    // left the image at their first sample) or come to its far side, it searches again with 4N
+    // seeds first (`Kernel::retry_nearer`). The same with the extra iterations and the coverage
+    // test on.
+    for (cover, extra_iterations) in [(0.0, 0), (0.0, extra), (WarpParams::default().cover_radius, extra)] {
+        let (worse, behind) = wall_disagreement(0.8, cover, extra_iterations);
+        assert!(worse <= 5 && behind <= 5, "cover {cover} extra {extra_iterations}: {worse} {behind}");
+    }
 }
 
 /// A camera walking along a wall 1.2 m away at a grazing angle (the near-wall paths of Sponza

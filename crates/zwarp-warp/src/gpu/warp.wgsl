@@ -977,11 +977,12 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         best.ok = false;
     }
     // depth_warp::Kernel::retry_nearer: a deeper candidate behind the far side of the front
-    // layers' failed walks; the front layers and then its own layer search again with
+    // layers' failed walks, or with no such walk sample at all (farthest = -inf: then a front
+    // candidate must be nearer too); the front layers and then its own layer search again with
     // RETRY_SEED_FACTOR times N seeds from their tightened bound, and the nearest front
     // candidate found, or else a nearer one of its own layer, replaces it.
-    if (best.ok && best.tag > 0u && farthest > params.inf.y
-        && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - farthest) {
+    if (best.ok && best.tag > 0u && (farthest == params.inf.y
+        || (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - farthest)) {
         let n_retry = min(params.n_seeds * RETRY_SEED_FACTOR, MAX_SEEDS);
         var front = Cand(false, vec2<f32>(0.0), 0.0, 0u);
         let own = best.tag;
@@ -1001,7 +1002,8 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
                 ns = effective_seeds(n_retry, tb.region.zw - tb.region.xy);
             }
             let sr = search_seeds(k, x, y, p, tb.region, ns, ns, false, prev_q, max_q, thr2);
-            if (sr.found.ok && (!front.ok || sr.found.depth < front.depth) && (k < own || sr.found.depth < best.depth)) {
+            if (sr.found.ok && (!front.ok || sr.found.depth < front.depth)
+                && ((k < own && farthest != params.inf.y) || sr.found.depth < best.depth)) {
                 front = sr.found;
             }
         }
