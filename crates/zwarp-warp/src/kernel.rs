@@ -460,13 +460,10 @@ impl<'a> Kernel<'a> {
     /// after their first step (`farthest = -inf`: every seed left the image or landed empty at
     /// once, no sign of a disocclusion at all), is the surface behind a disocclusion only if
     /// the front layers really have nothing at `p` (in the latter case: nothing nearer than
-    /// `c`) and its own layer nothing nearer: they
-    /// search again, from their tightened bound under their tile stage (`stage(k)`,
+    /// `c`): they search again, from their tightened bound under their tile stage (`stage(k)`,
     /// [`Self::start`]) with [`crate::RETRY_SEED_FACTOR`] times N seeds (at most
-    /// [`MAX_SEEDS`]); the nearest front candidate found, or else a candidate of `c`'s layer
-    /// nearer than `c` (its N seeds missed a nearer solution, e.g. a surface seen in the source
-    /// only through two occluders), replaces `c`. Rare (disocclusion pixels behind a far
-    /// side); `None` when nothing was searched or found.
+    /// [`MAX_SEEDS`]), and the nearest front candidate found replaces `c`. Rare (disocclusion
+    /// pixels behind a far side); `None` when nothing was searched or found.
     #[allow(clippy::too_many_arguments)]
     pub fn retry_nearer(
         &self,
@@ -487,25 +484,14 @@ impl<'a> Kernel<'a> {
         let n = (self.params.n_seeds * crate::RETRY_SEED_FACTOR).min(MAX_SEEDS);
         let (expand, scale) = (self.params.sampling.footprint(), self.params.motion_scale);
         let mut found: Option<Candidate> = None;
-        let own = c.tag as usize;
-        for k in 0..=own.min(self.layers.len() - 1) {
-            if k == own && found.is_some() {
-                break;
-            }
+        for k in 0..(c.tag as usize).min(self.layers.len()) {
             let Some(s) = stage(k) else { continue };
             let pyr = self.layers[k].pyramid();
-            let iters = self.bound_iterations();
-            let tb = if k < own {
-                pyr.tight_bound_box_scaled(p, p, s.motion, iters, expand, scale)
-            } else {
-                // c's own layer only matters if a sample of its region is nearer than c (the
-                // min-depth mipmap, as for later layers: exact).
-                pyr.tight_bound_box_with_depth_scaled(p, p, s.motion, iters, expand, scale)
-                    .filter(|tb| tb.min_depth < c.depth)
+            let Some(tb) = pyr.tight_bound_box_scaled(p, p, s.motion, self.bound_iterations(), expand, scale) else {
+                continue;
             };
-            let Some(tb) = tb else { continue };
             if let (Some(f), _) = self.search_layer(k, x, y, p, &tb, None, n, seeds) {
-                if found.is_none_or(|g| f.depth < g.depth) && ((k < own && !unseen) || f.depth < c.depth) {
+                if found.is_none_or(|g| f.depth < g.depth) && (!unseen || f.depth < c.depth) {
                     found = Some(f);
                 }
             }

@@ -978,18 +978,14 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     }
     // depth_warp::Kernel::retry_nearer: a deeper candidate behind the far side of the front
     // layers' failed walks, or with no such walk sample at all (farthest = -inf: then a front
-    // candidate must be nearer too); the front layers and then its own layer search again with
-    // RETRY_SEED_FACTOR times N seeds from their tightened bound, and the nearest front
-    // candidate found, or else a nearer one of its own layer, replaces it.
+    // candidate must be nearer too); the front layers search again with RETRY_SEED_FACTOR
+    // times N seeds from their tightened bound, and the nearest front candidate found
+    // replaces it.
     if (best.ok && best.tag > 0u && (farthest == params.inf.y
         || (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - farthest)) {
         let n_retry = min(params.n_seeds * RETRY_SEED_FACTOR, MAX_SEEDS);
         var front = Cand(false, vec2<f32>(0.0), 0.0, 0u);
-        let own = best.tag;
-        for (var k = 0u; k <= min(own, params.layers - 1u); k++) {
-            if (k == own && front.ok) {
-                break;
-            }
+        for (var k = 0u; k < min(best.tag, params.layers); k++) {
             if (tile_ok[k * 4u + tile_index] == 0u) {
                 continue;
             }
@@ -1003,7 +999,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
             let sr = search_seeds(k, x, y, p, tb.region, ns, ns, false, prev_q, max_q, thr2);
             if (sr.found.ok && (!front.ok || sr.found.depth < front.depth)
-                && ((k < own && farthest != params.inf.y) || sr.found.depth < best.depth)) {
+                && (farthest != params.inf.y || sr.found.depth < best.depth)) {
                 front = sr.found;
             }
         }
