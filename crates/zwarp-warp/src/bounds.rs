@@ -497,31 +497,14 @@ impl MotionPyramid {
         debug_assert_eq!(samples.len(), w as usize * h as usize);
         // Level 1 straight from the samples (2x2 blocks, partial at odd edges).
         let (lw, lh) = (w.div_ceil(2), h.div_ceil(2));
-        let identity = frame.is_identity();
-        let ext = BlockExtent::new(frame);
         // Motion min-max and min depth in one pass over the samples (one read of the buffer).
         let mut data = vec![Bound::EMPTY.to_texel(); lw as usize * lh as usize];
         let mut zmin = vec![f32::INFINITY; lw as usize * lh as usize];
+        let blocks = Level1Blocks::new(samples, w, h, frame, clip);
         data.par_chunks_mut(lw as usize).zip(zmin.par_chunks_mut(lw as usize)).enumerate().for_each(
             |(ty, (row, zrow))| {
-                let y0 = ty * 2;
-                let y1 = (y0 + 2).min(h as usize);
                 for (tx, (out, zout)) in row.iter_mut().zip(zrow.iter_mut()).enumerate() {
-                    let x0 = tx * 2;
-                    let x1 = (x0 + 2).min(w as usize);
-                    let mut b = Bound::EMPTY;
-                    let mut z = f32::INFINITY;
-                    for y in y0..y1 {
-                        for m in &samples[y * w as usize + x0..y * w as usize + x1] {
-                            if is_valid_sample(m) {
-                                b.include(if identity { m.v } else { frame.to_frame(m.v) });
-                                z = z.min(m.depth);
-                            }
-                        }
-                    }
-                    let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &ext, tx, ty);
-                    *out = clip.clip_texel(rq_lo, rq_hi, b.to_texel());
-                    *zout = z;
+                    (*out, *zout) = blocks.texel(tx, ty);
                 }
             },
         );
@@ -890,29 +873,52 @@ impl MotionPyramid {
 /// it.
 #[cfg(any(test, feature = "gpu"))]
 pub(crate) fn global_bound(samples: &[Motion], w: u32, frame: BoundFrame, clip: ImageClip) -> Bound {
-    let wu = w as usize;
-    let identity = frame.is_identity();
-    let ext = BlockExtent::new(frame);
-    samples
-        .par_chunks(2 * wu)
-        .enumerate()
-        .map(|(ty, rows)| {
-            let mut g = Bound::EMPTY;
-            for tx in 0..wu.div_ceil(2) {
-                let mut b = Bound::EMPTY;
-                for row in rows.chunks(wu) {
-                    for m in &row[2 * tx..(2 * tx + 2).min(wu)] {
-                        if is_valid_sample(m) {
-                            b.include(if identity { m.v } else { frame.to_frame(m.v) });
-                        }
-                    }
-                }
-                let (rq_lo, rq_hi) = ImageClip::block_centres(frame, &ext, tx, ty);
-                g = g.union(&Bound::from_texel(&clip.clip_texel(rq_lo, rq_hi, b.to_texel())));
-            }
-            g
+    let h = (samples.len() / w as usize) as u32;
+    let blocks = Level1Blocks::new(samples, w, h, frame, clip);
+    (0..h.div_ceil(2) as usize)
+        .into_par_iter()
+        .map(|ty| {
+            (0..w.div_ceil(2) as usize).fold(Bound::EMPTY, |g, tx| g.union(&Bound::from_texel(&blocks.texel(tx, ty).0)))
         })
         .reduce(|| Bound::EMPTY, |a, b| a.union(&b))
+}
+
+/// The level-1 texels of a `w x h` buffer of raw samples in `frame`, clipped by `clip`: what
+/// the fused preparation computes in its pass, for the builders that start from a `Motion`
+/// buffer ([`MotionPyramid::from_samples`], [`global_bound`]).
+struct Level1Blocks<'a> {
+    samples: &'a [Motion],
+    w: usize,
+    h: usize,
+    frame: BoundFrame,
+    ext: BlockExtent,
+    clip: ImageClip,
+}
+
+impl<'a> Level1Blocks<'a> {
+    fn new(samples: &'a [Motion], w: u32, h: u32, frame: BoundFrame, clip: ImageClip) -> Self {
+        Level1Blocks { samples, w: w as usize, h: h as usize, frame, ext: BlockExtent::new(frame), clip }
+    }
+
+    /// Texel `(tx, ty)` (`[lo.x, lo.y, hi.x, hi.y]`, the 2x2 block's valid motions in the frame,
+    /// [`ImageClip::clip_texel`]) and the block's min target depth.
+    #[inline]
+    fn texel(&self, tx: usize, ty: usize) -> ([f32; 4], f32) {
+        let identity = self.frame.is_identity();
+        let (x0, x1) = (2 * tx, (2 * tx + 2).min(self.w));
+        let mut b = Bound::EMPTY;
+        let mut z = f32::INFINITY;
+        for y in 2 * ty..(2 * ty + 2).min(self.h) {
+            for m in &self.samples[y * self.w + x0..y * self.w + x1] {
+                if is_valid_sample(m) {
+                    b.include(if identity { m.v } else { self.frame.to_frame(m.v) });
+                    z = z.min(m.depth);
+                }
+            }
+        }
+        let (rq_lo, rq_hi) = ImageClip::block_centres(self.frame, &self.ext, tx, ty);
+        (self.clip.clip_texel(rq_lo, rq_hi, b.to_texel()), z)
+    }
 }
 
 /// PCA frame of ~`n` motion vectors sampled on a regular grid over the image (Sec. 3.3: "a

@@ -422,7 +422,7 @@ impl<'a> Kernel<'a> {
             best = None;
         }
         if let Some(c) = best {
-            if let Some(f) = self.retry_nearer(x, y, p, &c, farthest, |k| self.start(b, k), seeds) {
+            if let Some(f) = self.retry_front(x, y, p, &c, farthest, |k| self.start(b, k), seeds) {
                 best = Some(f);
             }
         }
@@ -465,7 +465,7 @@ impl<'a> Kernel<'a> {
     /// [`MAX_SEEDS`]), and the nearest front candidate found replaces `c`. Rare (disocclusion
     /// pixels behind a far side); `None` when nothing was searched or found.
     #[allow(clippy::too_many_arguments)]
-    pub fn retry_nearer(
+    pub fn retry_front(
         &self,
         x: u32,
         y: u32,
@@ -1319,7 +1319,7 @@ impl<'a> Kernel<'a> {
                 let mut c = Candidate { q: Vec2::new(qx[i], qy[i]), depth: z[i], tag: tags[i] as u32, seed: 0 };
                 let p = Vec2::new(pxs[i], pys[i]);
                 let (lx, ly) = (xs[i] as u32, ys[i] as u32);
-                if let Some(f) = self.retry_nearer(lx, ly, p, &c, far[i], |k| stages.lane(k, i), &mut seeds) {
+                if let Some(f) = self.retry_front(lx, ly, p, &c, far[i], |k| stages.lane(k, i), &mut seeds) {
                     c = f;
                     (qx[i], qy[i], z[i], tags[i]) = (f.q.x, f.q.y, f.depth, f.tag as i32);
                 }

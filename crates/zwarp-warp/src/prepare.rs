@@ -433,20 +433,18 @@ mod avx2 {
                 };
                 clip_texels8(clip, ext, r0x, r0y, t)
             };
-            gl = match aab.as_deref_mut() {
-                Some(out) => {
-                    let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
-                    let t = texels(t, &input.clip, &ext, false);
-                    store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
-                    [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])]
-                }
-                None if clipping => {
-                    let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
-                    let t = texels(t, &input.clip, &ext, false);
-                    [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])]
-                }
-                None => [vmin(gl[0], a[0]), vmin(gl[1], a[1]), vmax(gl[2], a[2]), vmax(gl[3], a[3])],
+            // The frame's texels where written or clipped (the global bound is their union),
+            // else the lanes themselves (the same minima and maxima).
+            let t = if aab.is_some() || clipping {
+                let t = [pair_min(a[0]), pair_min(a[1]), pair_max(a[2]), pair_max(a[3])];
+                texels(t, &input.clip, &ext, false)
+            } else {
+                a
             };
+            if let Some(out) = aab.as_deref_mut() {
+                store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+            }
+            gl = [vmin(gl[0], t[0]), vmin(gl[1], t[1]), vmax(gl[2], t[2]), vmax(gl[3], t[3])];
             let zt = pair_min(vmin(p0.z, p1.z));
             _mm_storeu_ps(zmin.as_mut_ptr().add(x / 2), _mm256_castps256_ps128(_mm256_permutevar8x32_ps(zt, even)));
             if with_ob {
@@ -456,20 +454,16 @@ mod avx2 {
                     vmax(p0.ob[2], p1.ob[2]),
                     vmax(p0.ob[3], p1.ob[3]),
                 ];
-                go = match ob.as_deref_mut() {
-                    Some(out) => {
-                        let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
-                        let t = texels(t, &input.clip_ob, &ext_ob, true);
-                        store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
-                        [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])]
-                    }
-                    None if clipping => {
-                        let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
-                        let t = texels(t, &input.clip_ob, &ext_ob, true);
-                        [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])]
-                    }
-                    None => [vmin(go[0], o[0]), vmin(go[1], o[1]), vmax(go[2], o[2]), vmax(go[3], o[3])],
+                let t = if ob.is_some() || clipping {
+                    let t = [pair_min(o[0]), pair_min(o[1]), pair_max(o[2]), pair_max(o[3])];
+                    texels(t, &input.clip_ob, &ext_ob, true)
+                } else {
+                    o
                 };
+                if let Some(out) = ob.as_deref_mut() {
+                    store_texels(t, out.as_mut_ptr().add(x / 2) as *mut f32);
+                }
+                go = [vmin(go[0], t[0]), vmin(go[1], t[1]), vmax(go[2], t[2]), vmax(go[3], t[3])];
             }
         }
         [slox, sloy, shix, shiy] = surf;

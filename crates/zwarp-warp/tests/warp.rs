@@ -794,7 +794,7 @@ fn deeper_layers_do_not_show_through_a_near_wall() {
     // walks exactly T = 3 iterations, and the surfaces behind the wall converge there; they do
     // not win, even without the coverage test: where the front layer's walks show nothing (they
     // left the image at their first sample) or come to its far side, it searches again with 4N
-    // seeds first (`Kernel::retry_nearer`). The same with the extra iterations and the coverage
+    // seeds first (`Kernel::retry_front`). The same with the extra iterations and the coverage
     // test on.
     for (cover, extra_iterations) in [(0.0, 0), (0.0, extra), (WarpParams::default().cover_radius, extra)] {
         let (worse, behind) = wall_disagreement(0.8, cover, extra_iterations);

@@ -976,7 +976,7 @@ fn warp(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     if (best.ok && (1.0 - best.depth) * COVER_DEPTH_RATIO < 1.0 - cover) {
         best.ok = false;
     }
-    // depth_warp::Kernel::retry_nearer: a deeper candidate behind the far side of the front
+    // depth_warp::Kernel::retry_front: a deeper candidate behind the far side of the front
     // layers' failed walks, or with no such walk sample at all (farthest = -inf: then a front
     // candidate must be nearer too); the front layers search again with RETRY_SEED_FACTOR
     // times N seeds from their tightened bound, and the nearest front candidate found
