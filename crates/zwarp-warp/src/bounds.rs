@@ -1083,45 +1083,88 @@ mod tests {
     }
 
     /// A prepared layer of motion `m` over a source depth of 0.5 (every sample valid where
-    /// `m` says so).
+    /// `m` says so), for the motion as given ([`MotionScales::AtLeastOne`]: monotonicity test).
     fn prepared(m: &Image<Motion>) -> crate::PreparedLayer {
-        let depth = Image::new(m.width(), m.height(), 0.5f32);
-        crate::PreparedLayer::new(&crate::WarpLayer { depth: &depth, motion: m }, crate::BoundKind::Tight).unwrap()
+        prepared_for(m, MotionScales::AtLeastOne)
     }
 
-    /// The gradient mipmap of an affine field holds the squared rows of its matrix everywhere
-    /// (bilinear interpolation of an affine field is the field), and the unique-solution test
-    /// follows `sx^2 |row x|^2 + sy^2 |row y|^2 < 1/2`, the motion scale included.
+    /// [`prepared`] for the motion scales `scales` ([`MotionScales::Any`]: contraction test).
+    fn prepared_for(m: &Image<Motion>, scales: MotionScales) -> crate::PreparedLayer {
+        let depth = Image::new(m.width(), m.height(), 0.5f32);
+        let layer = crate::WarpLayer { depth: &depth, motion: m };
+        crate::PreparedLayer::new_for(&layer, crate::BoundKind::Tight, scales).unwrap()
+    }
+
+    /// The gradient mipmap of an affine field `v = A q + c` holds what its one-seed test needs
+    /// everywhere (bilinear interpolation of an affine field is the field): shared by scaled
+    /// warps, the squared rows of `A` and the contraction test
+    /// `sx^2 |row x|^2 + sy^2 |row y|^2 < 1/2`; for the motion as given, the fold
+    /// `|a01 + a10| / 2 - min(a00, a11)` and monotonicity, `max(sx, sy) fold < 1`.
     #[test]
     fn gradient_of_an_affine_field_is_its_jacobian() {
         let m = affine(37, 29, [[0.3, 0.1], [0.0, -0.2]], Vec2::new(-4.0, 2.0));
-        let layer = prepared(&m);
-        let pyr = layer.pyramid();
+        let (shared, given) = (prepared_for(&m, MotionScales::Any), prepared(&m));
+        let pyr = shared.pyramid();
         let (w, h) = pyr.size();
         for (x0, y0, x1, y1) in [(0, 0, w - 1, h - 1), (3, 4, 9, 5), (20, 10, 20, 10)] {
-            let [gx, gy] = layer.lookup_gradient(x0, y0, x1, y1);
+            let [gx, gy] = shared.lookup_gradient(x0, y0, x1, y1);
             assert!((gx - 0.1).abs() < 1e-5 && (gy - 0.04).abs() < 1e-5, "{gx} {gy}");
+            // |0.1 + 0| / 2 - min(0.3, -0.2).
+            let [fold, again] = given.lookup_gradient(x0, y0, x1, y1);
+            assert!((fold - 0.25).abs() < 1e-5 && fold == again, "{fold}");
         }
         let (p_lo, p_hi) = (Vec2::new(12.5, 10.5), Vec2::new(15.5, 13.5));
         let b = pyr.tight_bound_box(p_lo, p_hi, pyr.global(), 6, 0.5).unwrap().motion;
-        assert!(layer.unique_solution(p_lo, p_hi, &b, Vec2::ONE));
-        // 0.1 + 0.04 < 0.5, 4 (0.1 + 0.04) = 0.56 >= 0.5, 0.1 + 4 * 0.04 = 0.26 < 0.5.
-        assert!(!layer.unique_solution(p_lo, p_hi, &b, Vec2::splat(2.0)));
-        assert!(layer.unique_solution(p_lo, p_hi, &b, Vec2::new(1.0, 2.0)));
-        // A magnifying field (|Dv| = 0.6 per axis: 0.36 + 0.36 >= 0.5) has no such guarantee.
-        let zoom = prepared(&affine(37, 29, [[0.6, 0.0], [0.0, 0.6]], Vec2::ZERO));
-        assert!(!zoom.unique_solution(p_lo, p_hi, &zoom.pyramid().global(), Vec2::ONE));
+        let unique = |layer: &crate::PreparedLayer, s: Vec2| layer.unique_solution(p_lo, p_hi, &b, s);
+        // Contraction: 0.1 + 0.04 < 0.5, 4 (0.1 + 0.04) = 0.56 >= 0.5, 0.1 + 4 * 0.04 = 0.26 < 0.5,
+        // either sign.
+        assert!(unique(&shared, Vec2::ONE));
+        assert!(!unique(&shared, Vec2::splat(2.0)));
+        assert!(unique(&shared, Vec2::new(1.0, 2.0)));
+        assert!(unique(&shared, Vec2::new(-1.0, 2.0)));
+        // Monotone: 2 * 0.25 < 1 (where the contraction fails), 3 * 0.25 < 1, 4 * 0.25 >= 1.
+        assert!(unique(&given, Vec2::ONE));
+        assert!(unique(&given, Vec2::splat(2.0)));
+        assert!(unique(&given, Vec2::new(1.0, 3.0)));
+        assert!(!unique(&given, Vec2::new(4.0, 1.0)));
+        // A magnifying field (|Dv| = 0.6 per axis: 0.36 + 0.36 >= 0.5) is no contraction, but
+        // monotone (fold -0.6); one folding along x (dvx/dx = -1.2: fold 1.2) is neither.
+        let zoom = affine(37, 29, [[0.6, 0.0], [0.0, 0.6]], Vec2::ZERO);
+        for (m, scales, want) in [
+            (&zoom, MotionScales::Any, false),
+            (&zoom, MotionScales::AtLeastOne, true),
+            (&affine(37, 29, [[-1.2, 0.0], [0.0, 0.0]], Vec2::ZERO), MotionScales::AtLeastOne, false),
+        ] {
+            let layer = prepared_for(m, scales);
+            assert_eq!(layer.unique_solution(p_lo, p_hi, &layer.pyramid().global(), Vec2::ONE), want, "{scales:?}");
+        }
     }
 
     /// A depth step or an empty texel in the region stops the unique-solution test (the fetch
-    /// does not interpolate across them); a region clear of them passes.
+    /// does not interpolate across them); a region clear of them passes. So does, for
+    /// monotonicity, a smaller step (above [`crate::sampling::SURFACE_DEPTH_STEP`]) where the
+    /// motions move apart by a pixel or more (1.2 px: the fetch samples it nearest), not where
+    /// they agree (0.8 px) or within the surface step.
     #[test]
     fn depth_steps_and_empty_texels_are_not_unique() {
-        let base = affine(40, 24, [[0.2, 0.0], [0.0, 0.2]], Vec2::ZERO);
         let (p_lo, p_hi) = (Vec2::new(4.5, 4.5), Vec2::new(7.5, 7.5));
         let bound = |pyr: &MotionPyramid| pyr.tight_bound_box(p_lo, p_hi, pyr.global(), 6, 0.5).unwrap().motion;
-        // 0.9 behind 0.5 is a step of (0.9 - 0.5) / (1 - 0.9) = 4 > DEPTH_CONTINUITY.
-        for (x_step, depth, want) in [(6, 0.9, false), (6, 1.0, false), (30, 0.9, true), (30, 1.0, true)] {
+        // 0.9 behind 0.5 is a step of (0.9 - 0.5) / (1 - 0.9) = 4 > DEPTH_CONTINUITY; 0.55 one
+        // of 0.05 / 0.45 = 0.11 (continuous, not one surface); 0.51 one of 0.02 (one surface).
+        for (scales, gain, x_step, depth, want) in [
+            (MotionScales::Any, 0.2, 6, 0.9, false),
+            (MotionScales::Any, 0.2, 6, 1.0, false),
+            (MotionScales::Any, 0.2, 30, 0.9, true),
+            (MotionScales::Any, 0.2, 30, 1.0, true),
+            (MotionScales::Any, 0.2, 6, 0.55, true),
+            (MotionScales::AtLeastOne, 0.2, 6, 0.9, false),
+            (MotionScales::AtLeastOne, 0.2, 6, 1.0, false),
+            (MotionScales::AtLeastOne, 0.8, 6, 0.55, true),
+            (MotionScales::AtLeastOne, 1.2, 6, 0.55, false),
+            (MotionScales::AtLeastOne, 1.2, 6, 0.51, true),
+            (MotionScales::AtLeastOne, 1.2, 30, 0.9, true),
+        ] {
+            let base = affine(40, 24, [[gain, 0.0], [0.0, gain]], Vec2::ZERO);
             let m = Image::from_fn(40, 24, |x, y| {
                 let s = *base.get(x, y);
                 if x == x_step && (3..=9).contains(&y) {
@@ -1130,11 +1173,11 @@ mod tests {
                     s
                 }
             });
-            let layer = prepared(&m);
+            let layer = prepared_for(&m, scales);
             assert_eq!(
                 layer.unique_solution(p_lo, p_hi, &bound(layer.pyramid()), Vec2::ONE),
                 want,
-                "step at {x_step}, depth {depth}"
+                "{scales:?} gain {gain}, step at {x_step}, depth {depth}"
             );
         }
     }

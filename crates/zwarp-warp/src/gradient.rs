@@ -2,9 +2,11 @@
 //! warp's tile stage, [`crate::PreparedLayer::unique_solution`]).
 //!
 //! Seed 000 Sec. 3.2 spreads N seeds over a search region because it may hold several
-//! solutions; where the motion's Jacobian is a contraction over the region it holds one, and one
-//! seed finds it. Each texel holds the component-wise largest [`cell_gradient`] of the bilinear
-//! cells whose top-left texel it covers. Only the first layer's tiles whose bound spans more
+//! solutions of `q + v(q) = p`; where the region provably holds one, one seed finds it. Each
+//! texel holds, over the bilinear cells whose top-left texel it covers, the largest of the
+//! cell's bound that the preparation's test needs ([`OneSeedTest`]): the squared row norms of
+//! the motion's Jacobian ([`cell_gradient`], a contraction test) or its fold
+//! ([`cell_fold`], a monotonicity test). Only the first layer's tiles whose bound spans more
 //! than a pixel ask, and the share of the image their regions cover varies from none (a street
 //! walked along: every tile bound is sub-pixel) to about 40 % (the procedural scenes at 1080p):
 //! so texels are computed when first looked up, never before. Levels `1..=4` are computed a
@@ -44,6 +46,67 @@ pub fn cell_gradient(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32
     }
 }
 
+/// An upper bound of the fold `|dvx/dy + dvy/dx| / 2 - min(dvx/dx, dvy/dy)` of the adaptive
+/// fetch's bilinear interpolant over the cell of texels `a b / c d` (each `[vx, vy, z]`,
+/// `z = +inf` for an empty texel): each derivative lies between the cell's two differences
+/// along its axis, and the sum's magnitude is largest at the ends of its range. By Gershgorin's
+/// theorem the symmetric part of `S^-1 + Dv` is positive definite for a positive diagonal scale
+/// `S` with `max(sx, sy) fold < 1`, so `q -> q + S v(q)` is strictly monotone for the inner
+/// product weighted by `S^-1` ([`crate::PreparedLayer::unique_solution`]). That needs the fetch
+/// to interpolate the cell: always where its depths lie within
+/// [`crate::sampling::SURFACE_DEPTH_STEP`], elsewhere (within
+/// [`crate::sampling::DEPTH_CONTINUITY`]) only while its scaled motion range stays below
+/// [`crate::sampling::CONTINUITY_PX`] (one pixel), so the fold is then at least the cell's
+/// motion range; `+inf` across a larger depth step or at an empty texel.
+#[inline(always)]
+pub fn cell_fold(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> f32 {
+    let (axx, bxx) = (b[0] - a[0], d[0] - c[0]);
+    let (ayy, byy) = (c[1] - a[1], d[1] - b[1]);
+    let (axy, bxy) = (c[0] - a[0], d[0] - b[0]);
+    let (ayx, byx) = (b[1] - a[1], d[1] - c[1]);
+    let shear_lo = fmin(axy, bxy) + fmin(ayx, byx);
+    let shear_hi = fmax(axy, bxy) + fmax(ayx, byx);
+    let fold = 0.5 * fmax(shear_lo.abs(), shear_hi.abs()) - fmin(fmin(axx, bxx), fmin(ayy, byy));
+    let z_lo = fmin(fmin(a[2], b[2]), fmin(c[2], d[2]));
+    let z_hi = fmax(fmax(a[2], b[2]), fmax(c[2], d[2]));
+    let (step, room) = (z_hi - z_lo, 1.0 - z_hi);
+    if step < crate::sampling::SURFACE_DEPTH_STEP * room {
+        fold
+    } else if step < crate::sampling::DEPTH_CONTINUITY * room {
+        // The per-axis motion range, as the fetch measures it (`continuous_cell`).
+        let range = |i: usize| fmax(fmax(a[i], b[i]), fmax(c[i], d[i])) - fmin(fmin(a[i], b[i]), fmin(c[i], d[i]));
+        fmax(fold, fmax(range(0), range(1)))
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// Which bound of the motion's Jacobian a gradient mipmap holds, i.e. how the one-seed test
+/// ([`crate::PreparedLayer::unique_solution`]) proves that a region holds one solution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OneSeedTest {
+    /// `[gx, gy]` of [`cell_gradient`]: the scaled motion a contraction. Its test scales with
+    /// the motion per axis (any factors, either sign), for preparations shared by scaled warps
+    /// ([`crate::bounds::MotionScales::Any`]).
+    Contraction,
+    /// `[fold, fold]` of [`cell_fold`]: `q + S v(q)` monotone, for positive scales (the
+    /// preparations of [`crate::bounds::MotionScales::AtLeastOne`]). It holds wherever the
+    /// contraction does at a uniform scale (a contracting cell's fold is below `sqrt(3) / 2`)
+    /// and also on magnified surfaces (a walk toward a wall, the ground under a moving camera).
+    Monotone,
+}
+
+impl OneSeedTest {
+    /// The texel value of one cell.
+    #[inline(always)]
+    fn cell(self, a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [f32; 2] {
+        match self {
+            OneSeedTest::Contraction => cell_gradient(a, b, c, d),
+            OneSeedTest::Monotone => [cell_fold(a, b, c, d); 2],
+        }
+    }
+}
+
 /// Bound on the squared Frobenius norm of the motion's Jacobian below which a search region
 /// holds one solution at most ([`crate::PreparedLayer::unique_solution`]).
 pub const UNIQUE_GRADIENT: f32 = 0.5;
@@ -72,6 +135,8 @@ pub(crate) struct GradientMip {
     high_base: usize,
     /// Blocks take the AVX2 build where it applies (`crate::simd::has_avx2` at creation).
     simd: bool,
+    /// The bound its texels hold.
+    test: OneSeedTest,
 }
 
 // SAFETY: `values` is written only by the thread that moved a block's or a texel's state from
@@ -115,7 +180,13 @@ impl GradientMip {
     /// An empty (nothing computed) mipmap of a `w x h` layer whose levels `1..=top` have the
     /// given sizes and offsets, in the storage of `recycled` (an earlier frame's) where it is
     /// large enough.
-    pub(crate) fn new(w: u32, h: u32, levels: Vec<(u32, u32, usize)>, recycled: Option<GradientMip>) -> Self {
+    pub(crate) fn new(
+        w: u32,
+        h: u32,
+        levels: Vec<(u32, u32, usize)>,
+        test: OneSeedTest,
+        recycled: Option<GradientMip>,
+    ) -> Self {
         let total = levels.last().map_or(0, |&(lw, lh, off)| off + lw as usize * lh as usize);
         let top = levels.len() as u32;
         let block_level = BLOCK_LEVEL.min(top);
@@ -135,7 +206,13 @@ impl GradientMip {
         };
         reset(&mut blocks, bw as usize * bh as usize);
         reset(&mut highs, total - high_base);
-        GradientMip { w, h, levels, values, block_level, blocks, highs, high_base, simd: crate::simd::has_avx2() }
+        let simd = crate::simd::has_avx2();
+        GradientMip { w, h, levels, values, block_level, blocks, highs, high_base, simd, test }
+    }
+
+    /// The bound its texels hold.
+    pub(crate) fn test(&self) -> OneSeedTest {
+        self.test
     }
 
     /// Texel `(tx, ty)` of level `level` (`1..=top`) of the gradient mipmap of `planes` (the
@@ -198,7 +275,7 @@ impl GradientMip {
                 let y = 2 * ty + r;
                 row.fill([f32::NEG_INFINITY; 2]);
                 if y < h {
-                    cell_row(planes, w, h, y, x0, &mut row[..x1 - x0], self.simd);
+                    cell_row(planes, w, h, y, x0, &mut row[..x1 - x0], self.simd, self.test);
                 }
             }
             for tx in tx0..tx1 {
@@ -274,7 +351,7 @@ impl GradientMip {
                 let at = |r: usize, dx: usize| _mm256_loadu_ps(p.as_ptr().add(r * w + x + dx));
                 [at(r0, 0), at(r0, 1), at(r1, 0), at(r1, 1)]
             };
-            let [a, b] = interleave(cell_lanes(ld(&planes.vx), ld(&planes.vy), ld(&planes.z)));
+            let [a, b] = interleave(cell_lanes(ld(&planes.vx), ld(&planes.vy), ld(&planes.z), self.test));
             (a, b)
         };
         // Largest of adjacent [gx, gy] pairs (0, 1), (2, 3): the even pairs hold it.
@@ -344,7 +421,17 @@ fn pack_ninf() -> u64 {
 /// The cells of image row `y` at columns `x0..x0 + out.len()` of `w x h` planes: the cell at
 /// `x` spans texels `x, x + 1` of rows `y, y + 1`, clamped to the image (the fetch clamps, so
 /// the cells at the right and bottom borders repeat the border texels).
-fn cell_row(planes: &SamplePlanes, w: usize, h: usize, y: usize, x0: usize, out: &mut [[f32; 2]], simd: bool) {
+#[allow(clippy::too_many_arguments)]
+fn cell_row(
+    planes: &SamplePlanes,
+    w: usize,
+    h: usize,
+    y: usize,
+    x0: usize,
+    out: &mut [[f32; 2]],
+    simd: bool,
+    test: OneSeedTest,
+) {
     let y1 = (y + 1).min(h - 1);
     fn row(p: &[f32], y: usize, w: usize) -> &[f32] {
         &p[y * w..(y + 1) * w]
@@ -368,35 +455,32 @@ fn cell_row(planes: &SamplePlanes, w: usize, h: usize, y: usize, x0: usize, out:
                 [s(ay, 0), s(ay, 1), s(cy, 0), s(cy, 1)],
                 [s(az, 0), s(az, 1), s(cz, 0), s(cz, 1)],
                 &mut out[..inner],
+                test,
             )
         };
     }
     for (i, o) in out.iter_mut().enumerate().skip(i0) {
         let x = x0 + i;
         let x1 = (x + 1).min(w - 1);
-        *o = cell_gradient(
-            [ax[x], ay[x], az[x]],
-            [ax[x1], ay[x1], az[x1]],
-            [cx[x], cy[x], cz[x]],
-            [cx[x1], cy[x1], cz[x1]],
-        );
+        *o =
+            test.cell([ax[x], ay[x], az[x]], [ax[x1], ay[x1], az[x1]], [cx[x], cy[x], cz[x]], [cx[x1], cy[x1], cz[x1]]);
     }
 }
 
-/// [`cell_gradient`] eight cells at a time (bit-identical: compare-select min / max, no FMA,
-/// the same order of sums) for the cells `0..8 * floor(n / 8)` of one row, given per plane the
-/// cells' four texels `a b / c d` as slices of `n`; returns how many it wrote.
+/// [`OneSeedTest::cell`] eight cells at a time (bit-identical: compare-select min / max, no
+/// FMA, the same order of sums) for the cells `0..8 * floor(n / 8)` of one row, given per plane
+/// the cells' four texels `a b / c d` as slices of `n`; returns how many it wrote.
 ///
 /// # Safety
 /// The CPU must support AVX2; every slice holds at least `out.len()` elements.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f32; 2]]) -> usize {
+unsafe fn cells8(vx: [&[f32]; 4], vy: [&[f32]; 4], z: [&[f32]; 4], out: &mut [[f32; 2]], test: OneSeedTest) -> usize {
     use std::arch::x86_64::*;
     let n8 = out.len() / 8 * 8;
     for i in (0..n8).step_by(8) {
         let load = |s: &[&[f32]; 4]| s.map(|s| _mm256_loadu_ps(s.as_ptr().add(i)));
-        let [lo, hi] = interleave(cell_lanes(load(&vx), load(&vy), load(&z)));
+        let [lo, hi] = interleave(cell_lanes(load(&vx), load(&vy), load(&z), test));
         let p = out.as_mut_ptr().add(i) as *mut f32;
         _mm256_storeu_ps(p, lo);
         _mm256_storeu_ps(p.add(8), hi);
@@ -419,8 +503,9 @@ unsafe fn interleave(
     [_mm256_permute2f128_ps::<0x20>(lo, hi), _mm256_permute2f128_ps::<0x31>(lo, hi)]
 }
 
-/// [`cell_gradient`] of eight cells, given per plane their texels `a b / c d` (bit-identical:
-/// compare-select min / max, no FMA, the same order of sums): `(gx, gy)`.
+/// [`OneSeedTest::cell`] of eight cells, given per plane their texels `a b / c d`
+/// (bit-identical: compare-select min / max, no FMA, the same order of sums): the two
+/// channels.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -431,22 +516,49 @@ unsafe fn cell_lanes(
     vx: [std::arch::x86_64::__m256; 4],
     vy: [std::arch::x86_64::__m256; 4],
     [a, b, c, d]: [std::arch::x86_64::__m256; 4],
+    test: OneSeedTest,
 ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
     use std::arch::x86_64::*;
     let (one, inf, sign) = (_mm256_set1_ps(1.0), _mm256_set1_ps(f32::INFINITY), _mm256_set1_ps(-0.0));
     let z_lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
     let z_hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
-    let cont = _mm256_cmp_ps::<_CMP_LT_OQ>(
-        _mm256_sub_ps(z_hi, z_lo),
-        _mm256_mul_ps(_mm256_set1_ps(crate::sampling::DEPTH_CONTINUITY), _mm256_sub_ps(one, z_hi)),
-    );
-    let row = |[a, b, c, d]: [__m256; 4]| {
-        let abs = |v: __m256| _mm256_andnot_ps(sign, v);
-        let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
-        let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
-        _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
-    };
-    (row(vx), row(vy))
+    let (step, room) = (_mm256_sub_ps(z_hi, z_lo), _mm256_sub_ps(one, z_hi));
+    let below = |f: f32| _mm256_cmp_ps::<_CMP_LT_OQ>(step, _mm256_mul_ps(_mm256_set1_ps(f), room));
+    let cont = below(crate::sampling::DEPTH_CONTINUITY);
+    let abs = |v: __m256| _mm256_andnot_ps(sign, v);
+    match test {
+        OneSeedTest::Contraction => {
+            let row = |[a, b, c, d]: [__m256; 4]| {
+                let dx = _mm256_max_ps(abs(_mm256_sub_ps(b, a)), abs(_mm256_sub_ps(d, c)));
+                let dy = _mm256_max_ps(abs(_mm256_sub_ps(c, a)), abs(_mm256_sub_ps(d, b)));
+                _mm256_blendv_ps(inf, _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), cont)
+            };
+            (row(vx), row(vy))
+        }
+        OneSeedTest::Monotone => {
+            let along_x = |[a, b, c, d]: [__m256; 4]| (_mm256_sub_ps(b, a), _mm256_sub_ps(d, c));
+            let along_y = |[a, b, c, d]: [__m256; 4]| (_mm256_sub_ps(c, a), _mm256_sub_ps(d, b));
+            let (axx, bxx) = along_x(vx);
+            let (ayy, byy) = along_y(vy);
+            let (axy, bxy) = along_y(vx);
+            let (ayx, byx) = along_x(vy);
+            let shear_lo = _mm256_add_ps(_mm256_min_ps(axy, bxy), _mm256_min_ps(ayx, byx));
+            let shear_hi = _mm256_add_ps(_mm256_max_ps(axy, bxy), _mm256_max_ps(ayx, byx));
+            let fold = _mm256_sub_ps(
+                _mm256_mul_ps(_mm256_set1_ps(0.5), _mm256_max_ps(abs(shear_lo), abs(shear_hi))),
+                _mm256_min_ps(_mm256_min_ps(axx, bxx), _mm256_min_ps(ayy, byy)),
+            );
+            let range = |[a, b, c, d]: [__m256; 4]| {
+                let hi = _mm256_max_ps(_mm256_max_ps(a, b), _mm256_max_ps(c, d));
+                let lo = _mm256_min_ps(_mm256_min_ps(a, b), _mm256_min_ps(c, d));
+                _mm256_sub_ps(hi, lo)
+            };
+            let ranged = _mm256_max_ps(fold, _mm256_max_ps(range(vx), range(vy)));
+            let surface = below(crate::sampling::SURFACE_DEPTH_STEP);
+            let f = _mm256_blendv_ps(_mm256_blendv_ps(inf, ranged, cont), fold, surface);
+            (f, f)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -465,13 +577,20 @@ mod tests {
         for i in 0..n {
             let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
             let empty = rng.random_range(0..20) == 0;
+            // A depth step across which the fetch never interpolates, or one within which it
+            // does while the motions agree.
             let step = rng.random_range(0..15) == 0;
+            let far = rng.random_range(0..2) == 0;
             p.vx.push(if empty { 0.0 } else { 0.3 * x - 0.1 * y + rng.random_range(-0.4..0.4f32) });
             p.vy.push(if empty { 0.0 } else { 0.05 * x * x / w as f32 + rng.random_range(-0.2..0.2f32) });
             p.z.push(if empty {
                 f32::INFINITY
             } else if step {
-                0.9
+                if far {
+                    0.9
+                } else {
+                    0.53
+                }
             } else {
                 0.5 + 0.001 * x
             });
@@ -479,8 +598,61 @@ mod tests {
         p
     }
 
+    /// Over random cells of one surface, at random points of the cell, the bilinear
+    /// interpolant's Jacobian `[[a, b], [c, d]]` stays within the bounds: `a^2 + b^2 <= gx`,
+    /// `c^2 + d^2 <= gy` and `|b + c| / 2 - min(a, d) <= fold`. A cell with a depth step above
+    /// the surface step has a fold of at least its motion range, one above the continuity step
+    /// no bound at all.
+    #[test]
+    fn cell_bounds_hold_at_every_point_of_the_cell() {
+        let mut rng = Pcg32::seed_from_u64(7);
+        for _ in 0..2000 {
+            let mut texel = || [rng.random_range(-3.0..3.0f32), rng.random_range(-3.0..3.0f32), 0.5];
+            let [a, b, c, d] = [texel(), texel(), texel(), texel()];
+            let [gx, gy] = cell_gradient(a, b, c, d);
+            let fold = cell_fold(a, b, c, d);
+            for _ in 0..16 {
+                let (s, t) = (rng.random_range(0.0..=1.0f32), rng.random_range(0.0..=1.0f32));
+                let dx = |i: usize| (1.0 - t) * (b[i] - a[i]) + t * (d[i] - c[i]);
+                let dy = |i: usize| (1.0 - s) * (c[i] - a[i]) + s * (d[i] - b[i]);
+                let (jxx, jxy, jyx, jyy) = (dx(0), dy(0), dx(1), dy(1));
+                let eps = 1e-4;
+                assert!(jxx * jxx + jxy * jxy <= gx + eps, "{a:?} {b:?} {c:?} {d:?} ({s}, {t})");
+                assert!(jyx * jyx + jyy * jyy <= gy + eps, "{a:?} {b:?} {c:?} {d:?} ({s}, {t})");
+                let n = 0.5 * (jxy + jyx).abs() - jxx.min(jyy);
+                assert!(n <= fold + eps, "{n} > {fold}: {a:?} {b:?} {c:?} {d:?} ({s}, {t})");
+            }
+        }
+        // dvx/dx = 1 (fold 0 - min(1, 0) = 0), motion range 1; dvx/dx = 0.5, range 0.5.
+        let (a, b, half) = ([1.0, 0.0, 0.5], [2.0, 0.0, 0.5], [1.5, 0.0, 0.5]);
+        assert_eq!(cell_fold(a, b, a, b), 0.0);
+        // 0.55 next to 0.5: a step of 0.05 / 0.45 (continuous, more than the surface step).
+        assert_eq!(cell_fold(a, b, a, [2.0, 0.0, 0.55]), 1.0);
+        assert_eq!(cell_fold(a, half, a, [1.5, 0.0, 0.55]), 0.5);
+        assert_eq!(cell_fold(a, b, a, [2.0, 0.0, 0.95]), f32::INFINITY);
+        assert_eq!(cell_fold(a, b, a, [0.0, 0.0, f32::INFINITY]), f32::INFINITY);
+    }
+
+    /// A cell that is a contraction (`gx + gy < 1/2`) has a fold below `sqrt(3) / 2`, so the
+    /// monotonicity test holds wherever the contraction test does at a uniform scale.
+    #[test]
+    fn a_contracting_cell_is_monotone() {
+        let mut rng = Pcg32::seed_from_u64(11);
+        let mut seen = 0;
+        while seen < 2000 {
+            let mut texel = || [rng.random_range(-0.6..0.6f32), rng.random_range(-0.6..0.6f32), 0.5];
+            let [a, b, c, d] = [texel(), texel(), texel(), texel()];
+            let [gx, gy] = cell_gradient(a, b, c, d);
+            if gx + gy < UNIQUE_GRADIENT {
+                seen += 1;
+                let fold = cell_fold(a, b, c, d);
+                assert!(fold < 0.8661, "{fold}: {a:?} {b:?} {c:?} {d:?}");
+            }
+        }
+    }
+
     /// Texel `(tx, ty)` of `level` by brute force: the largest cell over its footprint.
-    fn brute(p: &SamplePlanes, w: u32, h: u32, level: u32, tx: u32, ty: u32) -> [f32; 2] {
+    fn brute(p: &SamplePlanes, w: u32, h: u32, level: u32, tx: u32, ty: u32, test: OneSeedTest) -> [f32; 2] {
         let at = |x: u32, y: u32| {
             let i = (y * w + x) as usize;
             [p.vx[i], p.vy[i], p.z[i]]
@@ -489,17 +661,17 @@ mod tests {
         for y in ty << level..((ty + 1) << level).min(h) {
             for x in tx << level..((tx + 1) << level).min(w) {
                 let (x1, y1) = ((x + 1).min(w - 1), (y + 1).min(h - 1));
-                g = max2(g, cell_gradient(at(x, y), at(x1, y), at(x, y1), at(x1, y1)));
+                g = max2(g, test.cell(at(x, y), at(x1, y), at(x, y1), at(x1, y1)));
             }
         }
         g
     }
 
     /// The mipmap of a `w x h` layer, laid out as its motion pyramid.
-    fn mip(w: u32, h: u32, recycled: Option<GradientMip>, simd: bool) -> GradientMip {
+    fn mip(w: u32, h: u32, recycled: Option<GradientMip>, simd: bool, test: OneSeedTest) -> GradientMip {
         let m = zwarp_core::Image::new(w, h, zwarp_core::Motion { v: glam::Vec2::ZERO, depth: 0.5 });
         let levels = crate::MotionPyramid::build(&m).unwrap().raw().2.collect();
-        let mut g = GradientMip::new(w, h, levels, recycled);
+        let mut g = GradientMip::new(w, h, levels, test, recycled);
         g.simd = simd;
         g
     }
@@ -507,17 +679,20 @@ mod tests {
     /// Every texel of every level, asked in a random order (so blocks and coarser texels are
     /// computed from whichever look-up comes first), equals the brute-force maximum over its
     /// footprint, bit for bit: portable and AVX2 blocks (full 16-column blocks, blocks at the
-    /// right and bottom borders, images smaller than a block), one thread and many, and a
-    /// mipmap recycled for new planes computes them afresh.
+    /// right and bottom borders, images smaller than a block), one thread and many, both tests,
+    /// and a mipmap recycled for new planes computes them afresh.
     #[test]
     fn lazy_texels_equal_the_brute_force_maximum_over_their_footprint() {
         let mut rng = Pcg32::seed_from_u64(3);
         for (w, h) in [(1u32, 1u32), (2, 3), (5, 2), (17, 9), (33, 40), (64, 48), (97, 61), (150, 37)] {
-            for simd in [false, crate::simd::has_avx2()] {
+            for (simd, test) in [false, crate::simd::has_avx2()]
+                .into_iter()
+                .flat_map(|s| [(s, OneSeedTest::Contraction), (s, OneSeedTest::Monotone)])
+            {
                 let mut old = None;
                 for seed in [1u64, 2] {
                     let p = planes(w, h, seed + 10 * (w * h) as u64);
-                    let g = mip(w, h, old.take(), simd);
+                    let g = mip(w, h, old.take(), simd, test);
                     let mut all: Vec<(u32, u32, u32)> = Vec::new();
                     for (l, &(lw, lh, _)) in g.levels.iter().enumerate() {
                         for ty in 0..lh {
@@ -533,11 +708,11 @@ mod tests {
                         all.par_iter().map(|&(l, tx, ty)| g.texel(&p, l, tx, ty)).collect()
                     };
                     for (&(l, tx, ty), got) in all.iter().zip(&got) {
-                        let want = brute(&p, w, h, l, tx, ty);
+                        let want = brute(&p, w, h, l, tx, ty, test);
                         assert_eq!(
                             got.map(f32::to_bits),
                             want.map(f32::to_bits),
-                            "{w}x{h} simd {simd} level {l} ({tx}, {ty})"
+                            "{w}x{h} simd {simd} {test:?} level {l} ({tx}, {ty})"
                         );
                     }
                     old = Some(g);

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use zwarp_core::{Error, Image, Motion, ParallaxMotion, Result, EMPTY_DEPTH};
 
 use crate::bounds::{pca_frame_by, BlockExtent, Bound, BoundFrame, ImageClip, MotionPyramid, MotionScales};
-use crate::gradient::{GradientMip, UNIQUE_GRADIENT};
+use crate::gradient::{GradientMip, OneSeedTest, UNIQUE_GRADIENT};
 use crate::sampling::{LayerSampler, SamplePlanes, Sampling};
 use crate::simd::{fmax, fmin};
 use crate::{BoundKind, WarpLayer, WarpParams};
@@ -777,7 +777,11 @@ impl PreparedLayer {
         // it go without, and it is computed where the warp looks it up.
         let gradient = earlier.is_empty().then(|| {
             let levels = pyramid.raw().2.collect();
-            GradientMip::new(w, h, levels, gradient)
+            let test = match scales {
+                MotionScales::AtLeastOne => OneSeedTest::Monotone,
+                MotionScales::Any => OneSeedTest::Contraction,
+            };
+            GradientMip::new(w, h, levels, test, gradient)
         });
         let surfaces = SurfaceMotion { lo: stats.surf_lo, hi: stats.surf_hi, all_finite: stats.flags & 4 == 0 };
         Ok(PreparedLayer {
@@ -817,8 +821,9 @@ impl PreparedLayer {
         &self.pyramid
     }
 
-    /// Component-wise largest [`crate::gradient::cell_gradient`] over the cells a fetch at any
-    /// point of the inclusive pixel range can interpolate (the texels of [`MotionPyramid::level_for_range`]
+    /// Component-wise largest cell bound of the layer's [`OneSeedTest`]
+    /// ([`crate::gradient::cell_gradient`] or [`crate::gradient::cell_fold`]) over the cells a
+    /// fetch at any point of the inclusive pixel range can interpolate (the texels of [`MotionPyramid::level_for_range`]
     /// that cover it, as [`MotionPyramid::lookup_min_depth`] reads them); `+inf` for the layers
     /// after the first of [`Self::prepare_stack`], which have no gradient mipmap (the warp
     /// shortcuts only the first layer's seeds).
@@ -835,27 +840,44 @@ impl PreparedLayer {
         g
     }
 
-    /// `true` if every target position of the box `p_lo..=p_hi` has at most one solution in its
-    /// search region under motion bound `b` (frame coordinates), and a walk from a seed in that
-    /// region that converges finds it, for the warp of `scale * v` (`WarpParams::motion_scale`):
-    /// every cell the region's fetches read is continuous in depth and
-    /// `sx^2 max|dvx/dq|^2 + sy^2 max|dvy/dq|^2 < 1/2` ([`crate::gradient::cell_gradient`]).
-    /// That bounds the Frobenius, hence the spectral, norm of the Jacobian of `scale * v` below `1/sqrt(2)`, so
-    /// `q -> p - scale v(q)` is a contraction on the region, which it maps into itself (every
-    /// motion there lies in `b`): Banach's theorem leaves exactly one fixed point, and N seeds
-    /// would all find the surface that one seed finds (seed 000 Sec. 3.2's seeds exist for
-    /// regions with several solutions). It also keeps every cell's motion range below
-    /// [`crate::sampling::CONTINUITY_PX`] (a range of at most `|dv/dx| + |dv/dy| < 1` per
-    /// component), so the adaptive fetch interpolates them all. `false` on the layers after the
-    /// first of a stack.
+    /// `true` if every target position `p` of the box `p_lo..=p_hi` has at most one solution of
+    /// `q + S v(q) = p` in its search region under motion bound `b` (frame coordinates), for the
+    /// warp of `S v` (`S = diag(scale)`, `WarpParams::motion_scale`), so that a walk from one seed
+    /// that converges has found the surface N seeds would find (seed 000 Sec. 3.2's seeds exist
+    /// for regions with several solutions). Every cell the region's fetches read must be
+    /// continuous in depth, and the motion, with the bounds of the layer's [`OneSeedTest`]:
+    ///
+    /// - [`OneSeedTest::Monotone`] (preparations of the motion as given,
+    ///   [`MotionScales::AtLeastOne`]): `max(sx, sy) max fold < 1` over the region
+    ///   ([`crate::gradient::cell_fold`]) makes the symmetric part of `S^-1 + Dv` positive
+    ///   definite (Gershgorin), so `(x - y) . S^-1 (F(x) - F(y)) > 0` for `F(q) = q + S v(q)`
+    ///   along any segment of the (convex) region: `F` is one-to-one there. The fold also keeps
+    ///   every cell interpolated by the fetch at that scale. This holds for magnified surfaces (a
+    ///   walk toward a wall, the ground under a moving camera), where a walk from one seed may
+    ///   fail to converge: the warp then searches that pixel in full.
+    /// - [`OneSeedTest::Contraction`] (a preparation shared by scaled warps of either sign,
+    ///   [`MotionScales::Any`]): `sx^2 max|dvx/dq|^2 + sy^2 max|dvy/dq|^2 < 1/2`
+    ///   ([`crate::gradient::cell_gradient`]) bounds the Frobenius, hence the spectral, norm of
+    ///   the Jacobian of `S v` below `1/sqrt(2)`, so `q -> p - S v(q)` maps the region into
+    ///   itself (every motion there lies in `b`) with exactly one fixed point (Banach); it also
+    ///   keeps every cell's motion range below [`crate::sampling::CONTINUITY_PX`] (at most
+    ///   `|dv/dx| + |dv/dy| < 1` per component), so the fetch interpolates them all. The test
+    ///   scales with the motion per axis, so each warp of the preparation is that of its
+    ///   explicitly scaled buffer.
+    ///
+    /// `false` on the layers after the first of a stack.
     pub fn unique_solution(&self, p_lo: Vec2, p_hi: Vec2, b: &Bound, scale: Vec2) -> bool {
+        let Some(grad) = &self.gradient else { return false };
         let (c_lo, c_hi) = self.pyramid.frame_box(p_lo, p_hi);
         let region = Bound { lo: c_lo - b.hi, hi: c_hi - b.lo };
         let Some((x0, y0, x1, y1)) = self.pyramid.pixel_range(&region, Sampling::Adaptive.footprint()) else {
             return false;
         };
         let [gx, gy] = self.lookup_gradient(x0, y0, x1, y1);
-        scale.x * scale.x * gx + scale.y * scale.y * gy < UNIQUE_GRADIENT
+        match grad.test() {
+            OneSeedTest::Monotone => scale.x > 0.0 && scale.y > 0.0 && fmax(scale.x, scale.y) * gx < 1.0,
+            OneSeedTest::Contraction => scale.x * scale.x * gx + scale.y * scale.y * gy < UNIQUE_GRADIENT,
+        }
     }
     /// The bound kind the mipmap was built for.
     pub fn bound_kind(&self) -> BoundKind {

@@ -272,9 +272,10 @@ pub fn ground_gap_layers(far: f32) -> Vec<(Image<f32>, Image<Motion>)> {
 /// A walk toward a tilted wall with a box in front (one layer, as depth and motion): the wall's
 /// motion expands about the image centre `c` by `s`, `v(q) = s (q - c)`, its depth
 /// `0.3 + 0.004 x + 0.003 y`; the box (pixels `[w/8, w/3) x [h/4, h/2)`, depth 0.2) moves by its
-/// own `(5, -3)` px besides. With `2 s^2 < 1/2` the wall's tiles away from the box hold one
-/// solution per pixel (`PreparedLayer::unique_solution`) although their bounds span pixels;
-/// the box's silhouette keeps the complete search busy.
+/// own `(5, -3)` px besides. The wall's tiles away from the box hold one solution per pixel
+/// (`PreparedLayer::unique_solution`: `q + v(q)` is monotone for `s > -1`, a contraction where
+/// `2 s^2 < 1/2`) although their bounds span pixels; the box's silhouette keeps the complete
+/// search busy.
 pub fn approach_field(w: u32, h: u32, s: f32) -> (Image<f32>, Image<Motion>) {
     let c = glam::Vec2::new(w as f32, h as f32) * 0.5;
     let in_box = |x: u32, y: u32| x >= w / 8 && x < w / 3 && y >= h / 4 && y < h / 2;

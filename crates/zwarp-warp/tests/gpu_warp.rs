@@ -579,12 +579,13 @@ fn multisample_matches_cpu_bit_for_bit() {
 /// Tiles whose region holds one solution (`PreparedLayer::unique_solution`: a walk toward a wall
 /// past a box, `synth::approach_field`) take one seed at the centre of the region under the
 /// tile's bound on the GPU as on the CPU: bit for bit, for N = 4 and 16, axis-aligned and
-/// oriented bounds, and motion scales (the gradient test scales with them).
+/// oriented bounds, contracting and magnified walls (monotone), and motion scales (the gradient
+/// test scales with them; a uniform positive one also takes the monotone test).
 #[test]
 fn unique_solution_tiles_match_cpu_bit_for_bit() {
     let Some(ctx) = test_context() else { return };
     let k = WarpKernel::new(&ctx).unwrap();
-    for (w, h, s) in [(64u32, 48u32, 0.4f32), (61, 37, 0.3)] {
+    for (w, h, s) in [(64u32, 48u32, 0.4f32), (61, 37, 0.3), (64, 48, 0.8), (61, 37, 1.5)] {
         let (d, m) = zwarp_warp::synth::approach_field(w, h, s);
         let layers = [WarpLayer { depth: &d, motion: &m }];
         for (bound, scale) in [
@@ -592,6 +593,7 @@ fn unique_solution_tiles_match_cpu_bit_for_bit() {
             (BoundKind::Oriented, Vec2::ONE),
             (BoundKind::Tight, Vec2::new(0.5, 1.5)),
             (BoundKind::Tight, Vec2::splat(-1.2)),
+            (BoundKind::Tight, Vec2::splat(2.0)),
         ] {
             for n in [4, 16] {
                 let p = WarpParams { n_seeds: n, bound, motion_scale: scale, ..base() };

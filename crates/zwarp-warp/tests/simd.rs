@@ -107,11 +107,12 @@ fn avx2_warp_equals_the_portable_warp_on_a_moving_city() {
 }
 
 /// Tiles whose region holds one solution (`PreparedLayer::unique_solution`: a walk toward a wall
-/// past a box, `synth::approach_field`) take one seed per lane; the AVX2 gradient texels and
-/// the lanes' one-seed pass equal the portable ones, with the box's tiles on the complete path.
+/// past a box, `synth::approach_field`, contracting or magnified) take one seed per lane; the
+/// AVX2 gradient texels and the lanes' one-seed pass equal the portable ones, with the box's
+/// tiles on the complete path.
 #[test]
 fn avx2_warp_equals_the_portable_warp_approaching_a_wall() {
-    for (w, h, s) in [(64u32, 48u32, 0.4f32), (77, 45, 0.3)] {
+    for (w, h, s) in [(64u32, 48u32, 0.4f32), (77, 45, 0.3), (64, 48, 0.8), (77, 45, 1.5)] {
         let (d, m) = synth::approach_field(w, h, s);
         let layers = [WarpLayer { depth: &d, motion: &m }];
         for bound in [BoundKind::Tight, BoundKind::Oriented] {

@@ -97,6 +97,10 @@ const FLAG_BACKGROUND: u32 = 64;
 const FLAG_AWOC: u32 = 128;
 /// `WarpParams::ground_layer`: the last layer is the ground peeled alone.
 const FLAG_GROUND: u32 = 256;
+/// A preparation of the motion as given (`MotionScales::AtLeastOne`): the gradient mipmap holds
+/// the fold bound and the one-seed test is monotonicity (`gradient::OneSeedTest::Monotone`);
+/// else the squared row norms and the contraction test.
+const FLAG_MONOTONE: u32 = 512;
 
 /// One source layer resident on the GPU: `width x height` source depths (`f32`, 1 = empty)
 /// and [`Motion`] samples (3 `f32` each: motion x, y, target depth), e.g. as written by
@@ -389,6 +393,9 @@ impl WarpKernel {
         }
         if params.ground_layer {
             flags |= FLAG_GROUND;
+        }
+        if scales == MotionScales::AtLeastOne {
+            flags |= FLAG_MONOTONE;
         }
         match params.seeding {
             SeedStrategy::Stratified => {}

@@ -9,7 +9,8 @@
 //   the CPU's `validated_samples` (invalid samples have target depth outside [0, 1)).
 // - mip / zmin: per layer `level_total` texels, levels 1..=top packed at params.levels[l-1].x;
 //   mip texel = (lo.x, lo.y, hi.x, hi.y) of the valid motion, zmin texel = (min target depth,
-//   component-wise largest bounds::cell_gradient of the cells whose top-left texel it covers, 0).
+//   component-wise largest bound of the cells whose top-left texel it covers, 0): the fold
+//   (gradient::cell_fold, twice) with FLAG_MONOTONE, else gradient::cell_gradient.
 // - out_depth / out_state: the warped depth and PixelState (0 converged, 1 filled, 2 hole,
 //   3 converged on a layer after the first: WarpOutput::revealed), one per target pixel.
 
@@ -66,6 +67,9 @@ const FLAG_BACKGROUND: u32 = 64u;
 const FLAG_AWOC: u32 = 128u;
 // WarpParams::ground_layer: the last layer is the ground peeled alone.
 const FLAG_GROUND: u32 = 256u;
+// The preparation serves motion scales >= 1 (MotionScales::AtLeastOne): the gradient mipmap
+// holds the fold and the one-seed test is monotonicity (gradient::OneSeedTest::Monotone).
+const FLAG_MONOTONE: u32 = 512u;
 const EMPTY_Z: f32 = 2.0;
 // zwarp_warp::RETRY_SEED_FACTOR and zwarp_warp::MAX_SEEDS.
 const RETRY_SEED_FACTOR: u32 = 4u;
@@ -81,7 +85,7 @@ const STRADDLE_DEPTH_RATIO: f32 = 1.5;
 const CONTINUITY: f32 = 1.0;
 const DEPTH_CONTINUITY: f32 = 2.0;
 const SURFACE_DEPTH_STEP: f32 = 0.05;
-// zwarp_warp::bounds::UNIQUE_GRADIENT.
+// zwarp_warp::gradient::UNIQUE_GRADIENT.
 const UNIQUE_GRADIENT: f32 = 0.5;
 const R2: vec2<f32> = vec2<f32>(0.7548777, 0.5698403);
 // f32::EPSILON.
@@ -214,8 +218,8 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    // bounds::gradient_row: the cells whose top-left texel lies in the block (clamped at the
-    // right and bottom border).
+    // gradient::GradientMip level 1: the cells whose top-left texel lies in the block (clamped
+    // at the right and bottom border).
     var g = vec2<f32>(params.inf.y);
     for (var dy = 0u; dy < 2u; dy++) {
         let y = gid.y * 2u + dy;
@@ -228,7 +232,11 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let b = samples[k * wh + y * w + x1].xyz;
                 let c = samples[k * wh + y1 * w + x].xyz;
                 let d = samples[k * wh + y1 * w + x1].xyz;
-                g = max(g, cell_gradient(a, b, c, d));
+                if ((params.flags & FLAG_MONOTONE) != 0u) {
+                    g = max(g, vec2<f32>(cell_fold(a, b, c, d)));
+                } else {
+                    g = max(g, cell_gradient(a, b, c, d));
+                }
             }
         }
     }
@@ -237,7 +245,7 @@ fn mip_base(@builtin(global_invocation_id) gid: vec3<u32>) {
     zmin[o] = vec4<f32>(z, g, 0.0);
 }
 
-// bounds::cell_gradient: the squared norms of the rows of the bilinear fetch's Jacobian over
+// gradient::cell_gradient: the squared norms of the rows of the bilinear fetch's Jacobian over
 // the cell a b / c d (motion .xy, target depth .z), +inf where the depths stop the fetch from
 // interpolating it.
 fn cell_gradient(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
@@ -249,6 +257,32 @@ fn cell_gradient(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, d: vec3<f32>) -> vec2
         return gx * gx + gy * gy;
     }
     return vec2<f32>(params.inf.x);
+}
+
+// gradient::cell_fold: a bound of |dvx/dy + dvy/dx| / 2 - min(dvx/dx, dvy/dy) of the bilinear
+// fetch over the cell a b / c d (Gershgorin on the symmetric part of I + Dv); at least the
+// motion range where the cell is not one surface, +inf where the fetch never interpolates it.
+fn cell_fold(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, d: vec3<f32>) -> f32 {
+    // Differences along x (b - a, d - c) and y (c - a, d - b), motion x and y.
+    let ex = b.xy - a.xy;
+    let fx = d.xy - c.xy;
+    let ey = c.xy - a.xy;
+    let fy = d.xy - b.xy;
+    let shear_lo = min(ey.x, fy.x) + min(ex.y, fx.y);
+    let shear_hi = max(ey.x, fy.x) + max(ex.y, fx.y);
+    let fold = 0.5 * max(abs(shear_lo), abs(shear_hi)) - min(min(ex.x, fx.x), min(ey.y, fy.y));
+    let z_lo = min(min(a.z, b.z), min(c.z, d.z));
+    let z_hi = max(max(a.z, b.z), max(c.z, d.z));
+    let step = z_hi - z_lo;
+    let room = 1.0 - z_hi;
+    if (step < SURFACE_DEPTH_STEP * room) {
+        return fold;
+    }
+    if (step < DEPTH_CONTINUITY * room) {
+        let range = max(max(a.xy, b.xy), max(c.xy, d.xy)) - min(min(a.xy, b.xy), min(c.xy, d.xy));
+        return max(fold, max(range.x, range.y));
+    }
+    return params.inf.x;
 }
 
 // MotionPyramid::from_samples, level params.level from the level below.
@@ -422,7 +456,8 @@ fn frame_box(k: u32, p_lo: vec2<f32>, p_hi: vec2<f32>) -> vec4<f32> {
 
 // Kernel::unique_solution for layer 0's tile bound b over [p_lo, p_hi]
 // (PreparedLayer::unique_solution): a bound wider than a pixel, stratified seeds, the adaptive
-// fetch, and the scaled motion a contraction on the box's region.
+// fetch, and q + S v(q) monotone on the box's region (FLAG_MONOTONE) or the scaled motion a
+// contraction there.
 fn unique_solution(p_lo: vec2<f32>, p_hi: vec2<f32>, b: vec4<f32>) -> bool {
     let e = b.zw - b.xy;
     if ((e.x <= 1.0 && e.y <= 1.0) || (params.flags & (FLAG_SEED_PIXEL | FLAG_SEED_OFFSET)) != 0u
@@ -437,6 +472,9 @@ fn unique_solution(p_lo: vec2<f32>, p_hi: vec2<f32>, b: vec4<f32>) -> bool {
     }
     let g = lookup_zmin(0u, r.r).yz;
     let s = params.motion_scale;
+    if ((params.flags & FLAG_MONOTONE) != 0u) {
+        return s.x > 0.0 && s.y > 0.0 && max(s.x, s.y) * g.x < 1.0;
+    }
     return s.x * s.x * g.x + s.y * s.y * g.y < UNIQUE_GRADIENT;
 }
 
