@@ -690,23 +690,56 @@ fn fill_border_listed(depth: &mut Image<f32>, state: &mut Image<PixelState>, hol
     // The run from a hole to the border holds no converged pixel exactly when the hole lies
     // before the first (after the last) converged pixel of its row or column, and then that
     // pixel is the nearest converged one inwards. A usable one lies within 2 reach of the
-    // border; a run that finds none there stands for "none usable".
+    // border; a run that finds none there stands for "none usable". Found once per row and
+    // column (the columns a row at a time, in memory order), not per hole.
     let span = (2 * reach).min(wu.max(hu));
-    let first_in = |n: usize, at: &dyn Fn(usize) -> usize| (0..span.min(n)).find(|&k| conv(at(k)));
-    let last_in = |n: usize, at: &dyn Fn(usize) -> usize| (0..span.min(n)).map(|k| n - 1 - k).find(|&k| conv(at(k)));
+    let (sw, sh) = (span.min(wu), span.min(hu));
+    // The rows and columns that hold listed holes.
+    let (mut in_row, mut in_col) = (vec![false; hu], vec![false; wu]);
+    for &i in &holes {
+        in_row[(i / w) as usize] = true;
+        in_col[(i % w) as usize] = true;
+    }
+    let row_ends: Vec<(Option<usize>, Option<usize>)> = (0..hu)
+        .into_par_iter()
+        .map(|y| {
+            if !in_row[y] {
+                return (None, None);
+            }
+            let at = |k: usize| conv(y * wu + k);
+            ((0..sw).find(|&k| at(k)), (0..sw).map(|k| wu - 1 - k).find(|&k| at(k)))
+        })
+        .collect();
+    let cols: Vec<usize> = (0..wu).filter(|&x| in_col[x]).collect();
+    let col_end = |rows: &mut dyn Iterator<Item = usize>| {
+        let mut end: Vec<Option<usize>> = vec![None; wu];
+        let mut left = cols.len();
+        for y in rows {
+            for &x in &cols {
+                if end[x].is_none() && conv(y * wu + x) {
+                    end[x] = Some(y);
+                    left -= 1;
+                }
+            }
+            if left == 0 {
+                break;
+            }
+        }
+        end
+    };
+    let (col_first, col_last) = rayon::join(|| col_end(&mut (0..sh)), || col_end(&mut (0..sh).map(|k| hu - 1 - k)));
     let fills: Vec<(u32, f32)> = holes
         .par_iter()
         .filter_map(|&i| {
             let (x, y) = ((i % w) as usize, (i / w) as usize);
-            let row = |k: usize| y * wu + k;
-            let col = |k: usize| k * wu + x;
+            let (first_row, last_row) = row_ends[y];
             // (distance to the border, the converged pixel inwards and its distance) for the
             // left, right, top and bottom borders.
             let sides = [
-                (x, first_in(wu, &row).filter(|&c| c > x).map(|c| (c - x, y * wu + c))),
-                (wu - 1 - x, last_in(wu, &row).filter(|&c| c < x).map(|c| (x - c, y * wu + c))),
-                (y, first_in(hu, &col).filter(|&c| c > y).map(|c| (c - y, c * wu + x))),
-                (hu - 1 - y, last_in(hu, &col).filter(|&c| c < y).map(|c| (y - c, c * wu + x))),
+                (x, first_row.filter(|&c| c > x).map(|c| (c - x, y * wu + c))),
+                (wu - 1 - x, last_row.filter(|&c| c < x).map(|c| (x - c, y * wu + c))),
+                (y, col_first[x].filter(|&c| c > y).map(|c| (c - y, c * wu + x))),
+                (hu - 1 - y, col_last[x].filter(|&c| c < y).map(|c| (y - c, c * wu + x))),
             ];
             let mut best: Option<(usize, f32)> = None;
             for (to_border, inward) in sides {
@@ -765,6 +798,68 @@ mod tests {
             }
         });
         (d, s)
+    }
+
+    /// The border fill (first and last converged pixel of each row and column found once)
+    /// equals its definition walked per hole: a hole within `reach` of a border whose run to
+    /// that border holds no converged pixel takes the nearest converged pixel inwards within
+    /// `reach` (of up to four, ties to the farther depth); random images, reaches below and
+    /// above the image size, holes on every side.
+    #[test]
+    fn border_fill_equals_its_definition_per_hole() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg32::seed_from_u64(5);
+        for (w, h, p_hole) in [(1u32, 1u32, 0.5f32), (9, 4, 0.6), (40, 30, 0.8), (300, 5, 0.95), (17, 61, 0.9)] {
+            let depth = Image::from_fn(w, h, |_, _| rng.random_range(0.1..0.99f32));
+            let state = Image::from_fn(w, h, |_, _| {
+                if rng.random::<f32>() < p_hole {
+                    PixelState::Hole
+                } else {
+                    PixelState::Converged
+                }
+            });
+            for reach in [1u32, 2, 5, 40, 400] {
+                let (mut d, mut s) = (depth.clone(), state.clone());
+                fill_border_holes(&mut d, &mut s, reach);
+                let (dd, sd) = (depth.data(), state.data());
+                let (mut want, mut want_state) = (depth.clone(), state.clone());
+                let conv = |x: i64, y: i64| sd[y as usize * w as usize + x as usize] == PixelState::Converged;
+                for i in hole_list(&state) {
+                    let (x, y) = ((i % w) as i64, (i / w) as i64);
+                    let mut best: Option<(i64, f32)> = None;
+                    for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                        // Distance to the border along (dx, dy), and nothing converged on the way.
+                        let to_border = (0..).take_while(|&k| {
+                            let (xx, yy) = (x + dx * (k + 1), y + dy * (k + 1));
+                            xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64
+                        });
+                        let steps = to_border.count() as i64;
+                        let open = (1..=steps).all(|k| !conv(x + dx * k, y + dy * k));
+                        if steps >= reach as i64 || !open {
+                            continue;
+                        }
+                        // The nearest converged pixel inwards, within reach.
+                        let inward = (1..=reach as i64)
+                            .map(|k| (k, x - dx * k, y - dy * k))
+                            .take_while(|&(_, xx, yy)| xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64)
+                            .find(|&(_, xx, yy)| conv(xx, yy));
+                        if let Some((k, xx, yy)) = inward {
+                            let z = dd[yy as usize * w as usize + xx as usize];
+                            if best.is_none_or(|(bk, bz)| k < bk || (k == bk && z > bz)) {
+                                best = Some((k, z));
+                            }
+                        }
+                    }
+                    if let Some((_, z)) = best {
+                        want.data_mut()[i as usize] = z;
+                        want_state.data_mut()[i as usize] = PixelState::Filled;
+                    }
+                }
+                let bits = |im: &Image<f32>| im.data().iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+                assert!(bits(&d) == bits(&want), "{w}x{h} reach {reach}");
+                assert!(s.data() == want_state.data(), "{w}x{h} reach {reach}");
+            }
+        }
     }
 
     /// The hole fill that skips runs of listed holes gives exactly what walking every probe
