@@ -41,8 +41,18 @@ fn main() {
     let rep = reproject(&tgt.depth, &to_src, &src.depth, sc, &c0).unwrap();
     let seen = source_visibility(&tgt.depth, &to_src, &src.depth, &c0).unwrap();
     let se = |a: &[f32; 3], b: &[f32; 3]| (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>() / 3.0;
-    // classes: 0 seen, 1 unseen & robust converged, 2 unseen & robust not converged
-    let mut acc = [[0f64; 3]; 3];
+    // Classes: 0 seen, 1 unseen where the robust warp converged, 2 unseen and filled; seen
+    // pixels also split by a depth step to a 4-neighbour of the render (3: at one, 4: not).
+    let mut acc = [[0f64; 3]; 5];
+    let (w, h) = (args.width, args.height);
+    let edge = |x: u32, y: u32| {
+        let z = *tgt.depth.get(x, y);
+        let room = 1.0 - z.max(*tgt.depth.get(x.saturating_sub(1), y)).max(*tgt.depth.get((x + 1).min(w - 1), y));
+        let room = room.min(1.0 - tgt.depth.get(x, y.saturating_sub(1)).max(*tgt.depth.get(x, (y + 1).min(h - 1))));
+        [(x.saturating_sub(1), y), ((x + 1).min(w - 1), y), (x, y.saturating_sub(1)), (x, (y + 1).min(h - 1))]
+            .iter()
+            .any(|&(a, b)| (tgt.depth.get(a, b) - z).abs() > zwarp_warp::sampling::DEPTH_CONTINUITY * room.max(0.0))
+    };
     let n = tc.len();
     for j in 0..n {
         let (x, y) = ((j % args.width as usize) as u32, (j / args.width as usize) as u32);
@@ -57,17 +67,23 @@ fn main() {
         acc[c][0] += 1.0;
         acc[c][1] += se(r, rob.color.get(x, y));
         acc[c][2] += se(r, rep.color.get(x, y));
+        if c == 0 {
+            let e = if edge(x, y) { 3 } else { 4 };
+            acc[e][0] += 1.0;
+            acc[e][1] += se(r, rob.color.get(x, y));
+            acc[e][2] += se(r, rep.color.get(x, y));
+        }
     }
     let db = |s: f64| -10.0 * (s / n as f64).log10();
-    let tot_r: f64 = acc.iter().map(|a| a[1]).sum();
-    let tot_p: f64 = acc.iter().map(|a| a[2]).sum();
+    let tot_r: f64 = acc[..3].iter().map(|a| a[1]).sum();
+    let tot_p: f64 = acc[..3].iter().map(|a| a[2]).sum();
     println!(
         "total: robust {:.3} dB  reproject {:.3} dB  robust with reproject's colour where the source did not see {:.3} dB",
         db(tot_r),
         db(tot_p),
         db(acc[0][1] + acc[1][2] + acc[2][2])
     );
-    for (i, name) in ["seen", "unseen conv", "unseen fill"].iter().enumerate() {
+    for (i, name) in ["seen", "unseen conv", "unseen fill", "seen edge", "seen inside"].iter().enumerate() {
         let a = acc[i];
         println!(
             "{name:12} px {:7}  share of SE: robust {:.4}e-4 reproject {:.4}e-4  (per px mse robust {:.5} reproject {:.5})",
