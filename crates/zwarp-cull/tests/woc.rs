@@ -684,6 +684,34 @@ fn separating_objects_keep_what_the_opening_shows() {
     assert!(opening_rim_dirs(&prev.depth, &prev.items, &motion, -0.5).is_err());
 }
 
+/// Any opening can expose a pixel centre, however slow, and `open_rims` decides which are
+/// trusted: A abuts B at pixel x = 48.52 and slides left 0.05 px in one frame, opening the strip
+/// [48.47, 48.52) that holds the centre of column 48, where REF sees the hidden box C. A
+/// threshold below the separation keeps C at full and coarse resolution; the default (0.1 px)
+/// trusts the opening and culls it (as on CB at 960x540, through a rim separating by 0.077 px).
+#[test]
+fn openings_slower_than_the_threshold_are_trusted() {
+    let v = Vec3::new(-0.005 / DT, 0.0, 0.0);
+    let x = |px: f32| 0.1 * px - 4.8;
+    let s = scene_of(&[
+        (Aabb::new(Vec3::new(x(10.0), -2.0, 1.0), Vec3::new(x(48.52), 2.0, 1.5)), Animation::Linear { velocity: v }),
+        bx([x(48.52), -2.0, -1.0], [x(85.0), 2.0, -0.5]),
+        bx([x(48.0), -1.0, -5.0], [x(49.2), 1.0, -4.0]),
+    ]);
+    let cam = ortho_cam();
+    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
+    assert_eq!(visible_from_items(&prev.items, 3), vec![0, 1], "C is hidden in the previous frame");
+    let cur = render_frame(&s, &cam, DT, &FrameOptions::default()).unwrap();
+    assert_eq!(*cur.items.get(48, 30), 2, "C shows through the strip");
+    let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
+    for downsample in [1, 4] {
+        let trusting = WocParams { downsample, ..WocParams::default() };
+        assert_eq!(woc(&s, &pf, &cam, DT, &trusting).unwrap().visible, vec![0, 1], "1/{downsample}, 0.1 px");
+        let strict = WocParams { open_rims: Some(0.01), ..trusting };
+        assert_eq!(woc(&s, &pf, &cam, DT, &strict).unwrap().visible, vec![0, 1, 2], "1/{downsample}, 0.01 px");
+    }
+}
+
 /// Where the warp is exact (no camera or object motion), WOC without erosion (and without the
 /// silhouette test) culls exactly what the ideal screen-space test culls, and with the default
 /// erosion keeps a superset; the silhouette test culls more than the ideal rectangle test,
