@@ -383,6 +383,33 @@ fn cull_repeat_keeps_the_decisions() {
     assert!(error_line(&err).contains("--repeat"), "{err}");
 }
 
+/// `--rim-separation`: recorded in the JSON; a lower threshold opens more rims, so WOC never
+/// culls more than with the default; a negative or NaN one is one `error:` line.
+#[test]
+fn cull_rim_separation_is_a_threshold() {
+    let (_dir, d) = tmp("cullrims");
+    let read = |j: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(j).unwrap()).unwrap()
+    };
+    let cr = |v: &serde_json::Value| v["rows"][0]["culling_ratio"].as_f64().unwrap();
+    let (jd, js) = (d.join("default.json"), d.join("strict.json"));
+    let (ok, err) = cull_small("bl", &["--method", "woc", "--no-psnr", "--downsample", "1"], &jd);
+    assert!(ok, "{err}");
+    let (ok, err) =
+        cull_small("bl", &["--method", "woc", "--no-psnr", "--downsample", "1", "--rim-separation", "0.01"], &js);
+    assert!(ok, "{err}");
+    let (vd, vs) = (read(&jd), read(&js));
+    assert_eq!(vd["rim_separation"].as_f64().unwrap() as f32, 0.1, "{vd}");
+    assert_eq!(vs["rim_separation"].as_f64().unwrap() as f32, 0.01, "{vs}");
+    assert!(cr(&vs) <= cr(&vd), "{} vs {}", cr(&vs), cr(&vd));
+    for bad in ["-1", "NaN"] {
+        let (ok, err) =
+            cull_small("bl", &["--method", "woc", "--no-psnr", "--rim-separation", bad], &d.join("bad.json"));
+        assert!(!ok);
+        assert!(error_line(&err).contains("rim separation"), "{err}");
+    }
+}
+
 #[test]
 fn shadows_writes_the_documented_fields() {
     let (_dir, d) = tmp("shadows");

@@ -46,6 +46,14 @@ pub struct CullArgs {
     /// costs more than drawing what it saves on this CPU).
     #[arg(long)]
     pub downsample: Option<u32>,
+    /// WOC/AWOC's opening-rim threshold in pixels per frame (`WocParams::open_rims`): near-side
+    /// rim texels of two objects separating faster than this become far, so what the opening
+    /// shows is not culled. Default 0.1: slower openings are trusted (CB at 960x540, full
+    /// resolution, culls one visible object in 24 frames through a 0.077 px opening); 0.01
+    /// trusts only what the motion field's own precision cannot tell, at 2-4 points of culling
+    /// ratio (crates/zwarp-cull/README.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub rim_separation: Option<f32>,
     /// Cull every frame this many times from the same inputs and keep the repetition of median
     /// cost (the decision is the same each time): `cull_ms` and `cull_ms_p99` then describe
     /// the cost along the path rather than the machine's one-off hiccups. CPU backend only.
@@ -176,6 +184,9 @@ pub fn run(args: CullArgs) -> Result<()> {
         bail!("--downsample must be at least 1");
     }
     let mut params = WocParams { downsample, ..WocParams::default() };
+    if let Some(px) = args.rim_separation {
+        params.open_rims = Some(px);
+    }
     params.warp.n_seeds = args.n;
     params.validate()?;
     let loaded = args.scene.load()?;
@@ -361,6 +372,7 @@ pub fn run(args: CullArgs) -> Result<()> {
             "height": args.size.height,
             "downsample": downsample,
             "repeat": args.repeat,
+            "rim_separation": params.open_rims,
         }),
     )?;
     println!("wrote {}", args.json.display());
