@@ -623,19 +623,17 @@ fn ortho_cam() -> Camera {
     Camera::orthographic(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y, 0.05 * H as f32, 0.1, 100.0, W, H).unwrap()
 }
 
-/// Analytic sub-pixel opening: a near box A (id 0) and a farther box B (id 1) abut on screen at
-/// pixel x = 48.7; a narrow box C (id 2) far behind the seam is hidden. A slides left 0.4 px in
-/// one frame, opening the strip [48.3, 48.7) that holds the centre of pixel column 48: REF sees
-/// C there. The warp fills the strip from A's rim texel (column 48, preimage 48.9 within half a
-/// pixel) and the erosion only raises it to B's depth, so without rims C is culled; both rim
-/// modes keep it, and the target mode opens exactly column 48.
-#[test]
-fn separating_objects_keep_what_the_opening_shows() {
-    let v = Vec3::new(-0.04 / DT, 0.0, 0.0);
+/// The analytic sub-pixel opening of the rim tests on [`ortho_cam`]: a near box A (id 0) whose
+/// right edge abuts a farther box B (id 1) at pixel x = `edge` and slides left `slide` pixels per
+/// frame, and a narrow box C (id 2) far behind the seam (columns 48.0-49.2). Returns the scene
+/// and the previous frame (t = 0) after checking that C is hidden there and shows at column 48
+/// of the current frame (t = DT).
+fn opening(edge: f32, slide: f32) -> (Scene, zwarp_raster::Frame) {
+    let v = Vec3::new(-0.1 * slide / DT, 0.0, 0.0);
     let x = |px: f32| 0.1 * px - 4.8;
     let s = scene_of(&[
-        (Aabb::new(Vec3::new(x(10.0), -2.0, 1.0), Vec3::new(x(48.7), 2.0, 1.5)), Animation::Linear { velocity: v }),
-        bx([x(48.7), -2.0, -1.0], [x(85.0), 2.0, -0.5]),
+        (Aabb::new(Vec3::new(x(10.0), -2.0, 1.0), Vec3::new(x(edge), 2.0, 1.5)), Animation::Linear { velocity: v }),
+        bx([x(edge), -2.0, -1.0], [x(85.0), 2.0, -0.5]),
         bx([x(48.0), -1.0, -5.0], [x(49.2), 1.0, -4.0]),
     ]);
     let cam = ortho_cam();
@@ -644,6 +642,19 @@ fn separating_objects_keep_what_the_opening_shows() {
     let cur = render_frame(&s, &cam, DT, &FrameOptions::default()).unwrap();
     assert_eq!(*cur.items.get(48, 30), 2, "C shows through the strip");
     assert_eq!(visible_from_items(&cur.items, 3), vec![0, 1, 2]);
+    (s, prev)
+}
+
+/// Analytic sub-pixel opening: a near box A (id 0) and a farther box B (id 1) abut on screen at
+/// pixel x = 48.7; a narrow box C (id 2) far behind the seam is hidden. A slides left 0.4 px in
+/// one frame, opening the strip [48.3, 48.7) that holds the centre of pixel column 48: REF sees
+/// C there. The warp fills the strip from A's rim texel (column 48, preimage 48.9 within half a
+/// pixel) and the erosion only raises it to B's depth, so without rims C is culled; both rim
+/// modes keep it, and the target mode opens exactly column 48.
+#[test]
+fn separating_objects_keep_what_the_opening_shows() {
+    let (s, prev) = opening(48.7, 0.4);
+    let cam = ortho_cam();
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
     let norims = woc(&s, &pf, &cam, DT, &WocParams { open_rims: None, ..WocParams::default() }).unwrap();
     assert_eq!(norims.visible, vec![0, 1], "without rims the strip is closed and C is culled");
@@ -691,18 +702,8 @@ fn separating_objects_keep_what_the_opening_shows() {
 /// trusts the opening and culls it (as on CB at 960x540, through a rim separating by 0.077 px).
 #[test]
 fn openings_slower_than_the_threshold_are_trusted() {
-    let v = Vec3::new(-0.005 / DT, 0.0, 0.0);
-    let x = |px: f32| 0.1 * px - 4.8;
-    let s = scene_of(&[
-        (Aabb::new(Vec3::new(x(10.0), -2.0, 1.0), Vec3::new(x(48.52), 2.0, 1.5)), Animation::Linear { velocity: v }),
-        bx([x(48.52), -2.0, -1.0], [x(85.0), 2.0, -0.5]),
-        bx([x(48.0), -1.0, -5.0], [x(49.2), 1.0, -4.0]),
-    ]);
+    let (s, prev) = opening(48.52, 0.05);
     let cam = ortho_cam();
-    let prev = render_frame(&s, &cam, 0.0, &FrameOptions::default()).unwrap();
-    assert_eq!(visible_from_items(&prev.items, 3), vec![0, 1], "C is hidden in the previous frame");
-    let cur = render_frame(&s, &cam, DT, &FrameOptions::default()).unwrap();
-    assert_eq!(*cur.items.get(48, 30), 2, "C shows through the strip");
     let pf = PrevFrame { depth: &prev.depth, items: &prev.items, cam: &cam, t: 0.0 };
     for downsample in [1, 4] {
         let trusting = WocParams { downsample, ..WocParams::default() };
