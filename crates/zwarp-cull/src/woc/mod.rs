@@ -96,10 +96,11 @@ pub struct WocParams {
     /// Default `Some(0.1)`: slower openings are trusted. The strip an opening uncovers lies
     /// anywhere between the two texel centres (the source samples only those), so any
     /// separation can expose a pixel centre; CB at full resolution (960x540, 24 frames) culls
-    /// one visible object through a rim separating by 0.077 px. The tightest usable threshold
-    /// is the motion field's own precision (0 opens rims on a static view, whose reprojected
-    /// motion is off by up to 0.003 px): 0.01 costs CB 2.6 points of culling ratio vs REF at
-    /// 1080p and 1/4 (95.4% -> 92.8%, frame 16.0 -> 18.2 ms), BL 1.3 points at 960x540.
+    /// one visible object through a rim separating by 0.077 px. The tightest meaningful
+    /// threshold is the motion field's own precision (0 also opens rims where nothing moves: a
+    /// static view's reprojected motion is off by up to 0.003 px): 0.01 costs CB 2.6 points of
+    /// culling ratio vs REF at 1080p and 1/4 (95.4% -> 92.8%, frame 16.0 -> 18.2 ms), BL 1.3
+    /// points at 960x540.
     /// Measured (scale 0.25, 960x540, 23 frames, CR vs REF / culled visible objects, source
     /// rims): BL off 83.0% / 24, 0.4 px 76.3% / 7, 0.2 px 73.6% / 0, 0 px 72.8% / 0 (VFC
     /// 68.9%, ideal 93.0%); CB off 95.9% / 1, 0.2 px 91.2% / 0, 0 px 85.6% / 0.
