@@ -47,11 +47,10 @@ fn main() {
     let (w, h) = (args.width, args.height);
     let edge = |x: u32, y: u32| {
         let z = *tgt.depth.get(x, y);
-        let room = 1.0 - z.max(*tgt.depth.get(x.saturating_sub(1), y)).max(*tgt.depth.get((x + 1).min(w - 1), y));
-        let room = room.min(1.0 - tgt.depth.get(x, y.saturating_sub(1)).max(*tgt.depth.get(x, (y + 1).min(h - 1))));
-        [(x.saturating_sub(1), y), ((x + 1).min(w - 1), y), (x, y.saturating_sub(1)), (x, (y + 1).min(h - 1))]
-            .iter()
-            .any(|&(a, b)| (tgt.depth.get(a, b) - z).abs() > zwarp_warp::sampling::DEPTH_CONTINUITY * room.max(0.0))
+        let nb = [(x.saturating_sub(1), y), ((x + 1).min(w - 1), y), (x, y.saturating_sub(1)), (x, (y + 1).min(h - 1))]
+            .map(|(a, b)| *tgt.depth.get(a, b));
+        let room = 1.0 - nb.iter().fold(z, |m, &d| m.max(d));
+        nb.iter().any(|&d| (d - z).abs() > zwarp_warp::sampling::DEPTH_CONTINUITY * room.max(0.0))
     };
     let n = tc.len();
     for j in 0..n {
@@ -64,14 +63,12 @@ fn main() {
             2
         };
         let r = tc.get(x, y);
-        acc[c][0] += 1.0;
-        acc[c][1] += se(r, rob.color.get(x, y));
-        acc[c][2] += se(r, rep.color.get(x, y));
-        if c == 0 {
-            let e = if edge(x, y) { 3 } else { 4 };
-            acc[e][0] += 1.0;
-            acc[e][1] += se(r, rob.color.get(x, y));
-            acc[e][2] += se(r, rep.color.get(x, y));
+        let err = [1.0, se(r, rob.color.get(x, y)), se(r, rep.color.get(x, y))];
+        let edge_class = (c == 0).then(|| if edge(x, y) { 3 } else { 4 });
+        for k in std::iter::once(c).chain(edge_class) {
+            for (a, e) in acc[k].iter_mut().zip(err) {
+                *a += e;
+            }
         }
     }
     let db = |s: f64| -10.0 * (s / n as f64).log10();
